@@ -1,0 +1,1 @@
+"""skisnow edges: command line, storage, offline jobs and (later) the web service."""

@@ -1,0 +1,298 @@
+"""Elastic half-space kernels: periodic (micro scale) and non-periodic (macro scale).
+
+Elasticity convention (method.md §3)
+------------------------------------
+One effective modulus ``E'`` with ``2/E' = (1-ν²)/E_snow + (1-ν²)/E_base``. The surface
+displacement under a pressure ``p`` is ``u(x, y) = 2/(π E') ∬ p(x', y') / r dx' dy'``, i.e.
+``û(q) = 4 p̂(q) / (E' |q|)``. ``E' = 2 E*`` where ``E*`` is Johnson's composite modulus.
+Displacement ``u`` is positive *into* the half-space (it opens the gap).
+
+FFT convention (periodic kernel)
+--------------------------------
+- Real-to-complex transforms ``rfft2`` / ``irfft2`` over both axes with ``norm="backward"``:
+  the forward transform is unnormalised and the inverse carries ``1/(nx ny)``. Because the
+  kernel multiplies the transform pointwise, the convention cancels: ``u = irfft2(G · rfft2(p))``.
+- Layout: axis 0 has ``nx`` points (``fftfreq``), axis 1 is the half spectrum of ``ny`` points
+  (``rfftfreq``); odd and even sizes are both exact.
+- Wavevector ``q = 2π (fx, fy)`` in rad/m for a pixel size ``dx, dy`` [m]; ``G(q) = 4/(E'|q|)``.
+- The ``q = 0`` mode (the mean pressure) is mapped to zero displacement: on a periodic cell a
+  uniform pressure only moves the half-space rigidly, which the solvers carry separately as the
+  rigid approach. The displacement returned therefore has zero mean.
+
+Non-periodic kernel (macro scale)
+---------------------------------
+The half-space is infinite: pressure is piecewise constant on rectangular pixels and the
+influence coefficients are Love's (1929) closed-form displacement at pixel centres due to a
+uniformly loaded rectangle, ``u = (2/(π E')) F(x, y; a, b)``. The discrete convolution is done
+with zero padding to ``(2nx, 2ny)`` so that it is linear, not circular. Same FFT normalisation.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.fft
+
+from .errors import InputError
+
+__all__ = [
+    "FFTBackend",
+    "NonPeriodicHalfSpace",
+    "PeriodicHalfSpace",
+    "effective_modulus",
+    "love_rectangle_influence",
+]
+
+
+def effective_modulus(
+    snow_modulus_pa: float, base_modulus_pa: float = 0.7e9, poisson_ratio: float = 0.3
+) -> float:
+    """Effective modulus E' of method.md eq. (1).
+
+    Parameters
+    ----------
+    snow_modulus_pa : float
+        Young's modulus of the (virtual) snow [Pa].
+    base_modulus_pa : float
+        Young's modulus of the ski base [Pa]; default 0.7 GPa (sintered UHMWPE, our choice).
+    poisson_ratio : float
+        Poisson's ratio of both bodies [-]; default 0.3 (our choice).
+
+    Returns
+    -------
+    float
+        E' [Pa] with ``2/E' = (1-ν²)/E_snow + (1-ν²)/E_base``.
+    """
+    for name, value in (("snow_modulus_pa", snow_modulus_pa), ("base_modulus_pa", base_modulus_pa)):
+        if not np.isfinite(value) or value <= 0:
+            raise InputError(f"{name} must be a finite number > 0, got {value!r}")
+    if not np.isfinite(poisson_ratio) or not (0.0 <= poisson_ratio < 0.5):
+        raise InputError(f"poisson_ratio must be in [0, 0.5), got {poisson_ratio!r}")
+    c = 1.0 - poisson_ratio**2
+    return 2.0 / (c / snow_modulus_pa + c / base_modulus_pa)
+
+
+def _default_workers() -> int:
+    return max(1, os.cpu_count() or 1)
+
+
+@dataclass
+class FFTBackend:
+    """Real 2-D FFT pair for one array shape: ``scipy.fft`` (default) or pyFFTW.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        Real-space shape ``(nx, ny)``.
+    backend : {"scipy", "pyfftw"}
+        ``"pyfftw"`` needs the ``fftw`` extra (``pip install 'skisnow[fftw]'``).
+    workers : int, optional
+        Threads; default: all cores.
+    """
+
+    shape: tuple[int, int]
+    backend: str = "scipy"
+    workers: int | None = None
+    _fwd: object = field(init=False, repr=False, default=None)
+    _inv: object = field(init=False, repr=False, default=None)
+
+    def __post_init__(self) -> None:
+        self.shape = (int(self.shape[0]), int(self.shape[1]))
+        if self.workers is None:
+            self.workers = _default_workers()
+        if self.backend == "pyfftw":
+            try:
+                import pyfftw
+            except ImportError as exc:  # pragma: no cover - depends on the environment
+                raise ImportError(
+                    "backend='pyfftw' needs pyFFTW: pip install 'skisnow[fftw]'"
+                ) from exc
+            a = pyfftw.empty_aligned(self.shape, dtype="float64")
+            b = pyfftw.empty_aligned((self.shape[0], self.shape[1] // 2 + 1), dtype="complex128")
+            self._fwd = pyfftw.FFTW(
+                a, b, axes=(0, 1), direction="FFTW_FORWARD", threads=self.workers,
+                flags=("FFTW_MEASURE",),
+            )
+            self._inv = pyfftw.FFTW(
+                b.copy(), a.copy(), axes=(0, 1), direction="FFTW_BACKWARD",
+                threads=self.workers, flags=("FFTW_MEASURE", "FFTW_DESTROY_INPUT"),
+            )
+        elif self.backend != "scipy":
+            raise InputError(f"backend must be 'scipy' or 'pyfftw', got {self.backend!r}")
+
+    def rfft2(self, a: np.ndarray) -> np.ndarray:
+        """Forward real FFT (unnormalised)."""
+        if self._fwd is not None:
+            self._fwd.input_array[...] = a
+            return self._fwd().copy()
+        return scipy.fft.rfft2(a, workers=self.workers)
+
+    def irfft2(self, a: np.ndarray) -> np.ndarray:
+        """Inverse real FFT (carries 1/N)."""
+        if self._inv is not None:
+            self._inv.input_array[...] = a
+            return self._inv(normalise_idft=True).copy()
+        return scipy.fft.irfft2(a, s=self.shape, workers=self.workers)
+
+
+class PeriodicHalfSpace:
+    """Periodic elastic half-space on an ``(nx, ny)`` grid (micro scale).
+
+    Parameters
+    ----------
+    shape : tuple of int
+        Grid ``(nx, ny)`` [-].
+    pixel_size_m : float or tuple of float
+        Pixel size ``dx`` (and ``dy``) [m].
+    effective_modulus_pa : float
+        E' of method.md eq. (1) [Pa].
+    backend, workers :
+        Passed to :class:`FFTBackend`.
+    """
+
+    def __init__(
+        self,
+        shape: tuple[int, int],
+        pixel_size_m: float | tuple[float, float],
+        effective_modulus_pa: float,
+        *,
+        backend: str = "scipy",
+        workers: int | None = None,
+    ) -> None:
+        nx, ny = int(shape[0]), int(shape[1])
+        if nx < 1 or ny < 1:
+            raise InputError(f"shape must be positive, got {shape!r}")
+        dx, dy = np.broadcast_to(np.asarray(pixel_size_m, dtype=float), (2,))
+        if not (np.isfinite(dx) and np.isfinite(dy) and dx > 0 and dy > 0):
+            raise InputError(f"pixel_size_m must be finite and > 0, got {pixel_size_m!r}")
+        if not np.isfinite(effective_modulus_pa) or effective_modulus_pa <= 0:
+            raise InputError(
+                f"effective_modulus_pa must be finite and > 0, got {effective_modulus_pa!r}"
+            )
+        self.shape = (nx, ny)
+        self.pixel_size_m = (float(dx), float(dy))
+        self.effective_modulus_pa = float(effective_modulus_pa)
+        self.fft = FFTBackend(self.shape, backend=backend, workers=workers)
+        self._self_compliance: float | None = None
+        qx = 2 * np.pi * scipy.fft.fftfreq(nx, d=dx)[:, None]
+        qy = 2 * np.pi * scipy.fft.rfftfreq(ny, d=dy)[None, :]
+        q = np.sqrt(qx**2 + qy**2)
+        #: |q| on the rfft2 layout [rad/m]
+        self.wavevector = q
+        with np.errstate(divide="ignore"):
+            g = np.where(q > 0, 4.0 / (self.effective_modulus_pa * q), 0.0)
+        #: compliance G(q) = 4/(E'|q|) [m/Pa · m], zero at q = 0
+        self.compliance = g
+        with np.errstate(divide="ignore"):
+            #: stiffness 1/G(q) = E'|q|/4, zero at q = 0
+            self.stiffness = np.where(q > 0, self.effective_modulus_pa * q / 4.0, 0.0)
+
+    @property
+    def self_compliance(self) -> float:
+        """Displacement of a pixel under a unit pressure on itself (diagonal) [m/Pa]."""
+        if self._self_compliance is None:
+            delta = np.zeros(self.shape)
+            delta[0, 0] = 1.0
+            self._self_compliance = float(self.displacement(delta)[0, 0])
+        return self._self_compliance
+
+    def displacement(self, pressure_pa: np.ndarray) -> np.ndarray:
+        """Zero-mean surface displacement [m] under a periodic pressure field [Pa]."""
+        return self.fft.irfft2(self.compliance * self.fft.rfft2(pressure_pa))
+
+    def pressure(self, displacement_m: np.ndarray) -> np.ndarray:
+        """Zero-mean pressure [Pa] that produces a (zero-mean part of a) displacement [m]."""
+        return self.fft.irfft2(self.stiffness * self.fft.rfft2(displacement_m))
+
+
+def love_rectangle_influence(
+    x_m: np.ndarray, y_m: np.ndarray, half_width_x_m: float, half_width_y_m: float
+) -> np.ndarray:
+    """Love's (1929) function F so that ``u = 2/(π E') · p · F`` at (x, y) [m].
+
+    Displacement of an elastic half-space at ``(x, y)`` under a uniform pressure ``p`` on the
+    rectangle ``|x| ≤ a, |y| ≤ b`` (Johnson, Contact Mechanics, 1985, §3.3, with E' = 2E*).
+    """
+    a, b = half_width_x_m, half_width_y_m
+    x = np.asarray(x_m, dtype=float)
+    y = np.asarray(y_m, dtype=float)
+
+    def term(s: np.ndarray, t: np.ndarray) -> np.ndarray:
+        # s * asinh(t/|s|)-type primitive, written stably: s*ln(t + sqrt(s²+t²))
+        r = np.sqrt(s * s + t * t)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out = np.where(s != 0, s * np.log(np.where(r + t > 0, t + r, 1.0)), 0.0)
+        return out
+
+    def prim(xx: np.ndarray, yy: np.ndarray) -> np.ndarray:
+        # ∬ dx dy / r primitive: x ln(y + r) + y ln(x + r)
+        return term(xx, yy) + term(yy, xx)
+
+    xp, xm = x + a, x - a
+    yp, ym = y + b, y - b
+    return prim(xp, yp) - prim(xp, ym) - prim(xm, yp) + prim(xm, ym)
+
+
+class NonPeriodicHalfSpace:
+    """Infinite elastic half-space sampled on an ``(nx, ny)`` grid (macro scale).
+
+    Pressure is constant over each pixel; displacement is evaluated at pixel centres by a
+    zero-padded (linear) FFT convolution with Love's influence coefficients.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        Grid ``(nx, ny)`` [-].
+    pixel_size_m : float or tuple of float
+        Pixel size ``(dx, dy)`` [m].
+    effective_modulus_pa : float
+        E' [Pa].
+    """
+
+    def __init__(
+        self,
+        shape: tuple[int, int],
+        pixel_size_m: float | tuple[float, float],
+        effective_modulus_pa: float,
+        *,
+        workers: int | None = None,
+    ) -> None:
+        nx, ny = int(shape[0]), int(shape[1])
+        if nx < 1 or ny < 1:
+            raise InputError(f"shape must be positive, got {shape!r}")
+        dx, dy = np.broadcast_to(np.asarray(pixel_size_m, dtype=float), (2,))
+        if not (np.isfinite(dx) and np.isfinite(dy) and dx > 0 and dy > 0):
+            raise InputError(f"pixel_size_m must be finite and > 0, got {pixel_size_m!r}")
+        if not np.isfinite(effective_modulus_pa) or effective_modulus_pa <= 0:
+            raise InputError(
+                f"effective_modulus_pa must be finite and > 0, got {effective_modulus_pa!r}"
+            )
+        self.shape = (nx, ny)
+        self.pixel_size_m = (float(dx), float(dy))
+        self.effective_modulus_pa = float(effective_modulus_pa)
+        self.workers = workers if workers is not None else _default_workers()
+        px, py = 2 * nx, 2 * ny
+        ix = np.arange(px)
+        iy = np.arange(py)
+        ix = np.where(ix < nx, ix, ix - px)  # signed offsets, wrap-around layout
+        iy = np.where(iy < ny, iy, iy - py)
+        xx = ix[:, None] * dx
+        yy = iy[None, :] * dy
+        kern = 2.0 / (np.pi * self.effective_modulus_pa) * love_rectangle_influence(
+            xx, yy, dx / 2, dy / 2
+        )
+        kern[nx, :] = 0.0  # offsets that can never be reached by an nx-long grid
+        kern[:, ny] = 0.0
+        self._padded_shape = (px, py)
+        self._kernel_hat = scipy.fft.rfft2(kern, workers=self.workers)
+        #: influence of a unit pressure on its own pixel [m/Pa]
+        self.self_compliance = float(kern[0, 0])
+
+    def displacement(self, pressure_pa: np.ndarray) -> np.ndarray:
+        """Surface displacement [m] at pixel centres under ``pressure_pa`` [Pa]."""
+        nx, ny = self.shape
+        p_hat = scipy.fft.rfft2(pressure_pa, s=self._padded_shape, workers=self.workers)
+        u = scipy.fft.irfft2(p_hat * self._kernel_hat, s=self._padded_shape, workers=self.workers)
+        return u[:nx, :ny]

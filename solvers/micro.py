@@ -1,0 +1,397 @@
+"""Micro scale: a rigid periodic texture pressed into an elastic half-space (method.md §5).
+
+Load-controlled constrained conjugate gradients after Polonsky & Keer (Wear 231, 1999, 206-219),
+on the periodic FFT half-space of :mod:`solvers.elastic` (FFT convention stated there). One
+iteration costs two FFT pairs: ``u(p)`` for the gap and ``u(t)`` for the conjugate direction.
+
+Gap convention (method.md §5): the texture's highest point touches first, so the unloaded gap
+is ``h_0 = max h* − h*``; under load ``g = h_0 + u(p) − δ ≥ 0`` with rigid approach ``δ``,
+``p ≥ 0`` and ``p·g = 0``. The contact set ``ω_c`` is decided by the pressure (``p > 0``); the
+gap is exactly zero there.
+
+Speed: the solve starts from the warm start given, else from a nested-grid continuation (the
+problem is solved on 2×-coarsened grids first and the pressure prolonged to the finer grid),
+which removes most of the fine-grid iterations.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .elastic import PeriodicHalfSpace
+from .errors import InputError
+
+__all__ = ["DEFAULT_GAP_FLOOR_M", "MicroResult", "full_contact_pressure", "solve_micro"]
+
+log = logging.getLogger(__name__)
+
+#: Gap floor h_c of the reported mean reciprocal gap (method.md §5, our choice) [m]
+DEFAULT_GAP_FLOOR_M = 10e-9
+
+
+@dataclass
+class MicroResult:
+    """Result of one micro-scale solve. Fields are SI; the unit is in each name.
+
+    Attributes
+    ----------
+    pressure_pa : ndarray
+        Contact pressure p_n(x, y) [Pa].
+    gap_m : ndarray
+        Gap h_n(x, y) ≥ 0 [m], zero on the contact set.
+    nominal_pressure_pa : float
+        Imposed nominal (mean) pressure P_n [Pa].
+    effective_modulus_pa : float
+        E' [Pa].
+    pixel_size_m : tuple of float
+        Pixel size (dx, dy) [m].
+    real_contact_area_fraction : float
+        a_r = |ω_c| / |ω| [-] (method.md eq. 3).
+    mean_gap_m : float
+        (1/|ω|) ∬ h_n [m] (method.md eq. 4 with H = 0).
+    mean_reciprocal_gap_per_m : float
+        Mean over the gap set ω_g of 1/max(h_n, h_c) [1/m] (eq. 5 with H = 0, n = 0, floored).
+    mean_reciprocal_gap_raw_per_m : float
+        Mean over ω_g of 1/h_n without floor [1/m] (resolution dependent, see method.md §5).
+    gap_floor_m : float
+        h_c used for the floored value [m].
+    rigid_approach_m : float
+        δ [m], measured from first touch.
+    full_contact : bool
+        True when the imposed pressure reaches full contact (state returned exactly).
+    converged : bool
+        True if the residual met the tolerance within ``max_iterations``.
+    iterations : int
+        Conjugate-gradient iterations on the finest grid (coarse levels in ``level_iterations``).
+    residual : float
+        Final residual: RMS gap on the contact set over the RMS height, plus the relative
+        pressure carried by penetrating points [-].
+    message : str
+        Human-readable status.
+    solve_time_s : float
+        Wall time of the solve [s].
+    """
+
+    pressure_pa: np.ndarray
+    gap_m: np.ndarray
+    nominal_pressure_pa: float
+    effective_modulus_pa: float
+    pixel_size_m: tuple[float, float]
+    real_contact_area_fraction: float
+    mean_gap_m: float
+    mean_reciprocal_gap_per_m: float
+    mean_reciprocal_gap_raw_per_m: float
+    gap_floor_m: float
+    rigid_approach_m: float
+    full_contact: bool
+    converged: bool
+    iterations: int
+    residual: float
+    message: str
+    solve_time_s: float = 0.0
+    level_iterations: list[int] = field(default_factory=list)
+
+
+def _check_heights(heights_m: np.ndarray) -> np.ndarray:
+    h = np.asarray(heights_m, dtype=float)
+    if h.ndim != 2:
+        raise InputError(f"heights_m must be a 2-D array, got shape {h.shape}")
+    if h.shape[0] < 2 or h.shape[1] < 2:
+        raise InputError(f"heights_m must be at least 2x2 pixels, got {h.shape}")
+    if not np.all(np.isfinite(h)):
+        raise InputError("heights_m contains NaN or inf values")
+    return h
+
+
+def full_contact_pressure(
+    heights_m: np.ndarray,
+    pixel_size_m: float | tuple[float, float],
+    effective_modulus_pa: float,
+    *,
+    halfspace: PeriodicHalfSpace | None = None,
+) -> tuple[float, np.ndarray]:
+    """Nominal pressure at which the texture first comes into full contact [Pa].
+
+    In full contact ``u = δ − h_0`` everywhere, so the pressure field is
+    ``p = P + p̃`` with ``p̃ = irfft2(E'|q|/4 · rfft2(h))``; it stays ≥ 0 while
+    ``P ≥ −min p̃``.
+
+    Returns
+    -------
+    (float, ndarray)
+        The full-contact pressure [Pa] and the zero-mean fluctuation p̃ [Pa].
+    """
+    h = _check_heights(heights_m)
+    hs = halfspace or PeriodicHalfSpace(h.shape, pixel_size_m, effective_modulus_pa)
+    fluct = hs.pressure(h - h.mean())
+    return float(max(-fluct.min(), 0.0)), fluct
+
+
+def _gap_statistics(gap: np.ndarray, contact: np.ndarray, floor_m: float) -> tuple[float, float]:
+    free = ~contact
+    if not free.any():
+        return 1.0 / floor_m, 1.0 / floor_m
+    g = gap[free]
+    floored = float(np.mean(1.0 / np.maximum(g, floor_m)))
+    pos = g > 0
+    raw = float(np.sum(1.0 / g[pos]) / g.size) if pos.any() else 1.0 / floor_m
+    if not pos.all():
+        # points of the gap set with an exactly zero gap are counted at the floor
+        raw += float(np.count_nonzero(~pos) / g.size / floor_m)
+    return floored, raw
+
+
+def _coarsen(h: np.ndarray) -> np.ndarray:
+    """2×2 block mean of a periodic field with even sizes."""
+    nx, ny = h.shape
+    return h.reshape(nx // 2, 2, ny // 2, 2).mean(axis=(1, 3))
+
+
+def _prolong(p: np.ndarray) -> np.ndarray:
+    return np.repeat(np.repeat(p, 2, axis=0), 2, axis=1)
+
+
+def _pk_cg(
+    hs: PeriodicHalfSpace,
+    h0: np.ndarray,
+    mean_pressure: float,
+    p_init: np.ndarray | None,
+    tol: float,
+    max_iterations: int,
+    callback: Callable[[int, float], None] | None,
+) -> tuple[np.ndarray, np.ndarray, float, int, float, bool]:
+    """Polonsky-Keer CG; returns (p, g, δ, iterations, residual, converged)."""
+    n = h0.size
+    total = mean_pressure * n
+    scale_h = float(np.sqrt(np.mean((h0 - h0.mean()) ** 2))) or 1.0
+    if p_init is None:
+        p = np.full(h0.shape, mean_pressure)
+    else:
+        p = np.maximum(np.asarray(p_init, dtype=float), 0.0)
+        s = p.sum()
+        p = p * (total / s) if s > 0 else np.full(h0.shape, mean_pressure)
+    t = np.zeros_like(p)
+    g_old_norm = 1.0
+    restart = True
+    residual = np.inf
+    delta = 0.0
+    it = 0
+    converged = False
+    while it < max_iterations:
+        it += 1
+        contact = p > 0
+        nc = int(np.count_nonzero(contact))
+        u = hs.displacement(p)
+        g = h0 + u
+        delta = float(g[contact].mean()) if nc else float(g.min())
+        g -= delta
+        gc = np.where(contact, g, 0.0)
+        g_norm = float(np.dot(gc.ravel(), gc.ravel()))
+        # residual: gap inside contact and pressure missing at penetrating points
+        pen = (~contact) & (g < 0)
+        residual = np.sqrt(g_norm / max(nc, 1)) / scale_h
+        if pen.any():
+            residual += float(np.sqrt(np.mean(np.where(pen, g, 0.0) ** 2 * n / max(nc, 1)))) / (
+                scale_h
+            )
+        if callback is not None:
+            callback(it, residual)
+        if residual < tol:
+            converged = True
+            it -= 1  # this pass only evaluated the residual
+            break
+        beta = 0.0 if restart else g_norm / g_old_norm
+        t = gc + beta * np.where(contact, t, 0.0)
+        g_old_norm = g_norm
+        r = hs.displacement(t)
+        r_mean = float(r[contact].mean()) if nc else 0.0
+        r -= r_mean
+        denom = float(np.dot(np.where(contact, r, 0.0).ravel(), t.ravel()))
+        tau = float(np.dot(gc.ravel(), t.ravel())) / denom if denom > 0 else 0.0
+        if not tau > 0:
+            # degenerate step (e.g. a single contact point has no gap residual): fall back to
+            # the Jacobi step so that penetrating points can still enter the contact set
+            tau = 1.0 / hs.self_compliance
+        p_new = np.where(contact, p - tau * t, 0.0)
+        p_new[p_new < 0] = 0.0
+        overlap = (~contact) & (g < 0)
+        restart = bool(overlap.any())
+        if restart:
+            p_new[overlap] -= tau * g[overlap]
+        s = p_new.sum()
+        if s <= 0:
+            p_new = np.full(h0.shape, mean_pressure)
+            restart = True
+        else:
+            p_new *= total / s
+        p = p_new
+    contact = p > 0
+    gap = np.where(contact, 0.0, np.maximum(g, 0.0))
+    return p, gap, delta, it, float(residual), converged
+
+
+def solve_micro(
+    heights_m: np.ndarray,
+    pixel_size_m: float | tuple[float, float],
+    nominal_pressure_pa: float,
+    effective_modulus_pa: float,
+    *,
+    tol: float = 1e-6,
+    max_iterations: int = 2000,
+    initial_pressure_pa: np.ndarray | None = None,
+    nested: bool = True,
+    gap_floor_m: float = DEFAULT_GAP_FLOOR_M,
+    backend: str = "scipy",
+    workers: int | None = None,
+    halfspace: PeriodicHalfSpace | None = None,
+    callback: Callable[[int, float], None] | None = None,
+) -> MicroResult:
+    """Press a rigid periodic texture into the elastic half-space at a nominal pressure.
+
+    Parameters
+    ----------
+    heights_m : ndarray, shape (nx, ny)
+        Texture heights h* [m], finite; peaks point towards the snow.
+    pixel_size_m : float or (float, float)
+        Pixel size [m].
+    nominal_pressure_pa : float
+        Nominal (mean) pressure P_n ≥ 0 [Pa].
+    effective_modulus_pa : float
+        E' of method.md eq. (1) [Pa].
+    tol : float
+        Tolerance on the relative residual (RMS gap on the contact set over RMS height) [-].
+    max_iterations : int
+        Iteration cap on each grid level; reaching it returns ``converged=False``.
+    initial_pressure_pa : ndarray, optional
+        Warm start (e.g. the previous point of a rising pressure sequence) [Pa]; rescaled to
+        the requested mean pressure. Without it a nested-grid continuation is used.
+    nested : bool
+        Use the nested-grid start when no warm start is given.
+    gap_floor_m : float
+        h_c of the floored mean reciprocal gap [m].
+    backend, workers :
+        FFT backend (``"scipy"`` or ``"pyfftw"``) and threads.
+    halfspace : PeriodicHalfSpace, optional
+        Reuse a prepared half-space (same shape, pixel size and modulus).
+    callback : callable(iteration, residual), optional
+        Progress hook (finest grid only).
+
+    Returns
+    -------
+    MicroResult
+    """
+    t0 = time.perf_counter()
+    h = _check_heights(heights_m)
+    p_nom = float(nominal_pressure_pa)
+    if not np.isfinite(p_nom) or p_nom < 0:
+        raise InputError(f"nominal_pressure_pa must be finite and >= 0, got {nominal_pressure_pa!r}")
+    e_eff = float(effective_modulus_pa)
+    if not np.isfinite(e_eff) or e_eff <= 0:
+        raise InputError(f"effective_modulus_pa must be finite and > 0, got {effective_modulus_pa!r}")
+    if not np.isfinite(gap_floor_m) or gap_floor_m <= 0:
+        raise InputError(f"gap_floor_m must be finite and > 0, got {gap_floor_m!r}")
+    if not (np.isfinite(tol) and tol > 0):
+        raise InputError(f"tol must be finite and > 0, got {tol!r}")
+    if initial_pressure_pa is not None:
+        initial_pressure_pa = np.asarray(initial_pressure_pa, dtype=float)
+        if initial_pressure_pa.shape != h.shape:
+            raise InputError(
+                f"initial_pressure_pa has shape {initial_pressure_pa.shape}, expected {h.shape}"
+            )
+        if not np.all(np.isfinite(initial_pressure_pa)):
+            raise InputError("initial_pressure_pa contains NaN or inf values")
+    if np.ptp(h) == 0:
+        raise InputError("heights_m is flat (peak-to-valley 0): no texture to solve")
+    hs = halfspace or PeriodicHalfSpace(
+        h.shape, pixel_size_m, e_eff, backend=backend, workers=workers
+    )
+    dxy = hs.pixel_size_m
+    h0 = h.max() - h
+
+    def finish(p, gap, delta, full, conv, its, res, msg, levels):
+        contact = p > 0
+        rec, rec_raw = _gap_statistics(gap, contact, gap_floor_m)
+        return MicroResult(
+            pressure_pa=p,
+            gap_m=gap,
+            nominal_pressure_pa=p_nom,
+            effective_modulus_pa=e_eff,
+            pixel_size_m=dxy,
+            real_contact_area_fraction=float(np.count_nonzero(contact) / p.size),
+            mean_gap_m=float(gap.mean()),
+            mean_reciprocal_gap_per_m=rec,
+            mean_reciprocal_gap_raw_per_m=rec_raw,
+            gap_floor_m=float(gap_floor_m),
+            rigid_approach_m=float(delta),
+            full_contact=full,
+            converged=conv,
+            iterations=its,
+            residual=float(res),
+            message=msg,
+            solve_time_s=time.perf_counter() - t0,
+            level_iterations=levels,
+        )
+
+    if p_nom == 0.0:
+        return finish(
+            np.zeros_like(h), h0.copy(), 0.0, False, True, 0, 0.0,
+            "zero load: unloaded texture, no contact", [],
+        )
+    p_fc, fluct = full_contact_pressure(h, dxy, e_eff, halfspace=hs)
+    if p_nom >= p_fc:
+        p = p_nom + fluct
+        p = np.maximum(p, 0.0)
+        delta = float(h0.mean() + p_nom * 0.0)
+        return finish(
+            p, np.zeros_like(h), delta + float(h0.max() - h0.mean()), True, True, 0, 0.0,
+            f"full contact: nominal pressure {p_nom:.6g} Pa >= full-contact pressure "
+            f"{p_fc:.6g} Pa",
+            [],
+        )
+
+    levels: list[int] = []
+    p_start = initial_pressure_pa
+    if p_start is None and nested:
+        p_start = _nested_start(h, dxy, p_nom, e_eff, tol, max_iterations, levels, workers)
+    p, gap, delta, its, res, conv = _pk_cg(hs, h0, p_nom, p_start, tol, max_iterations, callback)
+    levels.append(its)
+    msg = (
+        f"converged in {its} iterations (residual {res:.3g} < tol {tol:.3g})"
+        if conv
+        else f"not converged: {its} iterations reached max_iterations, residual {res:.3g}"
+    )
+    return finish(p, gap, delta, False, conv, its, res, msg, levels)
+
+
+def _nested_start(
+    h: np.ndarray,
+    dxy: tuple[float, float],
+    p_nom: float,
+    e_eff: float,
+    tol: float,
+    max_iterations: int,
+    levels: list[int],
+    workers: int | None,
+    min_size: int = 64,
+) -> np.ndarray | None:
+    """Pressure guess from solves on 2×-coarsened grids (None if the grid cannot coarsen)."""
+    nx, ny = h.shape
+    if nx % 2 or ny % 2 or min(nx, ny) < 2 * min_size:
+        return None
+    hc = _coarsen(h)
+    dxc = (2 * dxy[0], 2 * dxy[1])
+    hs = PeriodicHalfSpace(hc.shape, dxc, e_eff, workers=workers)
+    p_fc, _ = full_contact_pressure(hc, dxc, e_eff, halfspace=hs)
+    if p_nom >= p_fc:
+        return None
+    p_coarse_start = _nested_start(hc, dxc, p_nom, e_eff, tol, max_iterations, levels, workers)
+    p, _, _, its, _, _ = _pk_cg(
+        hs, hc.max() - hc, p_nom, p_coarse_start, max(tol, 1e-4), max_iterations, None
+    )
+    levels.append(its)
+    return _prolong(p)
