@@ -112,12 +112,20 @@ class FFTBackend:
             a = pyfftw.empty_aligned(self.shape, dtype="float64")
             b = pyfftw.empty_aligned((self.shape[0], self.shape[1] // 2 + 1), dtype="complex128")
             self._fwd = pyfftw.FFTW(
-                a, b, axes=(0, 1), direction="FFTW_FORWARD", threads=self.workers,
+                a,
+                b,
+                axes=(0, 1),
+                direction="FFTW_FORWARD",
+                threads=self.workers,
                 flags=("FFTW_MEASURE",),
             )
             self._inv = pyfftw.FFTW(
-                b.copy(), a.copy(), axes=(0, 1), direction="FFTW_BACKWARD",
-                threads=self.workers, flags=("FFTW_MEASURE", "FFTW_DESTROY_INPUT"),
+                b.copy(),
+                a.copy(),
+                axes=(0, 1),
+                direction="FFTW_BACKWARD",
+                threads=self.workers,
+                flags=("FFTW_MEASURE", "FFTW_DESTROY_INPUT"),
             )
         elif self.backend != "scipy":
             raise InputError(f"backend must be 'scipy' or 'pyfftw', got {self.backend!r}")
@@ -280,8 +288,10 @@ class NonPeriodicHalfSpace:
         iy = np.where(iy < ny, iy, iy - py)
         xx = ix[:, None] * dx
         yy = iy[None, :] * dy
-        kern = 2.0 / (np.pi * self.effective_modulus_pa) * love_rectangle_influence(
-            xx, yy, dx / 2, dy / 2
+        kern = (
+            2.0
+            / (np.pi * self.effective_modulus_pa)
+            * love_rectangle_influence(xx, yy, dx / 2, dy / 2)
         )
         kern[nx, :] = 0.0  # offsets that can never be reached by an nx-long grid
         kern[:, ny] = 0.0

@@ -164,8 +164,17 @@ def _pk_cg(
     tol: float,
     max_iterations: int,
     callback: Callable[[int, float], None] | None,
+    precondition: bool = True,
+    refresh_every: int = 50,
 ) -> tuple[np.ndarray, np.ndarray, float, int, float, bool]:
-    """Polonsky-Keer CG; returns (p, g, δ, iterations, residual, converged)."""
+    """Preconditioned Polonsky-Keer CG; returns (p, g, δ, iterations, residual, converged).
+
+    The search direction is preconditioned with the half-space stiffness ``E'|q|/4`` (the
+    inverse of the compliance on the full cell), restricted to the contact set: one extra FFT
+    pair per iteration, several times fewer iterations on rough surfaces. While the contact
+    set does not change, ``u(p)`` is updated from ``u(t)`` instead of being recomputed
+    (linearity), with a full recomputation every ``refresh_every`` iterations.
+    """
     n = h0.size
     total = mean_pressure * n
     scale_h = float(np.sqrt(np.mean((h0 - h0.mean()) ** 2))) or 1.0
@@ -175,61 +184,88 @@ def _pk_cg(
         p = np.maximum(np.asarray(p_init, dtype=float), 0.0)
         s = p.sum()
         p = p * (total / s) if s > 0 else np.full(h0.shape, mean_pressure)
+    u = hs.displacement(p)
     t = np.zeros_like(p)
-    g_old_norm = 1.0
+    rz_old = 1.0
     restart = True
     residual = np.inf
     delta = 0.0
     it = 0
     converged = False
-    while it < max_iterations:
-        it += 1
+    since_refresh = 0
+    g = np.empty_like(p)
+    while True:
         contact = p > 0
+        cf = contact.astype(float)
         nc = int(np.count_nonzero(contact))
-        u = hs.displacement(p)
-        g = h0 + u
-        delta = float(g[contact].mean()) if nc else float(g.min())
+        np.add(h0, u, out=g)
+        delta = float(np.dot(g.ravel(), cf.ravel()) / nc) if nc else float(g.min())
         g -= delta
-        gc = np.where(contact, g, 0.0)
+        gc = g * cf
         g_norm = float(np.dot(gc.ravel(), gc.ravel()))
-        # residual: gap inside contact and pressure missing at penetrating points
-        pen = (~contact) & (g < 0)
-        residual = np.sqrt(g_norm / max(nc, 1)) / scale_h
-        if pen.any():
-            residual += float(np.sqrt(np.mean(np.where(pen, g, 0.0) ** 2 * n / max(nc, 1)))) / (
-                scale_h
-            )
+        residual = float(np.sqrt(g_norm / max(nc, 1))) / scale_h
+        pen = np.minimum(g, 0.0)
+        pen *= 1.0 - cf
+        pen_norm = float(np.dot(pen.ravel(), pen.ravel()))
+        if pen_norm > 0:
+            residual += float(np.sqrt(pen_norm / max(nc, 1))) / scale_h
         if callback is not None:
             callback(it, residual)
         if residual < tol:
+            if since_refresh:  # confirm on a freshly computed displacement
+                u = hs.displacement(p)
+                since_refresh = 0
+                continue
             converged = True
-            it -= 1  # this pass only evaluated the residual
             break
-        beta = 0.0 if restart else g_norm / g_old_norm
-        t = gc + beta * np.where(contact, t, 0.0)
-        g_old_norm = g_norm
-        r = hs.displacement(t)
-        r_mean = float(r[contact].mean()) if nc else 0.0
-        r -= r_mean
-        denom = float(np.dot(np.where(contact, r, 0.0).ravel(), t.ravel()))
+        if it >= max_iterations:
+            break
+        it += 1
+        if precondition and nc:
+            z = hs.pressure(gc)
+            z *= cf
+            z -= cf * (float(z.sum()) / nc)
+        else:
+            z = gc
+        rz = float(np.dot(gc.ravel(), z.ravel()))
+        beta = 0.0 if restart or rz_old == 0 else rz / rz_old
+        t *= cf
+        t *= beta
+        t += z
+        rz_old = rz
+        w = hs.displacement(t)
+        w_mean = float(np.dot(w.ravel(), cf.ravel()) / nc) if nc else 0.0
+        denom = float(np.dot(w.ravel(), t.ravel())) - w_mean * float(t.sum())
         tau = float(np.dot(gc.ravel(), t.ravel())) / denom if denom > 0 else 0.0
         if not tau > 0:
             # degenerate step (e.g. a single contact point has no gap residual): fall back to
             # the Jacobi step so that penetrating points can still enter the contact set
             tau = 1.0 / hs.self_compliance
-        p_new = np.where(contact, p - tau * t, 0.0)
-        p_new[p_new < 0] = 0.0
-        overlap = (~contact) & (g < 0)
-        restart = bool(overlap.any())
-        if restart:
-            p_new[overlap] -= tau * g[overlap]
+        p_new = p - tau * t
+        p_new *= cf
+        clipped = p_new < 0
+        any_clipped = bool(clipped.any())
+        if any_clipped:
+            p_new[clipped] = 0.0
+        any_overlap = pen_norm > 0
+        if any_overlap:
+            p_new -= tau * pen
+        restart = any_clipped or any_overlap
         s = p_new.sum()
         if s <= 0:
             p_new = np.full(h0.shape, mean_pressure)
             restart = True
-        else:
-            p_new *= total / s
+            s = total
+        factor = total / s
+        p_new *= factor
         p = p_new
+        since_refresh += 1
+        if restart or since_refresh >= refresh_every:
+            u = hs.displacement(p)
+            since_refresh = 0
+        else:
+            u -= tau * w
+            u *= factor
     contact = p > 0
     gap = np.where(contact, 0.0, np.maximum(g, 0.0))
     return p, gap, delta, it, float(residual), converged
@@ -289,10 +325,14 @@ def solve_micro(
     h = _check_heights(heights_m)
     p_nom = float(nominal_pressure_pa)
     if not np.isfinite(p_nom) or p_nom < 0:
-        raise InputError(f"nominal_pressure_pa must be finite and >= 0, got {nominal_pressure_pa!r}")
+        raise InputError(
+            f"nominal_pressure_pa must be finite and >= 0, got {nominal_pressure_pa!r}"
+        )
     e_eff = float(effective_modulus_pa)
     if not np.isfinite(e_eff) or e_eff <= 0:
-        raise InputError(f"effective_modulus_pa must be finite and > 0, got {effective_modulus_pa!r}")
+        raise InputError(
+            f"effective_modulus_pa must be finite and > 0, got {effective_modulus_pa!r}"
+        )
     if not np.isfinite(gap_floor_m) or gap_floor_m <= 0:
         raise InputError(f"gap_floor_m must be finite and > 0, got {gap_floor_m!r}")
     if not (np.isfinite(tol) and tol > 0):
@@ -339,8 +379,15 @@ def solve_micro(
 
     if p_nom == 0.0:
         return finish(
-            np.zeros_like(h), h0.copy(), 0.0, False, True, 0, 0.0,
-            "zero load: unloaded texture, no contact", [],
+            np.zeros_like(h),
+            h0.copy(),
+            0.0,
+            False,
+            True,
+            0,
+            0.0,
+            "zero load: unloaded texture, no contact",
+            [],
         )
     p_fc, fluct = full_contact_pressure(h, dxy, e_eff, halfspace=hs)
     if p_nom >= p_fc:
@@ -348,9 +395,14 @@ def solve_micro(
         p = np.maximum(p, 0.0)
         delta = float(h0.mean() + p_nom * 0.0)
         return finish(
-            p, np.zeros_like(h), delta + float(h0.max() - h0.mean()), True, True, 0, 0.0,
-            f"full contact: nominal pressure {p_nom:.6g} Pa >= full-contact pressure "
-            f"{p_fc:.6g} Pa",
+            p,
+            np.zeros_like(h),
+            delta + float(h0.max() - h0.mean()),
+            True,
+            True,
+            0,
+            0.0,
+            f"full contact: nominal pressure {p_nom:.6g} Pa >= full-contact pressure {p_fc:.6g} Pa",
             [],
         )
 

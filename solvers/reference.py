@@ -69,7 +69,10 @@ def westergaard_pressure(
     inside = sx2 < s2
     out = np.zeros_like(xs)
     out[inside] = (
-        2 * mean_pressure_pa * np.cos(np.pi * xs[inside] / wavelength_m) / s2
+        2
+        * mean_pressure_pa
+        * np.cos(np.pi * xs[inside] / wavelength_m)
+        / s2
         * np.sqrt(s2 - sx2[inside])
     )
     return out

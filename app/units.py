@@ -1,0 +1,44 @@
+"""Technician units at the edge: the only place kg, mm, µm, kPa and MPa become SI.
+
+Every function names its input unit; unknown unit strings raise :class:`InputError`.
+"""
+
+from __future__ import annotations
+
+from solvers.errors import InputError
+
+#: standard gravity used by the papers [m/s²] (method.md §2)
+G_PAPERS = 9.82
+
+_LENGTH_TO_M = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "μm": 1e-6, "nm": 1e-9}
+
+
+def length_to_m(value: float, unit: str) -> float:
+    """Convert a length in ``unit`` (m, mm, um/µm, nm) to metres."""
+    try:
+        return float(value) * _LENGTH_TO_M[unit]
+    except KeyError:
+        raise InputError(
+            f"unknown length unit {unit!r}; use one of {sorted(set(_LENGTH_TO_M) - {'μm'})}"
+        ) from None
+
+
+def kg_to_n(load_kg: float) -> float:
+    """Load in kg-force (g = 9.82 m/s², the papers' value) to newtons."""
+    return float(load_kg) * G_PAPERS
+
+
+def mm_to_m(value_mm: float) -> float:
+    return float(value_mm) * 1e-3
+
+
+def um_to_m(value_um: float) -> float:
+    return float(value_um) * 1e-6
+
+
+def kpa_to_pa(value_kpa: float) -> float:
+    return float(value_kpa) * 1e3
+
+
+def mpa_to_pa(value_mpa: float) -> float:
+    return float(value_mpa) * 1e6
