@@ -1,0 +1,540 @@
+"""Micro-scale lookup tables: interpolation of tabulated texture solves (method.md §5).
+
+A table holds, for one texture, the results of :func:`solvers.micro.solve_micro` over the
+dimensionless nominal pressure ratio ``P_n / E'`` (by linear elasticity the contact set and the
+gap field of a rigid texture depend only on that ratio), plus the separated-regime curve
+``⟨1 / (h_0 + H)⟩`` of the unloaded texture lifted by a clearance ``H``. This module is pure: it
+never opens files (see :mod:`app.storage.tables` for reading and writing).
+
+Lookup rules
+------------
+- **Pressure ratio.** ``r = P_n / E'`` with ``P_n = P (1 − n)`` (method.md eq. 2,
+  :func:`nominal_pressure_ratio`).
+- **Interpolation** is shape-preserving piecewise-cubic Hermite (PCHIP, monotone wherever the
+  data are monotone) in ``x = ln r``:
+
+  * real contact area fraction ``a_r``: in ``ln a_r`` (it spans orders of magnitude and is > 0
+    for every solved point, because a loaded texture touches on at least one pixel);
+  * mean gap ``h̄_n``: in the value itself (linear), because it is O(⟨h_0⟩) over most of the
+    range and falls to exactly 0 at full contact, where a logarithm would not exist;
+  * floored mean reciprocal gap ``(1/h)‾_n``: in ``ln`` of the value.
+
+- **Full contact.** If the table reached full contact (some grid point at or above the
+  full-contact ratio ``r_fc = p_fc / E'``), the exact full-contact state ``a_r = 1``,
+  ``h̄_n = 0``, ``(1/h)‾_n = 1/h_c`` (the floor: the last gaps close) is an interpolation node at
+  ``r_fc`` and every ``r ≥ r_fc`` returns it exactly — this is physics, not extrapolation.
+- **Zero load.** ``r = 0`` returns the unloaded texture exactly: ``a_r = 0``, ``h̄_n = ⟨h_0⟩``,
+  ``(1/h)‾_n = ⟨1/max(h_0, h_c)⟩``.
+- **Out of range.** ``0 < r < r_min`` and (without full contact) ``r > r_max`` are outside the
+  table: they raise :class:`~solvers.errors.OutOfRangeError`, or with ``out_of_range="flag"``
+  return NaN there plus a boolean mask of the flagged points. Nothing is extrapolated. Ratios
+  within a relative 1e-9 of a table end are snapped onto it (round-off of ``P·(1 − n)/E'``).
+- **Separated regime** (``P = 0``, clearance ``H > 0``): ``⟨1/(h_0 + H)⟩`` is interpolated by
+  PCHIP in ``ln H``/``ln value`` over the tabulated clearances, out-of-range as above;
+  the mean separation ``⟨h_0⟩ + H`` is exact for any ``H ≥ 0``.
+- The tabulated reciprocal gaps are eq. (5) with ``n = 0``; the porosity prefactor ``(1 − n)``
+  of eq. (5) is applied by the caller (the multi-scale integration), not here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+from scipy.interpolate import PchipInterpolator
+
+from .errors import InputError, OutOfRangeError
+
+__all__ = [
+    "TABLE_SCHEMA",
+    "MicroTable",
+    "chunk_bounds",
+    "mean_gap_m",
+    "mean_reciprocal_gap_per_m",
+    "nominal_pressure_ratio",
+    "pressure_ratio_grid",
+    "real_contact_area_fraction",
+    "separated_curve",
+    "separated_mean_gap_m",
+    "separated_reciprocal_gap_per_m",
+    "solve_table_chunk",
+    "unloaded_statistics",
+]
+
+#: Schema identifier written into (and required from) every table file
+TABLE_SCHEMA = "skisnow.table/1"
+
+#: Relative distance from a table end within which a query is snapped onto it [-]
+_EDGE_RTOL = 1e-9
+
+
+@dataclass
+class MicroTable:
+    """One texture's micro-scale table (arrays as stored in the file, plus metadata).
+
+    Attributes
+    ----------
+    name : str
+        Texture name (e.g. "grind-1").
+    pixel_size_m : float
+        Pixel size of the texture the table was computed on [m].
+    grid_shape : (int, int)
+        Texture grid shape [-].
+    effective_modulus_pa : float
+        E' used for the solves [Pa] (results depend only on ``P_n / E'``).
+    gap_floor_m : float
+        Floor h_c of the floored mean reciprocal gap [m].
+    tol : float
+        Solver tolerance [-].
+    pressure_ratio : ndarray, shape (N,)
+        Nominal pressure ratio ``P_n / E'`` [-], strictly increasing, > 0.
+    real_contact_area_fraction : ndarray, shape (N,)
+        a_r [-] (method.md eq. 3).
+    mean_gap_m : ndarray, shape (N,)
+        Mean gap h̄_n over the whole cell [m] (eq. 4 with H = 0).
+    mean_reciprocal_gap_per_m : ndarray, shape (N,)
+        Mean over the gap set of ``1/max(h_n, h_c)`` [1/m] (eq. 5 with H = 0, n = 0).
+    mean_reciprocal_gap_raw_per_m : ndarray, shape (N,)
+        The same without the floor [1/m] (resolution dependent; stored for diagnosis).
+    iterations : ndarray of int, shape (N,)
+        Solver iterations per point [-] (0 for full-contact points).
+    residual : ndarray, shape (N,)
+        Final solver residual per point [-].
+    converged : ndarray of bool, shape (N,)
+        Whether each solve met the tolerance.
+    full_contact : ndarray of bool, shape (N,)
+        Points at or above the full-contact ratio (exact state a_r = 1, gap 0, not solved).
+    full_contact_pressure_ratio : float
+        ``r_fc = p_fc / E'`` [-], the lowest ratio at which the texture is in full contact.
+    unloaded_mean_gap_m : float
+        ⟨h_0⟩, mean unloaded gap (``h_0 = max h* − h*``) [m].
+    unloaded_mean_reciprocal_gap_per_m : float
+        ⟨1/max(h_0, h_c)⟩ over the cell [1/m], the zero-load value.
+    clearance_m : ndarray, shape (M,)
+        Clearances H of the separated-regime curve [m], strictly increasing, > 0.
+    separated_mean_reciprocal_gap_per_m : ndarray, shape (M,)
+        ⟨1/(h_0 + H)⟩ over the whole cell [1/m].
+    iso_parameters : dict
+        ISO 25178 parameters of the texture (units in the keys), may be empty.
+    attrs : dict
+        Remaining file attributes (provenance: code version, git commit, command line, ...).
+    """
+
+    name: str
+    pixel_size_m: float
+    grid_shape: tuple[int, int]
+    effective_modulus_pa: float
+    gap_floor_m: float
+    tol: float
+    pressure_ratio: np.ndarray
+    real_contact_area_fraction: np.ndarray
+    mean_gap_m: np.ndarray
+    mean_reciprocal_gap_per_m: np.ndarray
+    mean_reciprocal_gap_raw_per_m: np.ndarray
+    iterations: np.ndarray
+    residual: np.ndarray
+    converged: np.ndarray
+    full_contact: np.ndarray
+    full_contact_pressure_ratio: float
+    unloaded_mean_gap_m: float
+    unloaded_mean_reciprocal_gap_per_m: float
+    clearance_m: np.ndarray
+    separated_mean_reciprocal_gap_per_m: np.ndarray
+    iso_parameters: dict = field(default_factory=dict)
+    attrs: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        r = np.asarray(self.pressure_ratio, dtype=float)
+        n = r.size
+        if r.ndim != 1 or n < 2:
+            raise InputError(f"pressure_ratio must be 1-D with >= 2 points, got shape {r.shape}")
+        if not (np.all(np.isfinite(r)) and r[0] > 0 and np.all(np.diff(r) > 0)):
+            raise InputError("pressure_ratio must be finite, > 0 and strictly increasing")
+        for name in (
+            "real_contact_area_fraction",
+            "mean_gap_m",
+            "mean_reciprocal_gap_per_m",
+            "mean_reciprocal_gap_raw_per_m",
+            "iterations",
+            "residual",
+            "converged",
+            "full_contact",
+        ):
+            arr = np.asarray(getattr(self, name))
+            if arr.shape != (n,):
+                raise InputError(f"{name} has shape {arr.shape}, expected ({n},)")
+        h = np.asarray(self.clearance_m, dtype=float)
+        if h.ndim != 1 or h.size < 2 or h[0] <= 0 or np.any(np.diff(h) <= 0):
+            raise InputError("clearance_m must be 1-D, > 0 and strictly increasing")
+        if np.shape(self.separated_mean_reciprocal_gap_per_m) != h.shape:
+            raise InputError("separated_mean_reciprocal_gap_per_m must match clearance_m")
+        if not (np.isfinite(self.gap_floor_m) and self.gap_floor_m > 0):
+            raise InputError(f"gap_floor_m must be > 0, got {self.gap_floor_m!r}")
+        full = np.asarray(self.full_contact, dtype=bool)
+        if full.any() and not np.all(full[np.argmax(full) :]):
+            raise InputError("full_contact must be False below and True above one ratio")
+        if np.count_nonzero(~full) < 2:
+            raise InputError("a table needs at least 2 partial-contact points")
+        if np.any(np.asarray(self.real_contact_area_fraction)[~full] <= 0):
+            raise InputError("real_contact_area_fraction must be > 0 at every loaded point")
+
+    # ------------------------------------------------------------------ derived quantities
+    @property
+    def full_contact_reached(self) -> bool:
+        """True if the grid reaches full contact (then every r ≥ r_fc is exact)."""
+        return bool(np.any(self.full_contact))
+
+    @property
+    def pressure_ratio_range(self) -> tuple[float, float]:
+        """Ratios covered by interpolation ``(r_min, r_max)``; r_max is inf at full contact."""
+        hi = np.inf if self.full_contact_reached else float(self.pressure_ratio[-1])
+        return float(self.pressure_ratio[0]), hi
+
+    @cached_property
+    def _loaded_interpolants(self) -> dict[str, PchipInterpolator]:
+        partial = ~np.asarray(self.full_contact, dtype=bool)
+        x = np.log(np.asarray(self.pressure_ratio, dtype=float)[partial])
+        ar = np.asarray(self.real_contact_area_fraction, dtype=float)[partial]
+        gap = np.asarray(self.mean_gap_m, dtype=float)[partial]
+        rec = np.asarray(self.mean_reciprocal_gap_per_m, dtype=float)[partial]
+        if self.full_contact_reached:
+            x = np.append(x, np.log(self.full_contact_pressure_ratio))
+            ar = np.append(ar, 1.0)
+            gap = np.append(gap, 0.0)
+            rec = np.append(rec, 1.0 / self.gap_floor_m)
+        return {
+            "ar": PchipInterpolator(x, np.log(ar)),
+            "gap": PchipInterpolator(x, gap),
+            "rec": PchipInterpolator(x, np.log(rec)),
+        }
+
+    @cached_property
+    def _separated_interpolant(self) -> PchipInterpolator:
+        return PchipInterpolator(
+            np.log(np.asarray(self.clearance_m, dtype=float)),
+            np.log(np.asarray(self.separated_mean_reciprocal_gap_per_m, dtype=float)),
+        )
+
+
+# ---------------------------------------------------------------------------- helpers
+
+
+def nominal_pressure_ratio(pressure_pa, porosity, effective_modulus_pa) -> np.ndarray | float:
+    """Dimensionless nominal pressure ``P_n / E' = P (1 − n) / E'`` (method.md eq. 2).
+
+    Parameters
+    ----------
+    pressure_pa : float or array_like
+        Apparent (macro-scale) pressure P ≥ 0 [Pa].
+    porosity : float or array_like
+        Snow porosity n, 0 ≤ n < 1 [-].
+    effective_modulus_pa : float or array_like
+        Effective modulus E' > 0 of method.md eq. (1) [Pa].
+
+    Returns
+    -------
+    float or ndarray
+        ``P_n / E'`` [-], broadcast over the inputs.
+    """
+    p = _finite("pressure_pa", pressure_pa)
+    n = _finite("porosity", porosity)
+    e = _finite("effective_modulus_pa", effective_modulus_pa)
+    if np.any(p < 0):
+        raise InputError(f"pressure_pa must be >= 0, got min {np.min(p)!r}")
+    if np.any((n < 0) | (n >= 1)):
+        raise InputError(f"porosity must be in [0, 1), got {porosity!r}")
+    if np.any(e <= 0):
+        raise InputError(f"effective_modulus_pa must be > 0, got {effective_modulus_pa!r}")
+    return _out(p * (1.0 - n) / e)
+
+
+def _finite(name: str, value) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name} must be numeric, got {value!r}") from exc
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"{name} must be finite, got {value!r}")
+    return arr
+
+
+def _out(arr: np.ndarray):
+    return float(arr) if arr.ndim == 0 else arr
+
+
+def _check_mode(out_of_range: str) -> None:
+    if out_of_range not in ("raise", "flag"):
+        raise InputError(f"out_of_range must be 'raise' or 'flag', got {out_of_range!r}")
+
+
+def _snap(v: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    v = np.where((v < lo) & (v >= lo * (1 - _EDGE_RTOL)), lo, v)
+    if np.isfinite(hi):
+        v = np.where((v > hi) & (v <= hi * (1 + _EDGE_RTOL)), hi, v)
+    return v
+
+
+def _finish(values, flagged, what: str, lo: float, hi: float, bad, out_of_range: str):
+    if np.any(flagged):
+        if out_of_range == "raise":
+            first = float(np.asarray(bad)[flagged].ravel()[0])
+            raise OutOfRangeError(
+                f"{what} {first:.6g} outside the table range [{lo:.6g}, {hi:.6g}] "
+                f"({int(np.count_nonzero(flagged))} point(s)); not extrapolated"
+            )
+        values = np.where(flagged, np.nan, values)
+    values = _out(values)
+    if out_of_range == "flag":
+        return values, (bool(flagged) if np.ndim(flagged) == 0 else flagged)
+    return values
+
+
+def _loaded(
+    table: MicroTable, nominal_pressure_pa, effective_modulus_pa, quantity: str, out_of_range: str
+):
+    _check_mode(out_of_range)
+    p = _finite("nominal_pressure_pa", nominal_pressure_pa)
+    e = _finite("effective_modulus_pa", effective_modulus_pa)
+    if np.any(p < 0):
+        raise InputError(f"nominal_pressure_pa must be >= 0, got min {np.min(p)!r}")
+    if np.any(e <= 0):
+        raise InputError(f"effective_modulus_pa must be > 0, got {effective_modulus_pa!r}")
+    ratio = np.asarray(p / e, dtype=float)
+    lo, hi = table.pressure_ratio_range
+    r = _snap(ratio, lo, hi)
+    zero = r == 0
+    flagged = ~zero & ((r < lo) | (r > hi))
+    full = table.full_contact_reached & (r >= table.full_contact_pressure_ratio)
+    inside = ~zero & ~flagged & ~full
+    x = np.log(np.where(inside, r, lo))
+    f = table._loaded_interpolants[quantity](x)
+    if quantity == "ar":
+        values = np.where(inside, np.exp(f), np.where(full, 1.0, 0.0))
+    elif quantity == "gap":
+        values = np.where(
+            inside, np.maximum(f, 0.0), np.where(full, 0.0, table.unloaded_mean_gap_m)
+        )
+    else:
+        values = np.where(
+            inside,
+            np.exp(f),
+            np.where(full, 1.0 / table.gap_floor_m, table.unloaded_mean_reciprocal_gap_per_m),
+        )
+    return _finish(values, flagged, "pressure ratio P_n/E'", lo, hi, ratio, out_of_range)
+
+
+# ---------------------------------------------------------------------------- lookups
+
+
+def real_contact_area_fraction(
+    table: MicroTable, nominal_pressure_pa, effective_modulus_pa, *, out_of_range: str = "raise"
+):
+    """Real contact area fraction a_r(P_n) [-] (method.md eq. 3).
+
+    Parameters
+    ----------
+    table : MicroTable
+        The texture's table.
+    nominal_pressure_pa : float or array_like
+        Nominal pressure P_n = P (1 − n) ≥ 0 [Pa].
+    effective_modulus_pa : float or array_like
+        E' [Pa], broadcast against the pressures.
+    out_of_range : {"raise", "flag"}
+        Raise :class:`~solvers.errors.OutOfRangeError` for a ratio outside the table, or
+        return ``(values, flagged)`` with NaN at the flagged points.
+
+    Returns
+    -------
+    float or ndarray, or (values, flagged)
+        a_r [-]; 0 at zero load, exactly 1 at or above full contact (if tabulated).
+    """
+    return _loaded(table, nominal_pressure_pa, effective_modulus_pa, "ar", out_of_range)
+
+
+def mean_gap_m(
+    table: MicroTable, nominal_pressure_pa, effective_modulus_pa, *, out_of_range: str = "raise"
+):
+    """Mean interfacial separation h̄_n(P_n) over the cell [m] (method.md eq. 4, H = 0).
+
+    Parameters and return as :func:`real_contact_area_fraction`; ⟨h_0⟩ at zero load, 0 at
+    full contact.
+    """
+    return _loaded(table, nominal_pressure_pa, effective_modulus_pa, "gap", out_of_range)
+
+
+def mean_reciprocal_gap_per_m(
+    table: MicroTable, nominal_pressure_pa, effective_modulus_pa, *, out_of_range: str = "raise"
+):
+    """Floored mean reciprocal separation (1/h)‾_n(P_n) over the gap set [1/m].
+
+    Method.md eq. (5) with H = 0 and n = 0 (multiply by ``1 − n`` for eq. 5), gap floor
+    ``table.gap_floor_m``. Parameters and return as :func:`real_contact_area_fraction`;
+    ``⟨1/max(h_0, h_c)⟩`` at zero load, ``1/h_c`` at full contact.
+    """
+    return _loaded(table, nominal_pressure_pa, effective_modulus_pa, "rec", out_of_range)
+
+
+def separated_reciprocal_gap_per_m(table: MicroTable, clearance_m, *, out_of_range: str = "raise"):
+    """⟨1/(h_0 + H)⟩ over the cell for an unloaded texture at clearance H [1/m].
+
+    Method.md eq. (5) where P = 0 (ω_g = ω), with n = 0 (multiply by ``1 − n``).
+
+    Parameters
+    ----------
+    table : MicroTable
+        The texture's table.
+    clearance_m : float or array_like
+        Clearance H > 0 between the texture's highest point and the snow [m], within
+        ``[table.clearance_m[0], table.clearance_m[-1]]``.
+    out_of_range : {"raise", "flag"}
+        As in :func:`real_contact_area_fraction`.
+    """
+    _check_mode(out_of_range)
+    h = _finite("clearance_m", clearance_m)
+    if np.any(h < 0):
+        raise InputError(f"clearance_m must be >= 0, got min {np.min(h)!r}")
+    lo, hi = float(table.clearance_m[0]), float(table.clearance_m[-1])
+    hh = _snap(h, lo, hi)
+    flagged = (hh < lo) | (hh > hi)
+    f = table._separated_interpolant(np.log(np.where(flagged, lo, hh)))
+    return _finish(np.exp(f), flagged, "clearance_m", lo, hi, h, out_of_range)
+
+
+def separated_mean_gap_m(table: MicroTable, clearance_m) -> np.ndarray | float:
+    """Mean separation ⟨h_0⟩ + H of an unloaded texture at clearance H ≥ 0 [m] (exact)."""
+    h = _finite("clearance_m", clearance_m)
+    if np.any(h < 0):
+        raise InputError(f"clearance_m must be >= 0, got min {np.min(h)!r}")
+    return _out(table.unloaded_mean_gap_m + h)
+
+
+# ---------------------------------------------------------------------------- building
+# Pure kernels of the table build (the job itself, with files and scheduling, lives in
+# app/build_tables.py).
+
+
+def pressure_ratio_grid(ratio_min: float, ratio_max: float, points: int) -> np.ndarray:
+    """Log-spaced grid of nominal pressure ratios ``P_n / E'`` [-] (``numpy.geomspace``)."""
+    if not (np.isfinite(ratio_min) and np.isfinite(ratio_max) and 0 < ratio_min < ratio_max):
+        raise InputError(
+            f"need 0 < ratio_min < ratio_max, got ratio_min={ratio_min!r}, ratio_max={ratio_max!r}"
+        )
+    if int(points) != points or points < 2:
+        raise InputError(f"points must be an integer >= 2, got {points!r}")
+    return np.geomspace(ratio_min, ratio_max, int(points))
+
+
+def chunk_bounds(points: int, chunk_size: int) -> list[tuple[int, int]]:
+    """Contiguous ``[start, stop)`` index ranges of a grid, fixed by its size and chunk size only.
+
+    The chunks never depend on the number of workers, so a table is the same however many
+    workers compute it.
+    """
+    if int(chunk_size) != chunk_size or chunk_size < 1:
+        raise InputError(f"chunk_size must be an integer >= 1, got {chunk_size!r}")
+    return [(s, min(s + int(chunk_size), int(points))) for s in range(0, int(points), chunk_size)]
+
+
+def unloaded_statistics(heights_m: np.ndarray, gap_floor_m: float) -> tuple[float, float]:
+    """⟨h_0⟩ [m] and ⟨1/max(h_0, h_c)⟩ [1/m] of the unloaded texture, ``h_0 = max h* − h*``."""
+    h = np.asarray(heights_m, dtype=float)
+    h0 = h.max() - h
+    return float(h0.mean()), float(np.mean(1.0 / np.maximum(h0, gap_floor_m)))
+
+
+def separated_curve(heights_m: np.ndarray, clearance_m: np.ndarray) -> np.ndarray:
+    """⟨1/(h_0 + H)⟩ over the whole cell for each clearance H > 0 [1/m] (no solve needed)."""
+    h = np.asarray(heights_m, dtype=float)
+    h0 = (h.max() - h).ravel()
+    clearance = np.asarray(clearance_m, dtype=float)
+    if np.any(clearance <= 0):
+        raise InputError("clearance_m must be > 0")
+    return np.array([float(np.mean(1.0 / (h0 + c))) for c in clearance])
+
+
+def solve_table_chunk(
+    heights_m: np.ndarray,
+    pixel_size_m: float,
+    pressure_ratio: np.ndarray,
+    *,
+    effective_modulus_pa: float,
+    full_contact_pressure_ratio: float,
+    tol: float,
+    max_iterations: int,
+    gap_floor_m: float,
+) -> dict[str, np.ndarray]:
+    """Solve one chunk of a table: its ratios in rising order, each warm-started from the last.
+
+    The first point starts from the solver's nested-grid start, so the chunk is a deterministic
+    function of its inputs (whichever worker runs it). Points at or above the full-contact ratio
+    are not solved: they are the exact full-contact state (a_r = 1, gaps 0).
+
+    Parameters
+    ----------
+    heights_m : ndarray
+        Texture heights h* [m].
+    pixel_size_m : float
+        Pixel size [m].
+    pressure_ratio : ndarray
+        Rising ratios ``P_n / E'`` of the chunk [-].
+    effective_modulus_pa : float
+        E' used for the solves [Pa].
+    full_contact_pressure_ratio : float
+        ``p_fc / E'`` of the texture [-].
+    tol, max_iterations, gap_floor_m :
+        Passed to :func:`solvers.micro.solve_micro` (single FFT thread).
+
+    Returns
+    -------
+    dict of ndarray
+        ``real_contact_area_fraction``, ``mean_gap_m``, ``mean_reciprocal_gap_per_m``,
+        ``mean_reciprocal_gap_raw_per_m``, ``iterations``, ``residual``, ``converged``,
+        ``full_contact``, ``solve_time_s`` (one entry per ratio).
+    """
+    from .elastic import PeriodicHalfSpace
+    from .micro import solve_micro
+
+    ratios = np.asarray(pressure_ratio, dtype=float)
+    if ratios.ndim != 1 or np.any(np.diff(ratios) <= 0):
+        raise InputError("pressure_ratio of a chunk must be 1-D and strictly increasing")
+    n = ratios.size
+    out = {
+        "real_contact_area_fraction": np.ones(n),
+        "mean_gap_m": np.zeros(n),
+        "mean_reciprocal_gap_per_m": np.full(n, 1.0 / gap_floor_m),
+        "mean_reciprocal_gap_raw_per_m": np.full(n, 1.0 / gap_floor_m),
+        "iterations": np.zeros(n, dtype=np.int64),
+        "residual": np.zeros(n),
+        "converged": np.ones(n, dtype=bool),
+        "full_contact": np.ones(n, dtype=bool),
+        "solve_time_s": np.zeros(n),
+    }
+    hs = PeriodicHalfSpace(np.shape(heights_m), pixel_size_m, effective_modulus_pa, workers=1)
+    previous = None
+    for i, ratio in enumerate(ratios):
+        if ratio >= full_contact_pressure_ratio:
+            continue
+        res = solve_micro(
+            heights_m,
+            pixel_size_m,
+            ratio * effective_modulus_pa,
+            effective_modulus_pa,
+            tol=tol,
+            max_iterations=max_iterations,
+            initial_pressure_pa=previous,
+            gap_floor_m=gap_floor_m,
+            workers=1,
+            halfspace=hs,
+        )
+        out["real_contact_area_fraction"][i] = res.real_contact_area_fraction
+        out["mean_gap_m"][i] = res.mean_gap_m
+        out["mean_reciprocal_gap_per_m"][i] = res.mean_reciprocal_gap_per_m
+        out["mean_reciprocal_gap_raw_per_m"][i] = res.mean_reciprocal_gap_raw_per_m
+        out["iterations"][i] = res.iterations
+        out["residual"][i] = res.residual
+        out["converged"][i] = res.converged
+        out["full_contact"][i] = res.full_contact
+        out["solve_time_s"][i] = res.solve_time_s
+        previous = None if res.full_contact else res.pressure_pa
+    return out
