@@ -184,6 +184,8 @@ class PeriodicHalfSpace:
         self.effective_modulus_pa = float(effective_modulus_pa)
         self.fft = FFTBackend(self.shape, backend=backend, workers=workers)
         self._self_compliance: float | None = None
+        #: number of FFT pairs (forward + inverse) applied so far (for benchmarks)
+        self.fft_pairs = 0
         qx = 2 * np.pi * scipy.fft.fftfreq(nx, d=dx)[:, None]
         qy = 2 * np.pi * scipy.fft.rfftfreq(ny, d=dy)[None, :]
         q = np.sqrt(qx**2 + qy**2)
@@ -208,10 +210,12 @@ class PeriodicHalfSpace:
 
     def displacement(self, pressure_pa: np.ndarray) -> np.ndarray:
         """Zero-mean surface displacement [m] under a periodic pressure field [Pa]."""
+        self.fft_pairs += 1
         return self.fft.irfft2(self.compliance * self.fft.rfft2(pressure_pa))
 
     def pressure(self, displacement_m: np.ndarray) -> np.ndarray:
         """Zero-mean pressure [Pa] that produces a (zero-mean part of a) displacement [m]."""
+        self.fft_pairs += 1
         return self.fft.irfft2(self.stiffness * self.fft.rfft2(displacement_m))
 
 
