@@ -1,0 +1,761 @@
+"""Train the per-ski camber network (method.md §4 step 2) and the ``skisnow train-camber`` command.
+
+Training needs PyTorch (``pip install 'skisnow[train]'``); torch is imported lazily inside the
+training functions, so the rest of skisnow (and inference, :mod:`solvers.camber`) runs without.
+
+Recipe (documented in ``docs/camber-network.md``):
+
+- Data: K measured load cases ``(F_k, x_F,k) → H*_k(X)`` on one sampling grid X (M points).
+- Split by load case (whole profiles held out): a validation set (early stopping) and a test
+  set (reported accuracy), both drawn only from *interior* cases (neither the smallest nor the
+  largest F, nor the smallest nor the largest x_F), so that every held-out case lies inside the
+  range spanned by the training cases and the metrics measure interpolation, not extrapolation.
+- Model: MLP 2 → 64 → 64 → K_c (tanh), float64; the K_c outputs are the signed gap at nodes
+  ~5 mm apart, linearly interpolated onto X, then ReLU (see :mod:`solvers.camber`).
+- Normalisation: inputs to [−1, 1] over the trained range; node outputs as
+  ``offset + scale · y`` with the mean training gap per node and a per-node scale.
+- Loss: mean over all points of ``r²`` with ``r = (S − H*) / max(H*, b)`` where ``H* > 0``
+  and ``r = max(S, 0) / b`` where ``H* = 0`` (one-sided: contact only needs ``S ≤ 0``);
+  ``b = 0.2 mm`` is the band that decides contact. Below ``b`` the loss is the absolute error
+  in units of ``b``, above it the relative error, so the small gaps that decide contact weigh
+  most and the centimetre tip rise does not dominate.
+- Optimiser: full-batch Adam (one step per epoch, learning rate decayed on plateaus) with
+  early stopping on the validation loss, then full-batch L-BFGS (strong Wolfe line search,
+  one iteration per epoch) with early stopping; the weights of the best validation epoch win.
+- Determinism: all randomness from ``seed`` (``numpy.random.default_rng(seed)`` for the
+  split, a ``torch.Generator`` seeded with ``manual_seed(seed)`` for the initial weights),
+  ``torch.use_deterministic_algorithms(True)``; same seed, data and thread count → same
+  weights.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import datetime as _dt
+import itertools
+import logging
+import math
+import os
+import shutil
+import tempfile
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from solvers import camber
+from solvers.errors import DataFileError, InputError
+
+__all__ = [
+    "TrainingResult",
+    "evaluate_network",
+    "register",
+    "run",
+    "split_load_cases",
+    "torch_predict",
+    "train_camber_network",
+    "write_network_to_ski",
+]
+
+log = logging.getLogger(__name__)
+
+TRAIN_EXTRA_HINT = "training the camber network needs PyTorch: pip install 'skisnow[train]'"
+
+
+@dataclass
+class TrainingResult:
+    """Outcome of :func:`train_camber_network`.
+
+    Attributes
+    ----------
+    network : dict
+        Network dict of schema ``"skisnow.camber-mlp/1"`` (weights, normalisation, metadata).
+    metrics : dict
+        Accuracy on the train, validation and test cases (keys as in the network attrs).
+    converged : bool
+        True if early stopping ended training (the validation loss stopped improving) rather
+        than the epoch limit.
+    epochs : int
+        Epochs run (Adam + L-BFGS).
+    message : str
+        Human-readable summary.
+    """
+
+    network: dict
+    metrics: dict = field(default_factory=dict)
+    converged: bool = False
+    epochs: int = 0
+    message: str = ""
+
+
+@contextlib.contextmanager
+def _torch_threads(torch, n: int):
+    """Run with ``n`` torch threads and deterministic algorithms, restoring both afterwards."""
+    previous = torch.get_num_threads(), torch.are_deterministic_algorithms_enabled()
+    torch.set_num_threads(int(n))
+    torch.use_deterministic_algorithms(True)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous[0])
+        torch.use_deterministic_algorithms(previous[1])
+
+
+def _import_torch():
+    try:
+        import torch
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise ImportError(TRAIN_EXTRA_HINT) from exc
+    return torch
+
+
+# --------------------------------------------------------------------------------------------
+# split
+
+
+def split_load_cases(
+    loads_n: np.ndarray,
+    load_positions_m: np.ndarray,
+    *,
+    validation_fraction: float = 0.15,
+    test_fraction: float = 0.15,
+    seed: int = 0,
+) -> dict[str, np.ndarray]:
+    """Split load cases into train / validation / test index sets (by whole load case).
+
+    Held-out cases are drawn only from interior cases (not at the min or max of F or x_F),
+    so they lie within the range of the training cases. Every set gets at least one case when
+    its fraction is > 0 and enough interior cases exist.
+
+    Parameters
+    ----------
+    loads_n, load_positions_m : ndarray, shape (K,)
+        Load cases (F [N], x_F [m]).
+    validation_fraction, test_fraction : float
+        Fractions of all K cases to hold out [-].
+    seed : int
+        Seed of the numpy generator that draws the held-out cases.
+
+    Returns
+    -------
+    dict
+        ``{"train": idx, "validation": idx, "test": idx}``, sorted int arrays.
+    """
+    f = np.asarray(loads_n, dtype=float)
+    xf = np.asarray(load_positions_m, dtype=float)
+    k = f.size
+    for name, frac in (
+        ("validation_fraction", validation_fraction),
+        ("test_fraction", test_fraction),
+    ):
+        if not 0 <= frac < 1:
+            raise InputError(f"{name} must be in [0, 1), got {frac}")
+    if validation_fraction + test_fraction >= 0.8:
+        raise InputError("validation_fraction + test_fraction must be < 0.8")
+    interior = np.flatnonzero((f > f.min()) & (f < f.max()) & (xf > xf.min()) & (xf < xf.max()))
+    if xf.max() == xf.min():  # a single load position: interior in F only
+        interior = np.flatnonzero((f > f.min()) & (f < f.max()))
+    n_val = max(1, round(validation_fraction * k)) if validation_fraction > 0 else 0
+    n_test = max(1, round(test_fraction * k)) if test_fraction > 0 else 0
+    if n_val + n_test > interior.size:
+        raise InputError(
+            f"{k} load cases have only {interior.size} interior cases, need {n_val + n_test} "
+            "to hold out for validation and test; measure more load cases"
+        )
+    rng = np.random.default_rng(seed)
+    held = rng.permutation(interior)
+    val = np.sort(held[:n_val])
+    test = np.sort(held[n_val : n_val + n_test])
+    train = np.setdiff1d(np.arange(k), np.concatenate([val, test]))
+    return {"train": train, "validation": val, "test": test}
+
+
+# --------------------------------------------------------------------------------------------
+# torch model
+
+
+def _build_layers(torch, sizes: list[int], generator):
+    layers = torch.nn.ModuleList()
+    for n_in, n_out in itertools.pairwise(sizes):
+        lin = torch.nn.Linear(n_in, n_out, dtype=torch.float64)
+        with torch.no_grad():
+            torch.nn.init.xavier_uniform_(lin.weight, generator=generator)
+            lin.bias.zero_()
+        layers.append(lin)
+    return layers
+
+
+def _node_output(torch, layers, z, out_offset, out_scale):
+    """Signed gap S at the output nodes [m] for normalised inputs z (N, 2)."""
+    a = z
+    for i, lin in enumerate(layers):
+        a = lin(a)
+        if i < len(layers) - 1:
+            a = torch.tanh(a)
+    return out_offset + out_scale * a
+
+
+def _signed_gap(torch, layers, z, out_offset, out_scale, idx, w):
+    """Signed gap S on the full grid (before ReLU) for normalised inputs z (N, 2)."""
+    s_nodes = _node_output(torch, layers, z, out_offset, out_scale)
+    if s_nodes.shape[1] == 1:
+        return s_nodes.expand(-1, idx.numel())
+    return s_nodes[:, idx] * (1.0 - w) + s_nodes[:, idx + 1] * w
+
+
+def torch_predict(
+    network: Mapping[str, object], loads_n: np.ndarray, load_positions_m: np.ndarray
+) -> np.ndarray:
+    """Reference forward pass in torch (float64) of a network dict: gaps (N, M) [m].
+
+    Used to check that the numpy inference of :mod:`solvers.camber` reproduces torch.
+    """
+    torch = _import_torch()
+    n_layers = int(network["n_layers"])
+    sizes = [2] + [int(np.asarray(network[f"layer{i}_weight"]).shape[0]) for i in range(n_layers)]
+    layers = _build_layers(torch, sizes, torch.Generator().manual_seed(0))
+    with torch.no_grad():
+        for i, lin in enumerate(layers):
+            lin.weight.copy_(torch.as_tensor(np.asarray(network[f"layer{i}_weight"])))
+            lin.bias.copy_(torch.as_tensor(np.asarray(network[f"layer{i}_bias"])))
+        x = torch.as_tensor(
+            np.stack([np.asarray(loads_n, float), np.asarray(load_positions_m, float)], axis=1)
+        )
+        z = (x - torch.as_tensor(network["input_offset"])) / torch.as_tensor(network["input_scale"])
+        idx, w = camber.interpolation_weights(network["node_positions_m"], network["positions_m"])
+        s = _signed_gap(
+            torch,
+            layers,
+            z,
+            torch.as_tensor(network["output_offset"]),
+            torch.as_tensor(network["output_scale"]),
+            torch.as_tensor(idx),
+            torch.as_tensor(w),
+        )
+        return torch.relu(s).numpy()
+
+
+# --------------------------------------------------------------------------------------------
+# training
+
+
+def train_camber_network(
+    positions_m: np.ndarray,
+    loads_n: np.ndarray,
+    load_positions_m: np.ndarray,
+    profiles_m: np.ndarray,
+    *,
+    epochs: int = 4000,
+    lbfgs_epochs: int = 1500,
+    seed: int = 0,
+    hidden: tuple[int, ...] = (64, 64),
+    node_spacing_m: float = 5e-3,
+    contact_band_m: float = camber.CONTACT_BAND_M,
+    validation_fraction: float = 0.15,
+    test_fraction: float = 0.15,
+    learning_rate: float = 1e-2,
+    patience: int = 400,
+    threads: int = 1,
+    ski_id: str = "",
+    metadata: Mapping[str, object] | None = None,
+    progress: Callable[[str, int, float, float], None] | None = None,
+) -> TrainingResult:
+    """Train one camber network on measured loaded profiles of one ski.
+
+    Parameters
+    ----------
+    positions_m : ndarray, shape (M,)
+        Sampling grid X, strictly increasing [m].
+    loads_n : ndarray, shape (K,)
+        Equivalent loads F of the load cases [N].
+    load_positions_m : ndarray, shape (K,)
+        Load positions x_F of the load cases [m].
+    profiles_m : ndarray, shape (K, M)
+        Measured loaded gaps H*(X) ≥ 0 [m].
+    epochs : int
+        Maximum number of full-batch Adam epochs (early stopping may end sooner).
+    lbfgs_epochs : int
+        Maximum number of L-BFGS iterations after Adam (0 disables the refinement).
+    seed : int
+        Seed of the split and the initial weights.
+    hidden : tuple of int
+        Widths of the hidden layers.
+    node_spacing_m : float
+        Spacing of the output nodes [m] (0: one output per grid point).
+    contact_band_m : float
+        Gap band b that decides contact, weighted most by the loss [m].
+    validation_fraction, test_fraction : float
+        Fractions of load cases held out for early stopping and for the reported metrics.
+    learning_rate : float
+        Initial Adam learning rate [-].
+    patience : int
+        Epochs without validation improvement before a phase stops.
+    threads : int
+        Torch threads during training (1: small full-batch problems gain nothing from more,
+        and a fixed count keeps the weights bit-reproducible).
+    ski_id : str
+        Identifier stored in the metadata.
+    metadata : mapping, optional
+        Further scalar attributes to store (e.g. provenance).
+    progress : callable, optional
+        ``progress(phase, epoch, train_loss, validation_loss)`` called every epoch.
+
+    Returns
+    -------
+    TrainingResult
+    """
+    torch = _import_torch()
+    x = np.asarray(positions_m, dtype=np.float64)
+    f = np.asarray(loads_n, dtype=np.float64)
+    xf = np.asarray(load_positions_m, dtype=np.float64)
+    h = np.asarray(profiles_m, dtype=np.float64)
+    _check_training_data(x, f, xf, h)
+    if epochs < 1 or lbfgs_epochs < 0 or patience < 1:
+        raise InputError(
+            f"epochs >= 1, lbfgs_epochs >= 0, patience >= 1 required, got {epochs}, "
+            f"{lbfgs_epochs}, {patience}"
+        )
+    if not contact_band_m > 0:
+        raise InputError(f"contact_band_m must be > 0, got {contact_band_m}")
+    t_start = time.perf_counter()
+    started_utc = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+
+    split = split_load_cases(
+        f, xf, validation_fraction=validation_fraction, test_fraction=test_fraction, seed=seed
+    )
+    tr, va, te = split["train"], split["validation"], split["test"]
+
+    # normalisation from the training cases only
+    f_lo, f_hi = float(f[tr].min()), float(f[tr].max())
+    x_lo, x_hi = float(xf[tr].min()), float(xf[tr].max())
+    in_offset = np.array([(f_lo + f_hi) / 2, (x_lo + x_hi) / 2])
+    in_scale = np.array([max((f_hi - f_lo) / 2, 1e-12), max((x_hi - x_lo) / 2, 1e-12)])
+    node_idx = camber.select_nodes(x, node_spacing_m)
+    nodes = x[node_idx]
+    h_nodes = h[tr][:, node_idx]
+    out_offset = h_nodes.mean(axis=0)
+    # per-node scale: spread over the load cases, floored at a tenth of the contact band so
+    # that nodes which hardly move (always in contact) keep a usable range
+    out_scale = np.maximum(h_nodes.std(axis=0), 0.1 * contact_band_m)
+
+    with _torch_threads(torch, threads):
+        gen = torch.Generator().manual_seed(int(seed))
+        sizes = [2, *[int(n) for n in hidden], int(nodes.size)]
+        layers = _build_layers(torch, sizes, gen)
+        with torch.no_grad():  # small last layer: start near the mean profile
+            layers[-1].weight.mul_(0.1)
+
+        # the loss is evaluated at the nodes (grid points ~node_spacing_m apart): the network's
+        # output lives there, the linear interpolation in between is fixed; metrics use every point
+        t_in = torch.as_tensor((np.stack([f, xf], axis=1) - in_offset) / in_scale)
+        t_h = torch.as_tensor(h[:, node_idx])
+        t_zero = t_h <= 0.0
+        t_wt = 1.0 / torch.clamp(t_h, min=contact_band_m)
+        t_off = torch.as_tensor(out_offset)
+        t_scale = torch.as_tensor(out_scale)
+        t_tr, t_va = torch.as_tensor(tr), torch.as_tensor(va if va.size else tr)
+
+        def loss_on(rows):
+            s = _node_output(torch, layers, t_in[rows], t_off, t_scale)
+            r = torch.where(t_zero[rows], torch.relu(s), s - t_h[rows]) * t_wt[rows]
+            return torch.mean(r * r)
+
+        params = list(layers.parameters())
+        history_tr: list[float] = []
+        history_va: list[float] = []
+        best = {"loss": math.inf, "epoch": -1, "state": None}
+
+        def record(phase: str, loss_tr: float) -> bool:
+            with torch.no_grad():
+                loss_va = float(loss_on(t_va))
+            history_tr.append(loss_tr)
+            history_va.append(loss_va)
+            improved = loss_va < best["loss"] * (1 - 1e-6)
+            if loss_va < best["loss"]:
+                best.update(
+                    loss=loss_va,
+                    epoch=len(history_va) - 1,
+                    state=[p.detach().clone() for p in params],
+                )
+            if progress is not None:
+                progress(phase, len(history_va) - 1, loss_tr, loss_va)
+            return improved
+
+        # phase 1: Adam with learning-rate decay on plateaus of the training loss
+        opt = torch.optim.Adam(params, lr=learning_rate)
+        sched = torch.optim.lr_scheduler.ReduceLROnPlateau(
+            opt, factor=0.5, patience=100, min_lr=1e-5
+        )
+        stale = 0
+        stopped_early = False
+        for _ in range(epochs):
+            opt.zero_grad()
+            loss = loss_on(t_tr)
+            loss.backward()
+            opt.step()
+            sched.step(float(loss.detach()))
+            stale = 0 if record("adam", float(loss.detach())) else stale + 1
+            if stale >= patience:
+                stopped_early = True
+                break
+        adam_epochs = len(history_va)
+        # phase 2: L-BFGS from the best Adam weights
+        if lbfgs_epochs > 0:
+            with torch.no_grad():
+                for p, b in zip(params, best["state"], strict=True):
+                    p.copy_(b)
+            lbfgs = torch.optim.LBFGS(
+                params,
+                lr=1.0,
+                max_iter=1,
+                history_size=50,
+                line_search_fn="strong_wolfe",
+                tolerance_grad=1e-12,
+                tolerance_change=1e-15,
+            )
+
+            def closure():
+                lbfgs.zero_grad()
+                value = loss_on(t_tr)
+                value.backward()
+                return value
+
+            stale = 0
+            stopped_early = False
+            for _ in range(lbfgs_epochs):
+                loss = lbfgs.step(closure)
+                if not math.isfinite(float(loss.detach())):
+                    break
+                stale = 0 if record("lbfgs", float(loss.detach())) else stale + 1
+                if stale >= patience:
+                    stopped_early = True
+                    break
+        with torch.no_grad():
+            for p, b in zip(params, best["state"], strict=True):
+                p.copy_(b)
+    train_time = time.perf_counter() - t_start
+
+    weights = [lin.weight.detach().numpy().copy() for lin in layers]
+    biases = [lin.bias.detach().numpy().copy() for lin in layers]
+    extra = {
+        "history_train_loss": np.asarray(history_tr),
+        "history_validation_loss": np.asarray(history_va),
+    }
+    for name, rows in split.items():
+        extra[f"split_{name}_loads_n"] = f[rows]
+        extra[f"split_{name}_load_positions_m"] = xf[rows]
+    meta: dict[str, object] = {
+        "ski_id": str(ski_id),
+        "seed": int(seed),
+        "dtype": "float64",
+        "hidden_layers": ",".join(str(n) for n in hidden),
+        "node_spacing_m": float(node_spacing_m),
+        "n_nodes": int(nodes.size),
+        "contact_band_m": float(contact_band_m),
+        "loss": "mean r^2; r=(S-H)/max(H,b) where H>0, r=relu(S)/b where H=0",
+        "optimizer": "full-batch Adam + ReduceLROnPlateau, then L-BFGS (strong Wolfe)",
+        "learning_rate": float(learning_rate),
+        "patience": int(patience),
+        "epochs_max": int(epochs),
+        "lbfgs_epochs_max": int(lbfgs_epochs),
+        "epochs_adam": int(adam_epochs),
+        "epochs_run": len(history_va),
+        "best_epoch": int(best["epoch"]),
+        "stopped_early": bool(stopped_early),
+        "train_loss_best": float(history_tr[best["epoch"]]),
+        "validation_loss_best": float(best["loss"]),
+        "validation_fraction": float(validation_fraction),
+        "test_fraction": float(test_fraction),
+        "split_rule": "random interior load cases held out (seeded), whole profiles",
+        "n_cases_train": int(tr.size),
+        "n_cases_validation": int(va.size),
+        "n_cases_test": int(te.size),
+        "torch_version": str(torch.__version__),
+        "numpy_version": np.__version__,
+        "torch_threads": int(threads),
+        "trained_started_utc": started_utc,
+        "trained_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "training_time_s": float(train_time),
+    }
+    network = camber.network_from_arrays(
+        positions_m=x,
+        node_positions_m=nodes,
+        weights=weights,
+        biases=biases,
+        input_offset=in_offset,
+        input_scale=in_scale,
+        output_offset=out_offset,
+        output_scale=out_scale,
+        load_range_n=(f_lo, f_hi),
+        load_position_range_m=(x_lo, x_hi),
+        metadata=meta,
+        extra_arrays=extra,
+    )
+    metrics: dict[str, object] = {}
+    for name, rows in split.items():
+        if rows.size:
+            m = evaluate_network(network, f[rows], xf[rows], h[rows], band_m=contact_band_m)
+            metrics.update({f"{name}_{k}": v for k, v in m.items()})
+    for key, value in (metadata or {}).items():
+        network.setdefault(key, value)
+    network.update({f"metric_{k}": v for k, v in metrics.items()})
+    camber.check_network(network)
+    message = (
+        f"{len(history_va)} epochs ({adam_epochs} Adam), best epoch {best['epoch']}, "
+        f"validation loss {best['loss']:.3e}, "
+        + (
+            f"test RMSE(H*<{contact_band_m * 1e3:g} mm) = "
+            f"{metrics.get('test_rmse_band_m', float('nan')) * 1e6:.2f} µm, "
+            if te.size
+            else ""
+        )
+        + f"{train_time:.1f} s"
+    )
+    return TrainingResult(
+        network=network,
+        metrics=metrics,
+        converged=stopped_early,
+        epochs=len(history_va),
+        message=message,
+    )
+
+
+def evaluate_network(
+    network: Mapping[str, object],
+    loads_n: np.ndarray,
+    load_positions_m: np.ndarray,
+    profiles_m: np.ndarray,
+    *,
+    band_m: float = camber.CONTACT_BAND_M,
+) -> dict[str, float]:
+    """Accuracy of a network on given load cases (all in metres).
+
+    Returns
+    -------
+    dict
+        ``rmse_band_m`` (RMSE where the true H* < band, the target ≤ 5 µm),
+        ``max_abs_error_band_m``, ``rmse_m`` (all points), ``max_rmse_band_m`` (worst case),
+        ``contact_fraction_error`` (mean |predicted − true| fraction of grid points with
+        H* = 0, a proxy for the apparent contact length) and ``n_cases``.
+    """
+    h = np.asarray(profiles_m, dtype=float)
+    pred = camber.predict_profiles(network, loads_n, load_positions_m).gaps_m
+    mask = h < band_m
+    err = pred - h
+    per_case = [camber.contact_band_rmse_m(p, t, band_m) for p, t in zip(pred, h, strict=True)]
+    return {
+        "rmse_band_m": float(np.sqrt(np.mean(err[mask] ** 2))) if mask.any() else float("nan"),
+        "max_abs_error_band_m": float(np.abs(err[mask]).max()) if mask.any() else float("nan"),
+        "max_rmse_band_m": float(np.nanmax(per_case)),
+        "rmse_m": float(np.sqrt(np.mean(err**2))),
+        "contact_fraction_error": float(
+            np.mean(np.abs(np.mean(pred <= 0, axis=1) - np.mean(h <= 0, axis=1)))
+        ),
+        "n_cases": int(h.shape[0]),
+    }
+
+
+def _check_training_data(x, f, xf, h) -> None:
+    if x.ndim != 1 or x.size < 2 or not np.all(np.diff(x) > 0):
+        raise InputError("positions_m must be a strictly increasing 1-D grid of size >= 2")
+    if f.ndim != 1 or xf.shape != f.shape:
+        raise InputError(
+            f"loads_n and load_positions_m must be 1-D of equal length, got {f.shape}, {xf.shape}"
+        )
+    if h.shape != (f.size, x.size):
+        raise InputError(f"profiles_m must have shape ({f.size}, {x.size}), got {h.shape}")
+    for name, arr in (
+        ("positions_m", x),
+        ("loads_n", f),
+        ("load_positions_m", xf),
+        ("profiles_m", h),
+    ):
+        if not np.all(np.isfinite(arr)):
+            raise InputError(f"{name} contains NaN or inf")
+    if (h < 0).any():
+        raise InputError(f"profiles_m must be >= 0 (a gap), got min {h.min():g} m")
+    if (f <= 0).any():
+        raise InputError(f"loads_n must be > 0, got min {f.min():g} N")
+
+
+# --------------------------------------------------------------------------------------------
+# storage
+
+
+def write_network_to_ski(path: str | os.PathLike, network: Mapping[str, object]) -> None:
+    """Store ``network`` as the ``network`` group of an existing ski HDF5 file, atomically.
+
+    The file is copied beside itself, the group replaced in the copy, and the copy renamed onto
+    the original only on success; the rest of the file is untouched.
+    """
+    import h5py
+
+    path = Path(path)
+    if not path.is_file():
+        raise DataFileError(f"ski file not found: {path}")
+    net = camber.network_to_dict(network)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    os.close(fd)
+    tmp_path = Path(tmp)
+    try:
+        shutil.copyfile(path, tmp_path)
+        with h5py.File(tmp_path, "r+") as fh:
+            if "network" in fh:
+                del fh["network"]
+            grp = fh.create_group("network")
+            for key, value in net.items():
+                if isinstance(value, np.ndarray):
+                    grp.create_dataset(key, data=value)
+                else:
+                    grp.attrs[key] = value
+        with open(tmp_path, "rb+") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp_path, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp_path.unlink()
+        raise
+
+
+def read_network_from_ski(path: str | os.PathLike) -> dict:
+    """Read the ``network`` group of a ski HDF5 file into a network dict."""
+    import h5py
+
+    with h5py.File(path, "r") as fh:
+        if "network" not in fh:
+            raise DataFileError(f"{path} has no camber network (run skisnow train-camber)")
+        grp = fh["network"]
+        net: dict = {key: grp[key][()] for key in grp}
+        net.update({key: grp.attrs[key] for key in grp.attrs})
+    return camber.network_to_dict(net)
+
+
+# --------------------------------------------------------------------------------------------
+# command line
+
+
+def register(subparsers) -> None:
+    """Add the ``train-camber`` subcommand."""
+    p = subparsers.add_parser(
+        "train-camber",
+        help="train the per-ski camber network and store it in the ski file",
+        description=(
+            "Train the neural network that maps an equivalent load (F, x_F) to the loaded "
+            "camber profile H*(X) of one ski, evaluate it on held-out load cases and write it "
+            "into the ski's HDF5 file (group 'network'). Needs pip install 'skisnow[train]'."
+        ),
+    )
+    p.add_argument("--ski", required=True, help="ski name (tables/skis/NAME.h5) or a .h5 path")
+    p.add_argument(
+        "--csv", help="camber measurements (neutral CSV); default: those in the ski file"
+    )
+    p.add_argument("--epochs", type=int, default=4000, help="max Adam epochs (default 4000)")
+    p.add_argument(
+        "--lbfgs-epochs",
+        type=int,
+        default=1500,
+        help="max L-BFGS iterations after Adam (default 1500)",
+    )
+    p.add_argument("--seed", type=int, default=0, help="seed of split and weights (default 0)")
+    p.add_argument("--out", help="write the trained ski file here instead of updating --ski")
+    p.set_defaults(func=run)
+
+
+def _resolve_ski_path(name: str) -> Path:
+    p = Path(name)
+    if p.suffix in (".h5", ".hdf5") or p.exists():
+        return p
+    from app.storage.common import REPO_ROOT
+
+    return REPO_ROOT / "tables" / "skis" / f"{name}.h5"
+
+
+def _load_measurements(ski_path: Path, csv_path: str | None):
+    """(ski_id, positions_m, loads_n, load_positions_m, profiles_m) from a CSV or ski file."""
+    try:
+        from app.storage import skis
+    except ModuleNotFoundError as exc:  # pragma: no cover - until the storage module lands
+        raise DataFileError("app.storage.skis is not available in this build") from exc
+    if csv_path:
+        data = skis.read_camber_csv(csv_path)
+    else:
+        data = skis.read_ski(ski_path).camber
+    return _camber_arrays(data)
+
+
+def _camber_arrays(data):
+    profiles = np.asarray(data.profiles_m, dtype=float)
+    return (
+        str(data.ski_id),
+        np.asarray(data.positions_m, dtype=float),
+        np.asarray(data.loads_n, dtype=float),
+        np.asarray(data.load_positions_m, dtype=float),
+        profiles,
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Entry point of ``skisnow train-camber``."""
+    ski_path = _resolve_ski_path(args.ski)
+    if not ski_path.is_file():
+        raise DataFileError(f"ski file not found: {ski_path}")
+    ski_id, x, f, xf, h = _load_measurements(ski_path, args.csv)
+    log.info("training camber network for %s: %d load cases x %d points", ski_id, f.size, x.size)
+    from app.storage.common import provenance
+
+    bar = _progress_bar(args.epochs + args.lbfgs_epochs)
+    try:
+        result = train_camber_network(
+            x,
+            f,
+            xf,
+            h,
+            epochs=args.epochs,
+            lbfgs_epochs=args.lbfgs_epochs,
+            seed=args.seed,
+            ski_id=ski_id,
+            metadata={f"provenance_{k}": v for k, v in provenance().items()},
+            progress=bar.update if bar is not None else None,
+        )
+    finally:
+        if bar is not None:
+            bar.close()
+    out = Path(args.out) if args.out else ski_path
+    if out != ski_path:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(ski_path, out)
+    write_network_to_ski(out, result.network)
+    m = result.metrics
+    print(f"{ski_id}: {result.message}")
+    for name in ("train", "validation", "test"):
+        if f"{name}_n_cases" in m:
+            print(
+                f"  {name:10s} {m[f'{name}_n_cases']:3d} cases  "
+                f"RMSE(H*<0.2 mm) {m[f'{name}_rmse_band_m'] * 1e6:7.2f} µm  "
+                f"max|err|(H*<0.2 mm) {m[f'{name}_max_abs_error_band_m'] * 1e6:7.2f} µm  "
+                f"RMSE(all) {m[f'{name}_rmse_m'] * 1e6:7.2f} µm"
+            )
+    print(f"  written to {out}")
+    return 0
+
+
+class _Bar:
+    def __init__(self, total: int):
+        from tqdm import tqdm
+
+        self._bar = tqdm(total=total, unit="epoch", leave=False, mininterval=0.5)
+
+    def update(self, phase: str, epoch: int, loss_tr: float, loss_va: float) -> None:
+        self._bar.update(1)
+        if epoch % 50 == 0:
+            self._bar.set_postfix_str(f"{phase} train {loss_tr:.2e} val {loss_va:.2e}")
+
+    def close(self) -> None:
+        self._bar.close()
+
+
+def _progress_bar(total: int) -> _Bar:
+    return _Bar(total)
