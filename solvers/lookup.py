@@ -15,8 +15,9 @@ Lookup rules
 
   * real contact area fraction ``a_r``: in ``ln a_r`` (it spans orders of magnitude and is > 0
     for every solved point, because a loaded texture touches on at least one pixel);
-  * mean gap ``h̄_n``: in the value itself (linear), because it is O(⟨h_0⟩) over most of the
-    range and falls to exactly 0 at full contact, where a logarithm would not exist;
+  * mean gap ``h̄_n``: in ``ln h̄_n`` over the partial-contact points (it falls steeply
+    towards full contact); on the last segment, from the last partial-contact point to the
+    full-contact ratio where ``h̄_n = 0`` exactly, linearly in ``r`` (no logarithm of 0);
   * floored mean reciprocal gap ``(1/h)‾_n``: in ``ln`` of the value.
 
 - **Full contact.** If the table reached full contact (some grid point at or above the
@@ -205,9 +206,14 @@ class MicroTable:
             rec = np.append(rec, 1.0 / self.gap_floor_m)
         return {
             "ar": PchipInterpolator(x, np.log(ar)),
-            "gap": PchipInterpolator(x, gap),
+            "gap": PchipInterpolator(x[gap > 0], np.log(gap[gap > 0])),
             "rec": PchipInterpolator(x, np.log(rec)),
         }
+
+    @cached_property
+    def _last_partial_ratio(self) -> float:
+        partial = ~np.asarray(self.full_contact, dtype=bool)
+        return float(np.asarray(self.pressure_ratio)[partial][-1])
 
     @cached_property
     def _separated_interpolant(self) -> PchipInterpolator:
@@ -312,9 +318,13 @@ def _loaded(
     if quantity == "ar":
         values = np.where(inside, np.exp(f), np.where(full, 1.0, 0.0))
     elif quantity == "gap":
-        values = np.where(
-            inside, np.maximum(f, 0.0), np.where(full, 0.0, table.unloaded_mean_gap_m)
-        )
+        values = np.where(inside, np.exp(f), np.where(full, 0.0, table.unloaded_mean_gap_m))
+        last = table._last_partial_ratio
+        closing = inside & (r > last)
+        if np.any(closing):  # last segment to full contact: linear in r down to gap 0
+            r_fc = table.full_contact_pressure_ratio
+            gap_last = float(table.mean_gap_m[~np.asarray(table.full_contact)][-1])
+            values = np.where(closing, gap_last * (r_fc - r) / (r_fc - last), values)
     else:
         values = np.where(
             inside,
