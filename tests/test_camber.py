@@ -1,0 +1,227 @@
+"""Camber network: numpy inference vs torch, range checks, storage round trip, training accuracy.
+
+Training data come from a synthetic family of loaded camber profiles defined here (not a beam
+model): a mm-deep pocket between two contact zones whose edges move with the load, plus a
+cubic tip and tail rise. The gap meets the contact zones like distance², as a bent ski does.
+"""
+
+import time
+
+import h5py
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch", reason="torch is a test dependency (skisnow[test])")
+
+from app import train_camber  # noqa: E402
+from solvers import camber  # noqa: E402
+from solvers.errors import DataFileError, InputError, OutOfRangeError  # noqa: E402
+
+LOADS_N = np.linspace(100.0, 700.0, 7)
+POSITIONS_M = np.linspace(-0.25, 0.05, 5)
+GRID_M = np.linspace(-1.0, 1.0, 2001)  # 1 mm spacing over a 2 m ski
+
+
+def synthetic_profiles(loads_n, load_positions_m, positions_m):
+    """Loaded gap H*(X) [m] of a synthetic ski for loads (F [N], x_F [m]); shape (K, M)."""
+    x = np.asarray(positions_m)[None, :]
+    f = np.asarray(loads_n, dtype=float)[:, None] / 700.0
+    xf = np.asarray(load_positions_m, dtype=float)[:, None] + 0.1
+    centre = 0.3 * xf + 0.02 * f
+    half_width = 0.62 - 0.14 * f + 0.1 * xf
+    depth = 1.4e-3 * (1 - 0.55 * f) * (1 - 0.8 * xf)
+    u = (x - centre) / half_width
+    pocket = depth * np.clip(1 - u**2, 0, None) ** 2 * (1 + 0.4 * u * xf / 0.15)
+    tip = 0.02 * np.clip((x - 0.8) / 0.2, 0, None) ** 3 * (1 + 0.1 * f)
+    tail = 0.01 * np.clip((-0.85 - x) / 0.15, 0, None) ** 3
+    return pocket + tip + tail
+
+
+def _cases():
+    f, xf = np.meshgrid(LOADS_N, POSITIONS_M, indexing="ij")
+    return f.ravel(), xf.ravel()
+
+
+@pytest.fixture(scope="module")
+def trained():
+    f, xf = _cases()
+    h = synthetic_profiles(f, xf, GRID_M)
+    result = train_camber_network_short(f, xf, h, seed=0)
+    return result, (f, xf, h)
+
+
+def train_camber_network_short(f, xf, h, seed, epochs=300, lbfgs_epochs=150):
+    return train_camber.train_camber_network(
+        GRID_M, f, xf, h, epochs=epochs, lbfgs_epochs=lbfgs_epochs, seed=seed, ski_id="synthetic"
+    )
+
+
+def test_synthetic_family_is_a_loaded_camber():
+    f, xf = _cases()
+    h = synthetic_profiles(f, xf, GRID_M)
+    assert (h >= 0).all()
+    contact = (h == 0).mean(axis=1)
+    assert ((contact > 0.1) & (contact < 0.5)).all()  # two contact zones on every profile
+    pocket = h[:, np.abs(GRID_M) < 0.4].max(axis=1)
+    assert ((pocket > 0.3e-3) & (pocket < 2e-3)).all()  # a few 0.1 mm to mm under the pocket
+
+
+def test_held_out_accuracy(trained):
+    """Held-out load cases: RMSE of H* where H* < 0.2 mm within the 5 µm target.
+
+    Measured 1.6 µm with this short training (300 Adam + 150 L-BFGS epochs); the full default
+    training reaches ~0.6 µm on the same family. The length where H* ≤ 5 µm must match to 1 %
+    of the ski (measured ≤ 0.5 % on average).
+    """
+    result, _ = trained
+    m = result.metrics
+    assert m["test_n_cases"] >= 4 and m["validation_n_cases"] >= 4
+    assert m["test_rmse_band_m"] < 5e-6
+    assert m["validation_rmse_band_m"] < 5e-6
+    assert m["test_contact_fraction_error"] < 0.01
+    # the metrics are stored with the network
+    assert result.network["metric_test_rmse_band_m"] == m["test_rmse_band_m"]
+
+
+def test_numpy_inference_matches_torch(trained):
+    result, _ = trained
+    net = result.network
+    rng = np.random.default_rng(1)
+    f = rng.uniform(net["load_min_n"], net["load_max_n"], 50)
+    xf = rng.uniform(net["load_position_min_m"], net["load_position_max_m"], 50)
+    ours = camber.predict_profiles(net, f, xf).gaps_m
+    ref = train_camber.torch_predict(net, f, xf)
+    assert ours.shape == (50, GRID_M.size)
+    np.testing.assert_allclose(ours, ref, rtol=1e-6, atol=1e-6 * np.abs(ref).max())
+    # and not trivially: the gaps vary with the load
+    assert np.ptp(ours[:, GRID_M.size // 2]) > 1e-4
+
+
+def test_prediction_nonnegative_with_exact_contact(trained):
+    result, _ = trained
+    x, gap = camber.predict_profile(result.network, 392.8, -0.16)
+    np.testing.assert_array_equal(x, GRID_M)
+    assert (gap >= 0).all()
+    assert 0.1 < (gap == 0).mean() < 0.5  # exact zeros in the contact zones
+    dense = camber.predict_profiles(
+        result.network, np.linspace(100, 700, 31), np.linspace(-0.25, 0.05, 31)
+    ).gaps_m
+    assert (dense >= 0).all()
+
+
+def test_single_and_vectorised_agree(trained):
+    net = trained[0].network
+    _, one = camber.predict_profile(net, 300.0, -0.1)
+    many = camber.predict_profiles(net, [100.0, 300.0], [0.0, -0.1]).gaps_m
+    np.testing.assert_allclose(one, many[1], rtol=1e-12, atol=1e-18)
+
+
+@pytest.mark.parametrize(
+    ("load", "pos", "name"),
+    [
+        (99.0, -0.1, "loads_n"),
+        (700.5, -0.1, "loads_n"),
+        (300.0, -0.26, "load_positions_m"),
+        (300.0, 0.06, "load_positions_m"),
+    ],
+)
+def test_out_of_range_raises(trained, load, pos, name):
+    net = trained[0].network
+    with pytest.raises(OutOfRangeError, match=name) as info:
+        camber.predict_profile(net, load, pos)
+    assert "trained range" in str(info.value)
+
+
+def test_range_edges_and_bad_inputs(trained):
+    net = trained[0].network
+    camber.predict_profile(net, net["load_min_n"], net["load_position_max_m"])  # edges are in
+    with pytest.raises(InputError, match="finite"):
+        camber.predict_profile(net, float("nan"), -0.1)
+    with pytest.raises(InputError, match="finite"):
+        camber.predict_profiles(net, [300.0, 300.0], [-0.1, np.inf])
+    with pytest.raises(InputError, match="equal length"):
+        camber.predict_profiles(net, [300.0, 300.0], [-0.1])
+
+
+def test_inference_time_below_one_ms(trained):
+    net = trained[0].network
+    times = []
+    for _ in range(300):
+        t0 = time.perf_counter()
+        camber.predict_profile(net, 392.8, -0.16)
+        times.append(time.perf_counter() - t0)
+    assert np.median(times) < 1e-3
+
+
+def test_hdf5_round_trip(trained, tmp_path):
+    net = trained[0].network
+    path = tmp_path / "ski.h5"
+    with h5py.File(path, "w") as fh:
+        fh.attrs["ski_id"] = "synthetic"
+        fh.create_dataset("other", data=np.arange(3))
+    train_camber.write_network_to_ski(path, net)
+    back = train_camber.read_network_from_ski(path)
+    assert set(back) == set(net)
+    for key, value in net.items():
+        if isinstance(value, np.ndarray):
+            np.testing.assert_array_equal(back[key], value)
+        else:
+            assert back[key] == value and type(back[key]) is type(value), key
+    f, xf = [150.0, 650.0], [-0.2, 0.0]
+    np.testing.assert_array_equal(
+        camber.predict_profiles(back, f, xf).gaps_m, camber.predict_profiles(net, f, xf).gaps_m
+    )
+    with h5py.File(path, "r") as fh:  # the rest of the file is untouched
+        np.testing.assert_array_equal(fh["other"][()], np.arange(3))
+        assert fh["network"].attrs["schema"] == camber.SCHEMA
+    # no pickles: every stored value is a plain array or a scalar/str attribute
+    assert all(isinstance(v, np.ndarray | str | int | float | bool) for v in back.values())
+
+
+def test_schema_is_checked(trained):
+    net = dict(trained[0].network)
+    net["schema"] = "skisnow.camber-mlp/0"
+    with pytest.raises(DataFileError, match="schema"):
+        camber.network_to_dict(net)
+    net = dict(trained[0].network)
+    net["layer1_weight"] = net["layer1_weight"][:, :3]
+    with pytest.raises(DataFileError, match="layer 1"):
+        camber.check_network(net)
+
+
+def test_split_holds_out_interior_cases_only():
+    f, xf = _cases()
+    split = train_camber.split_load_cases(f, xf, validation_fraction=0.15, test_fraction=0.15)
+    held = np.concatenate([split["validation"], split["test"]])
+    assert np.intersect1d(held, split["train"]).size == 0
+    assert np.union1d(held, split["train"]).size == f.size
+    assert (f[held] > f.min()).all() and (f[held] < f.max()).all()
+    assert (xf[held] > xf.min()).all() and (xf[held] < xf.max()).all()
+    with pytest.raises(InputError, match="interior"):
+        train_camber.split_load_cases(f[:5], xf[:5])
+
+
+def test_training_is_deterministic():
+    f, xf = _cases()
+    h = synthetic_profiles(f, xf, GRID_M)
+    a = train_camber_network_short(f, xf, h, seed=3, epochs=40, lbfgs_epochs=10).network
+    b = train_camber_network_short(f, xf, h, seed=3, epochs=40, lbfgs_epochs=10).network
+    c = train_camber_network_short(f, xf, h, seed=4, epochs=40, lbfgs_epochs=10).network
+    for i in range(int(a["n_layers"])):
+        np.testing.assert_array_equal(a[f"layer{i}_weight"], b[f"layer{i}_weight"])
+        np.testing.assert_array_equal(a[f"layer{i}_bias"], b[f"layer{i}_bias"])
+    assert not np.array_equal(a["layer0_weight"], c["layer0_weight"])
+
+
+def test_training_rejects_bad_data():
+    f, xf = _cases()
+    h = synthetic_profiles(f, xf, GRID_M)
+    bad = h.copy()
+    bad[0, 5] = -1e-6
+    with pytest.raises(InputError, match="profiles_m must be >= 0"):
+        train_camber.train_camber_network(GRID_M, f, xf, bad, epochs=1)
+    bad[0, 5] = np.nan
+    with pytest.raises(InputError, match="NaN"):
+        train_camber.train_camber_network(GRID_M, f, xf, bad, epochs=1)
+    with pytest.raises(InputError, match="shape"):
+        train_camber.train_camber_network(GRID_M, f, xf, h[:, :-1], epochs=1)
