@@ -1,0 +1,390 @@
+"""Ski files: neutral camber-measurement CSV and the ski HDF5 file (schema ``skisnow.ski/1``).
+
+Neutral camber CSV (one row per sample; see docs/macro.md)::
+
+    ski_id,side,load_kg,load_position_mm,position_mm,gap_mm
+    ski-a,mean,40,-160,-970,4.512
+    ...
+
+- ``side`` is ``left``, ``right`` or ``mean``; positions are from the balance point, positive
+  towards the tip; ``gap_mm`` is the gap between base and flat.
+- One profile per case (side, load_kg, load_position_mm), positions strictly increasing within a
+  case, the same positions in every case, one ski_id per file.
+- Ranges: 0 ≤ load_kg ≤ 200, |positions| ≤ 1500 mm, −0.05 ≤ gap_mm ≤ 50. Gaps down to −0.05 mm are
+  accepted as device noise around a touching point (a real stylus reads a few µm either side of
+  zero) and kept as read; the macro solver clips them to zero.
+
+Units are converted here, once: kg → N with g = 9.82 m/s² (method.md §2), mm → m.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from solvers.beam import G_STANDARD, BeamSki
+from solvers.errors import DataFileError, InputError
+
+from .common import atomic_path, provenance
+
+__all__ = [
+    "CSV_COLUMNS",
+    "GAP_MM_RANGE",
+    "SCHEMA",
+    "CamberData",
+    "SkiOutline",
+    "SkiRecord",
+    "read_camber_csv",
+    "read_ski",
+    "write_camber_csv",
+    "write_ski",
+]
+
+SCHEMA = "skisnow.ski/1"
+CSV_COLUMNS = ("ski_id", "side", "load_kg", "load_position_mm", "position_mm", "gap_mm")
+SIDES = ("left", "right", "mean")
+LOAD_KG_RANGE = (0.0, 200.0)
+POSITION_MM_LIMIT = 1500.0
+#: accepted gap range [mm]; small negative values are device noise around contact
+GAP_MM_RANGE = (-0.05, 50.0)
+
+
+@dataclass
+class CamberData:
+    """Camber measurements of one ski (SI units).
+
+    Attributes
+    ----------
+    ski_id : str
+        Ski identifier.
+    positions_m : ndarray (M,)
+        Sample positions X from the balance point [m], increasing.
+    loads_n : ndarray (K,)
+        Load F of each case [N].
+    load_positions_m : ndarray (K,)
+        Load position x_F of each case [m].
+    sides : list of str (K,)
+        ``left``, ``right`` or ``mean`` per case.
+    profiles_m : ndarray (K, M)
+        Measured gaps H*(X) [m].
+    """
+
+    ski_id: str
+    positions_m: np.ndarray
+    loads_n: np.ndarray
+    load_positions_m: np.ndarray
+    sides: list[str]
+    profiles_m: np.ndarray
+
+
+@dataclass
+class SkiOutline:
+    """Plan-form of the ski.
+
+    Attributes
+    ----------
+    length_m : float
+        Ski length [m].
+    balance_point_from_tail_m : float
+        Distance of the balance point (X = 0) from the tail end [m].
+    positions_m, width_m : ndarray
+        Width profile: positions X [m] and running-surface width [m].
+    """
+
+    length_m: float
+    balance_point_from_tail_m: float
+    positions_m: np.ndarray
+    width_m: np.ndarray
+
+
+@dataclass
+class SkiRecord:
+    """Everything a ski file holds.
+
+    ``beam`` (demo skis only) lets the true loaded profile be recomputed for any load;
+    ``beam_design`` holds the design parameters it was built from. ``network`` is the camber
+    network as a dict of arrays with an ``"attrs"`` dict (nested dicts are subgroups).
+    """
+
+    measurements: CamberData
+    outline: SkiOutline
+    metadata: dict = field(default_factory=dict)
+    beam: BeamSki | None = None
+    beam_design: dict | None = None
+    network: dict | None = None
+
+    @property
+    def ski_id(self) -> str:
+        return self.measurements.ski_id
+
+
+def _parse_float(text: str, column: str, lineno: int) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise InputError(f"line {lineno}: column {column!r} is not a number: {text!r}") from None
+    if not np.isfinite(value):
+        raise InputError(f"line {lineno}: column {column!r} is {text!r} (NaN/inf not allowed)")
+    return value
+
+
+def read_camber_csv(source: str | os.PathLike) -> CamberData:
+    """Read and validate a neutral camber CSV (a path, or the CSV text itself).
+
+    Raises
+    ------
+    InputError
+        With the line number and what is wrong (header, number, range, order, grid).
+    """
+    if isinstance(source, os.PathLike) or (isinstance(source, str) and "\n" not in source):
+        path = Path(source)
+        if not path.is_file():
+            raise DataFileError(f"camber CSV not found: {path}")
+        text = path.read_text(encoding="utf-8-sig")
+    else:
+        text = str(source)
+    reader = csv.reader(io.StringIO(text))
+    try:
+        header = [h.strip() for h in next(reader)]
+    except StopIteration:
+        raise InputError("line 1: empty file, expected header " + ",".join(CSV_COLUMNS)) from None
+    if tuple(header) != CSV_COLUMNS:
+        raise InputError(f"line 1: header must be {','.join(CSV_COLUMNS)}, got {','.join(header)}")
+    ski_id: str | None = None
+    cases: dict[tuple[str, float, float], tuple[list[float], list[float], int]] = {}
+    for lineno, row in enumerate(reader, start=2):
+        if not row or all(not c.strip() for c in row):
+            continue
+        if len(row) != len(CSV_COLUMNS):
+            raise InputError(f"line {lineno}: expected {len(CSV_COLUMNS)} columns, got {len(row)}")
+        sid, side = row[0].strip(), row[1].strip().lower()
+        if not sid:
+            raise InputError(f"line {lineno}: ski_id is empty")
+        if ski_id is None:
+            ski_id = sid
+        elif sid != ski_id:
+            raise InputError(
+                f"line {lineno}: ski_id {sid!r} differs from {ski_id!r} (one ski per file)"
+            )
+        if side not in SIDES:
+            raise InputError(f"line {lineno}: side must be left, right or mean, got {row[1]!r}")
+        load_kg = _parse_float(row[2], "load_kg", lineno)
+        load_pos = _parse_float(row[3], "load_position_mm", lineno)
+        pos = _parse_float(row[4], "position_mm", lineno)
+        gap = _parse_float(row[5], "gap_mm", lineno)
+        if not LOAD_KG_RANGE[0] <= load_kg <= LOAD_KG_RANGE[1]:
+            raise InputError(f"line {lineno}: load_kg must be in [0, 200], got {load_kg}")
+        for name, v in (("load_position_mm", load_pos), ("position_mm", pos)):
+            if abs(v) > POSITION_MM_LIMIT:
+                raise InputError(f"line {lineno}: {name} must be within ±1500 mm, got {v}")
+        if not GAP_MM_RANGE[0] <= gap <= GAP_MM_RANGE[1]:
+            raise InputError(
+                f"line {lineno}: gap_mm must be in [{GAP_MM_RANGE[0]}, {GAP_MM_RANGE[1]}] "
+                f"(small negative values are device noise), got {gap}"
+            )
+        key = (side, load_kg, load_pos)
+        if key not in cases:
+            cases[key] = ([], [], lineno)
+        xs, gs, _ = cases[key]
+        if xs and pos <= xs[-1]:
+            raise InputError(
+                f"line {lineno}: position_mm {pos} is not greater than the previous position "
+                f"{xs[-1]} of case side={side}, load_kg={load_kg:g}, load_position_mm={load_pos:g}"
+                " (positions must be strictly increasing within a case)"
+            )
+        xs.append(pos)
+        gs.append(gap)
+    if not cases:
+        raise InputError("no data rows after the header")
+    keys = list(cases)
+    grid = np.asarray(cases[keys[0]][0])
+    for key in keys[1:]:
+        xs, _, first = cases[key]
+        if len(xs) != grid.size or not np.allclose(xs, grid, rtol=0, atol=1e-9):
+            raise InputError(
+                f"line {first}: case side={key[0]}, load_kg={key[1]:g}, "
+                f"load_position_mm={key[2]:g} has {len(xs)} positions "
+                f"({xs[0]:g}..{xs[-1]:g} mm) but the first case has {grid.size} "
+                f"({grid[0]:g}..{grid[-1]:g} mm): all cases must share one sampling grid"
+            )
+    if grid.size < 2:
+        raise InputError("each case needs at least 2 positions")
+    return CamberData(
+        ski_id=str(ski_id),
+        positions_m=grid * 1e-3,
+        loads_n=np.array([k[1] for k in keys]) * G_STANDARD,
+        load_positions_m=np.array([k[2] for k in keys]) * 1e-3,
+        sides=[k[0] for k in keys],
+        profiles_m=np.array([cases[k][1] for k in keys]) * 1e-3,
+    )
+
+
+def write_camber_csv(path: str | os.PathLike, data: CamberData, *, decimals: int = 4) -> None:
+    """Write ``data`` as a neutral camber CSV (atomic), gaps rounded to ``decimals`` mm."""
+    with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(CSV_COLUMNS)
+        pos_mm = np.round(data.positions_m * 1e3, 6)
+        for k in range(len(data.sides)):
+            load_kg = round(float(data.loads_n[k]) / G_STANDARD, 6)
+            load_pos = round(float(data.load_positions_m[k]) * 1e3, 6)
+            gaps = np.round(data.profiles_m[k] * 1e3, decimals)
+            for x, g in zip(pos_mm, gaps, strict=True):
+                w.writerow(
+                    [
+                        data.ski_id,
+                        data.sides[k],
+                        f"{load_kg:g}",
+                        f"{load_pos:g}",
+                        f"{x:g}",
+                        f"{g:.{decimals}f}",
+                    ]
+                )
+
+
+def _write_dict(group: h5py.Group, content: dict) -> None:
+    for key, value in content.items():
+        if key == "attrs":
+            for a, v in value.items():
+                group.attrs[a] = v
+        elif isinstance(value, dict):
+            _write_dict(group.create_group(key), value)
+        else:
+            group.create_dataset(key, data=np.asarray(value))
+
+
+def _read_dict(group: h5py.Group) -> dict:
+    out: dict = {"attrs": {k: _attr(v) for k, v in group.attrs.items()}}
+    for key, item in group.items():
+        out[key] = _read_dict(item) if isinstance(item, h5py.Group) else item[()]
+    return out
+
+
+def _attr(v):
+    if isinstance(v, bytes):
+        return v.decode()
+    if isinstance(v, np.generic):
+        return v.item()
+    return v
+
+
+def write_ski(
+    path: str | os.PathLike,
+    ski: SkiRecord,
+    network: dict | None = None,
+    *,
+    parameters: dict | None = None,
+) -> None:
+    """Write a ski file atomically (schema ``skisnow.ski/1``, provenance attributes).
+
+    Parameters
+    ----------
+    path : path
+        Target ``.h5`` file.
+    ski : SkiRecord
+        Measurements, outline, metadata and, for demo skis, the beam model.
+    network : dict, optional
+        Camber network to store in group ``network``: arrays (datasets), an ``"attrs"`` dict
+        (attributes) and nested dicts (subgroups). Default: ``ski.network``.
+    parameters : dict, optional
+        Generating parameters recorded in the provenance.
+    """
+    net = network if network is not None else ski.network
+    m = ski.measurements
+    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+        f.attrs["schema"] = SCHEMA
+        f.attrs["ski_id"] = m.ski_id
+        for k, v in provenance(parameters).items():
+            f.attrs[k] = v
+        g = f.create_group("measurements")
+        g.attrs["description"] = "loaded camber gaps H*(X) of a rigid-flat measuring device"
+        g.attrs["g_m_per_s2"] = G_STANDARD
+        for name, arr, unit in (
+            ("positions_m", m.positions_m, "m, from the balance point, + towards the tip"),
+            ("loads_n", m.loads_n, "N"),
+            ("load_positions_m", m.load_positions_m, "m, from the balance point"),
+            ("profiles_m", m.profiles_m, "m, gap between base and flat; axis 0 case, axis 1 X"),
+        ):
+            d = g.create_dataset(name, data=np.asarray(arr, dtype=float))
+            d.attrs["units"] = unit
+        g.create_dataset("sides", data=np.array(m.sides, dtype=h5py.string_dtype()))
+        o = f.create_group("outline")
+        o.attrs["length_m"] = ski.outline.length_m
+        o.attrs["balance_point_from_tail_m"] = ski.outline.balance_point_from_tail_m
+        for name, arr in (
+            ("positions_m", ski.outline.positions_m),
+            ("width_m", ski.outline.width_m),
+        ):
+            o.create_dataset(name, data=np.asarray(arr, dtype=float)).attrs["units"] = "m"
+        md = f.create_group("metadata")
+        for k, v in ski.metadata.items():
+            md.attrs[k] = v
+        if ski.beam is not None:
+            b = f.create_group("beam")
+            b.attrs["description"] = (
+                "Euler-Bernoulli beam model of the ski (solvers.beam): recompute H*(X) for any load"
+            )
+            if ski.beam_design is not None:
+                b.attrs["design_json"] = json.dumps(ski.beam_design, sort_keys=True)
+            for name, arr, unit in (
+                ("positions_m", ski.beam.positions_m, "m"),
+                ("bending_stiffness_nm2", ski.beam.bending_stiffness_nm2, "N m^2"),
+                ("unloaded_gap_m", ski.beam.unloaded_gap_m, "m"),
+            ):
+                b.create_dataset(name, data=arr).attrs["units"] = unit
+        if net is not None:
+            _write_dict(f.create_group("network"), net)
+
+
+def read_ski(path: str | os.PathLike) -> SkiRecord:
+    """Read a ski file written by :func:`write_ski`.
+
+    Raises
+    ------
+    DataFileError
+        Missing file, unknown schema or a missing group/dataset.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DataFileError(f"ski file not found: {path}")
+    try:
+        with h5py.File(path, "r") as f:
+            schema = _attr(f.attrs.get("schema", ""))
+            if schema != SCHEMA:
+                raise DataFileError(f"{path}: schema {schema!r}, expected {SCHEMA!r}")
+            g = f["measurements"]
+            meas = CamberData(
+                ski_id=str(_attr(f.attrs["ski_id"])),
+                positions_m=g["positions_m"][()],
+                loads_n=g["loads_n"][()],
+                load_positions_m=g["load_positions_m"][()],
+                sides=[_attr(s) for s in g["sides"][()]],
+                profiles_m=g["profiles_m"][()],
+            )
+            o = f["outline"]
+            outline = SkiOutline(
+                length_m=float(o.attrs["length_m"]),
+                balance_point_from_tail_m=float(o.attrs["balance_point_from_tail_m"]),
+                positions_m=o["positions_m"][()],
+                width_m=o["width_m"][()],
+            )
+            metadata = {k: _attr(v) for k, v in f["metadata"].attrs.items()}
+            beam = design = None
+            if "beam" in f:
+                b = f["beam"]
+                beam = BeamSki(
+                    b["positions_m"][()], b["bending_stiffness_nm2"][()], b["unloaded_gap_m"][()]
+                )
+                if "design_json" in b.attrs:
+                    design = json.loads(_attr(b.attrs["design_json"]))
+            network = _read_dict(f["network"]) if "network" in f else None
+    except (OSError, KeyError) as exc:
+        raise DataFileError(f"{path}: unreadable or incomplete ski file ({exc})") from exc
+    return SkiRecord(meas, outline, metadata, beam, design, network)

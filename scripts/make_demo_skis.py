@@ -1,0 +1,163 @@
+"""Build the demo skis ``ski-a`` and ``ski-b`` (tables/skis/*.h5).
+
+The papers' camber data are not public (method.md §4), so each demo ski is a classic beam ski
+(:class:`solvers.beam.ClassicSkiDesign`) whose pocket (kick-zone camber) height is calibrated by a
+1-D root-find so that the macro BEM — true beam profile at 40 kg (g = 9.82) 160 mm behind the
+balance point, E_snow = 200 MPa, E_base = 0.7 GPa, ν = 0.3, default grid — gives the papers'
+apparent contact area (ski A 63.98 cm², ski B 121.84 cm²). The virtual measuring device then
+records 10 loads × 9 load positions at 1 mm sampling with 3 µm noise (fixed seed).
+
+Usage::
+
+    python scripts/make_demo_skis.py [--out tables/skis] [--ski ski-a]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import logging
+import sys
+from pathlib import Path
+
+import numpy as np
+import scipy.optimize
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from app.storage.skis import CamberData, SkiOutline, SkiRecord, write_ski
+from solvers.beam import (
+    G_STANDARD,
+    ClassicSkiDesign,
+    measure_camber,
+    solve_beam_contact,
+)
+from solvers.elastic import effective_modulus
+from solvers.macro import extrude_profile, solve_macro
+
+log = logging.getLogger("make_demo_skis")
+
+WIDTH_M = 0.044
+LOAD_N = 40.0 * G_STANDARD
+LOAD_POSITION_M = -0.160
+E_EFF_PA = effective_modulus(200e6, 0.7e9, 0.3)
+#: papers' targets (method.md §4): apparent contact area [m²]
+TARGETS = {"ski-a": 63.98e-4, "ski-b": 121.84e-4}
+#: base designs and the bracket of the calibrated pocket height [m]
+DESIGNS = {
+    "ski-a": (
+        ClassicSkiDesign(
+            camber_height_m=0.002,
+            tail_contact_m=-0.80,
+            tip_contact_m=0.70,
+            stiffness_nm2=1500.0,
+            end_stiffness_ratio=0.15,
+            pocket_height_m=1e-3,
+        ),
+        (0.0006, 0.0012),
+    ),
+    "ski-b": (
+        ClassicSkiDesign(
+            camber_height_m=0.001,
+            tail_contact_m=-0.85,
+            tip_contact_m=0.75,
+            stiffness_nm2=600.0,
+            end_stiffness_ratio=0.3,
+            pocket_height_m=3e-4,
+        ),
+        (0.0002, 0.0004),
+    ),
+}
+MEASURE_LOADS_KG = np.arange(10.0, 91.0, 9.0)[:10]  # 10 loads, 10..91 kg
+MEASURE_POSITIONS_M = np.linspace(-0.300, 0.100, 9)  # 9 load positions, 50 mm apart
+NOISE_M = 3e-6
+SEEDS = {"ski-a": 20231001, "ski-b": 20231002}
+
+
+def bem_for(design: ClassicSkiDesign):
+    """Macro result of a design at the papers' load case (true beam profile)."""
+    ski = design.build()
+    beam = solve_beam_contact(ski, LOAD_N, LOAD_POSITION_M)
+    gm = extrude_profile(ski.positions_m, beam.gap_m, WIDTH_M)
+    return solve_macro(gm, LOAD_N, LOAD_POSITION_M, E_EFF_PA)
+
+
+def rear_share(result) -> float:
+    """Fraction of the load carried by contact behind the load point [-]."""
+    return sum(z.load_n for z in result.zones if z.end_m <= LOAD_POSITION_M + 1e-9) / result.load_n
+
+
+def calibrate(name: str) -> ClassicSkiDesign:
+    """Root-find the pocket height so that the apparent area hits the target."""
+    base, (lo, hi) = DESIGNS[name]
+    target = TARGETS[name]
+
+    def misfit(height: float) -> float:
+        res = bem_for(dataclasses.replace(base, pocket_height_m=height))
+        log.info(
+            "%s pocket %.4g mm -> %.2f cm²", name, height * 1e3, res.apparent_contact_area_m2 * 1e4
+        )
+        return res.apparent_contact_area_m2 / target - 1.0
+
+    height = scipy.optimize.brentq(misfit, lo, hi, xtol=1e-7, rtol=1e-6)
+    return dataclasses.replace(base, pocket_height_m=height)
+
+
+def build(name: str, out_dir: Path) -> dict:
+    design = calibrate(name)
+    res = bem_for(design)
+    ski = design.build()
+    loads_n = MEASURE_LOADS_KG * G_STANDARD
+    cases_n, cases_m, gaps = measure_camber(
+        ski, loads_n, MEASURE_POSITIONS_M, noise_m=NOISE_M, rng=np.random.default_rng(SEEDS[name])
+    )
+    data = CamberData(
+        ski_id=name,
+        positions_m=ski.positions_m,
+        loads_n=cases_n,
+        load_positions_m=cases_m,
+        sides=["mean"] * cases_n.size,
+        profiles_m=gaps,
+    )
+    outline = SkiOutline(
+        length_m=design.tip_m - design.tail_m,
+        balance_point_from_tail_m=-design.tail_m,
+        positions_m=np.array([design.tail_m, design.tip_m]),
+        width_m=np.array([WIDTH_M, WIDTH_M]),
+    )
+    summary = {
+        "apparent_contact_area_cm2": res.apparent_contact_area_m2 * 1e4,
+        "target_area_cm2": TARGETS[name] * 1e4,
+        "mean_apparent_pressure_kpa": res.mean_apparent_pressure_pa / 1e3,
+        "rear_load_share": rear_share(res),
+        "zones": [(z.start_m, z.end_m, z.load_share) for z in res.zones],
+    }
+    design_dict = dataclasses.asdict(design)
+    metadata = {
+        "description": f"synthetic classic ski {name} (beam model calibrated to the papers)",
+        "calibration_json": __import__("json").dumps(summary),
+        "noise_m": NOISE_M,
+        "seed": SEEDS[name],
+    }
+    record = SkiRecord(data, outline, metadata, ski, design_dict)
+    write_ski(out_dir / f"{name}.h5", record, parameters={"design": design_dict, **summary})
+    return summary
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--out", type=Path, default=Path(__file__).resolve().parents[1] / "tables/skis"
+    )
+    parser.add_argument("--ski", choices=sorted(DESIGNS), action="append")
+    parser.add_argument("-v", "--verbose", action="store_true")
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING)
+    for name in args.ski or sorted(DESIGNS):
+        summary = build(name, args.out)
+        print(name, summary)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
