@@ -22,6 +22,7 @@ then ``OUT/manifest.json`` is rewritten and the texture's checkpoints are remove
 from __future__ import annotations
 
 import argparse
+import contextlib
 import hashlib
 import inspect
 import logging
@@ -236,7 +237,7 @@ def _open_client(scheduler: str | None, workers: int, processes: bool):
         n_workers=int(workers),
         threads_per_worker=1,
         processes=processes,
-        dashboard_address=None,
+        dashboard_address=":0",
         silence_logs=logging.WARNING,
     )
     return Client(cluster), cluster
@@ -336,6 +337,9 @@ def build_tables(
         )
         if not keep_checkpoints:
             shutil.rmtree(job.directory, ignore_errors=True)
+            for parent in (job.directory.parent, job.directory.parent.parent):
+                with contextlib.suppress(OSError):
+                    parent.rmdir()  # only if empty
         bad = int(np.count_nonzero(~table.converged))
         if bad:
             log.warning("%s: %d point(s) did not converge (see /loaded/converged)", name, bad)
