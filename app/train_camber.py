@@ -51,6 +51,7 @@ from solvers.errors import DataFileError, InputError
 
 __all__ = [
     "TrainingResult",
+    "camber_training_arrays",
     "evaluate_network",
     "register",
     "run",
@@ -61,6 +62,9 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
+
+#: most negative measured gap accepted: device noise around a touching point [m]
+MIN_GAP_M = -50e-6
 
 TRAIN_EXTRA_HINT = "training the camber network needs PyTorch: pip install 'skisnow[train]'"
 
@@ -214,7 +218,7 @@ def torch_predict(
     Used to check that the numpy inference of :mod:`solvers.camber` reproduces torch.
     """
     torch = _import_torch()
-    n_layers = int(network["n_layers"])
+    n_layers = int(network["attrs"]["n_layers"])
     sizes = [2] + [int(np.asarray(network[f"layer{i}_weight"]).shape[0]) for i in range(n_layers)]
     layers = _build_layers(torch, sizes, torch.Generator().manual_seed(0))
     with torch.no_grad():
@@ -274,7 +278,8 @@ def train_camber_network(
     load_positions_m : ndarray, shape (K,)
         Load positions x_F of the load cases [m].
     profiles_m : ndarray, shape (K, M)
-        Measured loaded gaps H*(X) ≥ 0 [m].
+        Measured loaded gaps H*(X) [m]; readings down to ``MIN_GAP_M`` (−50 µm) are accepted as
+        device noise at contact and treated like contact (one-sided loss) where ≤ 0.
     epochs : int
         Maximum number of full-batch Adam epochs (early stopping may end sooner).
     lbfgs_epochs : int
@@ -352,7 +357,7 @@ def train_camber_network(
         # output lives there, the linear interpolation in between is fixed; metrics use every point
         t_in = torch.as_tensor((np.stack([f, xf], axis=1) - in_offset) / in_scale)
         t_h = torch.as_tensor(h[:, node_idx])
-        t_zero = t_h <= 0.0
+        t_zero = t_h <= 0.0  # touching (or noise below zero): only S <= 0 is asked
         t_wt = 1.0 / torch.clamp(t_h, min=contact_band_m)
         t_off = torch.as_tensor(out_offset)
         t_scale = torch.as_tensor(out_scale)
@@ -500,8 +505,8 @@ def train_camber_network(
             m = evaluate_network(network, f[rows], xf[rows], h[rows], band_m=contact_band_m)
             metrics.update({f"{name}_{k}": v for k, v in m.items()})
     for key, value in (metadata or {}).items():
-        network.setdefault(key, value)
-    network.update({f"metric_{k}": v for k, v in metrics.items()})
+        network["attrs"].setdefault(key, value)
+    network["attrs"].update({f"metric_{k}": v for k, v in metrics.items()})
     camber.check_network(network)
     message = (
         f"{len(history_va)} epochs ({adam_epochs} Adam), best epoch {best['epoch']}, "
@@ -584,8 +589,11 @@ def _check_training_data(x, f, xf, h) -> None:
     ):
         if not np.all(np.isfinite(arr)):
             raise InputError(f"{name} contains NaN or inf")
-    if (h < 0).any():
-        raise InputError(f"profiles_m must be >= 0 (a gap), got min {h.min():g} m")
+    if (h < MIN_GAP_M).any():
+        raise InputError(
+            f"profiles_m must be >= {MIN_GAP_M:g} m (a gap; small negative readings are device "
+            f"noise at contact), got min {h.min():g} m"
+        )
     if (f <= 0).any():
         raise InputError(f"loads_n must be > 0, got min {f.min():g} N")
 
@@ -598,7 +606,9 @@ def write_network_to_ski(path: str | os.PathLike, network: Mapping[str, object])
     """Store ``network`` as the ``network`` group of an existing ski HDF5 file, atomically.
 
     The file is copied beside itself, the group replaced in the copy, and the copy renamed onto
-    the original only on success; the rest of the file is untouched.
+    the original only on success; the rest of the file (measurements, provenance of the ski) is
+    untouched. Same group layout as :func:`app.storage.skis.write_ski`: arrays as datasets,
+    ``network["attrs"]`` as attributes.
     """
     import h5py
 
@@ -616,10 +626,10 @@ def write_network_to_ski(path: str | os.PathLike, network: Mapping[str, object])
                 del fh["network"]
             grp = fh.create_group("network")
             for key, value in net.items():
-                if isinstance(value, np.ndarray):
+                if key != "attrs":
                     grp.create_dataset(key, data=value)
-                else:
-                    grp.attrs[key] = value
+            for key, value in net["attrs"].items():
+                grp.attrs[key] = value
         with open(tmp_path, "rb+") as fh:
             os.fsync(fh.fileno())
         os.replace(tmp_path, path)
@@ -633,12 +643,15 @@ def read_network_from_ski(path: str | os.PathLike) -> dict:
     """Read the ``network`` group of a ski HDF5 file into a network dict."""
     import h5py
 
+    path = Path(path)
+    if not path.is_file():
+        raise DataFileError(f"ski file not found: {path}")
     with h5py.File(path, "r") as fh:
         if "network" not in fh:
             raise DataFileError(f"{path} has no camber network (run skisnow train-camber)")
         grp = fh["network"]
         net: dict = {key: grp[key][()] for key in grp}
-        net.update({key: grp.attrs[key] for key in grp.attrs})
+        net["attrs"] = dict(grp.attrs)
     return camber.network_to_dict(net)
 
 
@@ -683,7 +696,7 @@ def _resolve_ski_path(name: str) -> Path:
 
 
 def _load_measurements(ski_path: Path, csv_path: str | None):
-    """(ski_id, positions_m, loads_n, load_positions_m, profiles_m) from a CSV or ski file."""
+    """Training arrays (see :func:`camber_training_arrays`) from a CSV or the ski file."""
     try:
         from app.storage import skis
     except ModuleNotFoundError as exc:  # pragma: no cover - until the storage module lands
@@ -691,18 +704,50 @@ def _load_measurements(ski_path: Path, csv_path: str | None):
     if csv_path:
         data = skis.read_camber_csv(csv_path)
     else:
-        data = skis.read_ski(ski_path).camber
-    return _camber_arrays(data)
+        data = skis.read_ski(ski_path).measurements
+    return camber_training_arrays(data)
 
 
-def _camber_arrays(data):
-    profiles = np.asarray(data.profiles_m, dtype=float)
+def camber_training_arrays(data) -> tuple[str, np.ndarray, np.ndarray, np.ndarray, np.ndarray, str]:
+    """Training arrays from :class:`app.storage.skis.CamberData`.
+
+    The network predicts one profile per load: the width mean **(choice)**. Cases measured on
+    the ``mean`` side are used when present; else left and right profiles of the same load case
+    are averaged; else the single measured side is used.
+
+    Returns
+    -------
+    ski_id, positions_m, loads_n, load_positions_m, profiles_m, side
+        ``side`` says what was used: ``"mean"``, ``"left+right"``, ``"left"`` or ``"right"``.
+    """
+    sides = np.asarray(list(data.sides))
+    x = np.asarray(data.positions_m, dtype=float)
+    f = np.asarray(data.loads_n, dtype=float)
+    xf = np.asarray(data.load_positions_m, dtype=float)
+    h = np.asarray(data.profiles_m, dtype=float)
+    present = set(sides.tolist())
+    if "mean" in present or len(present) == 1:
+        side = "mean" if "mean" in present else present.pop()
+        rows = sides == side
+        return str(data.ski_id), x, f[rows], xf[rows], h[rows], side
+    left = {(a, b): k for k, (a, b) in enumerate(zip(f, xf, strict=True)) if sides[k] == "left"}
+    right = {(a, b): k for k, (a, b) in enumerate(zip(f, xf, strict=True)) if sides[k] == "right"}
+    unmatched = sorted(set(left) ^ set(right))
+    if unmatched:
+        a, b = unmatched[0]
+        raise InputError(
+            f"load case F = {a:g} N, x_F = {b:g} m is measured on one side only; left and right "
+            "need the same load cases to be averaged"
+        )
+    keys = sorted(left)
+    profiles = np.array([(h[left[k]] + h[right[k]]) / 2 for k in keys])
     return (
         str(data.ski_id),
-        np.asarray(data.positions_m, dtype=float),
-        np.asarray(data.loads_n, dtype=float),
-        np.asarray(data.load_positions_m, dtype=float),
+        x,
+        np.array([k[0] for k in keys]),
+        np.array([k[1] for k in keys]),
         profiles,
+        "left+right",
     )
 
 
@@ -711,7 +756,7 @@ def run(args: argparse.Namespace) -> int:
     ski_path = _resolve_ski_path(args.ski)
     if not ski_path.is_file():
         raise DataFileError(f"ski file not found: {ski_path}")
-    ski_id, x, f, xf, h = _load_measurements(ski_path, args.csv)
+    ski_id, x, f, xf, h, side = _load_measurements(ski_path, args.csv)
     log.info("training camber network for %s: %d load cases x %d points", ski_id, f.size, x.size)
     from app.storage.common import provenance
 
@@ -726,12 +771,15 @@ def run(args: argparse.Namespace) -> int:
             lbfgs_epochs=args.lbfgs_epochs,
             seed=args.seed,
             ski_id=ski_id,
-            metadata={f"provenance_{k}": v for k, v in provenance().items()},
-            progress=bar.update if bar is not None else None,
+            metadata={
+                "measured_side": side,
+                "measurements_source": str(args.csv or ski_path),
+                **{f"provenance_{k}": v for k, v in provenance().items()},
+            },
+            progress=bar.update,
         )
     finally:
-        if bar is not None:
-            bar.close()
+        bar.close()
     out = Path(args.out) if args.out else ski_path
     if out != ski_path:
         out.parent.mkdir(parents=True, exist_ok=True)

@@ -25,31 +25,35 @@ training loss is one-sided there (it only penalises ``S > 0`` where the measured
 
 Dict layout
 -----------
-A flat ``dict`` of str → value. Values that are ``numpy.ndarray`` are datasets in the ski file's
-``network`` group, everything else (str, int, float, bool) is an HDF5 attribute. Arrays:
+The layout of the ski file's ``network`` group (:func:`app.storage.skis.write_ski`): arrays at
+the top level (HDF5 datasets) and one ``"attrs"`` dict of str, int, float and bool values (HDF5
+attributes). No pickles. Arrays:
 
-========================== ============ ===================================================
-key                        shape        meaning
-========================== ============ ===================================================
-``positions_m``            (M,)         sampling grid X of the output, increasing [m]
-``node_positions_m``       (K_c,)       output nodes, a subset of positions_m incl. ends [m]
-``layer{i}_weight``        (out, in)    weights of layer i, i = 0 … n_layers − 1
-``layer{i}_bias``          (out,)       biases of layer i
-``input_offset``           (2,)         centre of (F [N], x_F [m])
-``input_scale``            (2,)         half-range of (F [N], x_F [m])
-``output_offset``          (K_c,)       mean training gap at each node [m]
-``output_scale``           (K_c,)       output scale at each node [m]
-``split_{set}_loads_n``    (n_set,)     load cases of set ∈ {train, validation, test} [N]
-``split_{set}_load_positions_m``        load positions of those cases [m]
-``history_train_loss``     (epochs,)    training loss per epoch [-]
-``history_validation_loss`` (epochs,)   validation loss per epoch [-]
-========================== ============ ===================================================
+=================================== ========== ============================================
+key                                 shape      meaning
+=================================== ========== ============================================
+``positions_m``                     (M,)       sampling grid X of the output, increasing [m]
+``node_positions_m``                (K_c,)     output nodes, a subset of positions_m incl.
+                                               both ends [m]
+``layer{i}_weight``                 (out, in)  weights of layer i = 0 … n_layers − 1
+``layer{i}_bias``                   (out,)     biases of layer i
+``input_offset``                    (2,)       centre of (F [N], x_F [m])
+``input_scale``                     (2,)       half-range of (F [N], x_F [m])
+``output_offset``                   (K_c,)     mean training gap at each node [m]
+``output_scale``                    (K_c,)     output scale at each node [m]
+``split_{set}_loads_n``             (n_set,)   load cases of set ∈ {train, validation, test}
+``split_{set}_load_positions_m``    (n_set,)   their load positions [m]
+``history_train_loss``              (epochs,)  training loss per epoch [-]
+``history_validation_loss``         (epochs,)  validation loss per epoch [-]
+=================================== ========== ============================================
 
-Required attributes: ``schema``, ``n_layers``, ``activation`` (``"tanh"``), ``output_activation``
-(``"relu"``), ``load_min_n``, ``load_max_n``, ``load_position_min_m``, ``load_position_max_m``
-(the trained range: inference outside it raises :class:`~solvers.errors.OutOfRangeError`).
+Required entries of ``"attrs"``: ``schema``, ``n_layers``, ``activation`` (``"tanh"``),
+``output_activation`` (``"relu"``), ``load_min_n``, ``load_max_n``, ``load_position_min_m``,
+``load_position_max_m`` (the trained range: inference outside it raises
+:class:`~solvers.errors.OutOfRangeError`).
 Training metadata (seed, epochs, losses, metrics, torch version, timestamps, …) are further
-attributes, listed in ``docs/camber-network.md``.
+attributes, listed in ``docs/camber-network.md``. The split and loss-history arrays are optional
+for inference.
 """
 
 from __future__ import annotations
@@ -198,20 +202,20 @@ def network_from_arrays(
     load_position_range_m : (float, float)
         Trained range of x_F [m].
     metadata : mapping, optional
-        Scalar/str attributes to add (training metadata, metrics).
+        Scalar/str attributes to add to ``"attrs"`` (training metadata, metrics).
     extra_arrays : mapping, optional
         Further arrays (split, loss history).
 
     Returns
     -------
     dict
-        Flat dict: ndarray values are datasets, the rest attributes.
+        Arrays at the top level, scalar attributes in ``"attrs"``.
     """
     if len(weights) != len(biases) or not weights:
         raise InputError(
             f"need as many weights as biases (>= 1), got {len(weights)}, {len(biases)}"
         )
-    net: dict = {
+    attrs: dict = {
         "schema": SCHEMA,
         "n_layers": len(weights),
         "activation": "tanh",
@@ -220,6 +224,13 @@ def network_from_arrays(
         "load_max_n": float(load_range_n[1]),
         "load_position_min_m": float(load_position_range_m[0]),
         "load_position_max_m": float(load_position_range_m[1]),
+    }
+    for key, value in (metadata or {}).items():
+        if key in attrs:
+            raise InputError(f"metadata key {key!r} clashes with a network attribute")
+        attrs[key] = value
+    net: dict = {
+        "attrs": attrs,
         "positions_m": np.asarray(positions_m, dtype=np.float64),
         "node_positions_m": np.asarray(node_positions_m, dtype=np.float64),
         "input_offset": np.asarray(input_offset, dtype=np.float64),
@@ -231,52 +242,59 @@ def network_from_arrays(
         net[f"layer{i}_weight"] = np.asarray(w, dtype=np.float64)
         net[f"layer{i}_bias"] = np.asarray(b, dtype=np.float64)
     for key, value in (extra_arrays or {}).items():
-        net[key] = np.asarray(value)
-    for key, value in (metadata or {}).items():
         if key in net:
-            raise InputError(f"metadata key {key!r} clashes with a network field")
-        net[key] = value
-    check_network(net)
-    return net
+            raise InputError(f"extra array {key!r} clashes with a network array")
+        net[key] = np.asarray(value)
+    return network_to_dict(net)
 
 
 def network_to_dict(network: Mapping[str, object]) -> dict:
-    """Copy of a network as the plain dict stored under ``network`` (arrays + scalar attrs).
+    """Checked copy of a network in the plain layout stored under a ski file's ``network``.
 
-    Accepts the dict read back from HDF5 (numpy scalars, bytes) and normalises it: ndarray
-    values stay arrays (0-d arrays become Python scalars), numpy scalars become Python
-    scalars and bytes become str. Checks the schema.
+    Accepts what :func:`app.storage.skis.read_ski` returns (numpy scalars, bytes, 0-d arrays)
+    and normalises it: arrays stay float/int ndarrays, attributes become Python scalars or str.
+
+    Raises
+    ------
+    DataFileError
+        Not a valid ``"skisnow.camber-mlp/1"`` network.
     """
-    out: dict = {}
+    if not isinstance(network, Mapping) or not isinstance(network.get("attrs"), Mapping):
+        raise DataFileError("camber network must be a mapping with an 'attrs' mapping")
+    out: dict = {"attrs": {key: _plain(value) for key, value in network["attrs"].items()}}
     for key, value in network.items():
-        if isinstance(value, np.ndarray) and value.ndim > 0:
-            out[key] = np.array(value)
-        elif isinstance(value, np.ndarray | np.generic):
-            out[key] = value.item()
-        else:
-            out[key] = value
-        if isinstance(out[key], bytes):
-            out[key] = out[key].decode()
+        if key == "attrs":
+            continue
+        if isinstance(value, Mapping):
+            raise DataFileError(f"camber network entry {key!r} is a group; expected an array")
+        out[key] = np.array(value)
     check_network(out)
     return out
 
 
 def check_network(network: Mapping[str, object]) -> None:
     """Raise :class:`~solvers.errors.DataFileError` unless ``network`` is a valid camber MLP."""
-    missing = [k for k in _REQUIRED_ATTRS if k not in network]
+    attrs = network.get("attrs")
+    if not isinstance(attrs, Mapping):
+        raise DataFileError("camber network lacks its 'attrs' mapping")
+    missing = [k for k in _REQUIRED_ATTRS if k not in attrs]
     if missing:
         raise DataFileError(f"camber network lacks attributes {missing}")
-    schema = network["schema"]
-    if isinstance(schema, bytes):
-        schema = schema.decode()
-    if schema != SCHEMA:
-        raise DataFileError(f"camber network schema must be {SCHEMA!r}, got {schema!r}")
-    if network["activation"] != "tanh" or network["output_activation"] != "relu":
+    if attrs["schema"] != SCHEMA:
+        raise DataFileError(f"camber network schema must be {SCHEMA!r}, got {attrs['schema']!r}")
+    if attrs["activation"] != "tanh" or attrs["output_activation"] != "relu":
         raise DataFileError(
             "camber network activations must be tanh/relu, got "
-            f"{network['activation']!r}/{network['output_activation']!r}"
+            f"{attrs['activation']!r}/{attrs['output_activation']!r}"
         )
-    n_layers = int(network["n_layers"])
+    for key in ("load_min_n", "load_max_n", "load_position_min_m", "load_position_max_m"):
+        if not np.isfinite(float(attrs[key])):
+            raise DataFileError(f"camber network attribute {key} is not finite")
+    if not (attrs["load_min_n"] <= attrs["load_max_n"]) or not (
+        attrs["load_position_min_m"] <= attrs["load_position_max_m"]
+    ):
+        raise DataFileError("camber network trained range has min > max")
+    n_layers = int(attrs["n_layers"])
     keys = ["positions_m", "node_positions_m", "input_offset", "input_scale"]
     keys += ["output_offset", "output_scale"]
     keys += [f"layer{i}_{p}" for i in range(n_layers) for p in ("weight", "bias")]
@@ -351,13 +369,10 @@ def predict_profiles(
         raise InputError(
             f"loads_n and load_positions_m must be 1-D of equal length, got {f.shape}, {xf.shape}"
         )
-    _check_in_range(f, "loads_n", network["load_min_n"], network["load_max_n"], "N")
+    attrs = network["attrs"]
+    _check_in_range(f, "loads_n", attrs["load_min_n"], attrs["load_max_n"], "N")
     _check_in_range(
-        xf,
-        "load_positions_m",
-        network["load_position_min_m"],
-        network["load_position_max_m"],
-        "m",
+        xf, "load_positions_m", attrs["load_position_min_m"], attrs["load_position_max_m"], "m"
     )
     gaps = _forward(network, np.stack([f, xf], axis=1))
     return CamberPrediction(
@@ -416,7 +431,7 @@ def contact_band_rmse_m(
 def _forward(network: Mapping[str, object], inputs: np.ndarray) -> np.ndarray:
     """Gaps (N, M) for normalised-unit-free inputs (N, 2) = (F [N], x_F [m])."""
     a = (inputs - network["input_offset"]) / network["input_scale"]
-    n_layers = int(network["n_layers"])
+    n_layers = int(network["attrs"]["n_layers"])
     for i in range(n_layers):
         a = a @ np.asarray(network[f"layer{i}_weight"]).T + network[f"layer{i}_bias"]
         if i < n_layers - 1:
@@ -428,6 +443,17 @@ def _forward(network: Mapping[str, object], inputs: np.ndarray) -> np.ndarray:
     else:
         s = s_nodes[:, i] * (1.0 - w) + s_nodes[:, i + 1] * w
     return np.maximum(s, 0.0)
+
+
+def _plain(value):
+    """HDF5 attribute value → Python scalar or str (arrays of size > 1 kept as lists)."""
+    if isinstance(value, bytes):
+        return value.decode()
+    if isinstance(value, np.ndarray):
+        return value.item() if value.size == 1 else value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
 
 
 def _check_in_range(values: np.ndarray, name: str, lo, hi, unit: str) -> None:

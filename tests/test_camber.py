@@ -80,15 +80,15 @@ def test_held_out_accuracy(trained):
     assert m["validation_rmse_band_m"] < 5e-6
     assert m["test_contact_fraction_error"] < 0.01
     # the metrics are stored with the network
-    assert result.network["metric_test_rmse_band_m"] == m["test_rmse_band_m"]
+    assert result.network["attrs"]["metric_test_rmse_band_m"] == m["test_rmse_band_m"]
 
 
 def test_numpy_inference_matches_torch(trained):
     result, _ = trained
     net = result.network
     rng = np.random.default_rng(1)
-    f = rng.uniform(net["load_min_n"], net["load_max_n"], 50)
-    xf = rng.uniform(net["load_position_min_m"], net["load_position_max_m"], 50)
+    f = rng.uniform(net["attrs"]["load_min_n"], net["attrs"]["load_max_n"], 50)
+    xf = rng.uniform(net["attrs"]["load_position_min_m"], net["attrs"]["load_position_max_m"], 50)
     ours = camber.predict_profiles(net, f, xf).gaps_m
     ref = train_camber.torch_predict(net, f, xf)
     assert ours.shape == (50, GRID_M.size)
@@ -134,7 +134,9 @@ def test_out_of_range_raises(trained, load, pos, name):
 
 def test_range_edges_and_bad_inputs(trained):
     net = trained[0].network
-    camber.predict_profile(net, net["load_min_n"], net["load_position_max_m"])  # edges are in
+    camber.predict_profile(
+        net, net["attrs"]["load_min_n"], net["attrs"]["load_position_max_m"]
+    )  # edges are in
     with pytest.raises(InputError, match="finite"):
         camber.predict_profile(net, float("nan"), -0.1)
     with pytest.raises(InputError, match="finite"):
@@ -153,6 +155,17 @@ def test_inference_time_below_one_ms(trained):
     assert np.median(times) < 1e-3
 
 
+def _assert_same_network(back, net):
+    assert set(back) == set(net)
+    assert back["attrs"] == net["attrs"]
+    for key, value in back["attrs"].items():
+        assert type(value) is type(net["attrs"][key]), key
+    for key, value in net.items():
+        if key != "attrs":
+            np.testing.assert_array_equal(back[key], value)
+            assert back[key].dtype == value.dtype, key
+
+
 def test_hdf5_round_trip(trained, tmp_path):
     net = trained[0].network
     path = tmp_path / "ski.h5"
@@ -160,33 +173,57 @@ def test_hdf5_round_trip(trained, tmp_path):
         fh.attrs["ski_id"] = "synthetic"
         fh.create_dataset("other", data=np.arange(3))
     train_camber.write_network_to_ski(path, net)
+    train_camber.write_network_to_ski(path, net)  # replacing an existing group works too
     back = train_camber.read_network_from_ski(path)
-    assert set(back) == set(net)
-    for key, value in net.items():
-        if isinstance(value, np.ndarray):
-            np.testing.assert_array_equal(back[key], value)
-        else:
-            assert back[key] == value and type(back[key]) is type(value), key
+    _assert_same_network(back, net)
     f, xf = [150.0, 650.0], [-0.2, 0.0]
     np.testing.assert_array_equal(
         camber.predict_profiles(back, f, xf).gaps_m, camber.predict_profiles(net, f, xf).gaps_m
     )
-    with h5py.File(path, "r") as fh:  # the rest of the file is untouched
+    with h5py.File(path, "r") as fh:  # the rest of the file is untouched; no pickles
         np.testing.assert_array_equal(fh["other"][()], np.arange(3))
+        assert fh.attrs["ski_id"] == "synthetic"
         assert fh["network"].attrs["schema"] == camber.SCHEMA
-    # no pickles: every stored value is a plain array or a scalar/str attribute
-    assert all(isinstance(v, np.ndarray | str | int | float | bool) for v in back.values())
+        assert all(d.dtype.kind in "fiu" for d in fh["network"].values())
+
+
+def test_round_trip_through_ski_storage(trained, tmp_path):
+    """The network survives write_ski/read_ski of app.storage.skis unchanged."""
+    skis = pytest.importorskip("app.storage.skis")
+    net = trained[0].network
+    f, xf = _cases()
+    data = skis.CamberData(
+        ski_id="synthetic",
+        positions_m=GRID_M,
+        loads_n=f,
+        load_positions_m=xf,
+        sides=["mean"] * f.size,
+        profiles_m=synthetic_profiles(f, xf, GRID_M),
+    )
+    outline = skis.SkiOutline(2.0, 1.0, np.array([-1.0, 1.0]), np.array([0.044, 0.044]))
+    path = tmp_path / "ski.h5"
+    skis.write_ski(path, skis.SkiRecord(data, outline), network=net)
+    _assert_same_network(camber.network_to_dict(skis.read_ski(path).network), net)
+    # and the in-place update keeps the measurements readable by the storage module
+    train_camber.write_network_to_ski(path, net)
+    record = skis.read_ski(path)
+    np.testing.assert_array_equal(record.measurements.profiles_m, data.profiles_m)
+    _assert_same_network(camber.network_to_dict(record.network), net)
 
 
 def test_schema_is_checked(trained):
     net = dict(trained[0].network)
-    net["schema"] = "skisnow.camber-mlp/0"
+    net["attrs"] = {**net["attrs"], "schema": "skisnow.camber-mlp/0"}
     with pytest.raises(DataFileError, match="schema"):
         camber.network_to_dict(net)
     net = dict(trained[0].network)
     net["layer1_weight"] = net["layer1_weight"][:, :3]
     with pytest.raises(DataFileError, match="layer 1"):
         camber.check_network(net)
+    net = dict(trained[0].network)
+    del net["output_scale"]
+    with pytest.raises(DataFileError, match="output_scale"):
+        camber.network_to_dict(net)
 
 
 def test_split_holds_out_interior_cases_only():
@@ -207,7 +244,7 @@ def test_training_is_deterministic():
     a = train_camber_network_short(f, xf, h, seed=3, epochs=40, lbfgs_epochs=10).network
     b = train_camber_network_short(f, xf, h, seed=3, epochs=40, lbfgs_epochs=10).network
     c = train_camber_network_short(f, xf, h, seed=4, epochs=40, lbfgs_epochs=10).network
-    for i in range(int(a["n_layers"])):
+    for i in range(int(a["attrs"]["n_layers"])):
         np.testing.assert_array_equal(a[f"layer{i}_weight"], b[f"layer{i}_weight"])
         np.testing.assert_array_equal(a[f"layer{i}_bias"], b[f"layer{i}_bias"])
     assert not np.array_equal(a["layer0_weight"], c["layer0_weight"])
@@ -217,8 +254,8 @@ def test_training_rejects_bad_data():
     f, xf = _cases()
     h = synthetic_profiles(f, xf, GRID_M)
     bad = h.copy()
-    bad[0, 5] = -1e-6
-    with pytest.raises(InputError, match="profiles_m must be >= 0"):
+    bad[0, 5] = -60e-6  # below the device-noise allowance of -50 µm
+    with pytest.raises(InputError, match="profiles_m must be >="):
         train_camber.train_camber_network(GRID_M, f, xf, bad, epochs=1)
     bad[0, 5] = np.nan
     with pytest.raises(InputError, match="NaN"):
