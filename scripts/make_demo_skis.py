@@ -63,9 +63,10 @@ DESIGNS = {
             tip_contact_m=0.75,
             stiffness_nm2=600.0,
             end_stiffness_ratio=0.3,
-            pocket_height_m=3e-4,
+            pocket_m=(-0.40, 0.45),
+            pocket_height_m=3.5e-4,
         ),
-        (0.0002, 0.0004),
+        (0.0003, 0.0005),
     ),
 }
 MEASURE_LOADS_KG = np.arange(10.0, 91.0, 9.0)[:10]  # 10 loads, 10..91 kg
@@ -84,7 +85,9 @@ def bem_for(design: ClassicSkiDesign):
 
 def rear_share(result) -> float:
     """Fraction of the load carried by contact behind the load point [-]."""
-    return sum(z.load_n for z in result.zones if z.end_m <= LOAD_POSITION_M + 1e-9) / result.load_n
+    p = np.nan_to_num(result.pressure_pa)
+    behind = result.positions_m < result.load_position_m
+    return float(p[behind].sum() / p.sum())
 
 
 def calibrate(name: str) -> ClassicSkiDesign:

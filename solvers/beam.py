@@ -27,6 +27,7 @@ Units: SI throughout (m, N, N·m²).
 
 from __future__ import annotations
 
+import itertools
 import time
 from dataclasses import dataclass
 
@@ -409,7 +410,7 @@ class ClassicSkiDesign:
             self.tip_contact_m,
             self.tip_m,
         )
-        if not all(a < b for a, b in zip(order[:-1], order[1:], strict=True)):
+        if not all(a < b for a, b in itertools.pairwise(order)):
             raise InputError(
                 "ClassicSkiDesign needs tail_m < tail_contact_m < pocket start < camber_peak_m < "
                 f"pocket end < tip_contact_m < tip_m, got {order}"

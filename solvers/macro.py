@@ -1,4 +1,4 @@
-"""Macro scale: the rigid loaded ski pressed into the non-periodic elastic half-space (method.md §4).
+"""Macro scale: the rigid loaded ski pressed into the non-periodic half-space (method.md §4).
 
 Problem
 -------
@@ -43,6 +43,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.fft
 
 from .elastic import NonPeriodicHalfSpace
 from .errors import InputError
@@ -307,6 +308,14 @@ def _halfspace(shape: tuple[int, int], dx: float, dy: float, e_eff: float) -> No
     return NonPeriodicHalfSpace(shape, (dx, dy), e_eff, workers=1)
 
 
+def _fast_rows(n: int) -> int:
+    """Smallest m ≥ n whose zero-padded FFT length 2m is 5-smooth (fast)."""
+    m = n
+    while scipy.fft.next_fast_len(2 * m, real=True) != 2 * m:
+        m += 1
+    return m
+
+
 def _fit_rigid(g: np.ndarray, s: np.ndarray, xs: np.ndarray, tilt: bool) -> tuple[float, float]:
     """Least-squares δ + θ xs fitted to g on the set s."""
     n = np.count_nonzero(s)
@@ -514,17 +523,21 @@ def solve_macro(
         cand = hz <= h_min + thr
         rows = np.flatnonzero(cand.any(axis=1))
         i0, i1 = int(rows[0]), int(rows[-1]) + 1
-        sub_mask = cand[i0:i1]
-        xs = xs_full[i0:i1]
+        n_sub = _fast_rows(i1 - i0)
+        extra = n_sub - (i1 - i0)
+        sub_mask = np.pad(cand[i0:i1], ((0, extra), (0, 0)))
+        xs = np.broadcast_to((x[i0] + dx * np.arange(n_sub) - xf)[:, None], sub_mask.shape)
         if tilt and not (np.any(sub_mask & (xs < 0)) and np.any(sub_mask & (xs > 0))):
             thr *= 2.0
             continue
-        hs = _halfspace((i1 - i0, h.shape[1]), dx, dy, e_eff)
-        h0 = np.where(sub_mask, h[i0:i1], 0.0)
-        p_init = None if p_warm is None else p_warm[i0:i1]
-        p_sub, g_sub, delta, theta, its, res, conv = _pk_tilt(
+        hs = _halfspace(sub_mask.shape, dx, dy, e_eff)
+        h0 = np.where(sub_mask, np.pad(np.nan_to_num(h[i0:i1]), ((0, extra), (0, 0))), 0.0)
+        p_init = None if p_warm is None else np.pad(p_warm[i0:i1], ((0, extra), (0, 0)))
+        p_sub, _g_sub, delta, theta, its, res, conv = _pk_tilt(
             hs, h0, sub_mask, xs, f / (dx * dy), tilt, p_init, tol, max_iterations
         )
+        p_sub = p_sub[: i1 - i0]
+        sub_mask = sub_mask[: i1 - i0]
         total_its += its
         # rigorous window check: outside the window H >= H* - δ - θ (X - x_F)
         outside = inside & ~np.pad(sub_mask, ((i0, h.shape[0] - i1), (0, 0)))

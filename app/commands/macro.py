@@ -1,0 +1,240 @@
+"""``skisnow macro``: apparent contact of one ski on snow (method.md §4), and its benchmark.
+
+Technician units (kg, mm, MPa) are converted to SI in :func:`_si_inputs` only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from app.storage.skis import read_camber_csv, read_ski
+from solvers.beam import G_STANDARD, solve_beam_contact
+from solvers.elastic import effective_modulus
+from solvers.errors import DataFileError, InputError
+from solvers.macro import (
+    DEFAULT_PIXEL_ACROSS,
+    DEFAULT_PIXEL_ALONG_M,
+    GapMap,
+    MacroResult,
+    extrude_profile,
+    interpolate_sides,
+    solve_macro,
+)
+
+__all__ = ["bench_macro", "loaded_profile", "register", "run"]
+
+SKI_DIR = Path(__file__).resolve().parents[2] / "tables" / "skis"
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``macro`` subcommand."""
+    p = subparsers.add_parser(
+        "macro",
+        help="apparent contact of a ski on snow (macro-scale BEM)",
+        description="Press the loaded ski profile into the snow half-space and report the "
+        "apparent contact area, mean apparent pressure and contact zones.",
+    )
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--ski", metavar="NAME", help="demo or stored ski (tables/skis/NAME.h5)")
+    src.add_argument("--profile", metavar="CSV", help="neutral camber CSV with one load case")
+    src.add_argument("--gap-map", metavar="NPY", help="gap map [mm], axis 0 along the ski")
+    p.add_argument("--width-mm", type=float, help="ski width for --profile [mm]")
+    p.add_argument("--pixel-size-mm", type=float, help="pixel size of --gap-map [mm]")
+    p.add_argument("--load-kg", type=float, required=True, help="equivalent load [kg]")
+    p.add_argument(
+        "--load-position-mm",
+        type=float,
+        required=True,
+        help="load position from the balance point, + towards the tip [mm]",
+    )
+    p.add_argument("--snow-modulus-mpa", type=float, required=True, help="E_snow [MPa]")
+    p.add_argument("--base-modulus-mpa", type=float, default=700.0, help="E_base [MPa]")
+    p.add_argument("--poisson", type=float, default=0.3, help="Poisson's ratio [-]")
+    p.add_argument("--no-tilt", action="store_true", help="no tilt: force balance only")
+    p.add_argument("--json", action="store_true", help="one JSON object with distributions")
+    p.set_defaults(func=run)
+
+
+def _si_inputs(args: argparse.Namespace) -> dict:
+    """The one place where technician units become SI."""
+    if not np.isfinite(args.load_kg) or not (0 < args.load_kg <= 200):
+        raise InputError(f"--load-kg must be in (0, 200], got {args.load_kg}")
+    if not np.isfinite(args.load_position_mm) or abs(args.load_position_mm) > 1500:
+        raise InputError(f"--load-position-mm must be within ±1500, got {args.load_position_mm}")
+    if not np.isfinite(args.snow_modulus_mpa) or not (0 < args.snow_modulus_mpa <= 10000):
+        raise InputError(f"--snow-modulus-mpa must be in (0, 10000], got {args.snow_modulus_mpa}")
+    out = {
+        "load_n": args.load_kg * G_STANDARD,
+        "load_position_m": args.load_position_mm * 1e-3,
+        "effective_modulus_pa": effective_modulus(
+            args.snow_modulus_mpa * 1e6, args.base_modulus_mpa * 1e6, args.poisson
+        ),
+    }
+    if args.width_mm is not None:
+        if not np.isfinite(args.width_mm) or args.width_mm <= 0:
+            raise InputError(f"--width-mm must be > 0, got {args.width_mm}")
+        out["width_m"] = args.width_mm * 1e-3
+    if args.pixel_size_mm is not None:
+        if not np.isfinite(args.pixel_size_mm) or args.pixel_size_mm <= 0:
+            raise InputError(f"--pixel-size-mm must be > 0, got {args.pixel_size_mm}")
+        out["pixel_size_m"] = args.pixel_size_mm * 1e-3
+    return out
+
+
+def loaded_profile(ski, load_n: float, load_position_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Loaded camber H*(X) of a stored ski: its network if available, else its beam model.
+
+    Returns
+    -------
+    positions_m, gap_m : ndarray
+    """
+    if ski.network is not None:
+        try:
+            from solvers import camber
+        except ImportError:
+            camber = None
+        if camber is not None and hasattr(camber, "predict_profile"):
+            return camber.predict_profile(ski.network, load_n, load_position_m)
+    if ski.beam is None:
+        raise DataFileError(
+            f"ski {ski.ski_id!r} has neither a usable camber network nor a beam model"
+        )
+    res = solve_beam_contact(ski.beam, load_n, load_position_m)
+    if not res.converged:
+        raise InputError(f"beam model did not converge: {res.message}")
+    return res.positions_m, res.gap_m
+
+
+def _gap_map(args: argparse.Namespace, si: dict) -> GapMap:
+    if args.ski:
+        path = Path(args.ski)
+        if not path.suffix:
+            path = SKI_DIR / f"{args.ski}.h5"
+        ski = read_ski(path)
+        x, gap = loaded_profile(ski, si["load_n"], si["load_position_m"])
+        return extrude_profile(
+            x, gap, ski.outline.width_m, width_positions_m=ski.outline.positions_m
+        )
+    if args.profile:
+        if "width_m" not in si:
+            raise InputError("--profile needs --width-mm")
+        data = read_camber_csv(args.profile)
+        by_side = dict(zip(data.sides, data.profiles_m, strict=False))
+        if len({(f, p) for f, p in zip(data.loads_n, data.load_positions_m, strict=True)}) != 1:
+            raise InputError(
+                f"--profile must hold one load case (a loaded profile), got {len(data.sides)} cases"
+            )
+        if "left" in by_side and "right" in by_side:
+            return interpolate_sides(
+                data.positions_m, by_side["left"], by_side["right"], si["width_m"]
+            )
+        prof = by_side.get("mean", next(iter(by_side.values())))
+        return extrude_profile(data.positions_m, prof, si["width_m"])
+    if "pixel_size_m" not in si:
+        raise InputError("--gap-map needs --pixel-size-mm")
+    try:
+        arr = np.load(args.gap_map, allow_pickle=False)
+    except (OSError, ValueError) as exc:
+        raise DataFileError(f"cannot read gap map {args.gap_map}: {exc}") from exc
+    if arr.ndim != 2:
+        raise InputError(f"gap map must be 2-D, got shape {arr.shape}")
+    d = si["pixel_size_m"]
+    x = (np.arange(arr.shape[0]) - (arr.shape[0] - 1) / 2) * d
+    return GapMap(np.asarray(arr, float) * 1e-3, x, (d, d))
+
+
+def _report(res: MacroResult, with_distributions: bool) -> dict:
+    out = {
+        "apparent_contact_area_cm2": res.apparent_contact_area_m2 * 1e4,
+        "mean_apparent_pressure_kpa": res.mean_apparent_pressure_pa * 1e-3,
+        "zones": [
+            {
+                "start_mm": z.start_m * 1e3,
+                "end_mm": z.end_m * 1e3,
+                "length_mm": z.length_m * 1e3,
+                "load_share": z.load_share,
+            }
+            for z in res.zones
+        ],
+        "approach_um": res.approach_m * 1e6,
+        "tilt_mrad": res.tilt_rad * 1e3,
+        "converged": res.converged,
+        "iterations": res.iterations,
+        "solve_time_s": res.solve_time_s,
+        "message": res.message,
+    }
+    if with_distributions:
+        out["position_mm"] = (res.positions_m * 1e3).tolist()
+        out["pressure_kpa"] = (res.pressure_line_pa * 1e-3).tolist()
+        out["clearance_um"] = [None if not np.isfinite(v) else v * 1e6 for v in res.clearance_m]
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute ``skisnow macro``; returns the exit code (1 if the solve did not converge)."""
+    si = _si_inputs(args)
+    gm = _gap_map(args, si)
+    res = solve_macro(
+        gm, si["load_n"], si["load_position_m"], si["effective_modulus_pa"], tilt=not args.no_tilt
+    )
+    rep = _report(res, args.json)
+    if args.json:
+        print(json.dumps(rep))
+    else:
+        print(f"apparent_contact_area_cm2  {rep['apparent_contact_area_cm2']:.2f}")
+        print(f"mean_apparent_pressure_kpa {rep['mean_apparent_pressure_kpa']:.2f}")
+        print("zones")
+        for z in rep["zones"]:
+            print(
+                f"  start_mm {z['start_mm']:8.1f}  end_mm {z['end_mm']:8.1f}  "
+                f"length_mm {z['length_mm']:6.1f}  load_share {z['load_share']:.3f}"
+            )
+        print(f"converged                  {rep['converged']}")
+        print(f"iterations                 {rep['iterations']}")
+        print(f"solve_time_s               {rep['solve_time_s']:.4f}")
+    return 0 if res.converged else 1
+
+
+def bench_macro(repeats: int = 7, skis: tuple[str, ...] = ("ski-a", "ski-b")) -> dict:
+    """Median time of one macro solve per demo ski at the default grid vs a fine reference.
+
+    Returns a dict per ski: default and fine grid (pixel sizes), median solve time [s], apparent
+    area [cm²], peak pressure [kPa] and the relative errors of the default grid.
+    """
+    e_eff = effective_modulus(200e6, 0.7e9, 0.3)
+    load_n, xf = 40.0 * G_STANDARD, -0.160
+    out: dict = {}
+    for name in skis:
+        ski = read_ski(SKI_DIR / f"{name}.h5")
+        x, gap = loaded_profile(ski, load_n, xf)
+        width = float(ski.outline.width_m.max())
+        rows = {}
+        for label, dx, ny in (
+            ("default", DEFAULT_PIXEL_ALONG_M, DEFAULT_PIXEL_ACROSS),
+            ("fine", 0.5e-3, 16),
+        ):
+            gm = extrude_profile(x, gap, width, pixel_along_m=dx, pixels_across=ny)
+            times = []
+            res = None
+            for _ in range(repeats if label == "default" else 2):
+                t0 = time.perf_counter()
+                res = solve_macro(gm, load_n, xf, e_eff)
+                times.append(time.perf_counter() - t0)
+            rows[label] = {
+                "pixel_mm": (dx * 1e3, width / ny * 1e3),
+                "median_time_s": float(np.median(times)),
+                "area_cm2": res.apparent_contact_area_m2 * 1e4,
+                "peak_pressure_kpa": res.peak_pressure_pa * 1e-3,
+                "iterations": res.iterations,
+                "converged": res.converged,
+            }
+        d, f = rows["default"], rows["fine"]
+        rows["area_error"] = d["area_cm2"] / f["area_cm2"] - 1
+        rows["peak_pressure_error"] = d["peak_pressure_kpa"] / f["peak_pressure_kpa"] - 1
+        out[name] = rows
+    return out
