@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import _pk_kernels as _k
 from .elastic import PeriodicHalfSpace
 from .errors import InputError
 
@@ -169,23 +170,37 @@ def _pk_cg(
 ) -> tuple[np.ndarray, np.ndarray, float, int, float, bool]:
     """Preconditioned Polonsky-Keer CG; returns (p, g, δ, iterations, residual, converged).
 
-    The search direction is preconditioned with the half-space stiffness ``E'|q|/4`` (the
-    inverse of the compliance on the full cell), restricted to the contact set: one extra FFT
-    pair per iteration, several times fewer iterations on rough surfaces. While the contact
-    set does not change, ``u(p)`` is updated from ``u(t)`` instead of being recomputed
-    (linearity), with a full recomputation every ``refresh_every`` iterations.
+    One iteration, with ``c = {p > 0}`` the current contact set:
+
+    1. gap ``g = h_0 + u(p) − δ`` with δ the mean of ``h_0 + u`` over ``c``; residual ``g|_c``;
+    2. preconditioned residual ``z = K(g|_c)|_c − mean`` with the stiffness ``K = E'|q|/4``
+       (the inverse of the full-cell compliance; one FFT pair);
+    3. conjugate direction ``t = z + β t`` on ``c`` (β = 0 after a contact-set change);
+    4. step ``τ = ⟨g|_c, t⟩ / ⟨u(t) − mean, t⟩`` (one FFT pair for ``u(t)``);
+    5. ``p ← max(p − τ t, 0)`` on ``c``; free points that penetrate get ``−τ g``;
+       rescale to the imposed mean pressure.
+
+    While the contact set does not change, ``u(p)`` is updated from ``u(t)`` (linearity)
+    instead of being recomputed, with a full recomputation every ``refresh_every`` iterations
+    and before convergence is accepted. The element-wise work is fused in
+    :mod:`solvers._pk_kernels`.
     """
+    shape = h0.shape
     n = h0.size
     total = mean_pressure * n
-    scale_h = float(np.sqrt(np.mean((h0 - h0.mean()) ** 2))) or 1.0
+    h0f = np.ascontiguousarray(h0, dtype=float).ravel()
+    scale_h = float(np.sqrt(np.mean((h0f - h0f.mean()) ** 2))) or 1.0
     if p_init is None:
-        p = np.full(h0.shape, mean_pressure)
+        p = np.full(n, mean_pressure)
     else:
-        p = np.maximum(np.asarray(p_init, dtype=float), 0.0)
+        p = np.maximum(np.asarray(p_init, dtype=float).ravel(), 0.0)
         s = p.sum()
-        p = p * (total / s) if s > 0 else np.full(h0.shape, mean_pressure)
-    u = hs.displacement(p)
-    t = np.zeros_like(p)
+        p = p * (total / s) if s > 0 else np.full(n, mean_pressure)
+    u = hs.displacement(p.reshape(shape)).ravel()
+    t = np.zeros(n)
+    g = np.empty(n)
+    gc = np.empty(n)
+    w = np.zeros(n)
     rz_old = 1.0
     restart = True
     residual = np.inf
@@ -193,27 +208,19 @@ def _pk_cg(
     it = 0
     converged = False
     since_refresh = 0
-    g = np.empty_like(p)
     while True:
-        contact = p > 0
-        cf = contact.astype(float)
-        nc = int(np.count_nonzero(contact))
-        np.add(h0, u, out=g)
-        delta = float(np.dot(g.ravel(), cf.ravel()) / nc) if nc else float(g.min())
-        g -= delta
-        gc = g * cf
-        g_norm = float(np.dot(gc.ravel(), gc.ravel()))
-        residual = float(np.sqrt(g_norm / max(nc, 1))) / scale_h
-        pen = np.minimum(g, 0.0)
-        pen *= 1.0 - cf
-        pen_norm = float(np.dot(pen.ravel(), pen.ravel()))
-        if pen_norm > 0:
-            residual += float(np.sqrt(pen_norm / max(nc, 1))) / scale_h
+        nc, sum_c = _k.contact_mean_gap(p, h0f, u)
+        if nc:
+            delta = sum_c / nc
+        else:
+            delta = float(np.min(h0f + u))
+        g_norm, pen_norm = _k.gap_and_norms(p, h0f, u, delta, g, gc)
+        residual = (np.sqrt(g_norm / max(nc, 1)) + np.sqrt(pen_norm / max(nc, 1))) / scale_h
         if callback is not None:
             callback(it, residual)
         if residual < tol:
             if since_refresh:  # confirm on a freshly computed displacement
-                u = hs.displacement(p)
+                u = hs.displacement(p.reshape(shape)).ravel()
                 since_refresh = 0
                 continue
             converged = True
@@ -222,52 +229,40 @@ def _pk_cg(
             break
         it += 1
         if precondition and nc:
-            z = hs.pressure(gc)
-            z *= cf
-            z -= cf * (float(z.sum()) / nc)
+            z = hs.pressure(gc.reshape(shape)).ravel()
         else:
-            z = gc
-        rz = float(np.dot(gc.ravel(), z.ravel()))
+            z = gc.copy()
+        z_sum, rz = _k.mask_and_dot(p, z, gc)
+        z_mean = z_sum / nc if nc else 0.0
+        # Σ gc = 0 (δ removed the mean on c), so removing z̄ does not change ⟨gc, z⟩
         beta = 0.0 if restart or rz_old == 0 else rz / rz_old
-        t *= cf
-        t *= beta
-        t += z
+        _k.update_direction(p, z, z_mean, beta, t)
         rz_old = rz
-        w = hs.displacement(t)
-        w_mean = float(np.dot(w.ravel(), cf.ravel()) / nc) if nc else 0.0
-        denom = float(np.dot(w.ravel(), t.ravel())) - w_mean * float(t.sum())
-        tau = float(np.dot(gc.ravel(), t.ravel())) / denom if denom > 0 else 0.0
+        w = hs.displacement(t.reshape(shape)).ravel()
+        sw, swt, st, sgt = _k.step_sums(p, w, t, gc)
+        w_mean = sw / nc if nc else 0.0
+        denom = swt - w_mean * st
+        tau = sgt / denom if denom > 0 else 0.0
         if not tau > 0:
             # degenerate step (e.g. a single contact point has no gap residual): fall back to
             # the Jacobi step so that penetrating points can still enter the contact set
             tau = 1.0 / hs.self_compliance
-        p_new = p - tau * t
-        p_new *= cf
-        clipped = p_new < 0
-        any_clipped = bool(clipped.any())
-        if any_clipped:
-            p_new[clipped] = 0.0
-        any_overlap = pen_norm > 0
-        if any_overlap:
-            p_new -= tau * pen
-        restart = any_clipped or any_overlap
-        s = p_new.sum()
+        s, clipped, added = _k.update_pressure(p, t, g, tau, pen_norm > 0)
+        restart = clipped > 0 or added > 0
         if s <= 0:
-            p_new = np.full(h0.shape, mean_pressure)
+            p[:] = mean_pressure
             restart = True
             s = total
         factor = total / s
-        p_new *= factor
-        p = p_new
         since_refresh += 1
-        if restart or since_refresh >= refresh_every:
-            u = hs.displacement(p)
+        refresh = restart or since_refresh >= refresh_every
+        _k.scale_and_update(p, factor, u, w, tau, not refresh)
+        if refresh:
+            u = hs.displacement(p.reshape(shape)).ravel()
             since_refresh = 0
-        else:
-            u -= tau * w
-            u *= factor
-    contact = p > 0
-    gap = np.where(contact, 0.0, np.maximum(g, 0.0))
+    p = p.reshape(shape)
+    g = g.reshape(shape)
+    gap = np.where(p > 0, 0.0, np.maximum(g, 0.0))
     return p, gap, delta, it, float(residual), converged
 
 

@@ -1,0 +1,130 @@
+"""Fused element-wise passes of the Polonsky-Keer iteration (numba, parallel over pixels).
+
+Each function makes one pass over flat (raveled) arrays and returns the reductions the
+iteration needs, so that one CG iteration reads the fields about seven times instead of the
+~40 passes of the equivalent NumPy expressions. The contact set is ``p > 0`` evaluated on the
+pressure as it is at the start of the pass.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+
+@njit(parallel=True, cache=True)
+def contact_mean_gap(p, h0, u):
+    """Return (nc, Σ_{p>0} (h0 + u))."""
+    nc = 0
+    s = 0.0
+    for i in prange(p.size):
+        if p[i] > 0.0:
+            nc += 1
+            s += h0[i] + u[i]
+    return nc, s
+
+
+@njit(parallel=True, cache=True)
+def gap_and_norms(p, h0, u, delta, g, gc):
+    """g = h0 + u − δ; gc = g on contact, 0 elsewhere. Return (Σ gc², Σ penetration²)."""
+    gn = 0.0
+    pn = 0.0
+    for i in prange(p.size):
+        gi = h0[i] + u[i] - delta
+        g[i] = gi
+        if p[i] > 0.0:
+            gc[i] = gi
+            gn += gi * gi
+        else:
+            gc[i] = 0.0
+            if gi < 0.0:
+                pn += gi * gi
+    return gn, pn
+
+
+@njit(parallel=True, cache=True)
+def mask_and_dot(p, z, gc):
+    """z ← z on contact (0 elsewhere); return (Σ z, Σ gc·z)."""
+    s = 0.0
+    d = 0.0
+    for i in prange(p.size):
+        if p[i] > 0.0:
+            s += z[i]
+            d += gc[i] * z[i]
+        else:
+            z[i] = 0.0
+    return s, d
+
+
+@njit(parallel=True, cache=True)
+def update_direction(p, z, z_mean, beta, t):
+    """t ← (z − z̄) + β t on contact, 0 elsewhere."""
+    for i in prange(p.size):
+        if p[i] > 0.0:
+            t[i] = z[i] - z_mean + beta * t[i]
+        else:
+            t[i] = 0.0
+
+
+@njit(parallel=True, cache=True)
+def step_sums(p, w, t, gc):
+    """Return (Σ_{p>0} w, Σ w·t, Σ t, Σ gc·t)."""
+    sw = 0.0
+    swt = 0.0
+    st = 0.0
+    sgt = 0.0
+    for i in prange(p.size):
+        ti = t[i]
+        swt += w[i] * ti
+        st += ti
+        sgt += gc[i] * ti
+        if p[i] > 0.0:
+            sw += w[i]
+    return sw, swt, st, sgt
+
+
+@njit(parallel=True, cache=True)
+def update_pressure(p, t, g, tau, use_overlap):
+    """p ← max(p − τ t, 0) on contact; p ← −τ g on penetrating free points (if use_overlap).
+
+    Return (Σ p, number clipped, number added).
+    """
+    s = 0.0
+    clipped = 0
+    added = 0
+    for i in prange(p.size):
+        if p[i] > 0.0:
+            v = p[i] - tau * t[i]
+            if v < 0.0:
+                v = 0.0
+                clipped += 1
+            p[i] = v
+            s += v
+        elif use_overlap and g[i] < 0.0:
+            v = -tau * g[i]
+            p[i] = v
+            s += v
+            added += 1
+    return s, clipped, added
+
+
+@njit(parallel=True, cache=True)
+def scale_and_update(p, factor, u, w, tau, update_u):
+    """p ← factor·p; if update_u: u ← factor·(u − τ w)."""
+    for i in prange(p.size):
+        p[i] *= factor
+        if update_u:
+            u[i] = factor * (u[i] - tau * w[i])
+
+
+def warm_up() -> None:
+    """Compile every kernel once (cached on disk by numba)."""
+    a = np.ones(4)
+    b = np.zeros(4)
+    contact_mean_gap(a, a, b)
+    gap_and_norms(a, a, b, 0.0, b.copy(), b.copy())
+    mask_and_dot(a, b.copy(), b)
+    update_direction(a, b, 0.0, 0.0, b.copy())
+    step_sums(a, b, b, b)
+    update_pressure(a.copy(), b, b, 1.0, True)
+    scale_and_update(a.copy(), 1.0, b.copy(), b, 1.0, True)
