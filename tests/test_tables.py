@@ -234,3 +234,12 @@ def test_cli_registers_build_tables():
     args = parser.parse_args(["build-tables", "grind-1", "grind-2", "--out", "tables"])
     assert args.textures == ["grind-1", "grind-2"] and args.points == 48 and args.workers == 2
     assert callable(args.func)
+
+
+def test_cli_reports_a_missing_texture_as_an_error(tmp_path, capsys):
+    from app.cli import main
+
+    status = main(["build-tables", str(tmp_path / "no-such-texture.h5"), "--out", str(tmp_path)])
+    assert status == 2
+    assert "skisnow build-tables: error:" in capsys.readouterr().err
+    assert not list(tmp_path.glob("*.h5"))
