@@ -623,7 +623,7 @@ _FIT_NAMES = (
     "depth_m",
     "land_fraction",
     "groove_exponent",
-    "asymmetry",
+    "depth_jitter",
     "lip_height_m",
     "lip_width_m",
     "roughness_rms_m",
@@ -633,12 +633,13 @@ _FIT_NAMES = (
 
 def _to_x(p: GrindParameters) -> np.ndarray:
     lf = min(max(p.land_fraction, 1e-3), 0.949) / 0.95
+    dj = min(max(p.depth_jitter, 1e-4), 0.299) / 0.3
     return np.array(
         [
             np.log(max(p.depth_m, 1e-9) / _UM),
             np.log(lf / (1 - lf)),
             np.log(p.groove_exponent),
-            np.arctanh(p.asymmetry / 0.95),
+            np.log(dj / (1 - dj)),
             np.log(max(p.lip_height_m, 1e-9) / _UM),
             np.log(p.lip_width_m / _UM),
             np.log(max(p.roughness_rms_m, 1e-9) / _UM),
@@ -653,7 +654,7 @@ def _from_x(x: np.ndarray, base: GrindParameters) -> GrindParameters:
         "depth_m": np.exp(x[0]) * _UM,
         "land_fraction": 0.95 / (1 + np.exp(-x[1])),
         "groove_exponent": float(np.clip(np.exp(x[2]), 0.2, 50)),
-        "asymmetry": 0.95 * np.tanh(x[3]) * (1 - 1e-9),
+        "depth_jitter": 0.3 / (1 + np.exp(-x[3])),
         "lip_height_m": np.exp(x[4]) * _UM,
         "lip_width_m": np.exp(x[5]) * _UM,
         "roughness_rms_m": np.exp(x[6]) * _UM,
@@ -680,14 +681,14 @@ def fit_linear_grind(
     """Tune the linear-grind generator to match target ISO 25178 parameters.
 
     Nelder-Mead (scipy) on eight unconstrained coordinates (log depth, logit land fraction,
-    log groove exponent, atanh asymmetry, log lip height and width, log roughness RMS and short
+    log groove exponent, logit depth jitter, log lip height and width, log roughness RMS and short
     cut-off) minimises ``Σ e_k²`` with ``e_k`` the deviation of target ``k`` in units of its
     tolerance (:func:`target_errors`). The random draws are fixed by ``seed``, so the objective
     is deterministic. The search runs on a reduced grid of ``fit_rows`` rows (grooves run along
     the rows, so the groove pattern is identical and only the roughness realisation is
     shorter), restarting the simplex until it stops improving; a short polish then runs at the
-    requested ``shape``. Pitch, jitters, Hurst exponent and roughness roll-off are held at
-    ``initial``'s values.
+    requested ``shape``. Pitch, pitch jitter, asymmetry, Hurst exponent and roughness roll-off
+    are held at ``initial``'s values.
 
     Parameters
     ----------
