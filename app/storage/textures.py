@@ -1,0 +1,289 @@
+"""Texture files: raw height maps (.npy, .csv) in, self-describing HDF5 textures in and out.
+
+Texture file format (schema ``skisnow.texture/1``, HDF5):
+
+- dataset ``heights_m`` — float64 heights h* [m] (gzip + shuffle), attrs ``unit = "m"``,
+  ``axis0 = "x, along the ski (groove direction)"``, ``axis1 = "y, across the ski"``,
+  ``pixel_size_m``;
+- root attrs: ``schema``, ``name``, ``source``, ``pixel_size_m`` [m], ``missing_fraction`` [-],
+  ``shape``, the ISO 25178 parameters of the heights (``iso_<name>``, SI, unit in the name,
+  gradients on the periodic grid if ``periodic`` is true), ``periodic``, everything from
+  :func:`app.storage.common.provenance`, and any ``extra_attrs`` of the writer (generator
+  parameters and seed for synthetic textures).
+
+Raw height maps are converted to metres at this edge (``height_unit``: m, mm, um/µm, nm) and
+levelled by :func:`solvers.texture.level_heights`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from solvers.errors import DataFileError, InputError
+from solvers.texture import Texture, iso25178_parameters, level_heights
+
+from .common import atomic_path, provenance, sha256_file
+
+__all__ = [
+    "HEIGHT_UNITS",
+    "SCHEMA",
+    "SHIPPED_TEXTURES_DIR",
+    "list_shipped_textures",
+    "load_texture",
+    "read_heightmap",
+    "read_texture",
+    "write_texture",
+]
+
+SCHEMA = "skisnow.texture/1"
+
+#: Directory of the shipped (synthetic) textures
+SHIPPED_TEXTURES_DIR = Path(__file__).resolve().parents[2] / "tables" / "textures"
+
+#: Accepted height units of raw maps and their factor to metres
+HEIGHT_UNITS: dict[str, float] = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "nm": 1e-9}
+
+
+def _height_factor(height_unit) -> float:
+    if not isinstance(height_unit, str) or height_unit.strip() not in HEIGHT_UNITS:
+        raise InputError(
+            f"height_unit must be one of {', '.join(HEIGHT_UNITS)}, got {height_unit!r}"
+        )
+    return HEIGHT_UNITS[height_unit.strip()]
+
+
+def _pixel_size_m(pixel_size_um) -> float:
+    try:
+        value = float(pixel_size_um)
+    except (TypeError, ValueError):
+        raise InputError(f"pixel_size_um must be a number, got {pixel_size_um!r}") from None
+    if not (np.isfinite(value) and value > 0):
+        raise InputError(f"pixel_size_um must be finite and > 0, got {pixel_size_um!r}")
+    return value * 1e-6
+
+
+def _read_csv(path: Path) -> np.ndarray:
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataFileError(f"cannot read height map {path}: {exc}") from exc
+    rows = []
+    for lineno, line in enumerate(text.splitlines(), start=1):
+        stripped = line.strip()
+        if not stripped or stripped.startswith("#"):
+            continue
+        cells = line.split(",") if "," in line else stripped.split()
+        try:
+            rows.append([float(c) if c.strip() else np.nan for c in cells])
+        except ValueError as exc:
+            raise DataFileError(f"height map {path}, line {lineno}: {exc}") from None
+    if not rows:
+        raise DataFileError(f"height map {path} holds no numbers")
+    widths = {len(r) for r in rows}
+    if len(widths) != 1:
+        raise DataFileError(
+            f"height map {path} is not a rectangular grid (row lengths {sorted(widths)}); "
+            "truncated file?"
+        )
+    return np.array(rows, dtype=np.float64)
+
+
+def _read_npy(path: Path) -> np.ndarray:
+    try:
+        arr = np.load(path, allow_pickle=False)
+    except (OSError, ValueError, EOFError) as exc:
+        raise DataFileError(f"cannot read height map {path}: {exc}") from exc
+    if not np.issubdtype(arr.dtype, np.number) or np.iscomplexobj(arr):
+        raise DataFileError(f"height map {path} holds {arr.dtype} values, not real numbers")
+    return arr.astype(np.float64)
+
+
+def read_heightmap(path, *, pixel_size_um: float, height_unit: str) -> Texture:
+    """Read a raw height map (``.npy`` or ``.csv``), convert it to metres and level it.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        ``.npy`` (no pickles) or ``.csv`` (comma or whitespace separated; NaN or an empty cell
+        for a missing point; ``#`` comment lines) with axis 0 along the ski.
+    pixel_size_um : float
+        Pixel size [µm].
+    height_unit : str
+        Unit of the stored heights: "m", "mm", "um" (or "µm"), "nm".
+
+    Returns
+    -------
+    Texture
+        Levelled, filled texture named after the file stem.
+
+    Raises
+    ------
+    InputError
+        Unknown unit, bad pixel size, or a map :func:`solvers.texture.level_heights` refuses.
+    DataFileError
+        Missing, unreadable, truncated or non-numeric file (the message names the file).
+    """
+    factor = _height_factor(height_unit)
+    dx = _pixel_size_m(pixel_size_um)
+    path = Path(path)
+    if not path.is_file():
+        raise DataFileError(f"height map {path} does not exist")
+    suffix = path.suffix.lower()
+    if suffix == ".npy":
+        raw = _read_npy(path)
+    elif suffix in (".csv", ".txt"):
+        raw = _read_csv(path)
+    else:
+        raise InputError(f"height map {path}: unsupported extension {suffix!r}; use .npy or .csv")
+    if raw.ndim != 2:
+        raise DataFileError(f"height map {path} is {raw.ndim}-D; a 2-D grid is needed")
+    try:
+        heights, missing = level_heights(raw * factor, dx)
+    except InputError as exc:
+        raise InputError(f"height map {path}: {exc}") from None
+    return Texture(heights, dx, path.stem, missing, f"{path.name} (sha256 {sha256_file(path)})")
+
+
+def write_texture(texture: Texture, path, *, extra_attrs: dict | None = None, periodic=False):
+    """Write a texture to a self-describing HDF5 file, atomically.
+
+    Parameters
+    ----------
+    texture : Texture
+        The texture (heights in metres).
+    path : str or os.PathLike
+        Destination ``.h5`` file; replaced only once fully written.
+    extra_attrs : dict, optional
+        More root attributes (e.g. generator parameters and seed); non-scalar values are
+        stored as JSON text.
+    periodic : bool
+        Whether the texture is periodic (ISO gradients wrap around); stored as an attribute.
+    """
+    h = np.asarray(texture.heights_m, dtype=np.float64)
+    if h.ndim != 2 or not np.isfinite(h).all():
+        raise InputError("texture.heights_m must be a finite 2-D array")
+    iso = iso25178_parameters(h, texture.pixel_size_m, periodic=periodic)
+    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+        ds = f.create_dataset(
+            "heights_m",
+            data=h,
+            compression="gzip",
+            compression_opts=6,
+            shuffle=True,
+            chunks=(min(256, h.shape[0]), min(256, h.shape[1])),
+        )
+        ds.attrs["unit"] = "m"
+        ds.attrs["axis0"] = "x, along the ski (groove direction)"
+        ds.attrs["axis1"] = "y, across the ski"
+        ds.attrs["pixel_size_m"] = float(texture.pixel_size_m)
+        attrs = f.attrs
+        attrs["schema"] = SCHEMA
+        attrs["name"] = texture.name
+        attrs["source"] = texture.source
+        attrs["pixel_size_m"] = float(texture.pixel_size_m)
+        attrs["missing_fraction"] = float(texture.missing_fraction)
+        attrs["shape"] = np.array(h.shape, dtype=np.int64)
+        attrs["periodic"] = bool(periodic)
+        for key, value in iso.items():
+            attrs[f"iso_{key}"] = value
+        for key, value in provenance().items():
+            attrs[key] = value
+        for key, value in (extra_attrs or {}).items():
+            if isinstance(value, str | int | float | bool | np.number):
+                attrs[key] = value
+            else:
+                attrs[key] = json.dumps(value, sort_keys=True, default=str)
+
+
+def read_texture(path) -> Texture:
+    """Read a texture written by :func:`write_texture` (schema ``skisnow.texture/1``).
+
+    Raises
+    ------
+    DataFileError
+        Missing file, not HDF5, wrong schema, or missing/invalid datasets (names the file).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DataFileError(f"texture file {path} does not exist")
+    try:
+        with h5py.File(path, "r") as f:
+            schema = f.attrs.get("schema")
+            if isinstance(schema, bytes):
+                schema = schema.decode()
+            if schema != SCHEMA:
+                raise DataFileError(
+                    f"texture file {path} has schema {schema!r}, expected {SCHEMA!r}"
+                )
+            if "heights_m" not in f:
+                raise DataFileError(f"texture file {path} has no 'heights_m' dataset")
+            heights = np.asarray(f["heights_m"][...], dtype=np.float64)
+            unit = f["heights_m"].attrs.get("unit")
+            pixel = float(f.attrs["pixel_size_m"])
+            name = str(f.attrs.get("name", path.stem))
+            source = str(f.attrs.get("source", str(path)))
+            missing = float(f.attrs.get("missing_fraction", 0.0))
+    except DataFileError:
+        raise
+    except (OSError, KeyError, ValueError, TypeError) as exc:
+        raise DataFileError(f"texture file {path} is unreadable or corrupt: {exc}") from exc
+    if unit != "m":
+        raise DataFileError(f"texture file {path}: heights_m unit is {unit!r}, expected 'm'")
+    if heights.ndim != 2 or min(heights.shape) < 2 or not np.isfinite(heights).all():
+        raise DataFileError(f"texture file {path}: heights_m is not a finite 2-D grid")
+    if not (np.isfinite(pixel) and pixel > 0):
+        raise DataFileError(f"texture file {path}: pixel_size_m is {pixel!r}")
+    return Texture(heights, pixel, name, missing, source)
+
+
+def list_shipped_textures() -> list[str]:
+    """Names of the shipped textures (``tables/textures/<name>.h5``), sorted."""
+    if not SHIPPED_TEXTURES_DIR.is_dir():
+        return []
+    return sorted(p.stem for p in SHIPPED_TEXTURES_DIR.glob("*.h5"))
+
+
+def load_texture(
+    spec: str | os.PathLike,
+    *,
+    pixel_size_um: float | None = None,
+    height_unit: str | None = None,
+) -> Texture:
+    """Texture from a shipped name, an ``.h5`` texture file, or a raw ``.npy``/``.csv`` map.
+
+    Parameters
+    ----------
+    spec : str or os.PathLike
+        Shipped name (see :func:`list_shipped_textures`, e.g. "grind-1") or a file path.
+    pixel_size_um : float, optional
+        Pixel size of a raw map [µm]; required for ``.npy``/``.csv``.
+    height_unit : str, optional
+        Height unit of a raw map ("m", "mm", "um", "nm"); required for ``.npy``/``.csv``.
+    """
+    spec_str = os.fspath(spec)
+    shipped = list_shipped_textures()
+    if spec_str in shipped:
+        return read_texture(SHIPPED_TEXTURES_DIR / f"{spec_str}.h5")
+    suffix = Path(spec_str).suffix.lower()
+    if suffix in (".h5", ".hdf5"):
+        return read_texture(spec_str)
+    if suffix in (".npy", ".csv"):
+        missing = [
+            n
+            for n, v in (("pixel_size_um", pixel_size_um), ("height_unit", height_unit))
+            if v is None
+        ]
+        if missing:
+            raise InputError(
+                f"texture {spec_str!r} is a raw height map: {' and '.join(missing)} must be given"
+            )
+        return read_heightmap(spec_str, pixel_size_um=pixel_size_um, height_unit=height_unit)
+    raise InputError(
+        f"unknown texture {spec_str!r}: give a shipped name ({', '.join(shipped) or 'none'}) "
+        "or a .h5, .npy or .csv file"
+    )
