@@ -1,0 +1,305 @@
+"""Service layer: the catalogue of skis and grinds, and one contact computation per request.
+
+Routes in :mod:`app.api` validate the request and call :func:`contact` / :func:`compare`; all
+unit conversion from technician units happens in :mod:`app.units`.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from app import units
+from app.storage.common import code_version, sha256_file
+from app.storage.skis import SkiRecord, read_ski
+from app.storage.tables import read_manifest, read_table
+from solvers.elastic import effective_modulus
+from solvers.errors import DataFileError, NotConvergedError, OutOfRangeError
+from solvers.lookup import MicroTable
+from solvers.macro import extrude_profile, solve_macro
+from solvers.multiscale import multiscale
+
+log = logging.getLogger(__name__)
+
+SKI_MANIFEST = "manifest.json"
+
+
+class UnknownItemError(LookupError):
+    """A ski or grind name that the catalogue does not hold (HTTP 404)."""
+
+    def __init__(self, kind: str, name: str, known: list[str]) -> None:
+        super().__init__(f"unknown {kind} {name!r}; known: {', '.join(known) or 'none'}")
+        self.kind = kind
+        self.name = name
+        self.known = known
+
+
+@dataclass
+class Grind:
+    name: str
+    path: Path
+    sha256: str
+    table: MicroTable
+
+
+@dataclass
+class Ski:
+    name: str
+    path: Path
+    sha256: str
+    record: SkiRecord
+
+    @property
+    def position_range_m(self) -> tuple[float, float]:
+        """Load positions the ski's model covers [m]: the network's trained range, else the
+        range of the measured load cases."""
+        net = self.record.network
+        if net is not None and "attrs" in net:
+            a = net["attrs"]
+            lo, hi = a.get("load_position_min_m"), a.get("load_position_max_m")
+            if lo is not None and hi is not None:
+                return float(lo), float(hi)
+        x = np.asarray(self.record.measurements.load_positions_m, dtype=float)
+        return float(x.min()), float(x.max())
+
+
+@dataclass
+class Catalogue:
+    """Skis and grinds loaded once per worker and verified against their manifests."""
+
+    tables_dir: Path
+    skis: dict[str, Ski] = field(default_factory=dict)
+    grinds: dict[str, Grind] = field(default_factory=dict)
+
+    def ski(self, name: str) -> Ski:
+        try:
+            return self.skis[name]
+        except KeyError:
+            raise UnknownItemError("ski", name, sorted(self.skis)) from None
+
+    def grind(self, name: str) -> Grind:
+        try:
+            return self.grinds[name]
+        except KeyError:
+            raise UnknownItemError("grind", name, sorted(self.grinds)) from None
+
+
+def _verify(path: Path, expected_sha: str | None) -> str:
+    if not path.is_file():
+        raise DataFileError(f"file listed in the manifest is missing: {path}")
+    sha = sha256_file(path)
+    if expected_sha is not None and sha != expected_sha:
+        raise DataFileError(f"{path}: sha256 {sha[:12]}… does not match the manifest")
+    return sha
+
+
+def load_catalogue(tables_dir: str | Path) -> Catalogue:
+    """Load and verify every table (``tables_dir/*.h5``) and ski (``tables_dir/skis/*.h5``).
+
+    Raises
+    ------
+    DataFileError
+        A manifest or a file is missing, corrupt, or does not match its checksum; the message
+        names the file.
+    """
+    tables_dir = Path(tables_dir)
+    cat = Catalogue(tables_dir=tables_dir)
+    manifest = read_manifest(tables_dir)
+    for fname, entry in sorted(manifest["files"].items()):
+        path = tables_dir / fname
+        sha = _verify(path, entry.get("sha256"))
+        table = read_table(path)
+        cat.grinds[table.name] = Grind(table.name, path, sha, table)
+    ski_dir = tables_dir / "skis"
+    ski_manifest = read_ski_manifest(ski_dir)
+    for fname, entry in sorted(ski_manifest["files"].items()):
+        path = ski_dir / fname
+        sha = _verify(path, entry.get("sha256"))
+        record = read_ski(path)
+        name = Path(fname).stem
+        cat.skis[name] = Ski(name, path, sha, record)
+    if not cat.grinds:
+        raise DataFileError(f"no texture tables listed in {tables_dir / 'manifest.json'}")
+    if not cat.skis:
+        raise DataFileError(f"no skis listed in {ski_dir / SKI_MANIFEST}")
+    return cat
+
+
+def read_ski_manifest(ski_dir: Path) -> dict:
+    import json
+
+    path = ski_dir / SKI_MANIFEST
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError as exc:
+        raise DataFileError(f"ski manifest not found: {path}") from exc
+    except (OSError, json.JSONDecodeError) as exc:
+        raise DataFileError(f"{path}: unreadable ski manifest ({exc})") from exc
+    if data.get("schema") != "skisnow.ski-manifest/1" or not isinstance(data.get("files"), dict):
+        raise DataFileError(f"{path}: unsupported ski manifest")
+    return data
+
+
+def write_ski_manifest(ski_dir: str | Path) -> Path:
+    """(Re)write ``skis/manifest.json`` with sha256 and size of every ski file."""
+    import json
+
+    from app.storage.common import atomic_path
+
+    ski_dir = Path(ski_dir)
+    files = {
+        p.name: {"sha256": sha256_file(p), "size_bytes": p.stat().st_size}
+        for p in sorted(ski_dir.glob("*.h5"))
+    }
+    out = ski_dir / SKI_MANIFEST
+    with atomic_path(out) as tmp:
+        tmp.write_text(
+            json.dumps({"schema": "skisnow.ski-manifest/1", "files": files}, indent=2) + "\n"
+        )
+    return out
+
+
+# ----------------------------------------------------------------------------- compute
+
+
+@dataclass
+class ContactInputs:
+    """One request in technician units (validated by the API schema)."""
+
+    ski: str
+    grind: str
+    load_kg: float
+    load_position_mm: float
+    snow_modulus_mpa: float
+    porosity: float
+    base_modulus_mpa: float = 700.0
+    poisson_ratio: float = 0.3
+
+
+def _finite_list(a: np.ndarray, scale: float = 1.0, digits: int = 6) -> list[float | None]:
+    return [None if not math.isfinite(v) else float(f"{v * scale:.{digits}g}") for v in a]
+
+
+def loaded_profile(ski: Ski, load_n: float, load_position_m: float):
+    from app.commands.macro import loaded_profile as _profile
+
+    return _profile(ski.record, load_n, load_position_m)
+
+
+def contact(cat: Catalogue, inp: ContactInputs) -> dict:
+    """Compute one ski × grind case; returns the JSON-ready answer of ``POST /v1/contact``.
+
+    Raises
+    ------
+    UnknownItemError, InputError, OutOfRangeError, NotConvergedError
+    """
+    t0 = time.perf_counter()
+    ski = cat.ski(inp.ski)
+    grind = cat.grind(inp.grind)
+    load_n = units.kg_to_n(inp.load_kg)
+    x_f = units.mm_to_m(inp.load_position_mm)
+    lo, hi = ski.position_range_m
+    if not (lo - 1e-12 <= x_f <= hi + 1e-12):
+        raise OutOfRangeError(
+            f"load_position_mm {inp.load_position_mm:g} is outside the range the ski "
+            f"{ski.name!r} covers ({lo * 1e3:g} … {hi * 1e3:g} mm)"
+        )
+    e_eff = effective_modulus(
+        units.mpa_to_pa(inp.snow_modulus_mpa),
+        units.mpa_to_pa(inp.base_modulus_mpa),
+        inp.poisson_ratio,
+    )
+    t1 = time.perf_counter()
+    x, gap = loaded_profile(ski, load_n, x_f)
+    t2 = time.perf_counter()
+    outline = ski.record.outline
+    gmap = extrude_profile(x, gap, outline.width_m, width_positions_m=outline.positions_m)
+    macro = solve_macro(gmap, load_n, x_f, e_eff)
+    if not macro.converged:
+        raise NotConvergedError(
+            f"the ski-on-snow solve did not converge ({macro.message}); try a load position "
+            "nearer the balance point or a different snow modulus"
+        )
+    t3 = time.perf_counter()
+    ms = multiscale(macro, grind.table, inp.porosity, e_eff)
+    t4 = time.perf_counter()
+    rows = np.isfinite(ms.average_separation_m)
+    return {
+        "inputs": {
+            "ski": inp.ski,
+            "grind": inp.grind,
+            "load_kg": inp.load_kg,
+            "load_position_mm": inp.load_position_mm,
+            "snow_modulus_mpa": inp.snow_modulus_mpa,
+            "porosity": inp.porosity,
+            "base_modulus_mpa": inp.base_modulus_mpa,
+            "poisson_ratio": inp.poisson_ratio,
+            "load_n": load_n,
+            "effective_modulus_mpa": e_eff / 1e6,
+        },
+        "metrics": {
+            "total_real_contact_area_mm2": ms.total_real_contact_area_m2 * 1e6,
+            "average_real_contact_pressure_mpa": ms.average_real_contact_pressure_pa / 1e6,
+            "min_average_separation_um": ms.min_average_separation_m * 1e6,
+            "total_reciprocal_separation_m": ms.total_reciprocal_separation_m,
+        },
+        "apparent": {
+            "contact_area_cm2": ms.apparent_contact_area_m2 * 1e4,
+            "mean_pressure_kpa": ms.mean_apparent_pressure_pa / 1e3,
+            "zones": [
+                {
+                    "name": "rear" if z.end_m <= x_f else ("front" if z.start_m >= x_f else "mid"),
+                    "start_mm": z.start_m * 1e3,
+                    "end_mm": z.end_m * 1e3,
+                    "length_mm": (z.end_m - z.start_m) * 1e3,
+                    "load_n": z.load_n,
+                    "load_share": z.load_share,
+                    "apparent_area_cm2": z.apparent_area_m2 * 1e4,
+                    "real_area_mm2": z.real_area_m2 * 1e6,
+                }
+                for z in ms.zones
+            ],
+        },
+        "distributions": {
+            "position_mm": _finite_list(ms.positions_m[rows], 1e3),
+            "pressure_kpa": _finite_list(ms.pressure_pa[rows], 1e-3),
+            "clearance_um": _finite_list(ms.clearance_m[rows], 1e6),
+            "real_area_fraction": _finite_list(ms.real_area_fraction[rows]),
+            "average_separation_um": _finite_list(ms.average_separation_m[rows], 1e6),
+            "reciprocal_separation_per_m": _finite_list(ms.reciprocal_separation_per_m[rows]),
+        },
+        "provenance": {
+            "code_version": code_version(),
+            "table": {
+                "file": grind.path.name,
+                "sha256": grind.sha256,
+                "texture_pixel_size_um": grind.table.pixel_size_m * 1e6,
+                "gap_floor_nm": grind.table.gap_floor_m * 1e9,
+            },
+            "ski": {
+                "file": ski.path.name,
+                "sha256": ski.sha256,
+                "profile_model": "network" if ski.record.network is not None else "beam",
+            },
+            "macro": {
+                "converged": macro.converged,
+                "iterations": macro.iterations,
+                "residual": macro.residual,
+                "pixel_size_mm": [v * 1e3 for v in macro.pixel_size_m],
+                "force_residual": macro.force_residual,
+                "moment_residual": macro.moment_residual,
+            },
+            "multiscale": ms.diagnostics,
+        },
+        "timing_ms": {
+            "profile": (t2 - t1) * 1e3,
+            "macro": (t3 - t2) * 1e3,
+            "multiscale": (t4 - t3) * 1e3,
+            "total": (time.perf_counter() - t0) * 1e3,
+        },
+    }

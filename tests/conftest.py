@@ -1,0 +1,82 @@
+"""Shared fixtures: a small synthetic texture table and a catalogue with the demo skis."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from solvers import lookup as L
+from solvers.elastic import PeriodicHalfSpace
+from solvers.micro import full_contact_pressure
+from solvers.texture import self_affine_surface
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def make_table(
+    heights: np.ndarray,
+    ratios: np.ndarray,
+    *,
+    name: str = "synthetic",
+    pixel_m: float = 1e-6,
+    e_eff: float = 1e8,
+    floor: float = 10e-9,
+    tol: float = 1e-6,
+) -> L.MicroTable:
+    """Build a MicroTable in memory (same kernels as ``skisnow build-tables``)."""
+    hs = PeriodicHalfSpace(heights.shape, pixel_m, e_eff, workers=1)
+    p_fc, _ = full_contact_pressure(heights, pixel_m, e_eff, halfspace=hs)
+    out = L.solve_table_chunk(
+        heights,
+        pixel_m,
+        ratios,
+        effective_modulus_pa=e_eff,
+        full_contact_pressure_ratio=p_fc / e_eff,
+        tol=tol,
+        max_iterations=2000,
+        gap_floor_m=floor,
+    )
+    out.pop("solve_time_s")
+    mean_h0, mean_rec0 = L.unloaded_statistics(heights, floor)
+    clearance = np.geomspace(1e-8, 1e-2, 61)
+    return L.MicroTable(
+        name=name,
+        pixel_size_m=pixel_m,
+        grid_shape=heights.shape,
+        effective_modulus_pa=e_eff,
+        gap_floor_m=floor,
+        tol=tol,
+        pressure_ratio=ratios,
+        full_contact_pressure_ratio=p_fc / e_eff,
+        unloaded_mean_gap_m=mean_h0,
+        unloaded_mean_reciprocal_gap_per_m=mean_rec0,
+        clearance_m=clearance,
+        separated_mean_reciprocal_gap_per_m=L.separated_curve(heights, clearance),
+        **out,
+    )
+
+
+@pytest.fixture(scope="session")
+def small_table() -> L.MicroTable:
+    h = self_affine_surface(
+        (64, 64), 1e-6, hurst=0.8, rms_height_m=1e-6, rng=np.random.default_rng(4)
+    )
+    return make_table(h, np.geomspace(1e-8, 1e-2, 25), name="tiny-grind")
+
+
+@pytest.fixture(scope="session")
+def catalogue(small_table):
+    """Demo skis from tables/skis plus the small synthetic table as grind ``tiny-grind``."""
+    from app import service
+    from app.storage.common import sha256_file
+    from app.storage.skis import read_ski
+
+    cat = service.Catalogue(tables_dir=REPO / "tables")
+    for path in sorted((REPO / "tables" / "skis").glob("ski-*.h5")):
+        cat.skis[path.stem] = service.Ski(path.stem, path, sha256_file(path), read_ski(path))
+    cat.grinds["tiny-grind"] = service.Grind(
+        "tiny-grind", REPO / "tables" / "tiny-grind.h5", "0" * 64, small_table
+    )
+    return cat
