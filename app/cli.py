@@ -21,6 +21,7 @@ COMMAND_MODULES = [
     "app.bench",
     "app.commands.macro",
     "app.train_camber",
+    "app.commands.serve",
 ]
 
 

@@ -1,0 +1,122 @@
+"""``skisnow serve`` and ``skisnow solve``: the service, and one case on the command line."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    s = sub.add_parser("serve", help="run the REST API and the technician web form")
+    s.add_argument("--host", default=None, help="interface (default 127.0.0.1)")
+    s.add_argument("--port", type=int, default=None, help="TCP port (default 8000)")
+    s.add_argument("--workers", type=int, default=None, help="worker processes (default 1)")
+    s.add_argument("--tables-dir", default=None, help="tables and skis directory")
+    s.set_defaults(func=run_serve)
+
+    v = sub.add_parser("solve", help="one ski × grind case (the same answer as /v1/contact)")
+    v.add_argument("--ski", required=True)
+    v.add_argument("--grind", required=True)
+    v.add_argument("--load-kg", type=float, required=True, help="equivalent load [kg]")
+    v.add_argument(
+        "--load-position-mm",
+        type=float,
+        required=True,
+        help="load position from the balance point, + towards the tip [mm]",
+    )
+    v.add_argument("--snow-modulus-mpa", type=float, required=True, help="snow modulus [MPa]")
+    v.add_argument("--porosity", type=float, required=True, help="snow porosity n [-]")
+    v.add_argument("--base-modulus-mpa", type=float, default=700.0)
+    v.add_argument("--poisson", type=float, default=0.3)
+    v.add_argument("--tables-dir", default=None)
+    v.add_argument("--json", action="store_true", help="print the full JSON answer")
+    v.set_defaults(func=run_solve)
+
+
+def run_serve(args: argparse.Namespace) -> int:
+    import uvicorn
+
+    from app.settings import Settings
+
+    overrides = {
+        k: v
+        for k, v in {
+            "host": args.host,
+            "port": args.port,
+            "workers": args.workers,
+            "tables_dir": args.tables_dir,
+        }.items()
+        if v is not None
+    }
+    settings = Settings(**overrides)
+    # fail fast, before binding, with a message naming a missing or corrupt file
+    from app.service import load_catalogue
+
+    load_catalogue(settings.tables_dir)
+    for key, value in overrides.items():
+        os.environ[f"SKISNOW_{key.upper()}"] = str(value)
+    os.environ.setdefault("NUMBA_NUM_THREADS", str(settings.threads_per_worker))
+    os.environ.setdefault("OMP_NUM_THREADS", str(settings.threads_per_worker))
+    uvicorn.run(
+        "app.main:app",
+        host=settings.host,
+        port=settings.port,
+        workers=settings.workers,
+        log_level="info",
+    )
+    return 0
+
+
+def run_solve(args: argparse.Namespace) -> int:
+    from pydantic import ValidationError
+
+    from app import service
+    from app.schemas import ContactBody
+    from app.settings import Settings
+    from solvers.errors import InputError
+
+    try:
+        body = ContactBody(
+            ski=args.ski,
+            grind=args.grind,
+            load_kg=args.load_kg,
+            load_position_mm=args.load_position_mm,
+            snow_modulus_mpa=args.snow_modulus_mpa,
+            porosity=args.porosity,
+            base_modulus_mpa=args.base_modulus_mpa,
+            poisson_ratio=args.poisson,
+        )
+    except ValidationError as exc:
+        msgs = "; ".join(
+            f"--{'-'.join(str(x) for x in e['loc']).replace('_', '-')}: {e['msg']}"
+            for e in exc.errors()
+        )
+        raise InputError(msgs) from None
+    settings = Settings(**({"tables_dir": args.tables_dir} if args.tables_dir else {}))
+    cat = service.load_catalogue(settings.tables_dir)
+    try:
+        out = service.contact(cat, service.ContactInputs(**body.model_dump()))
+    except service.UnknownItemError as exc:
+        raise InputError(str(exc)) from None
+    if args.json:
+        print(json.dumps(out))
+        return 0
+    m, a = out["metrics"], out["apparent"]
+    print(
+        f"{args.ski} × {args.grind}: {args.load_kg:g} kg at {args.load_position_mm:g} mm, "
+        f"E_snow {args.snow_modulus_mpa:g} MPa, porosity {args.porosity:g}"
+    )
+    print(f"  total real contact area          {m['total_real_contact_area_mm2']:10.4g} mm²")
+    print(f"  average real contact pressure    {m['average_real_contact_pressure_mpa']:10.4g} MPa")
+    print(f"  min. average separation          {m['min_average_separation_um']:10.4g} µm")
+    print(f"  total reciprocal separation      {m['total_reciprocal_separation_m']:10.4g} m")
+    print(f"  apparent contact area            {a['contact_area_cm2']:10.4g} cm²")
+    print(f"  mean apparent pressure           {a['mean_pressure_kpa']:10.4g} kPa")
+    for z in a["zones"]:
+        print(
+            f"  zone {z['name']:5s} {z['start_mm']:7.0f} … {z['end_mm']:5.0f} mm  "
+            f"load share {z['load_share']:.1%}  real area {z['real_area_mm2']:.4g} mm²"
+        )
+    print(f"  time {out['timing_ms']['total']:.0f} ms")
+    return 0
