@@ -1,0 +1,36 @@
+# skisnow service image: multi-stage, slim, non-root, tables baked in.
+# Build: docker build -t skisnow .    Run: docker run -p 8000:8000 skisnow
+FROM python:3.11-slim AS build
+WORKDIR /src
+ENV PIP_NO_CACHE_DIR=1 PIP_DISABLE_PIP_VERSION_CHECK=1
+COPY pyproject.toml README.md ./
+COPY app ./app
+COPY solvers ./solvers
+RUN python -m venv /opt/venv \
+    && /opt/venv/bin/pip install --upgrade pip \
+    && /opt/venv/bin/pip install .
+
+FROM python:3.11-slim AS runtime
+ENV PATH=/opt/venv/bin:$PATH \
+    PYTHONDONTWRITEBYTECODE=1 \
+    PYTHONUNBUFFERED=1 \
+    SKISNOW_HOST=0.0.0.0 \
+    SKISNOW_PORT=8000 \
+    SKISNOW_WORKERS=2 \
+    SKISNOW_THREADS_PER_WORKER=1 \
+    SKISNOW_TABLES_DIR=/srv/skisnow/tables \
+    OMP_NUM_THREADS=1 \
+    OPENBLAS_NUM_THREADS=1 \
+    MKL_NUM_THREADS=1 \
+    NUMBA_NUM_THREADS=1 \
+    NUMBA_CACHE_DIR=/tmp/numba-cache \
+    MPLCONFIGDIR=/tmp/matplotlib
+RUN useradd --system --uid 10001 --home-dir /srv/skisnow skisnow
+COPY --from=build /opt/venv /opt/venv
+COPY --chown=skisnow:skisnow tables /srv/skisnow/tables
+USER skisnow
+WORKDIR /srv/skisnow
+EXPOSE 8000
+HEALTHCHECK --interval=30s --timeout=3s --start-period=20s --retries=3 \
+    CMD python -c "import urllib.request,sys; sys.exit(0 if urllib.request.urlopen('http://127.0.0.1:8000/healthz', timeout=2).status == 200 else 1)"
+CMD ["skisnow", "serve"]
