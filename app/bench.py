@@ -376,7 +376,34 @@ def _micro_md(d: dict) -> list[str]:
     return lines
 
 
-STAGE_RENDERERS: dict[str, Callable[[dict], list[str]]] = {"micro": _micro_md}
+def _service_md(d: dict) -> list[str]:
+    s, c = d["single"], d["concurrent"]
+    return [
+        f"## Service load test (`python scripts/loadtest.py`, stage `{d['stage']}`)",
+        "",
+        f"`skisnow serve` with {d.get('server_workers')} worker processes on this machine, "
+        f"{d['distinct_inputs']} distinct seeded `/v1/contact` inputs (skis, grinds, loads, "
+        "positions, moduli, porosities).",
+        "",
+        "| run | requests | p50 [ms] | p99 [ms] | throughput [req/s] | 5xx | answers ≠ single |",
+        "|---|---|---|---|---|---|---|",
+        f"| 1 client, sequential | {s['requests']} | {s['p50_ms']:.1f} | {s['p99_ms']:.1f} | "
+        f"{1e3 / s['p50_ms']:.1f} (1/p50) | {s['non_200']} non-200 | — |",
+        f"| {c['clients']} concurrent clients | {c['requests']} | {c['p50_ms']:.1f} | "
+        f"{c['p99_ms']:.1f} | {c['throughput_rps']:.1f} | {c['server_errors_5xx']} | "
+        f"{c['answers_differing_from_single_client']} |",
+        "",
+        f"Server memory (RSS, all workers): {c['server_rss_mb_before']:.0f} MB before the "
+        f"concurrent run, {c['server_rss_mb_after']:.0f} MB after.",
+        "",
+    ]
+
+
+STAGE_RENDERERS: dict[str, Callable[[dict], list[str]]] = {
+    "micro": _micro_md,
+    "service": _service_md,
+    "service-32": _service_md,
+}
 
 
 def write_benchmarks_md() -> Path:

@@ -1,0 +1,223 @@
+"""Load test of ``skisnow serve`` on this machine (loopback only).
+
+Starts ``skisnow serve`` on a free 127.0.0.1 port (unless ``--url`` is given), draws seeded,
+varied ``/v1/contact`` requests (loads, positions, moduli, porosities, skis, grinds), then
+
+1. one client sends each request once, sequentially (latency percentiles);
+2. ``--clients`` concurrent clients send ``--requests`` requests drawn from the same set
+   (throughput, percentiles, errors), and every answer is compared with the single-client
+   answer for the same input (metrics, apparent contact and distributions must be identical).
+
+Results go to ``docs/bench/service.json`` and the section of ``docs/benchmarks.md``.
+Bounded in count and time; it stops by itself.
+
+    python scripts/loadtest.py --clients 8 --requests 1000
+"""
+
+from __future__ import annotations
+
+import argparse
+import concurrent.futures as cf
+import json
+import os
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import httpx
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def draw_requests(n: int, seed: int, skis: list[str], grinds: list[str]) -> list[dict]:
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        out.append(
+            {
+                "ski": str(rng.choice(skis)),
+                "grind": str(rng.choice(grinds)),
+                "load_kg": round(float(rng.uniform(20, 80)), 2),
+                "load_position_mm": round(float(rng.uniform(-250, 50)), 1),
+                "snow_modulus_mpa": round(float(rng.uniform(50, 400)), 1),
+                "porosity": round(float(rng.uniform(0.3, 0.7)), 3),
+            }
+        )
+    return out
+
+
+def answer_key(d: dict) -> str:
+    return json.dumps({k: d[k] for k in ("metrics", "apparent", "distributions")}, sort_keys=True)
+
+
+def percentile(xs: list[float], q: float) -> float:
+    return float(np.percentile(np.asarray(xs), q))
+
+
+def wait_ready(url: str, timeout_s: float = 120) -> None:
+    t0 = time.time()
+    while time.time() - t0 < timeout_s:
+        try:
+            if httpx.get(f"{url}/readyz", timeout=2).status_code == 200:
+                return
+        except httpx.HTTPError:
+            pass
+        time.sleep(0.5)
+    raise SystemExit(f"server at {url} not ready after {timeout_s} s")
+
+
+def rss_mb(pid: int) -> float:
+    try:
+        import psutil
+
+        p = psutil.Process(pid)
+        return sum(c.memory_info().rss for c in [p, *p.children(recursive=True)]) / 1e6
+    except Exception:
+        return float("nan")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--url", default=None, help="existing server (default: start one)")
+    ap.add_argument("--workers", type=int, default=2, help="server workers if started here")
+    ap.add_argument("--clients", type=int, default=8)
+    ap.add_argument("--requests", type=int, default=1000, help="requests of the concurrent run")
+    ap.add_argument("--distinct", type=int, default=200, help="distinct seeded inputs")
+    ap.add_argument("--seed", type=int, default=2026)
+    ap.add_argument(
+        "--duration-s",
+        type=float,
+        default=0,
+        help="run the concurrent phase for this long instead of a fixed number of requests",
+    )
+    ap.add_argument("--stage", default="service", help="name of the docs/bench entry")
+    args = ap.parse_args(argv)
+
+    proc = None
+    url = args.url
+    if url is None:
+        port = free_port()
+        url = f"http://127.0.0.1:{port}"
+        env = {**os.environ, "SKISNOW_THREADS_PER_WORKER": "1"}
+        proc = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "app.cli",
+                "serve",
+                "--port",
+                str(port),
+                "--workers",
+                str(args.workers),
+            ],
+            cwd=REPO,
+            env=env,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+    try:
+        wait_ready(url)
+        ready = httpx.get(f"{url}/readyz").json()
+        reqs = draw_requests(args.distinct, args.seed, ready["skis"], ready["grinds"])
+        client = httpx.Client(timeout=30)
+        # warm-up (JIT, caches), not measured
+        for r in reqs[:5]:
+            client.post(f"{url}/v1/contact", json=r)
+        single_lat, reference, errors_single = [], {}, 0
+        for i, r in enumerate(reqs):
+            t0 = time.perf_counter()
+            resp = client.post(f"{url}/v1/contact", json=r)
+            single_lat.append((time.perf_counter() - t0) * 1e3)
+            if resp.status_code == 200:
+                reference[i] = answer_key(resp.json())
+            else:
+                errors_single += 1
+                reference[i] = f"status {resp.status_code}: {resp.text[:200]}"
+        mem_before = rss_mb(proc.pid) if proc else float("nan")
+
+        rng = np.random.default_rng(args.seed + 1)
+        order = rng.integers(0, len(reqs), size=10**7 if args.duration_s else args.requests)
+        lat, mismatches, errors, done = [], 0, 0, 0
+        deadline = time.time() + args.duration_s if args.duration_s else None
+
+        def worker(k: int) -> tuple[list[float], int, int, int]:
+            c = httpx.Client(timeout=30)
+            my_lat, my_mis, my_err, my_n = [], 0, 0, 0
+            for idx in order[k :: args.clients]:
+                if deadline and time.time() > deadline:
+                    break
+                t0 = time.perf_counter()
+                resp = c.post(f"{url}/v1/contact", json=reqs[idx])
+                my_lat.append((time.perf_counter() - t0) * 1e3)
+                my_n += 1
+                if resp.status_code >= 500:
+                    my_err += 1
+                key = (
+                    answer_key(resp.json())
+                    if resp.status_code == 200
+                    else f"status {resp.status_code}: {resp.text[:200]}"
+                )
+                if key != reference[int(idx)]:
+                    my_mis += 1
+            return my_lat, my_mis, my_err, my_n
+
+        t0 = time.perf_counter()
+        with cf.ThreadPoolExecutor(args.clients) as ex:
+            for my_lat, my_mis, my_err, my_n in ex.map(worker, range(args.clients)):
+                lat += my_lat
+                mismatches += my_mis
+                errors += my_err
+                done += my_n
+        wall = time.perf_counter() - t0
+        mem_after = rss_mb(proc.pid) if proc else float("nan")
+        result = {
+            "url_started_here": proc is not None,
+            "server_workers": args.workers if proc else None,
+            "distinct_inputs": len(reqs),
+            "single": {
+                "requests": len(reqs),
+                "non_200": errors_single,
+                "p50_ms": percentile(single_lat, 50),
+                "p90_ms": percentile(single_lat, 90),
+                "p99_ms": percentile(single_lat, 99),
+            },
+            "concurrent": {
+                "clients": args.clients,
+                "requests": done,
+                "wall_s": wall,
+                "throughput_rps": done / wall,
+                "p50_ms": percentile(lat, 50),
+                "p99_ms": percentile(lat, 99),
+                "server_errors_5xx": errors,
+                "answers_differing_from_single_client": mismatches,
+                "server_rss_mb_before": mem_before,
+                "server_rss_mb_after": mem_after,
+            },
+        }
+        print(json.dumps(result, indent=1))
+        from app.bench import _write_stage
+
+        _write_stage(args.stage, result, None)
+        ok = errors == 0 and mismatches == 0
+        return 0 if ok else 1
+    finally:
+        if proc is not None:
+            proc.terminate()
+            try:
+                proc.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
