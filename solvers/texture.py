@@ -232,10 +232,11 @@ def _material_ratio_parameters(h: np.ndarray) -> dict[str, float]:
     bottom = intercept + slope  # line at mr = 1
     sk = top - bottom
     # material ratios where the curve crosses the core limits (z is descending)
-    smr1 = np.count_nonzero(z > top) / n
-    smr2 = np.count_nonzero(z >= bottom) / n
-    peaks = z[z > top] - top
-    valleys = bottom - z[z < bottom]
+    eps = 1e-12 * (z[0] - z[-1])  # rounding of the fitted line (flat cores)
+    smr1 = np.count_nonzero(z > top + eps) / n
+    smr2 = np.count_nonzero(z >= bottom - eps) / n
+    peaks = z[z > top + eps] - top
+    valleys = bottom - z[z < bottom - eps]
     a1 = peaks.sum() / n  # peak area [m · ratio]
     a2 = valleys.sum() / n
     spk = 2 * a1 / smr1 if smr1 > 0 else 0.0
