@@ -1,9 +1,623 @@
-"""Technician web form at ``/`` (server-rendered HTML with SVG plots)."""
+"""Technician web form at ``/`` (server-rendered HTML with inline SVG plots).
+
+Routes (all ``GET`` so that every result is a link; no multipart, no JavaScript required):
+
+``/``
+    The form: skis and grinds from the catalogue, load [kg] and its position [mm] with presets,
+    snow modulus [MPa] and porosity (or snow density [kg/m³]), advanced base modulus and
+    Poisson's ratio. Query parameters, if any, pre-fill it.
+``/results``
+    The four metrics for every ski × grind, a comparison table, plots and provenance.
+``/results.csv``
+    The comparison table as CSV (one row per combination, units in the column names).
+
+The query is validated with the bounds of :class:`app.schemas.ContactBody`; bad input re-shows
+the form with a message next to the offending field (422; 404 for an unknown ski or grind).
+Each combination is one :func:`app.service.contact` call; answers are kept in a small
+in-memory cache so that the CSV download after a results page costs nothing.
+"""
 
 from __future__ import annotations
 
-from fastapi import FastAPI
+import csv
+import io
+import math
+import threading
+import time
+from collections import OrderedDict
+from dataclasses import astuple, dataclass, field
+from html import escape
+from importlib import resources
+from string import Template
+from urllib.parse import urlencode
+
+from fastapi import FastAPI, Request
+from fastapi.responses import HTMLResponse, Response
+from pydantic import ValidationError
+
+from app import plots, service
+from app.schemas import ContactBody
+from solvers.errors import SkisnowError
+
+#: density of ice used to turn snow density into porosity, n = 1 − ρ/ρ_ice [kg/m³]
+ICE_DENSITY_KG_M3 = 917.0
+
+#: the published case (method.md §2): 40 kg at 160 mm behind the balance point, E_snow 200 MPa
+DEFAULTS = {
+    "load_kg": "40",
+    "load_position_mm": "-160",
+    "snow_modulus_mpa": "200",
+    "porosity": "0.5",
+    "snow_density_kg_m3": "458.5",
+    "snow_input": "porosity",
+    "base_modulus_mpa": "700",
+    "poisson_ratio": "0.3",
+    "body_weight_kg": "80",
+}
+
+#: load presets: (button label, data attributes read by static/web.js)
+PRESETS = (
+    ("½ body weight at −80 mm", 'data-body-fraction="0.5" data-position-mm="-80"'),
+    ("Full body weight at −150 mm", 'data-body-fraction="1" data-position-mm="-150"'),
+    ("Published case: 40 kg at −160 mm", 'data-load-kg="40" data-position-mm="-160"'),
+)
+
+#: (query name, label, unit, hint) of the numeric inputs; names are those of ContactBody
+FIELDS = {
+    "body_weight_kg": ("Skier's body weight", "kg", "used by the body-weight presets only"),
+    "load_kg": ("Equivalent load on the ski", "kg", "one point load per ski (g = 9.82 m/s²)"),
+    "load_position_mm": (
+        "Load position from the balance point",
+        "mm",
+        "negative = behind the balance point (towards the tail)",
+    ),
+    "snow_modulus_mpa": ("Snow Young's modulus E_snow", "MPa", "papers' study value 200 MPa"),
+    "porosity": ("Snow porosity n", "–", "0 ≤ n < 1; groomed track ≈ 0.5"),
+    "snow_density_kg_m3": ("Snow density ρ", "kg/m³", "porosity n = 1 − ρ/917"),
+    "base_modulus_mpa": ("Ski-base Young's modulus E_base", "MPa", "sintered UHMWPE ≈ 700 MPa"),
+    "poisson_ratio": ("Poisson's ratio ν (snow and base)", "–", "0 ≤ ν < 0.5"),
+}
+
+#: numeric inputs passed on to ContactBody / service.ContactInputs
+NUMERIC = (
+    "load_kg",
+    "load_position_mm",
+    "snow_modulus_mpa",
+    "porosity",
+    "base_modulus_mpa",
+    "poisson_ratio",
+)
+
+#: the four functional parameters: (key in "metrics", label, unit, format)
+METRICS = (
+    ("total_real_contact_area_mm2", "Total real contact area", "mm²", "{:.4g}"),
+    ("average_real_contact_pressure_mpa", "Average real contact pressure", "MPa", "{:.4g}"),
+    ("min_average_separation_um", "Minimum average separation", "µm", "{:.4g}"),
+    ("total_reciprocal_separation_m", "Total average reciprocal separation", "m", "{:.4g}"),
+)
+
+#: CSV columns, units in the names as in the JSON API
+CSV_COLUMNS = (
+    "ski",
+    "grind",
+    "load_kg",
+    "load_position_mm",
+    "snow_modulus_mpa",
+    "porosity",
+    "base_modulus_mpa",
+    "poisson_ratio",
+    "total_real_contact_area_mm2",
+    "average_real_contact_pressure_mpa",
+    "min_average_separation_um",
+    "total_reciprocal_separation_m",
+    "apparent_contact_area_cm2",
+    "mean_apparent_pressure_kpa",
+    "rear_zone_load_share",
+    "front_zone_load_share",
+    "table_file",
+    "table_sha256",
+    "texture_pixel_size_um",
+    "gap_floor_nm",
+    "ski_file",
+    "ski_sha256",
+    "code_version",
+    "compute_time_ms",
+    "error",
+)
+
+
+# ----------------------------------------------------------------------------- parsing
+
+
+@dataclass
+class Query:
+    """The form's state: raw strings to re-fill it, parsed inputs and errors per field."""
+
+    skis: list[str]
+    grinds: list[str]
+    raw: dict[str, str]
+    errors: dict[str, str] = field(default_factory=dict)
+    numbers: dict[str, float] = field(default_factory=dict)
+    status: int = 200
+
+    @property
+    def ok(self) -> bool:
+        return not self.errors
+
+    def combinations(self) -> list[service.ContactInputs]:
+        return [
+            service.ContactInputs(ski=s, grind=g, **self.numbers)
+            for s in self.skis
+            for g in self.grinds
+        ]
+
+    def link_query(self) -> str:
+        """The query string that reproduces this request."""
+        pairs = [("ski", s) for s in self.skis] + [("grind", g) for g in self.grinds]
+        pairs += [(k, v) for k, v in self.raw.items() if v != ""]
+        return urlencode(pairs)
+
+
+def _unique(values: list[str]) -> list[str]:
+    return list(dict.fromkeys(v.strip() for v in values if v.strip()))
+
+
+def parse_query(request: Request, cat: service.Catalogue, max_cells: int) -> Query:
+    """Read and validate the form's query parameters (bounds of :class:`ContactBody`)."""
+    qp = request.query_params
+    raw = {k: qp.get(k, "").strip() for k in (*FIELDS, "snow_input")}
+    q = Query(_unique(qp.getlist("ski")), _unique(qp.getlist("grind")), raw)
+    if raw["snow_input"] not in ("porosity", "density"):
+        raw["snow_input"] = "porosity"
+
+    for kind, chosen, known in (("ski", q.skis, cat.skis), ("grind", q.grinds, cat.grinds)):
+        unknown = [n for n in chosen if n not in known]
+        if not chosen:
+            q.errors[kind] = f"choose at least one {kind}"
+        elif unknown:
+            q.errors[kind] = (
+                f"unknown {kind} {', '.join(map(repr, unknown))}; "
+                f"known: {', '.join(sorted(known)) or 'none'}"
+            )
+            q.status = 404
+    if q.skis and q.grinds and len(q.skis) * len(q.grinds) > max_cells:
+        q.errors["grind"] = (
+            f"{len(q.skis)} skis × {len(q.grinds)} grinds = {len(q.skis) * len(q.grinds)} "
+            f"combinations; at most {max_cells} per page"
+        )
+
+    values = {k: raw[k] for k in NUMERIC}
+    if raw["snow_input"] == "density":
+        values.pop("porosity")
+        rho = _finite(raw["snow_density_kg_m3"])
+        if rho is None or not 0 <= rho < ICE_DENSITY_KG_M3:
+            q.errors["snow_density_kg_m3"] = (
+                f"snow density must be a number from 0 to below {ICE_DENSITY_KG_M3:g} kg/m³"
+            )
+        else:
+            values["porosity"] = str(1.0 - rho / ICE_DENSITY_KG_M3)
+    for key in ("base_modulus_mpa", "poisson_ratio"):  # optional in ContactBody
+        if values[key] == "":
+            values.pop(key)
+    for key, text in values.items():
+        if text != "" and _finite(text) is None:
+            q.errors[key] = "must be a finite number"
+    try:
+        body = ContactBody(ski="-", grind="-", **{k: v for k, v in values.items()})
+    except ValidationError as exc:
+        for err in exc.errors():
+            key = str(err["loc"][0]) if err.get("loc") else "form"
+            if key == "porosity" and raw["snow_input"] == "density":
+                key = "snow_density_kg_m3"
+            reason = err.get("msg", "invalid")
+            if err.get("type") == "missing":
+                reason = "required"
+            q.errors.setdefault(key, reason)
+    else:
+        q.numbers = body.model_dump(exclude={"ski", "grind"})
+    if q.errors and q.status == 200:
+        q.status = 422
+    return q
+
+
+def _finite(text: str) -> float | None:
+    try:
+        v = float(text)
+    except ValueError:
+        return None
+    return v if math.isfinite(v) else None
+
+
+# ----------------------------------------------------------------------------- computing
+
+
+class _ResultCache:
+    """Thread-safe LRU of :func:`service.contact` answers keyed by the inputs."""
+
+    def __init__(self, maxsize: int = 32) -> None:
+        self.maxsize = maxsize
+        self._data: OrderedDict[tuple, dict] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, key: tuple) -> dict | None:
+        with self._lock:
+            if key in self._data:
+                self._data.move_to_end(key)
+                return self._data[key]
+        return None
+
+    def put(self, key: tuple, value: dict) -> None:
+        with self._lock:
+            self._data[key] = value
+            self._data.move_to_end(key)
+            while len(self._data) > self.maxsize:
+                self._data.popitem(last=False)
+
+
+@dataclass
+class Outcome:
+    """Answers for the combinations that worked, and a message for those that did not."""
+
+    results: list[dict]
+    failures: list[tuple[service.ContactInputs, str]]
+    wall_ms: float
+
+
+def compute(cat: service.Catalogue, q: Query, cache: _ResultCache) -> Outcome:
+    t0 = time.perf_counter()
+    results, failures = [], []
+    for inp in q.combinations():
+        key = astuple(inp)
+        answer = cache.get(key)
+        if answer is None:
+            try:
+                answer = service.contact(cat, inp)
+            except SkisnowError as exc:
+                failures.append((inp, str(exc)))
+                continue
+            cache.put(key, answer)
+        results.append(answer)
+    return Outcome(results, failures, (time.perf_counter() - t0) * 1e3)
+
+
+def _failure_field(message: str) -> str:
+    """The form field a solver message is about (messages start with the input's name)."""
+    first = message.split(" ", 1)[0]
+    return first if first in FIELDS else "form"
+
+
+# ----------------------------------------------------------------------------- HTML
+
+
+_PAGE = Template(resources.files("app").joinpath("templates/page.html").read_text("utf-8"))
+_CSS = resources.files("app").joinpath("static/web.css").read_text("utf-8")
+_JS = resources.files("app").joinpath("static/web.js").read_text("utf-8")
+
+
+def _page(title: str, body: str, status: int = 200) -> HTMLResponse:
+    html = _PAGE.substitute(
+        title=escape(title), css=_CSS, js=_JS, body=body, version=service.code_version()
+    )
+    return HTMLResponse(html, status_code=status)
+
+
+def _fmt(value, spec: str = "{:.4g}") -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "–"
+    return spec.format(value)
+
+
+def _number_field(q: Query, name: str, *, disabled: bool = False) -> str:
+    label, unit, hint = FIELDS[name]
+    value = q.raw.get(name, "")
+    if not value and name not in q.errors:
+        value = DEFAULTS[name]
+    bounds = ""
+    info = ContactBody.model_fields.get(name)
+    for c in info.metadata if info else ():
+        for attr, html_attr in (("ge", "min"), ("gt", "min"), ("le", "max"), ("lt", "max")):
+            if getattr(c, attr, None) is not None:
+                bounds += f' {html_attr}="{getattr(c, attr)}"'
+    err = q.errors.get(name)
+    return (
+        f'<div class="field{" has-error" if err else ""}">'
+        f'<label for="{name}">{escape(label)} [{unit}]</label>'
+        f'<input type="number" step="any" id="{name}" name="{name}" value="{escape(value)}"'
+        f"{bounds}{' disabled' if disabled else ''}"
+        f"{f' aria-invalid=true aria-describedby={name}-error' if err else ''}>"
+        + (f' <span class="error" id="{name}-error">{escape(err)}</span>' if err else "")
+        + f'<div class="hint">{escape(hint)}</div></div>'
+    )
+
+
+def _choices(q: Query, kind: str, items: dict, describe) -> str:
+    chosen = q.skis if kind == "ski" else q.grinds
+    if not chosen and not q.errors:
+        chosen = sorted(items)[:1]
+    rows = []
+    for name in sorted(items):
+        rows.append(
+            f'<label class="choice"><input type="checkbox" name="{kind}" value="{escape(name)}"'
+            f"{' checked' if name in chosen else ''}> <b>{escape(name)}</b>"
+            f'<span class="hint">{escape(describe(items[name]))}</span></label>'
+        )
+    err = q.errors.get(kind)
+    if err:
+        rows.append(f'<p class="error" id="{kind}-error">{escape(err)}</p>')
+    return "".join(rows)
+
+
+def _describe_ski(ski: service.Ski) -> str:
+    lo, hi = ski.position_range_m
+    model = "network" if ski.record.network is not None else "beam"
+    desc = ski.record.metadata.get("description") or ""
+    length = ski.record.outline.length_m * 1e3
+    return (
+        f"{desc + '; ' if desc else ''}length {length:.0f} mm; load positions "
+        f"{lo * 1e3:.0f} … {hi * 1e3:.0f} mm; camber model: {model}"
+    )
+
+
+def _describe_grind(grind: service.Grind) -> str:
+    t = grind.table
+    sa_m = (t.iso_parameters or {}).get("Sa_m")
+    return (
+        f"{'Sa ' + format(sa_m * 1e6, '.3g') + ' µm; ' if sa_m is not None else ''}texture pixel "
+        f"{t.pixel_size_m * 1e6:.3g} µm; gap floor {t.gap_floor_m * 1e9:.3g} nm"
+    )
+
+
+def render_form(cat: service.Catalogue, q: Query, status: int = 200) -> HTMLResponse:
+    alert = ""
+    if q.errors:
+        items = "".join(
+            f"<li><b>{escape(FIELDS.get(k, (k,))[0])}</b>: {escape(v)}</li>"
+            for k, v in q.errors.items()
+        )
+        alert = (
+            '<div class="alert" role="alert"><b>Please correct the input:</b>'
+            f"<ul>{items}</ul></div>"
+        )
+    density_mode = q.raw.get("snow_input") == "density"
+    advanced_open = " open" if {"base_modulus_mpa", "poisson_ratio"} & set(q.errors) else ""
+    presets = "\n".join(
+        f'<button type="button" {data}>{escape(label)}</button>' for label, data in PRESETS
+    )
+    body = f"""
+<h1>Ski–snow contact for a ski, a grind, a load and a snow</h1>
+{alert}
+<form id="contact-form" method="get" action="/results">
+<div class="grid2">
+<fieldset><legend>Skis</legend>{_choices(q, "ski", cat.skis, _describe_ski)}</fieldset>
+<fieldset><legend>Base grinds</legend>{_choices(q, "grind", cat.grinds, _describe_grind)}</fieldset>
+</div>
+<div class="grid2">
+<fieldset><legend>Load</legend>
+{_number_field(q, "body_weight_kg")}
+<div class="presets" role="group" aria-label="load presets">
+{presets}
+</div>
+{_number_field(q, "load_kg")}
+{_number_field(q, "load_position_mm")}
+</fieldset>
+<fieldset><legend>Snow</legend>
+{_number_field(q, "snow_modulus_mpa")}
+<div class="field"><span>Porosity given as:</span>
+<label><input type="radio" name="snow_input" value="porosity"{"" if density_mode else " checked"}>
+porosity n</label>
+<label><input type="radio" name="snow_input" value="density"{" checked" if density_mode else ""}>
+snow density ρ</label></div>
+{_number_field(q, "porosity", disabled=density_mode)}
+{_number_field(q, "snow_density_kg_m3", disabled=not density_mode)}
+<div class="hint" id="porosity-from-density" aria-live="polite"></div>
+</fieldset>
+</div>
+<fieldset><details class="advanced"{advanced_open}>
+<summary>Advanced: ski-base elasticity</summary>
+{_number_field(q, "base_modulus_mpa")}
+{_number_field(q, "poisson_ratio")}
+</details></fieldset>
+<button type="submit" id="submit" class="primary">Compute contact</button>
+<span class="hint">One ski × grind takes a few seconds.</span>
+</form>
+"""
+    return _page("skisnow — contact form", body, status)
+
+
+def _metric_cards(results: list[dict]) -> str:
+    cards = []
+    for r in results:
+        inp, m, prov = r["inputs"], r["metrics"], r["provenance"]
+        metrics = "".join(
+            f'<div class="metric" data-metric="{key}"><span class="name">{label}</span>'
+            f'<span class="value">{_fmt(m[key], spec)}</span><span class="unit">{unit}</span></div>'
+            for key, label, unit, spec in METRICS
+        )
+        zones = "".join(
+            f'<tr><td class="text">{escape(z["name"])}</td><td>{z["start_mm"]:.0f} … '
+            f"{z['end_mm']:.0f}</td><td>{z['length_mm']:.0f}</td>"
+            f"<td>{100 * z['load_share']:.1f}</td><td>{z['apparent_area_cm2']:.4g}</td>"
+            f"<td>{z['real_area_mm2']:.4g}</td></tr>"
+            for z in r["apparent"]["zones"]
+        )
+        a, table, ski = r["apparent"], prov["table"], prov["ski"]
+        cards.append(
+            f"""<section class="card"><h3>{escape(inp["ski"])} × {escape(inp["grind"])}</h3>
+<div class="metrics">{metrics}</div>
+<p class="summary">Apparent contact {a["contact_area_cm2"]:.4g} cm² at a mean apparent pressure
+of {a["mean_pressure_kpa"]:.4g} kPa; computed in {r["timing_ms"]["total"]:.0f} ms.</p>
+<div class="table-wrap"><table><tr><th class="text">zone</th><th>X [mm]</th>
+<th>length [mm]</th><th>load share [%]</th><th>apparent area [cm²]</th>
+<th>real area [mm²]</th></tr>{zones}</table></div>
+<details><summary>Provenance</summary><dl>
+<dt>texture table</dt><dd>{escape(table["file"])} · sha256 {table["sha256"][:12]}</dd>
+<dt>texture pixel</dt><dd>{table["texture_pixel_size_um"]:.4g} µm</dd>
+<dt>gap floor h_c</dt><dd>{table["gap_floor_nm"]:.4g} nm</dd>
+<dt>ski file</dt><dd>{escape(ski["file"])} · sha256 {ski["sha256"][:12]}</dd>
+<dt>camber model</dt><dd>{escape(str(ski["profile_model"]))}</dd>
+<dt>macro solve</dt><dd>{prov["macro"]["iterations"]} iterations, converged
+{prov["macro"]["converged"]}, pixel {" × ".join(f"{v:g}" for v in prov["macro"]["pixel_size_mm"])}
+mm</dd>
+<dt>E′ effective</dt><dd>{inp["effective_modulus_mpa"]:.4g} MPa</dd>
+<dt>code version</dt><dd>{escape(str(prov["code_version"]))}</dd>
+<dt>time</dt><dd>profile {r["timing_ms"]["profile"]:.0f} ms, macro
+{r["timing_ms"]["macro"]:.0f} ms, multiscale {r["timing_ms"]["multiscale"]:.0f} ms</dd>
+</dl></details></section>"""
+        )
+    return '<div class="cards">' + "".join(cards) + "</div>"
+
+
+def _comparison_table(results: list[dict], failures) -> str:
+    head = "".join(f"<th>{label} [{unit}]</th>" for _, label, unit, _ in METRICS)
+    rows = []
+    for r in results:
+        m, a = r["metrics"], r["apparent"]
+        rear = sum(z["load_share"] for z in a["zones"] if z["name"] == "rear")
+        rows.append(
+            f'<tr><td class="text">{escape(r["inputs"]["ski"])}</td>'
+            f'<td class="text">{escape(r["inputs"]["grind"])}</td>'
+            + "".join(f"<td>{_fmt(m[k], spec)}</td>" for k, _, _, spec in METRICS)
+            + f"<td>{a['contact_area_cm2']:.4g}</td><td>{a['mean_pressure_kpa']:.4g}</td>"
+            f"<td>{100 * rear:.1f}</td><td>{r['timing_ms']['total']:.0f}</td></tr>"
+        )
+    for inp, msg in failures:
+        rows.append(
+            f'<tr><td class="text">{escape(inp.ski)}</td><td class="text">{escape(inp.grind)}</td>'
+            f'<td class="text error" colspan="{len(METRICS) + 4}">{escape(msg)}</td></tr>'
+        )
+    return (
+        '<div class="table-wrap"><table id="comparison"><tr><th class="text">ski</th>'
+        f'<th class="text">grind</th>{head}<th>apparent area [cm²]</th>'
+        "<th>mean apparent pressure [kPa]</th><th>rear-zone load share [%]</th>"
+        f"<th>time [ms]</th></tr>{''.join(rows)}</table></div>"
+    )
+
+
+def render_results(q: Query, out: Outcome) -> HTMLResponse:
+    n = q.numbers
+    link = q.link_query()
+    failures = ""
+    if out.failures:
+        items = "".join(
+            f"<li><b>{escape(i.ski)} × {escape(i.grind)}</b>: {escape(m)}</li>"
+            for i, m in out.failures
+        )
+        failures = (
+            f'<div class="notice" role="status"><b>Some combinations could not be computed'
+            f'</b><ul>{items}</ul><a href="/?{escape(link)}">Change the inputs</a></div>'
+        )
+    svgs = "".join(
+        f'<figure class="plot" id="plot-{key}">{svg}<figcaption>{escape(caption)}</figcaption>'
+        "</figure>"
+        for key, caption, svg in plots.all_svgs(out.results)
+    )
+    body = f"""
+<h1>Contact results</h1>
+<p class="summary">Load {n["load_kg"]:g} kg ({n["load_kg"] * 9.82:.1f} N) at
+{n["load_position_mm"]:g} mm from the balance point · snow E {n["snow_modulus_mpa"]:g} MPa,
+porosity n = {n["porosity"]:.4g} · base E {n["base_modulus_mpa"]:g} MPa, ν
+{n["poisson_ratio"]:g} · {len(out.results)} combination(s) in {out.wall_ms:.0f} ms.</p>
+<div class="actions"><a class="button" href="/?{escape(link)}">Change inputs</a>
+<a class="button primary" id="csv" href="/results.csv?{escape(link)}" download>Download CSV</a>
+</div>
+{failures}
+<h2>Comparison</h2>
+{_comparison_table(out.results, out.failures)}
+<h2>Functional parameters per ski × grind</h2>
+{_metric_cards(out.results)}
+<h2>Along the ski</h2>
+<div class="plots">{svgs}</div>
+"""
+    return _page("skisnow — results", body)
+
+
+def render_csv(out: Outcome) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(CSV_COLUMNS)
+    for r in out.results:
+        inp, m, a, p = r["inputs"], r["metrics"], r["apparent"], r["provenance"]
+        share = {"rear": 0.0, "front": 0.0}
+        for z in a["zones"]:
+            if z["name"] in share:
+                share[z["name"]] += z["load_share"]
+        row = {
+            **{k: inp[k] for k in CSV_COLUMNS[:8]},
+            **m,
+            "apparent_contact_area_cm2": a["contact_area_cm2"],
+            "mean_apparent_pressure_kpa": a["mean_pressure_kpa"],
+            "rear_zone_load_share": share["rear"],
+            "front_zone_load_share": share["front"],
+            "table_file": p["table"]["file"],
+            "table_sha256": p["table"]["sha256"],
+            "texture_pixel_size_um": p["table"]["texture_pixel_size_um"],
+            "gap_floor_nm": p["table"]["gap_floor_nm"],
+            "ski_file": p["ski"]["file"],
+            "ski_sha256": p["ski"]["sha256"],
+            "code_version": p["code_version"],
+            "compute_time_ms": round(r["timing_ms"]["total"], 1),
+            "error": "",
+        }
+        w.writerow([_csv_value(row.get(c)) for c in CSV_COLUMNS])
+    for inp, msg in out.failures:
+        row = {k: getattr(inp, k) for k in CSV_COLUMNS[:8]} | {"error": msg}
+        w.writerow([_csv_value(row.get(c)) for c in CSV_COLUMNS])
+    return buf.getvalue()
+
+
+def _csv_value(v) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return f"{v:.8g}" if math.isfinite(v) else ""
+    return str(v)
+
+
+# ----------------------------------------------------------------------------- routes
 
 
 def mount(app: FastAPI) -> None:
-    """Add the web-form routes to ``app`` (filled in by the web-form work)."""
+    """Add the web-form routes to ``app``."""
+    cache = _ResultCache()
+
+    def _query(request: Request) -> Query:
+        return parse_query(
+            request, request.app.state.catalogue, request.app.state.settings.max_compare_cells
+        )
+
+    @app.get("/", response_class=HTMLResponse, include_in_schema=False)
+    def form(request: Request) -> HTMLResponse:
+        q = _query(request)
+        if not request.query_params:
+            q.errors.clear()
+        # a pre-filled form shows only the errors of what was given
+        elif not q.skis and not q.grinds:
+            q.errors.pop("ski", None)
+            q.errors.pop("grind", None)
+        return render_form(request.app.state.catalogue, q)
+
+    @app.get("/results", response_class=HTMLResponse, include_in_schema=False)
+    def results(request: Request) -> HTMLResponse:
+        cat = request.app.state.catalogue
+        q = _query(request)
+        if not q.ok:
+            return render_form(cat, q, q.status)
+        out = compute(cat, q, cache)
+        if not out.results:
+            for inp, msg in out.failures:
+                q.errors.setdefault(_failure_field(msg), f"{inp.ski} × {inp.grind}: {msg}")
+            return render_form(cat, q, 422)
+        return render_results(q, out)
+
+    @app.get("/results.csv", include_in_schema=False)
+    def results_csv(request: Request) -> Response:
+        cat = request.app.state.catalogue
+        q = _query(request)
+        if not q.ok:
+            return render_form(cat, q, q.status)
+        out = compute(cat, q, cache)
+        return Response(
+            render_csv(out),
+            media_type="text/csv; charset=utf-8",
+            headers={"Content-Disposition": 'attachment; filename="skisnow-contact.csv"'},
+        )

@@ -1,0 +1,204 @@
+"""Server-side SVG plots of contact results (matplotlib ``Figure``, no pyplot, no global state).
+
+Every function takes answers of :func:`app.service.contact` (technician units: mm, kPa, µm) and
+returns one SVG document as a string, ready to be inlined in HTML. Quantities and symbols follow
+``shared/method.md``: P(X) apparent pressure, H(X) loaded camber clearance, a_r(X) real contact
+area fraction, h̄_n(X) average interfacial separation, (1/h)‾_n(X) average reciprocal separation.
+X is the position along the ski from the balance point, positive towards the tip.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Sequence
+
+import numpy as np
+from matplotlib.figure import Figure
+
+#: wax-layer thicknesses drawn on the clearance plot [mm]
+WAX_LAYERS_MM = (0.1, 0.2)
+#: the clearance plot shows at most this much clearance [mm]; the tip and tail rise far higher
+CLEARANCE_TOP_MM = 1.0
+
+_X_LABEL = "position X from the balance point, + towards the tip [mm]"
+_COLOURS = (
+    "#1f77b4",
+    "#d62728",
+    "#2ca02c",
+    "#9467bd",
+    "#ff7f0e",
+    "#17becf",
+    "#8c564b",
+    "#e377c2",
+    "#7f7f7f",
+    "#bcbd22",
+)
+
+
+def _array(values: Sequence[float | None]) -> np.ndarray:
+    """A list with ``None`` for missing values as a float array with NaN."""
+    return np.array([np.nan if v is None else v for v in values], dtype=float)
+
+
+def _svg(fig: Figure) -> str:
+    buf = io.StringIO()
+    fig.savefig(buf, format="svg", bbox_inches="tight", metadata={"Date": None})
+    text = buf.getvalue()
+    # inline use: drop the XML declaration and DOCTYPE in front of <svg
+    return text[text.index("<svg") :]
+
+
+def _figure(title: str, ylabel: str) -> tuple[Figure, object]:
+    fig = Figure(figsize=(7.2, 3.2), layout="constrained")
+    ax = fig.add_subplot()
+    ax.set_title(title, fontsize=10)
+    ax.set_xlabel(_X_LABEL)
+    ax.set_ylabel(ylabel)
+    ax.grid(True, alpha=0.3, which="both")
+    return fig, ax
+
+
+def _label(result: dict, *, with_grind: bool = True) -> str:
+    inp = result["inputs"]
+    return f"{inp['ski']} × {inp['grind']}" if with_grind else str(inp["ski"])
+
+
+def _per_ski(results: Sequence[dict]) -> list[dict]:
+    """One result per ski: P(X) and H(X) come from the macro scale and do not depend on the
+    grind."""
+    seen: dict[str, dict] = {}
+    for r in results:
+        seen.setdefault(r["inputs"]["ski"], r)
+    return list(seen.values())
+
+
+def _load_line(ax, results: Sequence[dict]) -> None:
+    positions = sorted({float(r["inputs"]["load_position_mm"]) for r in results})
+    for i, x in enumerate(positions):
+        ax.axvline(x, color="k", ls=":", lw=1, label="load position" if i == 0 else None)
+
+
+def pressure_svg(results: Sequence[dict]) -> str:
+    """Apparent contact pressure P(X) [kPa] (mean across the width) with the contact zones
+    shaded and labelled with their load share."""
+    fig, ax = _figure("Apparent contact pressure along the ski", "pressure P [kPa]")
+    for i, r in enumerate(_per_ski(results)):
+        colour = _COLOURS[i % len(_COLOURS)]
+        d = r["distributions"]
+        x = _array(d["position_mm"])
+        ax.plot(
+            x, _array(d["pressure_kpa"]), color=colour, lw=1.4, label=_label(r, with_grind=False)
+        )
+        for z in r["apparent"]["zones"]:
+            ax.axvspan(z["start_mm"], z["end_mm"], color=colour, alpha=0.12, lw=0)
+            ax.annotate(
+                f"{z['name']} {100 * z['load_share']:.0f} %",
+                xy=(0.5 * (z["start_mm"] + z["end_mm"]), 1.0),
+                xycoords=("data", "axes fraction"),
+                xytext=(0, -4 - 11 * i),
+                textcoords="offset points",
+                ha="center",
+                va="top",
+                fontsize=8,
+                color=colour,
+            )
+    _load_line(ax, results)
+    ax.set_ylim(bottom=0)
+    ax.margins(y=0.25)
+    ax.legend(fontsize=8, loc="center left")
+    return _svg(fig)
+
+
+def clearance_svg(results: Sequence[dict]) -> str:
+    """Loaded camber clearance H(X) [mm] with the wax-layer thicknesses of
+    :data:`WAX_LAYERS_MM`; the axis stops at :data:`CLEARANCE_TOP_MM`."""
+    fig, ax = _figure(
+        f"Loaded camber clearance H (axis cut at {CLEARANCE_TOP_MM:g} mm)", "clearance H [mm]"
+    )
+    for i, r in enumerate(_per_ski(results)):
+        d = r["distributions"]
+        ax.plot(
+            _array(d["position_mm"]),
+            _array(d["clearance_um"]) * 1e-3,
+            color=_COLOURS[i % len(_COLOURS)],
+            lw=1.4,
+            label=_label(r, with_grind=False),
+        )
+    for thickness, style in zip(WAX_LAYERS_MM, ("--", "-."), strict=True):
+        ax.axhline(thickness, color="0.35", ls=style, lw=1, label=f"{thickness:g} mm wax layer")
+    _load_line(ax, results)
+    ax.set_ylim(0, CLEARANCE_TOP_MM)
+    ax.legend(fontsize=8, loc="upper left")
+    return _svg(fig)
+
+
+def _per_case(results: Sequence[dict], key: str, scale: float, title: str, ylabel: str, *, log):
+    fig, ax = _figure(title, ylabel)
+    for i, r in enumerate(results):
+        d = r["distributions"]
+        y = _array(d[key]) * scale
+        if log:
+            y = np.where(y > 0, y, np.nan)
+        ax.plot(
+            _array(d["position_mm"]),
+            y,
+            color=_COLOURS[i % len(_COLOURS)],
+            lw=1.2,
+            label=_label(r),
+        )
+    if log:
+        ax.set_yscale("log")
+    _load_line(ax, results)
+    ax.legend(fontsize=8, loc="best")
+    return _svg(fig)
+
+
+def real_area_svg(results: Sequence[dict]) -> str:
+    """Real contact area fraction a_r(X) [%] for every ski × grind."""
+    return _per_case(
+        results,
+        "real_area_fraction",
+        100.0,
+        "Real contact area fraction",
+        "real contact area a_r [%]",
+        log=False,
+    )
+
+
+def separation_svg(results: Sequence[dict]) -> str:
+    """Average interfacial separation h̄_n(X) [µm] on a log axis."""
+    return _per_case(
+        results,
+        "average_separation_um",
+        1.0,
+        "Average interfacial separation",
+        "separation h̄ [µm]",
+        log=True,
+    )
+
+
+def reciprocal_svg(results: Sequence[dict]) -> str:
+    """Average reciprocal interfacial separation (1/h)‾_n(X) [1/m] on a log axis."""
+    return _per_case(
+        results,
+        "reciprocal_separation_per_m",
+        1.0,
+        "Average reciprocal interfacial separation",
+        "reciprocal separation (1/h)‾ [1/m]",
+        log=True,
+    )
+
+
+#: (key, caption, function) of the plots on the results page, in page order
+PLOTS = (
+    ("pressure", "Apparent pressure P(X) with the contact zones shaded", pressure_svg),
+    ("clearance", "Loaded camber clearance H(X) with 0.1 and 0.2 mm wax layers", clearance_svg),
+    ("real_area", "Real contact area fraction a_r(X)", real_area_svg),
+    ("separation", "Average interfacial separation h̄(X)", separation_svg),
+    ("reciprocal", "Average reciprocal separation (1/h)(X)", reciprocal_svg),
+)
+
+
+def all_svgs(results: Sequence[dict]) -> list[tuple[str, str, str]]:
+    """``[(key, caption, svg)]`` for every plot of :data:`PLOTS`."""
+    return [(key, caption, fn(results)) for key, caption, fn in PLOTS]
