@@ -10,12 +10,15 @@ Recipe (documented in ``docs/camber-network.md``):
   set (reported accuracy), both drawn only from *interior* cases (neither the smallest nor the
   largest F, nor the smallest nor the largest x_F), so that every held-out case lies inside the
   range spanned by the training cases and the metrics measure interpolation, not extrapolation.
-- Model: MLP 2 → 64 → 64 → K_c (tanh), float64; the K_c outputs are the signed gap at nodes
+- Model: MLP 2 → 64 → 64 → K_c (ReLU), float64; the K_c outputs are the signed gap at nodes
   ~5 mm apart, linearly interpolated onto X, then ReLU (see :mod:`solvers.camber`).
 - Normalisation: inputs to [−1, 1] over the trained range; node outputs as
   ``offset + scale · y`` with the mean training gap per node and a per-node scale.
-- Loss: mean over all points of ``r²`` with ``r = (S − H*) / max(H*, b)`` where ``H* > 0``
-  and ``r = max(S, 0) / b`` where ``H* = 0`` (one-sided: contact only needs ``S ≤ 0``);
+- Loss: mean over the nodes of ``r²`` with ``r = (S − H*) / max(H*, b)`` where ``H* ≠ 0``
+  and ``r = max(S, 0) / b`` where ``H* = 0`` exactly (one-sided: contact only needs
+  ``S ≤ 0``). Noisy readings around contact, negative ones included, are fitted two-sided: a
+  one-sided rule for ``H* ≤ 0`` would bias the fitted gap upwards by about half the noise
+  where the ski touches and shrink the apparent contact;
   ``b = 0.2 mm`` is the band that decides contact. Below ``b`` the loss is the absolute error
   in units of ``b``, above it the relative error, so the small gaps that decide contact weigh
   most and the centimetre tip rise does not dominate.
@@ -52,12 +55,14 @@ from solvers.errors import DataFileError, InputError
 __all__ = [
     "TrainingResult",
     "camber_training_arrays",
+    "contact_area_check",
     "evaluate_network",
     "register",
     "run",
     "split_load_cases",
     "torch_predict",
     "train_camber_network",
+    "truth_check",
     "write_network_to_ski",
 ]
 
@@ -192,19 +197,46 @@ def _build_layers(torch, sizes: list[int], generator):
     return layers
 
 
-def _node_output(torch, layers, z, out_offset, out_scale):
-    """Signed gap S at the output nodes [m] for normalised inputs z (N, 2)."""
+def _torch_activation(torch, name: str):
+    return {
+        "tanh": torch.tanh,
+        "relu": torch.relu,
+        "softplus": torch.nn.functional.softplus,
+    }[name]
+
+
+def _node_output(torch, layers, z, out_offset, out_scale, activation="tanh", smoother=None):
+    """Signed gap S at the output nodes [m] for normalised inputs z (N, 2).
+
+    ``smoother`` (K_c, K_c), if given, is applied along the nodes: ``S ← S Gᵀ``.
+    """
+    sigma = _torch_activation(torch, activation)
     a = z
     for i, lin in enumerate(layers):
         a = lin(a)
         if i < len(layers) - 1:
-            a = torch.tanh(a)
-    return out_offset + out_scale * a
+            a = sigma(a)
+    s = out_offset + out_scale * a
+    return s if smoother is None else s @ smoother.T
 
 
-def _signed_gap(torch, layers, z, out_offset, out_scale, idx, w):
+def smoothing_matrix(nodes_m: np.ndarray, width_m: float) -> np.ndarray:
+    """Row-normalised Gaussian smoother G (K_c, K_c) along the nodes, std ``width_m`` [m].
+
+    Truncated at 4 standard deviations and renormalised at the ski ends. ``width_m`` = 0 gives
+    the identity.
+    """
+    x = np.asarray(nodes_m, dtype=float)
+    if width_m <= 0:
+        return np.eye(x.size)
+    d = (x[:, None] - x[None, :]) / width_m
+    g = np.where(np.abs(d) <= 4.0, np.exp(-0.5 * d * d), 0.0)
+    return g / g.sum(axis=1, keepdims=True)
+
+
+def _signed_gap(torch, layers, z, out_offset, out_scale, idx, w, activation):
     """Signed gap S on the full grid (before ReLU) for normalised inputs z (N, 2)."""
-    s_nodes = _node_output(torch, layers, z, out_offset, out_scale)
+    s_nodes = _node_output(torch, layers, z, out_offset, out_scale, activation)
     if s_nodes.shape[1] == 1:
         return s_nodes.expand(-1, idx.numel())
     return s_nodes[:, idx] * (1.0 - w) + s_nodes[:, idx + 1] * w
@@ -238,6 +270,7 @@ def torch_predict(
             torch.as_tensor(network["output_scale"]),
             torch.as_tensor(idx),
             torch.as_tensor(w),
+            network["attrs"]["activation"],
         )
         return torch.relu(s).numpy()
 
@@ -256,7 +289,10 @@ def train_camber_network(
     lbfgs_epochs: int = 1500,
     seed: int = 0,
     hidden: tuple[int, ...] = (64, 64),
+    activation: str = "relu",
     node_spacing_m: float = 5e-3,
+    smoothing_m: float = 10e-3,
+    ensemble: int = 1,
     contact_band_m: float = camber.CONTACT_BAND_M,
     validation_fraction: float = 0.15,
     test_fraction: float = 0.15,
@@ -279,7 +315,7 @@ def train_camber_network(
         Load positions x_F of the load cases [m].
     profiles_m : ndarray, shape (K, M)
         Measured loaded gaps H*(X) [m]; readings down to ``MIN_GAP_M`` (−50 µm) are accepted as
-        device noise at contact and treated like contact (one-sided loss) where ≤ 0.
+        device noise at contact and fitted as they are (the output is clipped at zero).
     epochs : int
         Maximum number of full-batch Adam epochs (early stopping may end sooner).
     lbfgs_epochs : int
@@ -288,8 +324,20 @@ def train_camber_network(
         Seed of the split and the initial weights.
     hidden : tuple of int
         Widths of the hidden layers.
+    activation : str
+        Hidden-layer activation: ``"tanh"``, ``"relu"`` or ``"softplus"``.
     node_spacing_m : float
         Spacing of the output nodes [m] (0: one output per grid point).
+    smoothing_m : float
+        Standard deviation of the Gaussian smoother applied along the output nodes during
+        training and folded into the last layer [m] (0: none). It keeps the node-to-node
+        noise of the measurements out of the predicted profile, which the apparent contact
+        area of the macro BEM is very sensitive to (0.3 µm of white noise on H* removes ~10 %
+        of it); smooth (long-wave) errors hardly matter because the rigid approach absorbs them.
+    ensemble : int
+        Number of members trained from seeds ``seed, seed + 1, …`` on the same split and
+        averaged; the average is folded into one MLP of the same schema (stacked first layer,
+        block-diagonal hidden layers), so inference stays one forward pass.
     contact_band_m : float
         Gap band b that decides contact, weighted most by the loss [m].
     validation_fraction, test_fraction : float
@@ -323,6 +371,12 @@ def train_camber_network(
             f"epochs >= 1, lbfgs_epochs >= 0, patience >= 1 required, got {epochs}, "
             f"{lbfgs_epochs}, {patience}"
         )
+    if activation not in camber.ACTIVATIONS:
+        raise InputError(
+            f"activation must be one of {sorted(camber.ACTIVATIONS)}, got {activation!r}"
+        )
+    if int(ensemble) < 1:
+        raise InputError(f"ensemble must be >= 1, got {ensemble}")
     if not contact_band_m > 0:
         raise InputError(f"contact_band_m must be > 0, got {contact_band_m}")
     t_start = time.perf_counter()
@@ -346,108 +400,45 @@ def train_camber_network(
     # that nodes which hardly move (always in contact) keep a usable range
     out_scale = np.maximum(h_nodes.std(axis=0), 0.1 * contact_band_m)
 
+    smoother = smoothing_matrix(nodes, smoothing_m)
+    members = []
     with _torch_threads(torch, threads):
-        gen = torch.Generator().manual_seed(int(seed))
-        sizes = [2, *[int(n) for n in hidden], int(nodes.size)]
-        layers = _build_layers(torch, sizes, gen)
-        with torch.no_grad():  # small last layer: start near the mean profile
-            layers[-1].weight.mul_(0.1)
-
-        # the loss is evaluated at the nodes (grid points ~node_spacing_m apart): the network's
-        # output lives there, the linear interpolation in between is fixed; metrics use every point
-        t_in = torch.as_tensor((np.stack([f, xf], axis=1) - in_offset) / in_scale)
-        t_h = torch.as_tensor(h[:, node_idx])
-        t_zero = t_h <= 0.0  # touching (or noise below zero): only S <= 0 is asked
-        t_wt = 1.0 / torch.clamp(t_h, min=contact_band_m)
-        t_off = torch.as_tensor(out_offset)
-        t_scale = torch.as_tensor(out_scale)
-        t_tr, t_va = torch.as_tensor(tr), torch.as_tensor(va if va.size else tr)
-
-        def loss_on(rows):
-            s = _node_output(torch, layers, t_in[rows], t_off, t_scale)
-            r = torch.where(t_zero[rows], torch.relu(s), s - t_h[rows]) * t_wt[rows]
-            return torch.mean(r * r)
-
-        params = list(layers.parameters())
-        history_tr: list[float] = []
-        history_va: list[float] = []
-        best = {"loss": math.inf, "epoch": -1, "state": None}
-
-        def record(phase: str, loss_tr: float) -> bool:
-            with torch.no_grad():
-                loss_va = float(loss_on(t_va))
-            history_tr.append(loss_tr)
-            history_va.append(loss_va)
-            improved = loss_va < best["loss"] * (1 - 1e-6)
-            if loss_va < best["loss"]:
-                best.update(
-                    loss=loss_va,
-                    epoch=len(history_va) - 1,
-                    state=[p.detach().clone() for p in params],
+        for member in range(int(ensemble)):
+            members.append(
+                _fit_member(
+                    torch,
+                    seed=int(seed) + member,
+                    sizes=[2, *[int(n) for n in hidden], int(nodes.size)],
+                    inputs=(np.stack([f, xf], axis=1) - in_offset) / in_scale,
+                    targets=h[:, node_idx],
+                    rows=(tr, va if va.size else tr),
+                    out_offset=out_offset,
+                    out_scale=out_scale,
+                    smoother=smoother,
+                    activation=activation,
+                    contact_band_m=contact_band_m,
+                    epochs=epochs,
+                    lbfgs_epochs=lbfgs_epochs,
+                    learning_rate=learning_rate,
+                    patience=patience,
+                    progress=progress,
                 )
-            if progress is not None:
-                progress(phase, len(history_va) - 1, loss_tr, loss_va)
-            return improved
-
-        # phase 1: Adam with learning-rate decay on plateaus of the training loss
-        opt = torch.optim.Adam(params, lr=learning_rate)
-        sched = torch.optim.lr_scheduler.ReduceLROnPlateau(
-            opt, factor=0.5, patience=100, min_lr=1e-5
-        )
-        stale = 0
-        stopped_early = False
-        for _ in range(epochs):
-            opt.zero_grad()
-            loss = loss_on(t_tr)
-            loss.backward()
-            opt.step()
-            sched.step(float(loss.detach()))
-            stale = 0 if record("adam", float(loss.detach())) else stale + 1
-            if stale >= patience:
-                stopped_early = True
-                break
-        adam_epochs = len(history_va)
-        # phase 2: L-BFGS from the best Adam weights
-        if lbfgs_epochs > 0:
-            with torch.no_grad():
-                for p, b in zip(params, best["state"], strict=True):
-                    p.copy_(b)
-            lbfgs = torch.optim.LBFGS(
-                params,
-                lr=1.0,
-                max_iter=1,
-                history_size=50,
-                line_search_fn="strong_wolfe",
-                tolerance_grad=1e-12,
-                tolerance_change=1e-15,
             )
-
-            def closure():
-                lbfgs.zero_grad()
-                value = loss_on(t_tr)
-                value.backward()
-                return value
-
-            stale = 0
-            stopped_early = False
-            for _ in range(lbfgs_epochs):
-                loss = lbfgs.step(closure)
-                if not math.isfinite(float(loss.detach())):
-                    break
-                stale = 0 if record("lbfgs", float(loss.detach())) else stale + 1
-                if stale >= patience:
-                    stopped_early = True
-                    break
-        with torch.no_grad():
-            for p, b in zip(params, best["state"], strict=True):
-                p.copy_(b)
     train_time = time.perf_counter() - t_start
-
-    weights = [lin.weight.detach().numpy().copy() for lin in layers]
-    biases = [lin.bias.detach().numpy().copy() for lin in layers]
+    weights, biases = _fold_members(members, out_offset, out_scale, smoother)
+    out_offset = smoother @ out_offset
+    out_scale = np.ones_like(out_offset)
+    history_tr = np.concatenate([m["history_train"] for m in members])
+    history_va = np.concatenate([m["history_validation"] for m in members])
+    best = {
+        "epoch": int(np.mean([m["best_epoch"] for m in members])),
+        "loss": float(np.mean([m["best_validation_loss"] for m in members])),
+    }
+    adam_epochs = int(sum(m["adam_epochs"] for m in members))
+    stopped_early = all(m["stopped_early"] for m in members)
     extra = {
-        "history_train_loss": np.asarray(history_tr),
-        "history_validation_loss": np.asarray(history_va),
+        "history_train_loss": history_tr,
+        "history_validation_loss": history_va,
     }
     for name, rows in split.items():
         extra[f"split_{name}_loads_n"] = f[rows]
@@ -458,19 +449,26 @@ def train_camber_network(
         "dtype": "float64",
         "hidden_layers": ",".join(str(n) for n in hidden),
         "node_spacing_m": float(node_spacing_m),
+        "smoothing_m": float(smoothing_m),
         "n_nodes": int(nodes.size),
         "contact_band_m": float(contact_band_m),
-        "loss": "mean r^2; r=(S-H)/max(H,b) where H>0, r=relu(S)/b where H=0",
+        "loss": "mean r^2; r=(S-H)/max(H,b) where H!=0, r=relu(S)/b where H==0 exactly",
         "optimizer": "full-batch Adam + ReduceLROnPlateau, then L-BFGS (strong Wolfe)",
         "learning_rate": float(learning_rate),
         "patience": int(patience),
         "epochs_max": int(epochs),
         "lbfgs_epochs_max": int(lbfgs_epochs),
         "epochs_adam": int(adam_epochs),
-        "epochs_run": len(history_va),
+        "epochs_run": int(history_va.size),
         "best_epoch": int(best["epoch"]),
         "stopped_early": bool(stopped_early),
-        "train_loss_best": float(history_tr[best["epoch"]]),
+        "ensemble_members": int(ensemble),
+        "member_epochs_run": ",".join(str(m["history_train"].size) for m in members),
+        "member_best_epochs": ",".join(str(m["best_epoch"]) for m in members),
+        "member_validation_loss_best": ",".join(
+            f"{m['best_validation_loss']:.6e}" for m in members
+        ),
+        "train_loss_best": float(np.mean([m["best_train_loss"] for m in members])),
         "validation_loss_best": float(best["loss"]),
         "validation_fraction": float(validation_fraction),
         "test_fraction": float(test_fraction),
@@ -496,6 +494,7 @@ def train_camber_network(
         output_scale=out_scale,
         load_range_n=(f_lo, f_hi),
         load_position_range_m=(x_lo, x_hi),
+        activation=activation,
         metadata=meta,
         extra_arrays=extra,
     )
@@ -509,7 +508,8 @@ def train_camber_network(
     network["attrs"].update({f"metric_{k}": v for k, v in metrics.items()})
     camber.check_network(network)
     message = (
-        f"{len(history_va)} epochs ({adam_epochs} Adam), best epoch {best['epoch']}, "
+        f"{ensemble} member(s), {history_va.size} epochs ({adam_epochs} Adam), "
+        f"mean best epoch {best['epoch']}, "
         f"validation loss {best['loss']:.3e}, "
         + (
             f"test RMSE(H*<{contact_band_m * 1e3:g} mm) = "
@@ -523,9 +523,182 @@ def train_camber_network(
         network=network,
         metrics=metrics,
         converged=stopped_early,
-        epochs=len(history_va),
+        epochs=int(history_va.size),
         message=message,
     )
+
+
+def _fit_member(
+    torch,
+    *,
+    seed,
+    sizes,
+    inputs,
+    targets,
+    rows,
+    out_offset,
+    out_scale,
+    smoother,
+    activation,
+    contact_band_m,
+    epochs,
+    lbfgs_epochs,
+    learning_rate,
+    patience,
+    progress,
+) -> dict:
+    """Train one MLP (Adam, then L-BFGS) with early stopping; the best-validation weights win."""
+    gen = torch.Generator().manual_seed(int(seed))
+    layers = _build_layers(torch, sizes, gen)
+    with torch.no_grad():  # small last layer: start near the mean profile
+        layers[-1].weight.mul_(0.1)
+    # the loss is evaluated at the nodes (grid points ~node_spacing_m apart): the network's
+    # output lives there, the linear interpolation in between is fixed; metrics use every point
+    t_in = torch.as_tensor(inputs)
+    t_h = torch.as_tensor(targets)
+    # exact zeros (a device or model that reports contact) ask only S <= 0; noisy readings,
+    # negative ones included, are fitted two-sided so the fit stays unbiased at contact
+    t_zero = t_h == 0.0
+    t_wt = 1.0 / torch.clamp(t_h, min=contact_band_m)
+    t_off = torch.as_tensor(out_offset)
+    t_scale = torch.as_tensor(out_scale)
+    t_smooth = torch.as_tensor(smoother)
+    t_tr, t_va = torch.as_tensor(rows[0]), torch.as_tensor(rows[1])
+
+    def loss_on(idx):
+        s = _node_output(torch, layers, t_in[idx], t_off, t_scale, activation, t_smooth)
+        r = torch.where(t_zero[idx], torch.relu(s), s - t_h[idx]) * t_wt[idx]
+        return torch.mean(r * r)
+
+    params = list(layers.parameters())
+    history_tr: list[float] = []
+    history_va: list[float] = []
+    best = {"loss": math.inf, "epoch": -1, "state": None}
+
+    def record(phase: str, loss_tr: float) -> bool:
+        with torch.no_grad():
+            loss_va = float(loss_on(t_va))
+        history_tr.append(loss_tr)
+        history_va.append(loss_va)
+        improved = loss_va < best["loss"] * (1 - 1e-6)
+        if loss_va < best["loss"]:
+            best.update(
+                loss=loss_va,
+                epoch=len(history_va) - 1,
+                state=[p.detach().clone() for p in params],
+            )
+        if progress is not None:
+            progress(phase, len(history_va) - 1, loss_tr, loss_va)
+        return improved
+
+    # phase 1: Adam with learning-rate decay on plateaus of the training loss
+    opt = torch.optim.Adam(params, lr=learning_rate)
+    sched = torch.optim.lr_scheduler.ReduceLROnPlateau(opt, factor=0.5, patience=100, min_lr=1e-5)
+    stale = 0
+    stopped_early = False
+    for _ in range(epochs):
+        opt.zero_grad()
+        loss = loss_on(t_tr)
+        loss.backward()
+        opt.step()
+        sched.step(float(loss.detach()))
+        stale = 0 if record("adam", float(loss.detach())) else stale + 1
+        if stale >= patience:
+            stopped_early = True
+            break
+    adam_epochs = len(history_va)
+    # phase 2: L-BFGS from the best Adam weights
+    if lbfgs_epochs > 0:
+        with torch.no_grad():
+            for p, b in zip(params, best["state"], strict=True):
+                p.copy_(b)
+        lbfgs = torch.optim.LBFGS(
+            params,
+            lr=1.0,
+            max_iter=1,
+            history_size=50,
+            line_search_fn="strong_wolfe",
+            tolerance_grad=1e-12,
+            tolerance_change=1e-15,
+        )
+
+        def closure():
+            lbfgs.zero_grad()
+            value = loss_on(t_tr)
+            value.backward()
+            return value
+
+        stale = 0
+        stopped_early = False
+        for _ in range(lbfgs_epochs):
+            loss = lbfgs.step(closure)
+            if not math.isfinite(float(loss.detach())):
+                break
+            stale = 0 if record("lbfgs", float(loss.detach())) else stale + 1
+            run_tr = history_tr[adam_epochs:]
+            if len(run_tr) > 20 and run_tr[-20] - run_tr[-1] <= 1e-9 * abs(run_tr[-1]):
+                break  # L-BFGS stalled (line search makes no progress)
+            if stale >= patience:
+                stopped_early = True
+                break
+    with torch.no_grad():
+        for p, b in zip(params, best["state"], strict=True):
+            p.copy_(b)
+    return {
+        "weights": [lin.weight.detach().numpy().copy() for lin in layers],
+        "biases": [lin.bias.detach().numpy().copy() for lin in layers],
+        "history_train": np.asarray(history_tr),
+        "history_validation": np.asarray(history_va),
+        "best_epoch": int(best["epoch"]),
+        "best_validation_loss": float(best["loss"]),
+        "best_train_loss": float(history_tr[best["epoch"]]),
+        "adam_epochs": int(adam_epochs),
+        "stopped_early": bool(stopped_early),
+    }
+
+
+def _fold_members(members, out_offset, out_scale, smoother):
+    """One MLP equal to the mean of the members' outputs, with scale and smoother folded in.
+
+    Member j gives ``S_j = G (off + scale ⊙ (W_j a_j + b_j))``; their mean is one network
+    with stacked first layers, block-diagonal hidden layers and a last layer
+    ``[G diag(scale) W_1, …, G diag(scale) W_n] / n``, bias ``G (scale ⊙ mean_j b_j)`` and
+    output offset ``G off`` (set by the caller) with unit output scale.
+    """
+    n = len(members)
+    n_layers = len(members[0]["weights"])
+    weights, biases = [], []
+    for i in range(n_layers):
+        ws = [m["weights"][i] for m in members]
+        bs = [m["biases"][i] for m in members]
+        if i == 0:
+            weights.append(np.vstack(ws))
+            biases.append(np.concatenate(bs))
+        elif i < n_layers - 1:
+            weights.append(_block_diag(ws))
+            biases.append(np.concatenate(bs))
+        else:
+            weights.append(smoother @ (out_scale[:, None] * np.hstack(ws)) / n)
+            biases.append(smoother @ (out_scale * np.mean(bs, axis=0)))
+    if n_layers == 1:  # a purely linear model: average instead of stacking
+        weights = [
+            smoother @ (out_scale[:, None] * np.mean([m["weights"][0] for m in members], axis=0))
+        ]
+        biases = [smoother @ (out_scale * np.mean([m["biases"][0] for m in members], axis=0))]
+    return weights, biases
+
+
+def _block_diag(blocks: list[np.ndarray]) -> np.ndarray:
+    """Block-diagonal matrix of ``blocks`` (numpy only)."""
+    rows = sum(b.shape[0] for b in blocks)
+    cols = sum(b.shape[1] for b in blocks)
+    out = np.zeros((rows, cols))
+    r = c = 0
+    for b in blocks:
+        out[r : r + b.shape[0], c : c + b.shape[1]] = b
+        r += b.shape[0]
+        c += b.shape[1]
+    return out
 
 
 def evaluate_network(
@@ -569,6 +742,67 @@ def evaluate_network(
             )
         ),
         "n_cases": int(h.shape[0]),
+    }
+
+
+def contact_area_check(
+    network: Mapping[str, object],
+    loads_n: np.ndarray,
+    load_positions_m: np.ndarray,
+    true_profiles_m: np.ndarray,
+    *,
+    width_m: float | np.ndarray,
+    effective_modulus_pa: float,
+    width_positions_m: np.ndarray | None = None,
+) -> dict[str, np.ndarray | float]:
+    """Apparent contact area from predicted vs true profiles, through the macro BEM.
+
+    For every load case the predicted and the true loaded profile H*(X) are extruded across the
+    footprint and pressed into the snow half-space (:func:`solvers.macro.solve_macro`, default
+    grid, tilt on). The accuracy target is ``|A_pred / A_true − 1| ≤ 3 %``.
+
+    Parameters
+    ----------
+    network : mapping
+        Camber network.
+    loads_n, load_positions_m : ndarray, shape (N,)
+        Load cases (F [N], x_F [m]), within the trained range.
+    true_profiles_m : ndarray, shape (N, M)
+        True H*(X) on the network's grid [m] (noise-free, e.g. from the beam model).
+    width_m : float or ndarray
+        Running-surface width [m] (array: at ``width_positions_m``).
+    effective_modulus_pa : float
+        E' [Pa] (method.md eq. 1).
+    width_positions_m : ndarray, optional
+        Positions of a width profile [m].
+
+    Returns
+    -------
+    dict
+        ``area_pred_m2``, ``area_true_m2``, ``relative_error`` (arrays over cases),
+        ``max_abs_relative_error`` and ``converged`` (all BEM solves converged).
+    """
+    from solvers.macro import extrude_profile, solve_macro
+
+    pred = camber.predict_profiles(network, loads_n, load_positions_m)
+    x = pred.positions_m
+    areas = np.empty((2, pred.gaps_m.shape[0]))
+    converged = True
+    for k, (f, xf) in enumerate(zip(pred.loads_n, pred.load_positions_m, strict=True)):
+        for j, gap in enumerate((pred.gaps_m[k], np.asarray(true_profiles_m)[k])):
+            gm = extrude_profile(
+                x, np.maximum(gap, 0.0), width_m, width_positions_m=width_positions_m
+            )
+            res = solve_macro(gm, float(f), float(xf), effective_modulus_pa)
+            converged &= bool(res.converged)
+            areas[j, k] = res.apparent_contact_area_m2
+    rel = areas[0] / areas[1] - 1.0
+    return {
+        "area_pred_m2": areas[0],
+        "area_true_m2": areas[1],
+        "relative_error": rel,
+        "max_abs_relative_error": float(np.abs(rel).max()),
+        "converged": converged,
     }
 
 
@@ -681,6 +915,24 @@ def register(subparsers) -> None:
         default=1500,
         help="max L-BFGS iterations after Adam (default 1500)",
     )
+    p.add_argument(
+        "--activation",
+        choices=sorted(camber.ACTIVATIONS),
+        default="relu",
+        help="hidden-layer activation (default relu)",
+    )
+    p.add_argument(
+        "--smoothing-mm",
+        type=float,
+        default=10.0,
+        help="Gaussian smoothing of the output along the ski, std in mm (default 10)",
+    )
+    p.add_argument(
+        "--ensemble",
+        type=int,
+        default=3,
+        help="members averaged into the network (default 3)",
+    )
     p.add_argument("--seed", type=int, default=0, help="seed of split and weights (default 0)")
     p.add_argument("--out", help="write the trained ski file here instead of updating --ski")
     p.set_defaults(func=run)
@@ -693,19 +945,6 @@ def _resolve_ski_path(name: str) -> Path:
     from app.storage.common import REPO_ROOT
 
     return REPO_ROOT / "tables" / "skis" / f"{name}.h5"
-
-
-def _load_measurements(ski_path: Path, csv_path: str | None):
-    """Training arrays (see :func:`camber_training_arrays`) from a CSV or the ski file."""
-    try:
-        from app.storage import skis
-    except ModuleNotFoundError as exc:  # pragma: no cover - until the storage module lands
-        raise DataFileError("app.storage.skis is not available in this build") from exc
-    if csv_path:
-        data = skis.read_camber_csv(csv_path)
-    else:
-        data = skis.read_ski(ski_path).measurements
-    return camber_training_arrays(data)
 
 
 def camber_training_arrays(data) -> tuple[str, np.ndarray, np.ndarray, np.ndarray, np.ndarray, str]:
@@ -751,16 +990,101 @@ def camber_training_arrays(data) -> tuple[str, np.ndarray, np.ndarray, np.ndarra
     )
 
 
+def truth_check(
+    network: Mapping[str, object],
+    beam,
+    *,
+    width_m: float | np.ndarray,
+    effective_modulus_pa: float,
+    n_random: int = 16,
+    seed: int = 0,
+    extra_cases: list[tuple[float, float]] | None = None,
+    width_positions_m: np.ndarray | None = None,
+) -> dict[str, object]:
+    """Accuracy against a ski's beam model (demo skis): noise-free truth at any load.
+
+    Cases: the network's held-out test cases, ``n_random`` loads drawn uniformly (seeded) from
+    the trained range, and ``extra_cases`` (e.g. the papers' 40 kg at −160 mm). For each the
+    true H*(X) comes from :func:`solvers.beam.solve_beam_contact`; reported are the RMSE where
+    the true H* < 0.2 mm and the apparent contact area through the macro BEM
+    (:func:`contact_area_check`).
+
+    Returns
+    -------
+    dict
+        Scalar metrics (keys ``truth_*``) and per-case arrays (``truth_cases_*``).
+    """
+    from solvers.beam import BeamFlexibility, solve_beam_contact
+
+    attrs = network["attrs"]
+    rng = np.random.default_rng(seed)
+    f = list(np.asarray(network.get("split_test_loads_n", np.empty(0)), dtype=float))
+    xf = list(np.asarray(network.get("split_test_load_positions_m", np.empty(0)), dtype=float))
+    n_test = len(f)
+    f += list(rng.uniform(attrs["load_min_n"], attrs["load_max_n"], n_random))
+    xf += list(rng.uniform(attrs["load_position_min_m"], attrs["load_position_max_m"], n_random))
+    for a, b in extra_cases or []:
+        f.append(a)
+        xf.append(b)
+    f, xf = np.asarray(f), np.asarray(xf)
+    x = np.asarray(network["positions_m"])
+    flex = BeamFlexibility(beam)
+    truth = np.empty((f.size, x.size))
+    for k in range(f.size):
+        res = solve_beam_contact(beam, float(f[k]), float(xf[k]), flexibility=flex)
+        truth[k] = np.interp(x, beam.positions_m, res.gap_m)
+    pred = camber.predict_profiles(network, f, xf).gaps_m
+    rmse = np.array([camber.contact_band_rmse_m(p, t) for p, t in zip(pred, truth, strict=True)])
+    area = contact_area_check(
+        network,
+        f,
+        xf,
+        truth,
+        width_m=width_m,
+        effective_modulus_pa=effective_modulus_pa,
+        width_positions_m=width_positions_m,
+    )
+    band = truth < camber.CONTACT_BAND_M
+    out: dict[str, object] = {
+        "truth_rmse_band_test_m": float(
+            np.sqrt(np.mean((pred[:n_test] - truth[:n_test])[band[:n_test]] ** 2))
+        )
+        if n_test
+        else float("nan"),
+        "truth_rmse_band_random_m": float(
+            np.sqrt(np.mean((pred[n_test:] - truth[n_test:])[band[n_test:]] ** 2))
+        ),
+        "truth_max_case_rmse_band_m": float(np.nanmax(rmse)),
+        "truth_contact_area_max_rel_error": area["max_abs_relative_error"],
+        "truth_contact_area_rms_rel_error": float(np.sqrt(np.mean(area["relative_error"] ** 2))),
+        "truth_bem_converged": bool(area["converged"]),
+        "truth_effective_modulus_pa": float(effective_modulus_pa),
+        "truth_n_test": int(n_test),
+        "truth_n_random": int(n_random),
+        "truth_cases_loads_n": f,
+        "truth_cases_load_positions_m": xf,
+        "truth_cases_rmse_band_m": rmse,
+        "truth_cases_area_pred_m2": area["area_pred_m2"],
+        "truth_cases_area_true_m2": area["area_true_m2"],
+    }
+    return out
+
+
 def run(args: argparse.Namespace) -> int:
     """Entry point of ``skisnow train-camber``."""
+    from app.storage import skis
+    from app.storage.common import provenance
+    from solvers.beam import G_STANDARD
+    from solvers.elastic import effective_modulus
+
     ski_path = _resolve_ski_path(args.ski)
     if not ski_path.is_file():
         raise DataFileError(f"ski file not found: {ski_path}")
-    ski_id, x, f, xf, h, side = _load_measurements(ski_path, args.csv)
+    record = skis.read_ski(ski_path)
+    data = skis.read_camber_csv(args.csv) if args.csv else record.measurements
+    ski_id, x, f, xf, h, side = camber_training_arrays(data)
     log.info("training camber network for %s: %d load cases x %d points", ski_id, f.size, x.size)
-    from app.storage.common import provenance
-
-    bar = _progress_bar(args.epochs + args.lbfgs_epochs)
+    bar = _progress_bar(args.ensemble * (args.epochs + args.lbfgs_epochs))
     try:
         result = train_camber_network(
             x,
@@ -770,6 +1094,9 @@ def run(args: argparse.Namespace) -> int:
             epochs=args.epochs,
             lbfgs_epochs=args.lbfgs_epochs,
             seed=args.seed,
+            activation=args.activation,
+            smoothing_m=args.smoothing_mm * 1e-3,
+            ensemble=args.ensemble,
             ski_id=ski_id,
             metadata={
                 "measured_side": side,
@@ -780,21 +1107,59 @@ def run(args: argparse.Namespace) -> int:
         )
     finally:
         bar.close()
-    out = Path(args.out) if args.out else ski_path
-    if out != ski_path:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(ski_path, out)
-    write_network_to_ski(out, result.network)
+    net = result.network
     m = result.metrics
     print(f"{ski_id}: {result.message}")
     for name in ("train", "validation", "test"):
         if f"{name}_n_cases" in m:
             print(
                 f"  {name:10s} {m[f'{name}_n_cases']:3d} cases  "
-                f"RMSE(H*<0.2 mm) {m[f'{name}_rmse_band_m'] * 1e6:7.2f} µm  "
-                f"max|err|(H*<0.2 mm) {m[f'{name}_max_abs_error_band_m'] * 1e6:7.2f} µm  "
-                f"RMSE(all) {m[f'{name}_rmse_m'] * 1e6:7.2f} µm"
+                f"RMSE(H*<0.2 mm) {m[f'{name}_rmse_band_m'] * 1e6:6.2f} µm  "
+                f"max|err|(H*<0.2 mm) {m[f'{name}_max_abs_error_band_m'] * 1e6:6.2f} µm  "
+                f"RMSE(all) {m[f'{name}_rmse_m'] * 1e6:7.2f} µm  (vs measured, with noise)"
             )
+    if record.beam is not None and not args.csv:
+        e_eff = effective_modulus(200e6)
+        papers = (40.0 * G_STANDARD, -0.160)
+        extra = []
+        a = net["attrs"]
+        if a["load_min_n"] <= papers[0] <= a["load_max_n"] and (
+            a["load_position_min_m"] <= papers[1] <= a["load_position_max_m"]
+        ):
+            extra.append(papers)
+        t = truth_check(
+            net,
+            record.beam,
+            width_m=record.outline.width_m,
+            effective_modulus_pa=e_eff,
+            width_positions_m=record.outline.positions_m,
+            seed=args.seed,
+            extra_cases=extra,
+        )
+        for key, value in t.items():
+            if key.startswith("truth_cases_"):
+                net[key] = np.asarray(value)
+            else:
+                net["attrs"][f"metric_{key}"] = value
+        print(
+            "  vs beam truth (noise-free): RMSE(H*<0.2 mm) test "
+            f"{t['truth_rmse_band_test_m'] * 1e6:.2f} µm, {t['truth_n_random']} random loads "
+            f"{t['truth_rmse_band_random_m'] * 1e6:.2f} µm;"
+            f" apparent contact area (BEM, E_snow 200 MPa) max |error| "
+            f"{t['truth_contact_area_max_rel_error'] * 100:.2f} %, rms "
+            f"{t['truth_contact_area_rms_rel_error'] * 100:.2f} %"
+        )
+        if extra:
+            print(
+                f"  papers' case 40 kg at -160 mm: A_app predicted "
+                f"{t['truth_cases_area_pred_m2'][-1] * 1e4:.2f} cm², true "
+                f"{t['truth_cases_area_true_m2'][-1] * 1e4:.2f} cm²"
+            )
+    out = Path(args.out) if args.out else ski_path
+    if out != ski_path:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(ski_path, out)
+    write_network_to_ski(out, net)
     print(f"  written to {out}")
     return 0
 

@@ -10,8 +10,8 @@ Network (schema ``"skisnow.camber-mlp/1"``)
 ::
 
     z      = (input − input_offset) / input_scale          input = (F [N], x_F [m])
-    a_0    = tanh(W_0 z + b_0)                             hidden layers (tanh)
-    a_i    = tanh(W_i a_{i−1} + b_i)
+    a_0    = σ(W_0 z + b_0)                                hidden layers, σ = tanh, relu
+    a_i    = σ(W_i a_{i−1} + b_i)                          or softplus (attr ``activation``)
     y      = W_L a_{L−1} + b_L                             linear output at the K_c nodes
     S_node = output_offset + output_scale · y              signed gap at the nodes [m]
     S(X)   = piecewise-linear interpolation of S_node onto positions_m
@@ -21,7 +21,7 @@ The output is compressed **(choice)**: the network predicts a signed gap ``S`` a
 (a subset of the sampling grid, ~5 mm apart) that is interpolated linearly onto the full
 sampling grid (~1 mm, ~2000 points). The ReLU at the very end makes the contact region
 ``H* = 0`` exact (``S ≤ 0`` there) instead of leaving small positive or negative residues; the
-training loss is one-sided there (it only penalises ``S > 0`` where the measured gap is zero).
+training loss is one-sided where a measured gap is exactly zero (it only penalises ``S > 0``).
 
 Dict layout
 -----------
@@ -47,7 +47,8 @@ key                                 shape      meaning
 ``history_validation_loss``         (epochs,)  validation loss per epoch [-]
 =================================== ========== ============================================
 
-Required entries of ``"attrs"``: ``schema``, ``n_layers``, ``activation`` (``"tanh"``),
+Required entries of ``"attrs"``: ``schema``, ``n_layers``, ``activation`` (a key of
+:data:`ACTIVATIONS`),
 ``output_activation`` (``"relu"``), ``load_min_n``, ``load_max_n``, ``load_position_min_m``,
 ``load_position_max_m`` (the trained range: inference outside it raises
 :class:`~solvers.errors.OutOfRangeError`).
@@ -66,6 +67,7 @@ import numpy as np
 from .errors import DataFileError, InputError, OutOfRangeError
 
 __all__ = [
+    "ACTIVATIONS",
     "SCHEMA",
     "CamberPrediction",
     "check_network",
@@ -86,6 +88,13 @@ CONTACT_BAND_M = 0.2e-3
 
 #: relative tolerance on the edges of the trained range (float rounding of stored bounds) [-]
 _RANGE_RTOL = 1e-9
+
+#: hidden-layer activations (numpy); app.train_camber has the torch twins
+ACTIVATIONS = {
+    "tanh": np.tanh,
+    "relu": lambda a: np.maximum(a, 0.0),
+    "softplus": lambda a: np.logaddexp(0.0, a),
+}
 
 _REQUIRED_ATTRS = (
     "schema",
@@ -180,6 +189,7 @@ def network_from_arrays(
     output_scale: np.ndarray,
     load_range_n: tuple[float, float],
     load_position_range_m: tuple[float, float],
+    activation: str = "tanh",
     metadata: Mapping[str, object] | None = None,
     extra_arrays: Mapping[str, np.ndarray] | None = None,
 ) -> dict:
@@ -201,6 +211,8 @@ def network_from_arrays(
         Trained range of F [N].
     load_position_range_m : (float, float)
         Trained range of x_F [m].
+    activation : str
+        Hidden-layer activation, a key of :data:`ACTIVATIONS`.
     metadata : mapping, optional
         Scalar/str attributes to add to ``"attrs"`` (training metadata, metrics).
     extra_arrays : mapping, optional
@@ -218,7 +230,7 @@ def network_from_arrays(
     attrs: dict = {
         "schema": SCHEMA,
         "n_layers": len(weights),
-        "activation": "tanh",
+        "activation": str(activation),
         "output_activation": "relu",
         "load_min_n": float(load_range_n[0]),
         "load_max_n": float(load_range_n[1]),
@@ -282,10 +294,10 @@ def check_network(network: Mapping[str, object]) -> None:
         raise DataFileError(f"camber network lacks attributes {missing}")
     if attrs["schema"] != SCHEMA:
         raise DataFileError(f"camber network schema must be {SCHEMA!r}, got {attrs['schema']!r}")
-    if attrs["activation"] != "tanh" or attrs["output_activation"] != "relu":
+    if attrs["activation"] not in ACTIVATIONS or attrs["output_activation"] != "relu":
         raise DataFileError(
-            "camber network activations must be tanh/relu, got "
-            f"{attrs['activation']!r}/{attrs['output_activation']!r}"
+            f"camber network activation must be one of {sorted(ACTIVATIONS)} with a relu "
+            f"output, got {attrs['activation']!r}/{attrs['output_activation']!r}"
         )
     for key in ("load_min_n", "load_max_n", "load_position_min_m", "load_position_max_m"):
         if not np.isfinite(float(attrs[key])):
@@ -432,10 +444,11 @@ def _forward(network: Mapping[str, object], inputs: np.ndarray) -> np.ndarray:
     """Gaps (N, M) for normalised-unit-free inputs (N, 2) = (F [N], x_F [m])."""
     a = (inputs - network["input_offset"]) / network["input_scale"]
     n_layers = int(network["attrs"]["n_layers"])
+    sigma = ACTIVATIONS[network["attrs"]["activation"]]
     for i in range(n_layers):
         a = a @ np.asarray(network[f"layer{i}_weight"]).T + network[f"layer{i}_bias"]
         if i < n_layers - 1:
-            a = np.tanh(a)
+            a = sigma(a)
     s_nodes = network["output_offset"] + network["output_scale"] * a
     i, w = interpolation_weights(network["node_positions_m"], network["positions_m"])
     if s_nodes.shape[1] == 1:
