@@ -335,3 +335,60 @@ def test_contact_area_check_reports_errors(trained):
     rough = own + 2e-6 * np.random.default_rng(0).standard_normal(own.shape)
     worse = train_camber.contact_area_check(net, loads, pos, np.maximum(rough, 0), **kwargs)
     assert worse["max_abs_relative_error"] > 0.03
+
+
+def test_cli_trains_and_writes_network(tmp_path, capsys):
+    """skisnow train-camber on a small ski file: network group written, metrics printed."""
+    skis = pytest.importorskip("app.storage.skis")
+    from app import cli
+
+    f, xf = _cases()
+    data = skis.CamberData(
+        ski_id="cli-ski",
+        positions_m=GRID_M,
+        loads_n=f,
+        load_positions_m=xf,
+        sides=["mean"] * f.size,
+        profiles_m=synthetic_profiles(f, xf, GRID_M),
+    )
+    outline = skis.SkiOutline(2.0, 1.0, np.array([-1.0, 1.0]), np.array([0.044, 0.044]))
+    path = tmp_path / "cli-ski.h5"
+    skis.write_ski(path, skis.SkiRecord(data, outline))
+    argv = ["train-camber", "--ski", str(path), "--epochs", "5", "--lbfgs-epochs", "0"]
+    assert cli.main([*argv, "--ensemble", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "cli-ski" in out and "RMSE(H*<0.2 mm)" in out
+    record = skis.read_ski(path)
+    net = camber.network_to_dict(record.network)
+    assert net["attrs"]["ski_id"] == "cli-ski" and net["attrs"]["measured_side"] == "mean"
+    np.testing.assert_array_equal(record.measurements.profiles_m, data.profiles_m)
+    # a missing ski file is a one-line error with exit status 2
+    assert cli.main(["train-camber", "--ski", str(tmp_path / "nope.h5")]) == 2
+    assert "not found" in capsys.readouterr().err
+
+
+def test_sides_left_right_are_averaged():
+    from types import SimpleNamespace
+
+    x = np.linspace(0.0, 1.0, 5)
+    h = np.arange(20.0).reshape(4, 5) * 1e-6
+    data = SimpleNamespace(
+        ski_id="s",
+        positions_m=x,
+        loads_n=np.array([100.0, 100.0, 200.0, 200.0]),
+        load_positions_m=np.array([0.0, 0.0, 0.1, 0.1]),
+        sides=["left", "right", "right", "left"],
+        profiles_m=h,
+    )
+    _, _, f, xf, prof, side = train_camber.camber_training_arrays(data)
+    assert side == "left+right"
+    np.testing.assert_array_equal(f, [100.0, 200.0])
+    np.testing.assert_array_equal(xf, [0.0, 0.1])
+    np.testing.assert_allclose(prof, [(h[0] + h[1]) / 2, (h[2] + h[3]) / 2])
+    data.sides = ["left", "right", "right", "right"]
+    data.load_positions_m = np.array([0.0, 0.0, 0.1, 0.2])
+    with pytest.raises(InputError, match="one side only"):
+        train_camber.camber_training_arrays(data)
+    data.sides = ["mean", "left", "right", "mean"]
+    _, _, f, _, prof, side = train_camber.camber_training_arrays(data)
+    assert side == "mean" and f.size == 2
