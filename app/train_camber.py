@@ -10,8 +10,10 @@ Recipe (documented in ``docs/camber-network.md``):
   set (reported accuracy), both drawn only from *interior* cases (neither the smallest nor the
   largest F, nor the smallest nor the largest x_F), so that every held-out case lies inside the
   range spanned by the training cases and the metrics measure interpolation, not extrapolation.
-- Model: MLP 2 → 64 → 64 → K_c (ReLU), float64; the K_c outputs are the signed gap at nodes
-  ~5 mm apart, linearly interpolated onto X, then ReLU (see :mod:`solvers.camber`).
+- Model: MLP 2 → 64 → 64 → K_c (ReLU hidden by default), float64; the K_c outputs are the
+  signed gap at nodes ~5 mm apart, smoothed along the ski by a fixed Gaussian (std 10 mm),
+  linearly interpolated onto X, then ReLU (see :mod:`solvers.camber`). An ensemble of members
+  (default 1 here, 3 in the command) is averaged and folded into one MLP of the same schema.
 - Normalisation: inputs to [−1, 1] over the trained range; node outputs as
   ``offset + scale · y`` with the mean training gap per node and a per-node scale.
 - Loss: mean over the nodes of ``r²`` with ``r = (S − H*) / max(H*, b)`` where ``H* ≠ 0``
@@ -26,7 +28,8 @@ Recipe (documented in ``docs/camber-network.md``):
   early stopping on the validation loss, then full-batch L-BFGS (strong Wolfe line search,
   one iteration per epoch) with early stopping; the weights of the best validation epoch win.
 - Determinism: all randomness from ``seed`` (``numpy.random.default_rng(seed)`` for the
-  split, a ``torch.Generator`` seeded with ``manual_seed(seed)`` for the initial weights),
+  split, a ``torch.Generator`` seeded with ``manual_seed(seed + member)`` for the initial
+  weights),
   ``torch.use_deterministic_algorithms(True)``; same seed, data and thread count → same
   weights.
 """
