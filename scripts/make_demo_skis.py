@@ -3,7 +3,8 @@
 The papers' camber data are not public (method.md §4), so each demo ski is a classic beam ski
 (:class:`solvers.beam.ClassicSkiDesign`) whose pocket (kick-zone camber) height is calibrated by a
 1-D root-find so that the macro BEM — true beam profile at 40 kg (g = 9.82) 160 mm behind the
-balance point, E_snow = 200 MPa, E_base = 0.7 GPa, ν = 0.3, default grid — gives the papers'
+balance point, E_snow = 200 MPa, E_base = 0.7 GPa, ν = 0.3, default grid of
+:mod:`solvers.macro` (4 mm × 8 pixels across, sub-pixel zone edges) — gives the papers'
 apparent contact area (ski A 63.98 cm², ski B 121.84 cm²). The virtual measuring device then
 records 10 loads × 9 load positions at 1 mm sampling with 3 µm noise (fixed seed).
 
@@ -133,7 +134,8 @@ def build(name: str, out_dir: Path) -> dict:
         "target_area_cm2": TARGETS[name] * 1e4,
         "mean_apparent_pressure_kpa": res.mean_apparent_pressure_pa / 1e3,
         "rear_load_share": rear_share(res),
-        "zones": [(z.start_m, z.end_m, z.load_share) for z in res.zones],
+        "pixel_size_m": list(res.pixel_size_m),
+        "zones": [(z.edge_start_m, z.edge_end_m, z.load_share) for z in res.zones],
     }
     design_dict = dataclasses.asdict(design)
     metadata = {

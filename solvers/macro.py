@@ -42,10 +42,11 @@ import functools
 import time
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 import scipy.fft
 
-from .elastic import NonPeriodicHalfSpace
+from .elastic import NonPeriodicHalfSpace, love_rectangle_influence
 from .errors import InputError
 
 __all__ = [
@@ -59,10 +60,11 @@ __all__ = [
     "solve_macro",
 ]
 
-#: Default pixel length along the ski [m] (coarsest meeting 1 % in area, see docs/macro.md)
-DEFAULT_PIXEL_ALONG_M = 2e-3
-#: Default number of pixels across the width [-]
-DEFAULT_PIXEL_ACROSS = 4
+#: Default pixel length along the ski [m] (area within 1 % of the 0.5 mm × 16 reference with
+#: margin, see docs/macro.md "Time vs error")
+DEFAULT_PIXEL_ALONG_M = 4e-3
+#: Default number of pixels across the width [-] (the area converges slowest across the width)
+DEFAULT_PIXEL_ACROSS = 8
 
 
 @dataclass(frozen=True)
@@ -214,12 +216,20 @@ class ContactZone:
 
     Attributes
     ----------
-    start_m, end_m, length_m : float
-        Rear and front edge (pixel edges) and length [m].
+    start_m, end_m : float
+        Rear and front pixel edges of the zone's pixel rows [m]: a pixel belongs to the zone
+        when its centre lies in [start_m, end_m].
+    edge_start_m, edge_end_m : float
+        Sub-pixel contact edges [m] (clearance zero crossing, see :func:`_edge_lengths`); the
+        extreme over the pixel columns.
+    length_m : float
+        ``edge_end_m − edge_start_m`` [m].
     load_n : float
         Load carried [N].
     load_share : float
         Fraction of F [-].
+    apparent_area_m2 : float
+        Sub-pixel apparent contact area of the zone [m²].
     """
 
     start_m: float
@@ -227,6 +237,9 @@ class ContactZone:
     length_m: float
     load_n: float
     load_share: float
+    edge_start_m: float = float("nan")
+    edge_end_m: float = float("nan")
+    apparent_area_m2: float = 0.0
 
 
 @dataclass
@@ -302,9 +315,64 @@ class MacroResult:
     extra: dict = field(default_factory=dict)
 
 
-@functools.lru_cache(maxsize=16)
-def _halfspace(shape: tuple[int, int], dx: float, dy: float, e_eff: float) -> NonPeriodicHalfSpace:
-    """Cached half-space kernel per grid (the kernel FFT dominates small solves)."""
+class _LineOperator:
+    """Exact zero-padded Love convolution on an ``(n, ny)`` window, FFT along X only.
+
+    The kernel is even in X, so its transform is real. Along X the convolution is a real FFT of
+    length ``2n`` (zero padding: linear, not circular); across the few pixels of the width the
+    coupling is a dense ``ny × ny`` product per wavenumber. Exactly the same operator as
+    :class:`solvers.elastic.NonPeriodicHalfSpace` (same coefficients, same convention), cheaper
+    when ``ny`` is small.
+    """
+
+    def __init__(self, n: int, ny: int, dx: float, dy: float, e_eff: float) -> None:
+        self.n, self.ny = n, ny
+        self.padded = 2 * n
+        ix = np.arange(self.padded)
+        ix = np.where(ix < n, ix, ix - self.padded).astype(float)
+        iy = np.arange(ny, dtype=float)
+        kern = (
+            2.0
+            / (np.pi * e_eff)
+            * love_rectangle_influence(ix[:, None] * dx, iy[None, :] * dy, dx / 2, dy / 2)
+        )
+        kern[n, :] = 0.0  # an offset that an n-long window never reaches
+        self.self_compliance = float(kern[0, 0])
+        kh = scipy.fft.rfft(kern, axis=0).real  # (nf, ny), real: the kernel is even in X
+        j = np.arange(ny)
+        #: coupling[f, j, k] = K̂(f; |j − k|)
+        self.coupling = np.ascontiguousarray(kh[:, np.abs(j[:, None] - j[None, :])])
+
+    def displacement(self, pressure_pa: np.ndarray) -> np.ndarray:
+        """Displacement [m] at the pixel centres of the window under ``pressure_pa`` [Pa]."""
+        ph = scipy.fft.rfft(pressure_pa, n=self.padded, axis=0)
+        uh = ph * self.coupling[:, 0, :] if self.ny == 1 else _couple_across(self.coupling, ph)
+        return scipy.fft.irfft(uh, n=self.padded, axis=0)[: self.n]
+
+
+@numba.njit(cache=True)
+def _couple_across(coupling: np.ndarray, ph: np.ndarray) -> np.ndarray:
+    """uh[f, j] = Σ_k coupling[f, j, k] ph[f, k] (dense across the width, per wavenumber)."""
+    nf, ny = ph.shape
+    out = np.empty_like(ph)
+    for f in range(nf):
+        for j in range(ny):
+            s = 0j
+            for k in range(ny):
+                s += coupling[f, j, k] * ph[f, k]
+            out[f, j] = s
+    return out
+
+
+#: widest window (pixels across) solved with :class:`_LineOperator`; wider uses 2-D FFTs
+_LINE_OPERATOR_MAX_ACROSS = 8
+
+
+@functools.lru_cache(maxsize=32)
+def _halfspace(shape: tuple[int, int], dx: float, dy: float, e_eff: float):
+    """Cached exact operator per window shape (the kernel transform dominates small solves)."""
+    if shape[1] <= _LINE_OPERATOR_MAX_ACROSS:
+        return _LineOperator(shape[0], shape[1], dx, dy, e_eff)
     return NonPeriodicHalfSpace(shape, (dx, dy), e_eff, workers=1)
 
 
@@ -316,48 +384,125 @@ def _fast_rows(n: int) -> int:
     return m
 
 
-def _fit_rigid(g: np.ndarray, s: np.ndarray, xs: np.ndarray, tilt: bool) -> tuple[float, float]:
-    """Least-squares δ + θ xs fitted to g on the set s."""
-    n = np.count_nonzero(s)
+@numba.njit(cache=True)
+def _fit_rigid(g, p, xs, tilt):
+    """Least-squares δ + θ xs fitted to g on the contact set p > 0 (θ = 0 without tilt)."""
+    n = 0
+    sx = sxx = sg = sxg = 0.0
+    for i in range(p.size):
+        if p[i] > 0.0:
+            n += 1
+            sx += xs[i]
+            sxx += xs[i] * xs[i]
+            sg += g[i]
+            sxg += xs[i] * g[i]
     if n == 0:
         return 0.0, 0.0
-    gs = g[s]
-    if not tilt:
-        return float(gs.mean()), 0.0
-    xv = xs[s]
-    s1, s2 = xv.sum(), np.dot(xv, xv)
-    det = n * s2 - s1 * s1
-    if det <= 1e-14 * n * max(s2, 1e-30):
-        return float(gs.mean()), 0.0
-    b0, b1 = gs.sum(), np.dot(xv, gs)
-    return float((s2 * b0 - s1 * b1) / det), float((n * b1 - s1 * b0) / det)
+    det = n * sxx - sx * sx
+    if not tilt or det <= 1e-14 * n * max(sxx, 1e-30):
+        return sg / n, 0.0
+    return (sxx * sg - sx * sxg) / det, (n * sxg - sx * sg) / det
 
 
-def _restore_balance(p: np.ndarray, xs: np.ndarray, total: float, tilt: bool) -> np.ndarray:
-    """Scale p (≥ 0) so that Σp = total and, with tilt, Σ p xs = 0 (multiplicative, linear)."""
+@numba.njit(cache=True)
+def _gap_pass(p, h0, u, xs, tilt, g, gc):
+    """g = h0 + u − δ − θ xs with the fitted (δ, θ); gc = g on contact, 0 elsewhere.
+
+    Returns (δ, θ, Σ gc², Σ penetration², contact count, max u).
+    """
+    for i in range(p.size):
+        g[i] = h0[i] + u[i]
+    delta, theta = _fit_rigid(g, p, xs, tilt)
+    gn = pn = 0.0
+    nc = 0
+    umax = 0.0
+    for i in range(p.size):
+        gi = g[i] - delta - theta * xs[i]
+        g[i] = gi
+        umax = max(umax, u[i])
+        if p[i] > 0.0:
+            nc += 1
+            gc[i] = gi
+            gn += gi * gi
+        else:
+            gc[i] = 0.0
+            if gi < 0.0:
+                pn += gi * gi
+    return delta, theta, gn, pn, nc, umax
+
+
+@numba.njit(cache=True)
+def _step_length(p, r, t, gc, xs, tilt):
+    """τ = (gc · t) / (t · (r − fit)) over the contact set; r is the response to t."""
+    d0, d1 = _fit_rigid(r, p, xs, tilt)
+    num = den = 0.0
+    for i in range(p.size):
+        if p[i] > 0.0:
+            num += gc[i] * t[i]
+            den += (r[i] - d0 - d1 * xs[i]) * t[i]
+    return num / den if den > 0.0 else 0.0
+
+
+@numba.njit(cache=True)
+def _restore_balance(p, xs, total, tilt):
+    """Scale p ≥ 0 in place so that Σp = total and, with tilt, Σ p xs = 0 (multiplicative).
+
+    Returns False if no positive pressure is left (the factor α + β xs clipped everything).
+    """
     for _ in range(20):
-        s0 = p.sum()
-        if s0 <= 0:
-            return p
-        if not tilt:
-            return p * (total / s0)
-        s1 = np.dot(p.ravel(), xs.ravel())
-        s2 = np.dot(p.ravel(), (xs * xs).ravel())
+        s0 = s1 = s2 = 0.0
+        for i in range(p.size):
+            s0 += p[i]
+            s1 += p[i] * xs[i]
+            s2 += p[i] * xs[i] * xs[i]
+        if s0 <= 0.0:
+            return False
         det = s0 * s2 - s1 * s1
-        if det <= 0:
-            return p * (total / s0)
+        if not tilt or det <= 0.0:
+            c = total / s0
+            for i in range(p.size):
+                p[i] *= c
+            return True
         alpha = total * s2 / det
         beta = -total * s1 / det
-        factor = alpha + beta * xs
-        p = p * factor
-        if np.all(factor[p != 0] > 0) or not np.any(p < 0):
-            return np.maximum(p, 0.0)
-        p = np.maximum(p, 0.0)
-    return p
+        clipped = False
+        for i in range(p.size):
+            if p[i] != 0.0:
+                p[i] *= alpha + beta * xs[i]
+                if p[i] < 0.0:
+                    p[i] = 0.0
+                    clipped = True
+        if not clipped:
+            return True
+    s0 = 0.0
+    for i in range(p.size):
+        s0 += p[i]
+    return s0 > 0.0
+
+
+@numba.njit(cache=True)
+def _update_pressure(p, t, g, tau, restart):
+    """p ← max(p − τ t, 0) on contact; penetrating free pixels get −τ g (restart). Σp returned."""
+    s = 0.0
+    for i in range(p.size):
+        if p[i] > 0.0:
+            v = p[i] - tau * t[i]
+            p[i] = v if v > 0.0 else 0.0
+        elif restart and g[i] < 0.0:
+            p[i] = -tau * g[i]
+        s += p[i]
+    return s
+
+
+@numba.njit(cache=True)
+def _new_direction(p, gc, t, beta):
+    """t ← gc + β t on contact, 0 elsewhere."""
+    for i in range(p.size):
+        t[i] = gc[i] + beta * t[i] if p[i] > 0.0 else 0.0
 
 
 def _pk_tilt(
-    hs: NonPeriodicHalfSpace,
+    hs,
     h0: np.ndarray,
     mask: np.ndarray,
     xs: np.ndarray,
@@ -366,62 +511,198 @@ def _pk_tilt(
     p_init: np.ndarray | None,
     tol: float,
     max_iterations: int,
-) -> tuple[np.ndarray, np.ndarray, float, float, int, float, bool]:
-    """Constrained CG; pressures are per pixel [Pa], total = F / (dx dy)."""
-    if p_init is None:
-        p = np.where(mask, 1.0, 0.0)
-    else:
-        p = np.where(mask, np.maximum(p_init, 0.0), 0.0)
-        if p.sum() <= 0:
-            p = np.where(mask, 1.0, 0.0)
-    p = _restore_balance(p, xs, total, tilt)
+) -> tuple[np.ndarray, float, float, int, float, bool]:
+    """Constrained CG on the window pixels ``mask`` of the operator's box.
+
+    Pressures are per pixel [Pa], ``total = F / (dx dy)``. The CG vectors live on the window
+    pixels only (compressed); the operator sees them scattered into its box.
+    """
+    idx = np.flatnonzero(mask)
+    hc = np.ascontiguousarray(h0.ravel()[idx])
+    xc = np.ascontiguousarray(np.broadcast_to(xs, mask.shape).ravel()[idx])
+    box = np.zeros(mask.shape)
+    flat = box.reshape(-1)
+
+    def apply(v: np.ndarray) -> np.ndarray:
+        flat[idx] = v
+        return hs.displacement(box).reshape(-1)[idx]
+
+    p = None if p_init is None else np.maximum(p_init.ravel()[idx], 0.0)
+    if p is None or not p.sum() > 0:
+        p = np.ones(idx.size)
+    p = np.ascontiguousarray(p, dtype=float)
+    if not _restore_balance(p, xc, total, tilt):
+        p[:] = 1.0
+        _restore_balance(p, xc, total, tilt)
     t = np.zeros_like(p)
+    g = np.empty_like(p)
+    gc = np.empty_like(p)
     g_old = 1.0
     restart = True
     delta = theta = 0.0
     residual = np.inf
     converged = False
     it = 0
-    g = h0.copy()
     while it < max_iterations:
         it += 1
-        s = p > 0
-        u = hs.displacement(p)
-        g = h0 + u
-        delta, theta = _fit_rigid(g, s, xs, tilt)
-        g = g - delta - theta * xs
-        gc = np.where(s, g, 0.0)
-        g_norm = float(np.dot(gc.ravel(), gc.ravel()))
-        nc = max(int(np.count_nonzero(s)), 1)
-        u_ref = max(float(u[mask].max()), 1e-30)
-        pen = mask & ~s & (g < 0)
-        residual = np.sqrt(g_norm / nc) / u_ref
-        if pen.any():
-            residual += float(np.sqrt(np.sum(g[pen] ** 2) / nc)) / u_ref
-        if residual < tol:
+        delta, theta, g_norm, pen_norm, nc, umax = _gap_pass(p, hc, apply(p), xc, tilt, g, gc)
+        u_ref = max(umax, 1e-30)
+        nc = max(nc, 1)
+        residual = (np.sqrt(g_norm / nc) + np.sqrt(pen_norm / nc)) / u_ref
+        if residual < tol and p.sum() > 0:
             converged = True
             it -= 1
             break
-        beta = 0.0 if restart else g_norm / g_old
-        t = gc + beta * np.where(s, t, 0.0)
+        _new_direction(p, gc, t, 0.0 if restart else g_norm / g_old)
         g_old = g_norm
-        r = hs.displacement(t)
-        d0, d1 = _fit_rigid(r, s, xs, tilt)
-        r = r - d0 - d1 * xs
-        denom = float(np.dot(np.where(s, r, 0.0).ravel(), t.ravel()))
-        tau = float(np.dot(gc.ravel(), t.ravel())) / denom if denom > 0 else 0.0
+        tau = _step_length(p, apply(t), t, gc, xc, tilt)
         if not tau > 0:
             tau = 1.0 / hs.self_compliance
-        p_new = np.where(s, p - tau * t, 0.0)
-        p_new[p_new < 0] = 0.0
-        restart = bool(pen.any())
-        if restart:
-            p_new[pen] -= tau * g[pen]
-        if p_new.sum() <= 0:
-            p_new = np.where(mask, 1.0, 0.0)
+        restart = pen_norm > 0.0
+        if not (
+            _update_pressure(p, t, g, tau, restart) > 0 and _restore_balance(p, xc, total, tilt)
+        ):
+            # everything was clipped: start again from a uniform pressure on the window
+            p[:] = 1.0
+            _restore_balance(p, xc, total, tilt)
             restart = True
-        p = _restore_balance(p_new, xs, total, tilt)
-    return p, g, delta, theta, it, float(residual), converged
+    out = np.zeros(mask.size)
+    out[idx] = p
+    return out.reshape(mask.shape), delta, theta, it, float(residual), converged
+
+
+#: pixel length along the ski of the coarse line problem that locates the window [m]
+_COARSE_PIXEL_M = 8e-3
+
+
+@dataclass
+class _WindowSolve:
+    """Solution of the contact problem on a window of candidate pixels (internal)."""
+
+    pressure: np.ndarray  # (nx, ny) [Pa], zero outside the window
+    delta: float
+    theta: float
+    rows: tuple[int, int]
+    n_window: int
+    margin: float
+    iterations: int
+    residual: float
+    converged: bool
+
+
+def _solve_windowed(
+    h: np.ndarray,
+    inside: np.ndarray,
+    x: np.ndarray,
+    dx: float,
+    dy: float,
+    f: float,
+    xf: float,
+    e_eff: float,
+    tilt: bool,
+    tol: float,
+    max_iterations: int,
+    delta0: float,
+    theta0: float,
+    margin: float,
+    p_warm: np.ndarray | None,
+) -> _WindowSolve:
+    """Solve on W = {H* − δ0 − θ0 (X − x_F) ≤ margin}; grow W until the window check passes.
+
+    Check (rigorous, u ≥ 0 for p ≥ 0): every pixel outside W has H ≥ H* − δ − θ (X − x_F);
+    if that bound is ≥ 0 the window solution, with P = 0 outside, solves the whole problem.
+    """
+    xs_full = np.broadcast_to((x - xf)[:, None], h.shape)
+    hz = np.where(inside, h, np.inf)
+    cand = hz - delta0 - theta0 * xs_full <= margin
+    total_its = 0
+    for _attempt in range(40):
+        rows = np.flatnonzero(cand.any(axis=1))
+        if rows.size == 0:
+            margin *= 2.0
+            cand = hz - delta0 - theta0 * xs_full <= margin
+            continue
+        i0, i1 = int(rows[0]), int(rows[-1]) + 1
+        xw = cand[i0:i1]
+        if tilt and not (np.any(xw & (xs_full[i0:i1] < 0)) and np.any(xw & (xs_full[i0:i1] > 0))):
+            margin *= 2.0
+            cand |= hz - delta0 - theta0 * xs_full <= margin
+            continue
+        n_sub = _fast_rows(i1 - i0)
+        extra = n_sub - (i1 - i0)
+        sub_mask = np.pad(xw, ((0, extra), (0, 0)))
+        xs = np.broadcast_to((x[i0] + dx * np.arange(n_sub) - xf)[:, None], sub_mask.shape)
+        op = _halfspace(sub_mask.shape, dx, dy, e_eff)
+        h0 = np.where(sub_mask, np.pad(np.nan_to_num(h[i0:i1]), ((0, extra), (0, 0))), 0.0)
+        p_init = None if p_warm is None else np.pad(p_warm[i0:i1], ((0, extra), (0, 0)))
+        p_sub, delta, theta, its, res, conv = _pk_tilt(
+            op, h0, sub_mask, xs, f / (dx * dy), tilt, p_init, tol, max_iterations
+        )
+        total_its += its
+        p = np.zeros(h.shape)
+        p[i0:i1] = p_sub[: i1 - i0]
+        bound = np.where(cand, np.inf, hz - delta - theta * xs_full)
+        worst = float(bound.min())
+        if worst >= 0 or not conv:
+            break
+        margin = max(2.0 * margin, -1.5 * worst)
+        delta0, theta0 = delta, theta
+        cand |= hz - delta - theta * xs_full <= margin
+        p_warm = p
+    return _WindowSolve(
+        p, delta, theta, (i0, i1), int(np.count_nonzero(cand)), margin, total_its, res, conv
+    )
+
+
+def _coarse_guess(
+    h: np.ndarray,
+    inside: np.ndarray,
+    x: np.ndarray,
+    dx: float,
+    width: float,
+    f: float,
+    xf: float,
+    e_eff: float,
+    tilt: bool,
+) -> tuple[float, float, float, np.ndarray, np.ndarray] | None:
+    """δ, θ, displacement scale and line pressure of a coarse 1-pixel-wide line problem.
+
+    The line H*(X) is the width mean of H* over blocks of ``_COARSE_PIXEL_M``; only used to
+    place the window (and to warm start), never as a result. None if the grid is too short.
+    """
+    k = max(2, round(_COARSE_PIXEL_M / dx))
+    nxc = h.shape[0] // k
+    if nxc < 16:
+        return None
+    cnt = inside[: nxc * k].sum(axis=1).reshape(nxc, k).sum(axis=1)
+    tot = np.where(inside, h, 0.0)[: nxc * k].sum(axis=1).reshape(nxc, k).sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        hc = np.where(cnt > 0, tot / np.maximum(cnt, 1), np.nan)[:, None]
+    xc = x[: nxc * k].reshape(nxc, k).mean(axis=1)
+    inside_c = np.isfinite(hc)
+    if tilt and not (xc[inside_c[:, 0]].min() < xf < xc[inside_c[:, 0]].max()):
+        return None
+    dxc = k * dx
+    sol = _solve_windowed(
+        hc,
+        inside_c,
+        xc,
+        dxc,
+        width,
+        f,
+        xf,
+        e_eff,
+        tilt,
+        1e-6,
+        500,
+        float(np.nanmin(hc)),
+        0.0,
+        50.0 * f / (e_eff * width),
+        None,
+    )
+    i0, i1 = sol.rows
+    u_scale = f / (e_eff * width * max((i1 - i0) * dxc, dxc))
+    return sol.delta, sol.theta, u_scale, xc, sol.pressure[:, 0]
 
 
 def solve_macro(
@@ -455,8 +736,9 @@ def solve_macro(
     max_iterations : int
         CG iterations per window; exhausting them returns ``converged=False``.
     window_gap_m : float, optional
-        Initial threshold on H* for the solved window [m]; default ``50 F / (E' · w)`` (a few
-        times the displacement scale), raised automatically until the window check passes.
+        Initial margin [m] on the rigid interference ``H* − δ0 − θ0 (X − x_F)`` that defines
+        the solved window (δ0, θ0 from a coarse line problem); default a quarter of the coarse
+        displacement scale. Raised automatically until the window check passes.
     initial_pressure_pa : ndarray (nx, ny), optional
         Warm start [Pa].
 
@@ -481,6 +763,8 @@ def solve_macro(
         raise InputError(f"load_position_m must be finite, got {load_position_m!r}")
     if not (np.isfinite(tol) and tol > 0):
         raise InputError(f"tol must be finite and > 0, got {tol!r}")
+    if window_gap_m is not None and not (np.isfinite(window_gap_m) and window_gap_m > 0):
+        raise InputError(f"window_gap_m must be finite and > 0, got {window_gap_m!r}")
     inside = np.isfinite(h)
     foot_x = x[inside.any(axis=1)]
     if tilt and not (foot_x.min() - dx / 2 < xf < foot_x.max() + dx / 2):
@@ -489,7 +773,6 @@ def solve_macro(
             f"({foot_x.min() - dx / 2:.4g} .. {foot_x.max() + dx / 2:.4g} m): no moment balance"
         )
     width = float(inside.sum(axis=1).max() * dy)
-    hz = np.where(inside, h, np.inf)
     xs_full = np.broadcast_to((x - xf)[:, None], h.shape)
     if f == 0.0:
         zero = np.where(inside, 0.0, np.nan)
@@ -505,62 +788,58 @@ def solve_macro(
             (float(x[0]), float(x[-1])),
             0.0,
             0,
-            0.0,
-            0.0,
             True,
             0,
             0.0,
             "zero load: no contact",
             t0,
         )
-    thr = float(window_gap_m) if window_gap_m is not None else 50.0 * f / (e_eff * width)
-    if not np.isfinite(thr) or thr <= 0:
-        raise InputError(f"window_gap_m must be finite and > 0, got {window_gap_m!r}")
-    h_min = float(hz.min())
-    p_warm = initial_pressure_pa
-    total_its = 0
-    for _attempt in range(30):
-        cand = hz <= h_min + thr
-        rows = np.flatnonzero(cand.any(axis=1))
-        i0, i1 = int(rows[0]), int(rows[-1]) + 1
-        n_sub = _fast_rows(i1 - i0)
-        extra = n_sub - (i1 - i0)
-        sub_mask = np.pad(cand[i0:i1], ((0, extra), (0, 0)))
-        xs = np.broadcast_to((x[i0] + dx * np.arange(n_sub) - xf)[:, None], sub_mask.shape)
-        if tilt and not (np.any(sub_mask & (xs < 0)) and np.any(sub_mask & (xs > 0))):
-            thr *= 2.0
-            continue
-        hs = _halfspace(sub_mask.shape, dx, dy, e_eff)
-        h0 = np.where(sub_mask, np.pad(np.nan_to_num(h[i0:i1]), ((0, extra), (0, 0))), 0.0)
-        p_init = None if p_warm is None else np.pad(p_warm[i0:i1], ((0, extra), (0, 0)))
-        p_sub, _g_sub, delta, theta, its, res, conv = _pk_tilt(
-            hs, h0, sub_mask, xs, f / (dx * dy), tilt, p_init, tol, max_iterations
-        )
-        p_sub = p_sub[: i1 - i0]
-        sub_mask = sub_mask[: i1 - i0]
-        total_its += its
-        # rigorous window check: outside the window H >= H* - δ - θ (X - x_F)
-        outside = inside & ~np.pad(sub_mask, ((i0, h.shape[0] - i1), (0, 0)))
-        bound = np.where(outside, h - delta - theta * xs_full, np.inf)
-        if bound.min() >= 0 or not conv:
-            break
-        thr = max(
-            2.0 * thr,
-            1.5 * float(np.max(np.where(outside, delta + theta * xs_full - h + h_min, 0.0))),
-        )
-        p_warm = np.zeros(h.shape)
-        p_warm[i0:i1] = p_sub
-    p = np.zeros(h.shape)
-    p[i0:i1] = p_sub
+    p_warm = None
+    if initial_pressure_pa is not None:
+        p_warm = np.asarray(initial_pressure_pa, dtype=float)
+        if p_warm.shape != h.shape:
+            raise InputError(
+                f"initial_pressure_pa has shape {p_warm.shape}, expected the gap map's {h.shape}"
+            )
+        p_warm = np.where(inside & np.isfinite(p_warm), p_warm, 0.0)
+    guess = _coarse_guess(h, inside, x, dx, width, f, xf, e_eff, tilt)
+    if guess is None:  # short grid: start from a generous window on H* alone
+        delta0, theta0 = float(np.nanmin(h)), 0.0
+        margin = float(window_gap_m) if window_gap_m is not None else 50.0 * f / (e_eff * width)
+    else:
+        delta0, theta0, u_scale, xc, pc = guess
+        margin = float(window_gap_m) if window_gap_m is not None else 0.25 * u_scale
+        if p_warm is None:
+            p_warm = np.where(inside, np.interp(x, xc, pc)[:, None], 0.0)
+    sol = _solve_windowed(
+        h,
+        inside,
+        x,
+        dx,
+        dy,
+        f,
+        xf,
+        e_eff,
+        tilt,
+        tol,
+        max_iterations,
+        delta0,
+        theta0,
+        margin,
+        p_warm,
+    )
+    p, delta, theta = sol.pressure, sol.delta, sol.theta
+    i0, i1 = sol.rows
     # clearance everywhere on the footprint from the full displacement field
     u_full = _halfspace(h.shape, dx, dy, e_eff).displacement(p)
     clear = np.where(inside, h + u_full - delta - theta * xs_full, np.nan)
     clear[p > 0] = 0.0
     clear = np.where(inside, np.maximum(clear, 0.0), np.nan)
+    its, res, conv = sol.iterations, sol.residual, sol.converged
     msg = (
-        f"converged in {total_its} iterations (residual {res:.3g} < tol {tol:.3g})"
+        f"converged in {its} iterations (residual {res:.3g} < tol {tol:.3g})"
         if conv
-        else f"not converged: {total_its} iterations, residual {res:.3g} (tol {tol:.3g})"
+        else f"not converged: {its} iterations, residual {res:.3g} (tol {tol:.3g})"
     )
     return _finish(
         gap_map,
@@ -572,17 +851,65 @@ def solve_macro(
         delta,
         theta,
         (float(x[i0] - dx / 2), float(x[i1 - 1] + dx / 2)),
-        thr,
-        int(sub_mask.sum()),
-        0.0,
-        0.0,
+        sol.margin,
+        sol.n_window,
         conv,
-        total_its,
+        its,
         res,
         msg,
         t0,
         window_length=float((i1 - i0) * dx),
     )
+
+
+def _edge(h1: float, h2: float, x1: float, x0: float) -> float:
+    """Sub-pixel contact edge between the last contact pixel (centre x0) and the first free
+    pixel beyond it (centre x1, clearance h1 [m]), with h2 the clearance of the next free pixel
+    (centre 2 x1 − x0): zero crossing of H^{2/3}, linear in X, clipped to [x0, x1]."""
+    if not (np.isfinite(h1) and np.isfinite(h2)) or not h2 > h1 >= 0:
+        return 0.5 * (x0 + x1)
+    a1, a2 = h1 ** (2.0 / 3.0), h2 ** (2.0 / 3.0)
+    e = x1 + (x0 - x1) * a1 / (a2 - a1)
+    return float(min(max(e, min(x0, x1)), max(x0, x1)))
+
+
+def _edge_lengths(
+    contact: np.ndarray, clearance: np.ndarray, x: np.ndarray, a: int, b: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Sub-pixel contact edges and contact length of the rows a..b−1, per pixel column [m].
+
+    Outside a smooth contact edge the clearance grows as d^{3/2} (d: distance from the edge),
+    so H^{2/3} is linear in X; its zero crossing through the first two free pixels beyond each
+    run of contact pixels (along X, in each column) is that run's edge, clipped to lie between
+    the last contact and the first free pixel centres. Pixel counting puts the edge midway,
+    which is the fallback when the two clearances are not available (footprint end).
+
+    Returns
+    -------
+    rear, front : ndarray (ny,)
+        Rearmost and frontmost edge per column [m]; NaN in columns without contact.
+    length : ndarray (ny,)
+        Contact length per column, summed over its runs [m].
+    """
+    nx, ny = contact.shape
+    dx = float(x[1] - x[0])
+    rear = np.full(ny, np.nan)
+    front = np.full(ny, np.nan)
+    length = np.zeros(ny)
+    for j in range(ny):
+        col = contact[a:b, j].astype(np.int8)
+        ed = np.flatnonzero(np.diff(np.concatenate([[0], col, [0]])))
+        for r0, r1 in zip(ed[::2] + a, ed[1::2] + a - 1, strict=True):
+            h1 = clearance[r0 - 1, j] if r0 >= 1 else np.nan
+            h2 = clearance[r0 - 2, j] if r0 >= 2 else np.nan
+            e_r = _edge(h1, h2, x[r0] - dx, x[r0])
+            h1 = clearance[r1 + 1, j] if r1 + 1 < nx else np.nan
+            h2 = clearance[r1 + 2, j] if r1 + 2 < nx else np.nan
+            e_f = _edge(h1, h2, x[r1] + dx, x[r1])
+            length[j] += e_f - e_r
+            rear[j] = e_r if np.isnan(rear[j]) else min(rear[j], e_r)
+            front[j] = e_f if np.isnan(front[j]) else max(front[j], e_f)
+    return rear, front, length
 
 
 def _finish(
@@ -597,8 +924,6 @@ def _finish(
     window: tuple[float, float],
     thr: float,
     n_window: int,
-    _fr: float,
-    _mr: float,
     conv: bool,
     its: int,
     res: float,
@@ -615,21 +940,28 @@ def _finish(
         p_line = np.where(width_x > 0, p0.sum(axis=1) * dy / width_x, 0.0)
         h_line = np.where(width_x > 0, np.nansum(clearance, axis=1) * dy / width_x, np.nan)
     contact = p0 > 0
-    area = float(np.count_nonzero(contact) * dx * dy)
     force = float(p0.sum() * dx * dy)
     moment = float(np.sum(p0 * (x - xf)[:, None]) * dx * dy)
     zones: list[ContactZone] = []
     row = contact.any(axis=1).astype(np.int8)
     edges = np.flatnonzero(np.diff(np.concatenate([[0], row, [0]])))
+    area = 0.0
     for a, b in zip(edges[::2], edges[1::2], strict=True):
         load = float(p0[a:b].sum() * dx * dy)
+        rear, front, length = _edge_lengths(contact, clearance, x, a, b)
+        zone_area = float(length.sum() * dy)
+        area += zone_area
+        e0, e1 = float(np.nanmin(rear)), float(np.nanmax(front))
         zones.append(
             ContactZone(
                 start_m=float(x[a] - dx / 2),
                 end_m=float(x[b - 1] + dx / 2),
-                length_m=float((b - a) * dx),
+                length_m=e1 - e0,
                 load_n=load,
                 load_share=load / force if force > 0 else 0.0,
+                edge_start_m=e0,
+                edge_end_m=e1,
+                apparent_area_m2=zone_area,
             )
         )
     return MacroResult(
