@@ -24,13 +24,37 @@ so every search direction keeps both force and moment; after the positivity proj
 restored by the multiplicative correction ``P ← P (α + β (X − x_F))`` (2×2 solve). At
 convergence the fitted δ, θ are the approach and the tilt. Force and moment hold to rounding.
 
+Operator and FFT convention
+---------------------------
+Exactly the zero-padded Love convolution of :class:`solvers.elastic.NonPeriodicHalfSpace`
+(pressure constant per pixel, displacement at pixel centres), evaluated as a real FFT of length
+2n along X only (``scipy.fft.rfft``/``irfft``, ``norm="backward"``: 1/N on the inverse; the X
+offset n is never reached and set to zero, so the convolution is linear, not circular; no q = 0
+special case — the rigid approach is the multiplier δ). Love's kernel is even in X, so its
+transform is real; across the few pixels of the width the coupling is a dense ``ny × ny``
+product per wavenumber (:class:`_LineOperator`, for ``ny ≤ 8``; wider grids use the 2-D
+operator). Kernel transforms are cached per window shape.
+
 Window ("model no more than the scene needs")
 ---------------------------------------------
-Only pixels whose unloaded clearance H* is below a threshold can carry pressure; the FFT grid is
-the bounding box of those rows. After the solve the window is checked rigorously: the elastic
-displacement of a positive pressure is positive everywhere, so a pixel outside the window has
-``H ≥ H* − δ − θ (X − x_F)``; if that bound is negative anywhere the threshold is raised and the
-solve repeated (warm started). The reported clearance everywhere uses the full displacement.
+A coarse line problem (8 mm pixels, one pixel across, width-mean H*) gives δ0, θ0; only pixels
+whose rigid interference ``H* − δ0 − θ0 (X − x_F)`` is below a margin (a quarter of the coarse
+displacement scale) can carry pressure, and the FFT grid is the bounding box of their rows;
+the CG vectors live on those pixels only. After the solve the window is checked rigorously: the
+elastic displacement of a positive pressure is positive everywhere, so a pixel outside the
+window has ``H ≥ H* − δ − θ (X − x_F)``; if that bound is negative anywhere the margin is raised
+and the solve repeated (warm started). The reported clearance everywhere uses the full
+displacement. The element-wise passes of the CG are fused with numba (serial: the vectors are
+a few hundred pixels long).
+
+Apparent contact area
+---------------------
+Zone edges are estimated below the pixel size: outside a smooth contact edge H ∝ d^{3/2}, so
+the zero crossing of H^{2/3}, linear through the first two free pixels beyond each run of
+contact pixels along X, is the edge (clipped between the last contact and first free pixel
+centres; pixel counting puts it midway). ``apparent_contact_area_m2`` = Σ (edge-to-edge length)
+× dy over the pixel columns, and ``mean_apparent_pressure_pa = F / apparent_contact_area_m2``.
+Across the width (partial-width contact) pixels are still counted.
 
 Outputs along the ski are width averages over the footprint: ``P(X) = (1/w) ∫ P dY`` [Pa] and
 ``H(X) = (1/w) ∫ H dY`` [m].
@@ -259,7 +283,7 @@ class MacroResult:
     clearance_m : ndarray (nx,)
         Width-averaged clearance H(X) [m].
     apparent_contact_area_m2 : float
-        Area where P > 0 [m²] (pixel count × dx·dy).
+        Apparent contact area [m²] with sub-pixel zone edges along X (module docstring).
     mean_apparent_pressure_pa : float
         F / A_app [Pa].
     peak_pressure_pa : float
