@@ -113,6 +113,7 @@ CSV_COLUMNS = (
     "apparent_contact_area_cm2",
     "mean_apparent_pressure_kpa",
     "rear_zone_load_share",
+    "mid_zone_load_share",
     "front_zone_load_share",
     "table_file",
     "table_sha256",
@@ -434,8 +435,8 @@ def _metric_cards(results: list[dict]) -> str:
             for key, label, unit, spec in METRICS
         )
         zones = "".join(
-            f'<tr><td class="text">{escape(z["name"])}</td><td>{z["start_mm"]:.0f} … '
-            f"{z['end_mm']:.0f}</td><td>{z['length_mm']:.0f}</td>"
+            f'<tr><td class="text">{escape(z["name"])}</td>'
+            f'<td class="nowrap">{z["start_mm"]:.0f} … {z["end_mm"]:.0f}</td>'
             f"<td>{100 * z['load_share']:.1f}</td><td>{z['apparent_area_cm2']:.4g}</td>"
             f"<td>{z['real_area_mm2']:.4g}</td></tr>"
             for z in r["apparent"]["zones"]
@@ -446,8 +447,8 @@ def _metric_cards(results: list[dict]) -> str:
 <div class="metrics">{metrics}</div>
 <p class="summary">Apparent contact {a["contact_area_cm2"]:.4g} cm² at a mean apparent pressure
 of {a["mean_pressure_kpa"]:.4g} kPa; computed in {r["timing_ms"]["total"]:.0f} ms.</p>
-<div class="table-wrap"><table><tr><th class="text">zone</th><th>X [mm]</th>
-<th>length [mm]</th><th>load share [%]</th><th>apparent area [cm²]</th>
+<div class="table-wrap"><table class="zones"><tr><th class="text">contact zone</th>
+<th>from … to X [mm]</th><th>load share [%]</th><th>apparent area [cm²]</th>
 <th>real area [mm²]</th></tr>{zones}</table></div>
 <details><summary>Provenance</summary><dl>
 <dt>texture table</dt><dd>{escape(table["file"])} · sha256 {table["sha256"][:12]}</dd>
@@ -472,13 +473,14 @@ def _comparison_table(results: list[dict], failures) -> str:
     rows = []
     for r in results:
         m, a = r["metrics"], r["apparent"]
-        rear = sum(z["load_share"] for z in a["zones"] if z["name"] == "rear")
+        shares = ", ".join(f"{z['name']} {100 * z['load_share']:.0f}" for z in a["zones"])
         rows.append(
             f'<tr><td class="text">{escape(r["inputs"]["ski"])}</td>'
             f'<td class="text">{escape(r["inputs"]["grind"])}</td>'
             + "".join(f"<td>{_fmt(m[k], spec)}</td>" for k, _, _, spec in METRICS)
             + f"<td>{a['contact_area_cm2']:.4g}</td><td>{a['mean_pressure_kpa']:.4g}</td>"
-            f"<td>{100 * rear:.1f}</td><td>{r['timing_ms']['total']:.0f}</td></tr>"
+            f'<td class="text">{escape(shares)}</td>'
+            f"<td>{r['timing_ms']['total']:.0f}</td></tr>"
         )
     for inp, msg in failures:
         rows.append(
@@ -488,7 +490,7 @@ def _comparison_table(results: list[dict], failures) -> str:
     return (
         '<div class="table-wrap"><table id="comparison"><tr><th class="text">ski</th>'
         f'<th class="text">grind</th>{head}<th>apparent area [cm²]</th>'
-        "<th>mean apparent pressure [kPa]</th><th>rear-zone load share [%]</th>"
+        '<th>mean apparent pressure [kPa]</th><th class="text">zone load shares [%]</th>'
         f"<th>time [ms]</th></tr>{''.join(rows)}</table></div>"
     )
 
@@ -537,7 +539,7 @@ def render_csv(out: Outcome) -> str:
     w.writerow(CSV_COLUMNS)
     for r in out.results:
         inp, m, a, p = r["inputs"], r["metrics"], r["apparent"], r["provenance"]
-        share = {"rear": 0.0, "front": 0.0}
+        share = {"rear": 0.0, "mid": 0.0, "front": 0.0}
         for z in a["zones"]:
             if z["name"] in share:
                 share[z["name"]] += z["load_share"]
@@ -547,6 +549,7 @@ def render_csv(out: Outcome) -> str:
             "apparent_contact_area_cm2": a["contact_area_cm2"],
             "mean_apparent_pressure_kpa": a["mean_pressure_kpa"],
             "rear_zone_load_share": share["rear"],
+            "mid_zone_load_share": share["mid"],
             "front_zone_load_share": share["front"],
             "table_file": p["table"]["file"],
             "table_sha256": p["table"]["sha256"],

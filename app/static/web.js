@@ -35,9 +35,15 @@
   density.addEventListener("input", updateSnow);
   updateSnow();
 
+  var button = document.getElementById("submit"), buttonText = button.textContent;
   form.addEventListener("submit", function () {
-    var button = document.getElementById("submit");
     button.disabled = true;
     button.textContent = "Computing…";
+  });
+  // coming back with the browser's back button: the page may come from the back-forward cache
+  window.addEventListener("pageshow", function () {
+    button.disabled = false;
+    button.textContent = buttonText;
+    updateSnow();
   });
 })();
