@@ -9,7 +9,6 @@ or non-converged solves are 422 with what to change.
 from __future__ import annotations
 
 import logging
-import os
 from contextlib import asynccontextmanager
 
 from fastapi import FastAPI, Request
@@ -83,7 +82,6 @@ def _field_errors(exc: RequestValidationError) -> list[dict]:
 def create_app(settings: Settings | None = None, catalogue: service.Catalogue | None = None):
     """Build the application; the catalogue is loaded (and verified) once at start-up."""
     settings = settings or Settings()
-    os.environ.setdefault("NUMBA_NUM_THREADS", str(settings.threads_per_worker))
 
     @asynccontextmanager
     async def lifespan(app: FastAPI):

@@ -35,9 +35,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run_serve(args: argparse.Namespace) -> int:
-    import uvicorn
-
     from app.settings import Settings
+
+    # thread counts must be fixed before numba / the FFT pools start (worker processes inherit)
+    threads = str(Settings().threads_per_worker)
+    os.environ.setdefault("NUMBA_NUM_THREADS", threads)
+    os.environ.setdefault("OMP_NUM_THREADS", threads)
+    import uvicorn
 
     overrides = {
         k: v
@@ -56,8 +60,6 @@ def run_serve(args: argparse.Namespace) -> int:
     load_catalogue(settings.tables_dir)
     for key, value in overrides.items():
         os.environ[f"SKISNOW_{key.upper()}"] = str(value)
-    os.environ.setdefault("NUMBA_NUM_THREADS", str(settings.threads_per_worker))
-    os.environ.setdefault("OMP_NUM_THREADS", str(settings.threads_per_worker))
     uvicorn.run(
         "app.main:app",
         host=settings.host,
