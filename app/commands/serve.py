@@ -37,10 +37,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run_serve(args: argparse.Namespace) -> int:
     from app.settings import Settings
 
-    # thread counts must be fixed before numba / the FFT pools start (worker processes inherit)
-    threads = str(Settings().threads_per_worker)
-    os.environ.setdefault("NUMBA_NUM_THREADS", threads)
-    os.environ.setdefault("OMP_NUM_THREADS", threads)
+    # BLAS/OpenMP thread count per worker (worker processes inherit it). NUMBA_NUM_THREADS
+    # is not touched here: numba is already imported and refuses a change after import.
+    os.environ.setdefault("OMP_NUM_THREADS", str(Settings().threads_per_worker))
     import uvicorn
 
     overrides = {
