@@ -482,11 +482,12 @@ def _restore_balance(p, xs, total, tilt):
         if s0 <= 0.0:
             return False
         det = s0 * s2 - s1 * s1
-        if not tilt or det <= 0.0:
+        if not tilt or det <= 1e-12 * s0 * s2:
             c = total / s0
             for i in range(p.size):
                 p[i] *= c
-            return True
+            # with tilt: all pressure at one X, balanced only if that X is the load point
+            return not tilt or abs(s1) <= 1e-12 * s0 * max(np.sqrt(s2 / s0), 1e-300)
         alpha = total * s2 / det
         beta = -total * s1 / det
         clipped = False
@@ -498,10 +499,19 @@ def _restore_balance(p, xs, total, tilt):
                     clipped = True
         if not clipped:
             return True
-    s0 = 0.0
+    s0 = s1 = 0.0
     for i in range(p.size):
         s0 += p[i]
-    return s0 > 0.0
+        s1 += p[i] * xs[i]
+    return s0 > 0.0 and (not tilt or abs(s1) <= 1e-9 * s0 * _max_abs(xs))
+
+
+@numba.njit(cache=True)
+def _max_abs(v):
+    m = 0.0
+    for i in range(v.size):
+        m = max(m, abs(v[i]))
+    return m
 
 
 @numba.njit(cache=True)
@@ -583,13 +593,17 @@ def _pk_tilt(
         if not tau > 0:
             tau = 1.0 / hs.self_compliance
         restart = pen_norm > 0.0
-        if not (
-            _update_pressure(p, t, g, tau, restart) > 0 and _restore_balance(p, xc, total, tilt)
-        ):
-            # everything was clipped: start again from a uniform pressure on the window
+        p_prev = p.copy()
+        for _halving in range(40):
+            if _update_pressure(p, t, g, tau, restart) > 0 and _restore_balance(p, xc, total, tilt):
+                break
+            # the projection left no pressure that can balance force and moment: shorter step
+            tau *= 0.5
+            p[:] = p_prev
+            restart = True
+        else:  # pragma: no cover - a balanced p_prev makes a short enough step succeed
             p[:] = 1.0
             _restore_balance(p, xc, total, tilt)
-            restart = True
     out = np.zeros(mask.size)
     out[idx] = p
     return out.reshape(mask.shape), delta, theta, it, float(residual), converged

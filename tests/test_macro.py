@@ -155,6 +155,20 @@ def test_warm_start():
         solve_macro(gm, load, xf, E_EFF, initial_pressure_pa=np.zeros((3, 3)))
 
 
+def test_stiff_tilt_onto_a_second_row():
+    """Load beside a sharp bump on a stiff half-space: the tilt must bring a row behind x_F into
+    contact (the CG step is shortened when the projection empties one side of x_F)."""
+    x = np.linspace(-0.95, 0.95, 381)  # pixel centres at ±2.5 mm, ±7.5 mm, …
+    gm = extrude_profile(x, 50.0 * (x - 0.007) ** 2, 0.044, pixel_along_m=5e-3, pixels_across=4)
+    for xf in (0.0, 1e-3):
+        res = solve_macro(gm, 1.0, xf, 1e9)
+        assert res.converged, res.message
+        p = np.nan_to_num(res.pressure_pa)
+        assert res.force_residual < 1e-10 and res.moment_residual < 1e-10
+        rows = res.positions_m[p.sum(axis=1) > 0]
+        assert rows.min() < xf < rows.max()
+
+
 def test_zero_load_and_bad_inputs():
     gm = _demo_gap_map("ski-a", 8e-3, 2)
     res = solve_macro(gm, 0.0, -0.16, E_EFF)
