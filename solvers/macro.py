@@ -247,7 +247,8 @@ class ContactZone:
         Sub-pixel contact edges [m] (clearance zero crossing, see :func:`_edge_lengths`); the
         extreme over the pixel columns.
     length_m : float
-        ``edge_end_m − edge_start_m`` [m].
+        ``end_m − start_m`` [m] (pixel rows; the sub-pixel length is
+        ``edge_end_m − edge_start_m``).
     load_n : float
         Load carried [N].
     load_share : float
@@ -994,7 +995,7 @@ def _finish(
             ContactZone(
                 start_m=float(x[a] - dx / 2),
                 end_m=float(x[b - 1] + dx / 2),
-                length_m=e1 - e0,
+                length_m=float((b - a) * dx),
                 load_n=load,
                 load_share=load / force if force > 0 else 0.0,
                 edge_start_m=e0,
