@@ -921,7 +921,8 @@ def _edge_lengths(
     so H^{2/3} is linear in X; its zero crossing through the first two free pixels beyond each
     run of contact pixels (along X, in each column) is that run's edge, clipped to lie between
     the last contact and the first free pixel centres. Pixel counting puts the edge midway,
-    which is the fallback when the two clearances are not available (footprint end).
+    which is the fallback when the two clearances are not available (footprint end) and for
+    runs of a single pixel (a contact narrower than a pixel cannot be located by two edges).
 
     Returns
     -------
@@ -939,6 +940,12 @@ def _edge_lengths(
         col = contact[a:b, j].astype(np.int8)
         ed = np.flatnonzero(np.diff(np.concatenate([[0], col, [0]])))
         for r0, r1 in zip(ed[::2] + a, ed[1::2] + a - 1, strict=True):
+            if r1 == r0:  # one contact pixel cannot place two edges: count it
+                e_r, e_f = x[r0] - dx / 2, x[r0] + dx / 2
+                length[j] += dx
+                rear[j] = e_r if np.isnan(rear[j]) else min(rear[j], e_r)
+                front[j] = e_f if np.isnan(front[j]) else max(front[j], e_f)
+                continue
             h1 = clearance[r0 - 1, j] if r0 >= 1 else np.nan
             h2 = clearance[r0 - 2, j] if r0 >= 2 else np.nan
             e_r = _edge(h1, h2, x[r0] - dx, x[r0])

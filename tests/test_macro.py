@@ -16,6 +16,7 @@ from solvers.macro import (
     _LineOperator,
     _solve_windowed,
     extrude_profile,
+    interpolate_sides,
     solve_macro,
 )
 
@@ -167,6 +168,22 @@ def test_stiff_tilt_onto_a_second_row():
         assert res.force_residual < 1e-10 and res.moment_residual < 1e-10
         rows = res.positions_m[p.sum(axis=1) > 0]
         assert rows.min() < xf < rows.max()
+
+
+@pytest.mark.parametrize("lift_m", [10e-6, 50e-6])
+def test_sides_differ(lift_m):
+    """Left edge lifted: partial-width contact; balance holds and every loaded zone has area."""
+    ski = read_ski(SKI_DIR / "ski-a.h5")
+    load, xf = 40 * G_STANDARD, -0.160
+    x, gap = loaded_profile(ski, load, xf)
+    res = solve_macro(interpolate_sides(x, gap + lift_m, gap, 0.044), load, xf, E_EFF)
+    assert res.converged, res.message
+    assert res.force_residual < 1e-10 and res.moment_residual < 1e-10
+    assert res.mean_apparent_pressure_pa * res.apparent_contact_area_m2 == pytest.approx(load)
+    p = np.nan_to_num(res.pressure_pa)
+    assert np.count_nonzero(p[:, 0] > 0) < np.count_nonzero(p[:, -1] > 0)
+    for z in res.zones:
+        assert z.load_n > 0 and z.apparent_area_m2 > 0
 
 
 def test_zero_load_and_bad_inputs():
