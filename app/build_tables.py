@@ -359,7 +359,9 @@ def _run(client, jobs, pending, settings, progress, on_chunk_done) -> int:
 
     ratio_grid = settings.pressure_ratio
     heights_future = {
-        name: client.scatter(np.asarray(jobs[name].texture.heights_m, dtype=float), broadcast=True)
+        name: client.scatter(
+            np.asarray(jobs[name].texture.heights_m, dtype=float), broadcast=True, hash=False
+        )
         for name in {n for n, _ in pending}
     }
     futures = {}
