@@ -6,7 +6,7 @@ import pytest
 from app.commands.macro import SKI_DIR, loaded_profile
 from app.storage.skis import read_ski
 from solvers import reference
-from solvers.beam import G_STANDARD
+from solvers.beam import G_STANDARD, solve_beam_contact
 from solvers.elastic import NonPeriodicHalfSpace, effective_modulus
 from solvers.errors import InputError
 from solvers.macro import (
@@ -68,8 +68,12 @@ def test_line_operator_is_the_2d_operator(shape):
 
 
 def _demo_gap_map(name, dx=DEFAULT_PIXEL_ALONG_M, ny=DEFAULT_PIXEL_ACROSS):
+    """The demo ski's true loaded profile (its beam model, the calibration target; the
+    network's own accuracy is tested in test_camber.py)."""
     ski = read_ski(SKI_DIR / f"{name}.h5")
-    x, gap = loaded_profile(ski, 40 * G_STANDARD, -0.160)
+    beam = solve_beam_contact(ski.beam, 40 * G_STANDARD, -0.160)
+    assert beam.converged, beam.message
+    x, gap = beam.positions_m, beam.gap_m
     return extrude_profile(x, gap, 0.044, pixel_along_m=dx, pixels_across=ny)
 
 
