@@ -87,6 +87,8 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
     async def lifespan(app: FastAPI):
         if app.state.catalogue is None:
             app.state.catalogue = service.load_catalogue(settings.tables_dir)
+        if settings.warm_up:
+            service.warm_up(app.state.catalogue)
         yield
 
     app = FastAPI(

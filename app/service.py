@@ -191,6 +191,31 @@ def loaded_profile(ski: Ski, load_n: float, load_position_m: float):
     return _profile(ski.record, load_n, load_position_m)
 
 
+def warm_up(cat: Catalogue) -> float:
+    """Solve one mid-range case so that compiled kernels and caches are ready before the first
+    request (the first solve in a process costs ~1 s of kernel loading). Failures are logged,
+    never raised: start-up does not depend on a demo case. Returns the time taken [s]."""
+    t0 = time.perf_counter()
+    try:
+        ski = next(iter(cat.skis.values()))
+        grind = next(iter(cat.grinds.values()))
+        lo, hi = ski.position_range_m
+        contact(
+            cat,
+            ContactInputs(
+                ski=ski.name,
+                grind=grind.name,
+                load_kg=40.0,
+                load_position_mm=0.5 * (lo + hi) * 1e3,
+                snow_modulus_mpa=200.0,
+                porosity=0.5,
+            ),
+        )
+    except Exception as exc:  # a failed warm-up must not stop the service
+        log.warning("warm-up solve failed (%s); the first request will be slower", exc)
+    return time.perf_counter() - t0
+
+
 def contact(cat: Catalogue, inp: ContactInputs) -> dict:
     """Compute one ski × grind case; returns the JSON-ready answer of ``POST /v1/contact``.
 

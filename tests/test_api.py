@@ -140,3 +140,13 @@ def test_oversized_body_is_413(client):
 def test_unknown_route_is_problem_404(client):
     _is_problem(client.get("/v1/nothing"), 404)
     _is_problem(client.get("/v1/contact"), 405)
+
+
+def test_warm_up_solves_once_and_never_raises(catalogue, caplog):
+    from app import service
+
+    assert service.warm_up(catalogue) > 0
+    empty = service.Catalogue(tables_dir=catalogue.tables_dir)
+    with caplog.at_level("WARNING"):
+        service.warm_up(empty)  # nothing to solve: logged, not raised
+    assert "warm-up solve failed" in caplog.text
