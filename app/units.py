@@ -5,10 +5,8 @@ Every function names its input unit; unknown unit strings raise :class:`InputErr
 
 from __future__ import annotations
 
+from solvers.beam import G_STANDARD
 from solvers.errors import InputError
-
-#: standard gravity used by the papers [m/s²] (method.md §2)
-G_PAPERS = 9.82
 
 _LENGTH_TO_M = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "μm": 1e-6, "nm": 1e-9}
 
@@ -25,7 +23,7 @@ def length_to_m(value: float, unit: str) -> float:
 
 def kg_to_n(load_kg: float) -> float:
     """Load in kg-force (g = 9.82 m/s², the papers' value) to newtons."""
-    return float(load_kg) * G_PAPERS
+    return float(load_kg) * G_STANDARD
 
 
 def mm_to_m(value_mm: float) -> float:
