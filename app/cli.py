@@ -22,6 +22,7 @@ COMMAND_MODULES = [
     "app.commands.macro",
     "app.train_camber",
     "app.commands.serve",
+    "app.report",
 ]
 
 
