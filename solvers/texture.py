@@ -22,6 +22,10 @@ ISO 25178-2 parameters (our own small implementation, :func:`iso25178_parameters
   material ratios where the curve crosses those two heights; ``Spk`` and ``Svk`` are the heights
   of the triangles with the areas of the peak and valley regions beyond the core.
 
+Measured maps are not periodic, but the micro solver is (periodic FFT half-space);
+:func:`make_periodic` makes a measured map fit it (mirror tiling, a cosine-tapered window, or
+nothing), see ``docs/topography.md`` for the choice and its measured effect.
+
 Synthetic linear grinds (:func:`linear_grind`) are periodic in both directions: an integer
 number of grooves across the cell (axis 1), every groove straight along axis 0, plus seeded
 self-affine roughness (:func:`self_affine_surface`, periodic by construction).
@@ -39,6 +43,7 @@ from .errors import InputError
 __all__ = [
     "GRIND_TARGETS",
     "GRIND_TOLERANCES",
+    "PERIODISATION_METHODS",
     "GrindFit",
     "GrindParameters",
     "Texture",
@@ -46,6 +51,7 @@ __all__ = [
     "iso25178_parameters",
     "level_heights",
     "linear_grind",
+    "make_periodic",
     "self_affine_surface",
     "target_errors",
 ]
@@ -204,6 +210,92 @@ def level_heights(
             "heights_m is flat (a plane, peak-to-valley 0 after levelling): no texture"
         )
     return h, missing_fraction
+
+
+# --------------------------------------------------------------------------- periodisation
+
+#: Ways :func:`make_periodic` can make an open (measured) map fit the periodic solver
+PERIODISATION_METHODS = ("none", "mirror", "window")
+
+
+def _tukey(n: int, taper_fraction: float) -> np.ndarray:
+    """Periodic Tukey window: cosine ramps over ``taper_fraction`` of ``n`` at each end.
+
+    ``w[0] = 0`` and the ramp up at the start mirrors the ramp down at the end, so the periodic
+    continuation ``w[n] = w[0]`` is smooth.
+    """
+    m = max(1, round(taper_fraction * n))
+    w = np.ones(n)
+    ramp = 0.5 * (1 - np.cos(np.pi * np.arange(m) / m))  # 0 ... just below 1
+    w[:m] = ramp
+    w[n - m + 1 :] = ramp[1:][::-1]
+    return w
+
+
+def make_periodic(heights_m, method: str = "mirror", *, taper_fraction: float = 0.1) -> np.ndarray:
+    """Make an open (non-periodic) height map fit the periodic FFT solver.
+
+    The periodic solver sees the map as one cell of an infinite tiling. A measured map's
+    opposite edges do not match, so the plain tiling has steps (and a cut through every groove)
+    at the cell edges. The methods:
+
+    ``"none"``
+        The map unchanged (a copy): the tiling keeps its edge steps. Right only for periodic
+        maps (synthetic grinds).
+    ``"mirror"``
+        Even reflection across both axes: the result has shape ``(2·n0, 2·n1)``, blocks
+        ``[[h, h[:, ::-1]], [h[::-1, :], h[::-1, ::-1]]]``. The tiling is continuous (no steps,
+        slope kinks at the edges only) and every measured point is used with weight one. A
+        solve on it equals the solve of the measured patch alone with symmetry (frictionless
+        wall) conditions on its four edges, so area fraction and mean gaps of the doubled grid
+        are those of the patch. Costs 4× the points.
+    ``"window"``
+        Heights (about their mean) multiplied by a separable periodic Tukey window whose cosine
+        ramps span ``taper_fraction`` of each side at each end: the edges go smoothly to the
+        mean plane, the shape is kept, the mean is removed again. The tapered border is lowered
+        towards the mean, so fewer peaks touch there (see ``docs/topography.md``).
+
+    Parameters
+    ----------
+    heights_m : array_like
+        Levelled heights [m], 2-D, finite, axis 0 along the ski.
+    method : str
+        One of :data:`PERIODISATION_METHODS`.
+    taper_fraction : float
+        Fraction of each side covered by each cosine ramp of ``"window"`` [-], in (0, 0.5].
+
+    Returns
+    -------
+    numpy.ndarray
+        Heights [m], float64; shape ``(2·n0, 2·n1)`` for ``"mirror"``, else unchanged. The
+        pixel size is unchanged.
+
+    Raises
+    ------
+    InputError
+        Unknown method, bad ``taper_fraction``, non-finite or non-2-D heights.
+    """
+    if method not in PERIODISATION_METHODS:
+        raise InputError(
+            f"method must be one of {', '.join(PERIODISATION_METHODS)}, got {method!r}"
+        )
+    h = _check_grid(heights_m)
+    if not np.isfinite(h).all():
+        raise InputError("heights_m contains NaN or inf; level and fill the map first")
+    if method == "none":
+        return h.copy()
+    if method == "mirror":
+        top = np.concatenate([h, h[:, ::-1]], axis=1)
+        return np.concatenate([top, top[::-1, :]], axis=0)
+    try:
+        tf = float(taper_fraction)
+    except (TypeError, ValueError):
+        raise InputError(f"taper_fraction must be a number, got {taper_fraction!r}") from None
+    if not (0 < tf <= 0.5):
+        raise InputError(f"taper_fraction must be in (0, 0.5], got {taper_fraction!r}")
+    w = _tukey(h.shape[0], tf)[:, None] * _tukey(h.shape[1], tf)[None, :]
+    out = (h - h.mean()) * w
+    return out - out.mean()
 
 
 # --------------------------------------------------------------------------- ISO 25178

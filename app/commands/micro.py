@@ -9,6 +9,7 @@ from app import units
 from solvers.elastic import effective_modulus
 from solvers.errors import InputError
 from solvers.micro import solve_micro
+from solvers.texture import PERIODISATION_METHODS, make_periodic
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -18,9 +19,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=(
             "Press a rigid ski-base texture into the elastic snow at a nominal pressure "
             "(periodic FFT boundary elements) and print real contact area, mean gap and mean "
-            "reciprocal gap. HEIGHTMAP is a shipped grind name (grind-1, grind-2), a texture "
-            ".h5 file, or a .npy/.csv height grid (then --pixel-size-um and --height-unit "
-            "are required)."
+            "reciprocal gap. HEIGHTMAP is a shipped grind name (grind-1, grind-2) or a height "
+            "map file, recognised by its content: measured .x3p (ISO 5436-2000 and ISO "
+            "25178-72), instrument formats (.sur, .datx, .plu, .opd, .sdf, ...), a texture .h5, "
+            "or a .npy/.csv grid (then --pixel-size-um and --height-unit are required). "
+            "Measured maps are not periodic: --periodic says how they are made to fit the "
+            "periodic solver (docs/topography.md)."
         ),
     )
     p.add_argument("heightmap", metavar="HEIGHTMAP")
@@ -44,6 +48,26 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--pixel-size-um", type=float, default=None, help="pixel size of a .npy/.csv grid [µm]"
     )
     p.add_argument("--height-unit", default=None, help="unit of .npy/.csv heights: m, mm, um, nm")
+    p.add_argument(
+        "--periodic",
+        choices=PERIODISATION_METHODS,
+        default=None,
+        help=(
+            "how a non-periodic map fits the periodic solver: mirror (even reflection, 4x the "
+            "points), window (cosine taper to the mean plane at the edges) or none; default "
+            "none for synthetic (periodic) textures such as the shipped grinds, mirror for "
+            "measured maps"
+        ),
+    )
+    p.add_argument(
+        "--along-ski",
+        choices=("x", "y"),
+        default="x",
+        help="axis of the file that runs along the ski (default x; y transposes the map)",
+    )
+    p.add_argument(
+        "--channel", type=int, default=None, help="0-based channel of a multi-channel file"
+    )
     p.add_argument("--tol", type=float, default=1e-6, help="solver tolerance (default 1e-6)")
     p.add_argument("--max-iterations", type=int, default=2000)
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -56,15 +80,23 @@ def run(args: argparse.Namespace) -> int:
     if args.nominal_pressure_kpa is None or not args.nominal_pressure_kpa >= 0:
         raise InputError(f"--nominal-pressure-kpa must be >= 0, got {args.nominal_pressure_kpa}")
     texture = load_texture(
-        args.heightmap, pixel_size_um=args.pixel_size_um, height_unit=args.height_unit
+        args.heightmap,
+        pixel_size_um=args.pixel_size_um,
+        height_unit=args.height_unit,
+        along_ski=args.along_ski,
+        channel=args.channel,
     )
+    periodic = args.periodic
+    if periodic is None:  # synthetic textures are periodic by construction (solvers.texture)
+        periodic = "none" if texture.source.startswith("synthetic") else "mirror"
+    heights_m = make_periodic(texture.heights_m, periodic)
     e_eff = effective_modulus(
         units.mpa_to_pa(args.snow_modulus_mpa),
         units.mpa_to_pa(args.base_modulus_mpa),
         args.poisson,
     )
     res = solve_micro(
-        texture.heights_m,
+        heights_m,
         texture.pixel_size_m,
         units.kpa_to_pa(args.nominal_pressure_kpa),
         e_eff,
@@ -87,6 +119,8 @@ def run(args: argparse.Namespace) -> int:
         "message": res.message,
         "solve_time_s": res.solve_time_s,
         "grid": list(texture.heights_m.shape),
+        "periodic": periodic,
+        "solved_grid": list(heights_m.shape),
         "pixel_size_um": texture.pixel_size_m * 1e6,
     }
     if args.json:
@@ -94,7 +128,8 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(
             f"texture                      {texture.name}  {out['grid'][0]}x{out['grid'][1]} "
-            f"px, {out['pixel_size_um']:.3g} µm/px"
+            f"px, {out['pixel_size_um']:.3g} µm/px; periodisation {periodic} "
+            f"(solved on {heights_m.shape[0]}x{heights_m.shape[1]})"
         )
         print(
             f"nominal pressure             {args.nominal_pressure_kpa:.6g} kPa "

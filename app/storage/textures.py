@@ -35,6 +35,7 @@ __all__ = [
     "SHIPPED_TEXTURES_DIR",
     "list_shipped_textures",
     "load_texture",
+    "parse_csv_grid",
     "read_heightmap",
     "read_texture",
     "write_texture",
@@ -72,6 +73,12 @@ def _read_csv(path: Path) -> np.ndarray:
         text = path.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
         raise DataFileError(f"cannot read height map {path}: {exc}") from exc
+    return parse_csv_grid(text, f"height map {path}")
+
+
+def parse_csv_grid(text: str, label: str) -> np.ndarray:
+    """Numbers of a csv height grid (comma or whitespace separated, ``#`` comments, empty cell
+    or NaN for a missing point) as a float64 array; ``label`` names the file in errors."""
     rows = []
     for lineno, line in enumerate(text.splitlines(), start=1):
         stripped = line.strip()
@@ -81,14 +88,13 @@ def _read_csv(path: Path) -> np.ndarray:
         try:
             rows.append([float(c) if c.strip() else np.nan for c in cells])
         except ValueError as exc:
-            raise DataFileError(f"height map {path}, line {lineno}: {exc}") from None
+            raise DataFileError(f"{label}, line {lineno}: {exc}") from None
     if not rows:
-        raise DataFileError(f"height map {path} holds no numbers")
+        raise DataFileError(f"{label} holds no numbers")
     widths = {len(r) for r in rows}
     if len(widths) != 1:
         raise DataFileError(
-            f"height map {path} is not a rectangular grid (row lengths {sorted(widths)}); "
-            "truncated file?"
+            f"{label} is not a rectangular grid (row lengths {sorted(widths)}); truncated file?"
         )
     return np.array(rows, dtype=np.float64)
 
@@ -253,8 +259,11 @@ def load_texture(
     *,
     pixel_size_um: float | None = None,
     height_unit: str | None = None,
+    **topography_options,
 ) -> Texture:
-    """Texture from a shipped name, an ``.h5`` texture file, or a raw ``.npy``/``.csv`` map.
+    """Texture from a shipped name or a height map file of any format
+    :func:`app.storage.topography.read_topography` accepts (detected by content: x3p,
+    instrument formats, ``.h5`` texture, raw ``.npy``/``.csv``).
 
     Parameters
     ----------
@@ -264,26 +273,22 @@ def load_texture(
         Pixel size of a raw map [µm]; required for ``.npy``/``.csv``.
     height_unit : str, optional
         Height unit of a raw map ("m", "mm", "um", "nm"); required for ``.npy``/``.csv``.
+    **topography_options
+        ``along_ski``, ``channel``, ``max_pixels``, ... of
+        :func:`app.storage.topography.read_topography`.
     """
     spec_str = os.fspath(spec)
     shipped = list_shipped_textures()
     if spec_str in shipped:
         return read_texture(SHIPPED_TEXTURES_DIR / f"{spec_str}.h5")
-    suffix = Path(spec_str).suffix.lower()
-    if suffix in (".h5", ".hdf5"):
-        return read_texture(spec_str)
-    if suffix in (".npy", ".csv"):
-        missing = [
-            n
-            for n, v in (("pixel_size_um", pixel_size_um), ("height_unit", height_unit))
-            if v is None
-        ]
-        if missing:
-            raise InputError(
-                f"texture {spec_str!r} is a raw height map: {' and '.join(missing)} must be given"
-            )
-        return read_heightmap(spec_str, pixel_size_um=pixel_size_um, height_unit=height_unit)
-    raise InputError(
-        f"unknown texture {spec_str!r}: give a shipped name ({', '.join(shipped) or 'none'}) "
-        "or a .h5, .npy or .csv file"
+    if not Path(spec_str).is_file():
+        raise InputError(
+            f"unknown texture {spec_str!r}: give a shipped name ({', '.join(shipped) or 'none'}) "
+            "or a height map file (.x3p, .sur, .datx, .plu, .opd, ..., texture .h5, .npy, .csv)"
+        )
+    from .topography import read_topography
+
+    # the format is decided by the content (app.storage.topography), not by the file name
+    return read_topography(
+        spec_str, pixel_size_um=pixel_size_um, height_unit=height_unit, **topography_options
     )
