@@ -349,7 +349,8 @@ def read_ski(path: str | os.PathLike) -> SkiRecord:
     Raises
     ------
     DataFileError
-        Missing file, unknown schema or a missing group/dataset.
+        Missing file, unknown schema, a missing group/dataset or damaged content; the message
+        names the file.
     """
     path = Path(path)
     if not path.is_file():
@@ -385,6 +386,6 @@ def read_ski(path: str | os.PathLike) -> SkiRecord:
                 if "design_json" in b.attrs:
                     design = json.loads(_attr(b.attrs["design_json"]))
             network = _read_dict(f["network"]) if "network" in f else None
-    except (OSError, KeyError) as exc:
+    except (OSError, KeyError, ValueError, TypeError) as exc:  # ValueError: undecodable text
         raise DataFileError(f"{path}: unreadable or incomplete ski file ({exc})") from exc
     return SkiRecord(meas, outline, metadata, beam, design, network)
