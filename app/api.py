@@ -16,7 +16,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from app import service, web
+from app import api_catalogue, service, web
 from app.schemas import CompareBody, ContactBody
 from app.settings import Settings
 from solvers.errors import InputError, NotConvergedError, OutOfRangeError, SkisnowError
@@ -30,21 +30,27 @@ def problem(status: int, title: str, detail: str, **extra) -> JSONResponse:
 
 
 class BodyLimitMiddleware:
-    """Refuse bodies larger than ``limit`` bytes with 413 (declared or streamed)."""
+    """Refuse bodies larger than ``limit`` bytes with 413 (declared or streamed); POSTs to
+    ``upload_paths`` (file uploads) may be up to ``upload_limit`` bytes."""
 
-    def __init__(self, app, limit: int) -> None:
+    def __init__(self, app, limit: int, upload_limit: int = 0, upload_paths=()) -> None:
         self.app = app
         self.limit = limit
+        self.upload_limit = upload_limit
+        self.upload_paths = tuple(upload_paths)
 
     async def __call__(self, scope, receive, send):
         if scope["type"] != "http":
             return await self.app(scope, receive, send)
+        limit = self.limit
+        if scope.get("method") == "POST" and scope.get("path") in self.upload_paths:
+            limit = max(limit, self.upload_limit)
         headers = dict(scope.get("headers") or [])
         declared = headers.get(b"content-length")
-        too_big = problem(413, "Payload Too Large", f"request body exceeds {self.limit} bytes")
+        too_big = problem(413, "Payload Too Large", f"request body exceeds {limit} bytes")
         if declared is not None:
             try:
-                if int(declared) > self.limit:
+                if int(declared) > limit:
                     return await too_big(scope, receive, send)
             except ValueError:
                 return await problem(400, "Bad Request", "invalid Content-Length")(
@@ -57,7 +63,7 @@ class BodyLimitMiddleware:
             message = await receive()
             if message["type"] == "http.request":
                 seen += len(message.get("body", b""))
-                if seen > self.limit:
+                if seen > limit:
                     raise _BodyTooLarge
             return message
 
@@ -89,7 +95,11 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
             app.state.catalogue = service.load_catalogue(settings.tables_dir)
         if settings.warm_up:
             service.warm_up(app.state.catalogue)
-        yield
+        api_catalogue.start(app)
+        try:
+            yield
+        finally:
+            api_catalogue.stop(app)
 
     app = FastAPI(
         title="skisnow",
@@ -103,7 +113,12 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
     )
     app.state.catalogue = catalogue
     app.state.settings = settings
-    app.add_middleware(BodyLimitMiddleware, limit=settings.max_body_bytes)
+    app.add_middleware(
+        BodyLimitMiddleware,
+        limit=settings.max_body_bytes,
+        upload_limit=settings.max_upload_bytes,
+        upload_paths=api_catalogue.UPLOAD_PATHS,
+    )
 
     @app.exception_handler(RequestValidationError)
     async def _validation(request: Request, exc: RequestValidationError):
@@ -235,5 +250,6 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
                 )
         return {"results": results}
 
+    api_catalogue.mount(app)
     web.mount(app)
     return app

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from pydantic import Field
@@ -26,3 +27,50 @@ class Settings(BaseSettings):
     warm_up: bool = Field(
         True, description="solve one case at start-up so the first request is not slow"
     )
+
+    # ---- catalogue of uploaded skis and grinds, background jobs (docs/uploads.md) ----
+    data_dir: Path = Field(
+        default_factory=lambda: (
+            Path(os.environ.get("XDG_DATA_HOME") or Path.home() / ".local" / "share") / "skisnow"
+        ),
+        description="writable directory of the catalogue database and uploaded items",
+    )
+    database_url: str | None = Field(
+        None,
+        description="SQLAlchemy URL of the catalogue (default sqlite:///DATA_DIR/catalogue.db)",
+    )
+    max_upload_bytes: int = Field(
+        32 * 1024 * 1024, ge=1024, description="largest accepted upload body (POST skis/grinds)"
+    )
+    max_grid_points: int = Field(
+        1024 * 1024, ge=64, description="largest uploaded height map (points)"
+    )
+    min_grid_side: int = Field(16, ge=2, description="smallest side of an uploaded height map")
+    table_points: int = Field(48, ge=2, le=512, description="pressure grid points of a table")
+    table_chunk_size: int = Field(4, ge=1, description="grid points per table-build task")
+    table_workers: int = Field(1, ge=1, le=64, description="Dask workers of a table build")
+    table_processes: bool = Field(True, description="Dask workers as processes (else threads)")
+    dask_scheduler: str | None = Field(None, description="existing Dask scheduler for builds")
+    train_epochs: int = Field(4000, ge=1, description="max Adam epochs of a ski's network")
+    train_lbfgs_epochs: int = Field(1500, ge=0, description="max L-BFGS iterations")
+    train_ensemble: int = Field(3, ge=1, le=16, description="members of a ski's network")
+    ski_max_test_rmse_um: float = Field(
+        8.0,
+        gt=0,
+        description="accuracy check: RMSE where H* < 0.2 mm on held-out measured load cases "
+        "(device noise included) [µm]",
+    )
+    job_workers: int = Field(1, ge=1, le=16, description="jobs run at once per service process")
+    job_poll_s: float = Field(1.0, gt=0, description="job runner poll interval [s]")
+    job_stale_s: float = Field(
+        120.0, gt=0, description="a running job without heartbeat this long is taken over [s]"
+    )
+    team_tokens: dict[str, str] = Field(
+        default_factory=dict,
+        description="bearer token -> team; empty (default): no authentication",
+    )
+
+    @property
+    def catalogue_url(self) -> str:
+        """The catalogue database URL (``database_url`` or SQLite under ``data_dir``)."""
+        return self.database_url or f"sqlite:///{Path(self.data_dir) / 'catalogue.db'}"

@@ -10,6 +10,13 @@ Routes (all ``GET`` so that every result is a link; no multipart, no JavaScript 
     The four metrics for every ski × grind, a comparison table, plots and provenance.
 ``/results.csv``
     The comparison table as CSV (one row per combination, units in the column names).
+``/upload``
+    Upload a ski's camber CSV or a grind's topography with their metadata. The two forms post
+    multipart to the REST routes (``POST /v1/skis``, ``POST /v1/grinds``, checks in
+    :mod:`app.uploads`) from ``static/upload.js``, show the problem+json errors next to the
+    field they name, then follow the job (``GET /v1/jobs/{id}`` every second) with a progress
+    bar and, when it is done, link back to the form with the new item selected. This page is
+    the one that needs JavaScript (uploads are multipart, progress needs polling).
 
 The query is validated with the bounds of :class:`app.schemas.ContactBody`; bad input re-shows
 the form with a message next to the offending field (422; 404 for an unknown ski or grind).
@@ -35,7 +42,7 @@ from fastapi import FastAPI, Request
 from fastapi.responses import HTMLResponse, Response
 from pydantic import ValidationError
 
-from app import plots, service
+from app import plots, service, uploads
 from app.schemas import ContactBody
 from solvers.errors import SkisnowError
 
@@ -293,11 +300,15 @@ def _failure_field(message: str) -> str:
 _PAGE = Template(resources.files("app").joinpath("templates/page.html").read_text("utf-8"))
 _CSS = resources.files("app").joinpath("static/web.css").read_text("utf-8")
 _JS = resources.files("app").joinpath("static/web.js").read_text("utf-8")
+_UPLOAD_CSS = resources.files("app").joinpath("static/upload.css").read_text("utf-8")
+_UPLOAD_JS = resources.files("app").joinpath("static/upload.js").read_text("utf-8")
 
 
-def _page(title: str, body: str, status: int = 200) -> HTMLResponse:
+def _page(
+    title: str, body: str, status: int = 200, *, css: str = _CSS, js: str = _JS
+) -> HTMLResponse:
     html = _PAGE.substitute(
-        title=escape(title), css=_CSS, js=_JS, body=body, version=service.code_version()
+        title=escape(title), css=css, js=js, body=body, version=service.code_version()
     )
     return HTMLResponse(html, status_code=status)
 
@@ -386,6 +397,8 @@ def render_form(cat: service.Catalogue, q: Query, status: int = 200) -> HTMLResp
     )
     body = f"""
 <h1>Ski–snow contact for a ski, a grind, a load and a snow</h1>
+<p class="hint"><a href="/upload" id="upload-link">Upload your own ski (camber CSV) or grind
+(topography)</a></p>
 {alert}
 <form id="contact-form" method="get" action="/results">
 <div class="grid2">
@@ -576,6 +589,233 @@ def _csv_value(v) -> str:
     return str(v)
 
 
+# ----------------------------------------------------------------------------- upload page
+
+
+@dataclass(frozen=True)
+class UploadField:
+    """One input of an upload form; ``name`` is the multipart field of the REST route."""
+
+    name: str
+    label: str
+    kind: str = "text"  # text | number | textarea | select | radio | file
+    hint: str = ""
+    required: bool = False
+    options: tuple[tuple[str, str], ...] = ()  # (value, label) of select and radio
+    attrs: str = ""
+    advanced: bool = False
+
+
+def _bounds(lo: float, hi: float) -> str:
+    return f'step="any" min="{lo:g}" max="{hi:g}"'
+
+
+_NAME_HINT = "letters, digits, '.', '_' or '-' (at most 64); shown in the contact form"
+_NAME_ATTRS = 'maxlength="64" pattern="[A-Za-z0-9][A-Za-z0-9._\\-]{0,63}" autocomplete="off"'
+
+#: the grind form: fields of ``POST /v1/grinds`` (docs/uploads.md)
+GRIND_UPLOAD_FIELDS = (
+    UploadField(
+        "file",
+        "Topography file",
+        "file",
+        "x3p, instrument files (SurfaceTopography formats), or a raw height grid .npy / .csv",
+        required=True,
+    ),
+    UploadField("name", "Grind name", hint=_NAME_HINT, required=True, attrs=_NAME_ATTRS),
+    UploadField("shop_code", "Shop code", attrs='maxlength="64"'),
+    UploadField("machine", "Grinding machine", attrs='maxlength="128"'),
+    UploadField(
+        "pattern_family",
+        "Pattern family",
+        hint="e.g. linear, cross, broken",
+        attrs='maxlength="128"',
+    ),
+    UploadField(
+        "coarseness_grade",
+        "Coarseness grade",
+        hint="e.g. fine, medium, coarse",
+        attrs='maxlength="64"',
+    ),
+    UploadField(
+        "temperature_window",
+        "Temperature window",
+        hint="e.g. −10 … −2 °C",
+        attrs='maxlength="64"',
+    ),
+    UploadField("notes", "Notes", "textarea", attrs='maxlength="2000" rows="3"'),
+    UploadField(
+        "pixel_size_um",
+        "Pixel size [µm]",
+        "number",
+        "raw grids (.npy, .csv) only: calibrated formats carry their own",
+        attrs=_bounds(*uploads.PIXEL_UM_RANGE),
+    ),
+    UploadField(
+        "height_unit",
+        "Height unit",
+        "select",
+        "raw grids (.npy, .csv) only: the unit of the numbers in the file",
+        options=(("", "from the file"), ("m", "m"), ("mm", "mm"), ("um", "µm"), ("nm", "nm")),
+    ),
+    UploadField(
+        "along_ski",
+        "Ski length along the instrument's",
+        "radio",
+        options=(("x", "x axis"), ("y", "y axis")),
+        advanced=True,
+    ),
+    UploadField(
+        "periodic",
+        "Periodic tiling for the solver",
+        "select",
+        "mirror (default for measured maps), window, or none (docs/topography.md)",
+        options=(("mirror", "mirror"), ("window", "window"), ("none", "none")),
+        advanced=True,
+    ),
+)
+
+#: the ski form: fields of ``POST /v1/skis`` (docs/uploads.md, the neutral CSV of docs/macro.md)
+SKI_UPLOAD_FIELDS = (
+    UploadField(
+        "file",
+        "Camber CSV",
+        "file",
+        "the neutral camber CSV (docs/macro.md): gaps per position for every load case",
+        required=True,
+        attrs='accept=".csv,.txt,text/csv"',
+    ),
+    UploadField("name", "Ski name", hint=_NAME_HINT, required=True, attrs=_NAME_ATTRS),
+    UploadField("brand_model", "Brand / model", attrs='maxlength="128"'),
+    UploadField(
+        "length_mm",
+        "Ski length [mm]",
+        "number",
+        required=True,
+        attrs=_bounds(*uploads.SKI_LENGTH_MM_RANGE),
+    ),
+    UploadField(
+        "width_mm",
+        "Running-surface width [mm]",
+        hint="one width, or a comma-separated list with the positions below",
+        required=True,
+        attrs='inputmode="decimal"',
+    ),
+    UploadField("style", "Style", "radio", options=(("classic", "classic"), ("skate", "skate"))),
+    UploadField("owner_team", "Owner / team", attrs='maxlength="64"'),
+    UploadField("notes", "Notes", "textarea", attrs='maxlength="2000" rows="3"'),
+    UploadField(
+        "width_positions_mm",
+        "Width positions [mm]",
+        hint="from the balance point, one per width, increasing",
+        advanced=True,
+    ),
+)
+
+#: (kind, job kind of app.uploads, REST route, form fields, title)
+UPLOAD_FORMS = (
+    ("grind", uploads.GRIND_JOB, "/v1/grinds", GRIND_UPLOAD_FIELDS, "Grind: topography"),
+    ("ski", uploads.SKI_JOB, "/v1/skis", SKI_UPLOAD_FIELDS, "Ski: camber measurements"),
+)
+
+
+def _upload_input(kind: str, f: UploadField) -> str:
+    fid = f"{kind}-{f.name}"
+    req = " required" if f.required else ""
+    common = f'id="{fid}" name="{f.name}" aria-describedby="{fid}-error"{req}'
+    if f.kind == "textarea":
+        control = f"<textarea {common} {f.attrs}></textarea>"
+    elif f.kind == "select":
+        opts = "".join(
+            f'<option value="{escape(v)}">{escape(label)}</option>' for v, label in f.options
+        )
+        control = f"<select {common}>{opts}</select>"
+    elif f.kind == "radio":
+        control = "".join(
+            f'<label class="inline"><input type="radio" name="{f.name}" value="{escape(v)}"'
+            f"{' checked' if i == 0 else ''}> {escape(label)}</label>"
+            for i, (v, label) in enumerate(f.options)
+        )
+        return (
+            f'<div class="field" data-field="{f.name}" role="radiogroup" id="{fid}"'
+            f' aria-describedby="{fid}-error"><span class="label">{escape(f.label)}</span> '
+            f'{control} <span class="error" id="{fid}-error" hidden></span>'
+            + (f'<div class="hint">{escape(f.hint)}</div>' if f.hint else "")
+            + "</div>"
+        )
+    else:
+        control = f'<input type="{f.kind}" {common} {f.attrs}>'
+    return (
+        f'<div class="field" data-field="{f.name}"><label for="{fid}">{escape(f.label)}'
+        f"{' <abbr title=required>*</abbr>' if f.required else ''}</label>{control}"
+        f' <span class="error" id="{fid}-error" hidden></span>'
+        + (f'<div class="hint">{escape(f.hint)}</div>' if f.hint else "")
+        + "</div>"
+    )
+
+
+def _return_query(cat: service.Catalogue, kind: str) -> str:
+    """The contact form's query that the done link extends with ``&{kind}=NAME``: the other
+    kind's first item and the default load and snow."""
+    other, items = ("ski", cat.skis) if kind == "grind" else ("grind", cat.grinds)
+    pairs = [(other, n) for n in sorted(items)[:1]]
+    pairs += [(k, DEFAULTS[k]) for k in (*NUMERIC, "snow_input", "body_weight_kg")]
+    return urlencode(pairs)
+
+
+def render_upload(cat: service.Catalogue, settings) -> HTMLResponse:
+    """The upload page: a grind form and a ski form, each with its job panel."""
+    token = bool(settings.team_tokens)
+    max_mib = settings.max_upload_bytes / 2**20
+    sections = []
+    for kind, job_kind, route, fields, title in UPLOAD_FORMS:
+        basic = "".join(_upload_input(kind, f) for f in fields if not f.advanced)
+        advanced = "".join(_upload_input(kind, f) for f in fields if f.advanced)
+        token_field = (
+            f'<div class="field"><label for="{kind}-token">Team token</label>'
+            f'<input type="password" id="{kind}-token" data-token autocomplete="off">'
+            '<div class="hint">uploads need your team\'s bearer token</div></div>'
+            if token
+            else ""
+        )
+        sections.append(
+            f"""<section class="upload" id="{kind}-upload">
+<h2>{escape(title)}</h2>
+<form id="{kind}-form" class="upload-form" method="post" action="{route}"
+ enctype="multipart/form-data" novalidate data-kind="{kind}" data-job-kind="{job_kind}"
+ data-max-bytes="{settings.max_upload_bytes}" data-return="/?{escape(_return_query(cat, kind))}">
+<div class="alert" id="{kind}-alert" role="alert" hidden></div>
+{basic}
+<details class="advanced"><summary>Advanced</summary>{advanced}</details>
+{token_field}
+<button type="submit" class="primary" id="{kind}-submit">Upload {kind}</button>
+<span class="hint">files up to {max_mib:.3g} MiB; checked at once, then processed in the
+background</span>
+</form>
+<div class="job" id="{kind}-job" hidden aria-live="polite">
+<h3>Job <code class="job-id"></code></h3>
+<p class="accepted"></p>
+<progress max="1" value="0" id="{kind}-progress"></progress>
+<span class="percent">0 %</span>
+<p>State: <b class="state" id="{kind}-job-state">queued</b> <span class="message"></span></p>
+<p class="error job-error" role="alert" hidden></p>
+<p class="actions"><a class="button primary done-link" id="{kind}-done-link" hidden href="/">
+Use it in the contact form</a></p>
+</div>
+</section>"""
+        )
+    body = f"""
+<h1>Upload a ski or a grind</h1>
+<p class="summary">The file is checked at once; a background job then builds the grind's lookup
+table or trains the ski's camber network (progress below). When it is done the item is in the
+<a href="/">contact form</a> and the JSON API (docs/uploads.md).</p>
+<noscript><p class="alert">This page needs JavaScript to upload and to follow the job; the
+REST API (<a href="/docs">/docs</a>) does the same.</p></noscript>
+<div class="grid2">{"".join(sections)}</div>
+"""
+    return _page("skisnow — upload", body, css=_CSS + _UPLOAD_CSS, js=_UPLOAD_JS)
+
+
 # ----------------------------------------------------------------------------- routes
 
 
@@ -611,6 +851,10 @@ def mount(app: FastAPI) -> None:
                 q.errors.setdefault(_failure_field(msg), f"{inp.ski} × {inp.grind}: {msg}")
             return render_form(cat, q, 422)
         return render_results(q, out)
+
+    @app.get("/upload", response_class=HTMLResponse, include_in_schema=False)
+    def upload(request: Request) -> HTMLResponse:
+        return render_upload(request.app.state.catalogue, request.app.state.settings)
 
     @app.get("/results.csv", include_in_schema=False)
     def results_csv(request: Request) -> Response:

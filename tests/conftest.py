@@ -58,6 +58,21 @@ def make_table(
     )
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _private_data_dir(tmp_path_factory):
+    """Every app built in the tests keeps its catalogue database and uploads in a temporary
+    data directory, never in the user's (SKISNOW_DATA_DIR, see docs/uploads.md)."""
+    import os
+
+    old = os.environ.get("SKISNOW_DATA_DIR")
+    os.environ["SKISNOW_DATA_DIR"] = str(tmp_path_factory.mktemp("skisnow-data"))
+    yield
+    if old is None:
+        os.environ.pop("SKISNOW_DATA_DIR", None)
+    else:
+        os.environ["SKISNOW_DATA_DIR"] = old
+
+
 @pytest.fixture(scope="session")
 def small_table() -> L.MicroTable:
     h = self_affine_surface(

@@ -2,12 +2,16 @@
 
 The app runs under uvicorn in a background thread on a free 127.0.0.1 port with the test
 catalogue. The test fills the form (using a load preset and the snow-density input), submits,
-finds the metrics and the plots, and saves screenshots to ``docs/screenshots/``.
+finds the metrics and the plots, and saves screenshots to ``docs/screenshots/``. The upload
+test sends a grind through the upload page (bad inputs first: errors next to their fields),
+follows its job to done and computes a contact with it in the form.
 Skipped only when Chromium or Playwright is missing outside CI; on CI (``CI`` set) it must run.
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 import shutil
 import socket
@@ -59,21 +63,13 @@ def _numba_threads_env():
         yield
 
 
-@pytest.fixture(scope="module")
-def server(catalogue):
+@contextlib.contextmanager
+def _serve(app):
+    """Run ``app`` under uvicorn in a background thread; yield its base URL."""
     import uvicorn
 
-    from app.api import create_app
-    from app.settings import Settings
-
     port = _free_port()
-    config = uvicorn.Config(
-        create_app(Settings(), catalogue=catalogue),
-        host="127.0.0.1",
-        port=port,
-        log_level="warning",
-    )
-    srv = uvicorn.Server(config)
+    srv = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
     thread = threading.Thread(target=srv.run, daemon=True)
     thread.start()
     deadline = time.monotonic() + 30
@@ -81,9 +77,44 @@ def server(catalogue):
         if time.monotonic() > deadline or not thread.is_alive():
             pytest.fail("uvicorn did not start")
         time.sleep(0.05)
-    yield f"http://127.0.0.1:{port}"
-    srv.should_exit = True
-    thread.join(timeout=10)
+    try:
+        yield f"http://127.0.0.1:{port}"
+    finally:
+        srv.should_exit = True
+        thread.join(timeout=10)
+
+
+@pytest.fixture(scope="module")
+def server(catalogue):
+    from app.api import create_app
+    from app.settings import Settings
+
+    with _serve(create_app(Settings(), catalogue=catalogue)) as url:
+        yield url
+
+
+@pytest.fixture(scope="module")
+def upload_server(catalogue, tmp_path_factory):
+    """The app on its own data directory and a copy of the catalogue, with table settings so
+    small that a grind's table builds in seconds (as tests/test_uploads.py)."""
+    from app import service
+    from app.api import create_app
+    from app.settings import Settings
+
+    cat = service.Catalogue(
+        tables_dir=catalogue.tables_dir, skis=dict(catalogue.skis), grinds=dict(catalogue.grinds)
+    )
+    settings = Settings(
+        data_dir=tmp_path_factory.mktemp("browser-uploads"),
+        warm_up=False,
+        table_points=8,
+        table_chunk_size=2,
+        table_processes=False,
+        job_poll_s=0.05,
+        max_upload_bytes=1_000_000,
+    )
+    with _serve(create_app(settings, catalogue=cat)) as url:
+        yield url
 
 
 @pytest.fixture(scope="module")
@@ -162,3 +193,83 @@ def test_bad_input_shows_the_field_error(server, page):
     expect(page.locator(".alert")).to_contain_text("Equivalent load on the ski")
     expect(page.locator("#load_kg-error")).to_contain_text("less than or equal to 150")
     expect(page.locator("#contact-form")).to_be_visible()
+
+
+def _npy_bytes(a) -> bytes:
+    import numpy as np
+
+    buf = io.BytesIO()
+    np.save(buf, a)
+    return buf.getvalue()
+
+
+def test_upload_a_grind_then_compute_with_it(upload_server, page, tmp_path):
+    import numpy as np
+
+    from solvers.texture import self_affine_surface
+
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    heights_um = 1e6 * self_affine_surface(
+        (64, 64), 1e-6, hurst=0.8, rms_height_m=1e-6, rng=np.random.default_rng(3)
+    )
+    npy = {"name": "shop7.npy", "mimeType": "application/octet-stream"}
+
+    page.goto(upload_server + "/")
+    page.click("#upload-link")
+    expect(page.locator("h1")).to_have_text("Upload a ski or a grind")
+    form = page.locator("#grind-form")
+
+    # a raw grid without its calibration: both fields say what is missing
+    page.set_input_files("#grind-file", files=[{**npy, "buffer": _npy_bytes(heights_um)}])
+    page.fill("#grind-name", "shop7-fine")
+    page.click("#grind-submit")
+    for field in ("pixel_size_um", "height_unit"):
+        expect(page.locator(f"#grind-{field}-error")).to_contain_text("must be given")
+    expect(page.locator("#grind-file-error")).to_be_hidden()
+    # bytes that are not what the name says: the error is next to the file
+    page.set_input_files("#grind-file", files=[{**npy, "buffer": b"not a numpy file"}])
+    page.fill("#grind-pixel_size_um", "1")
+    page.select_option("#grind-height_unit", "um")
+    page.click("#grind-submit")
+    expect(page.locator("#grind-file-error")).to_contain_text("shop7.npy")
+    expect(page.locator("#grind-pixel_size_um-error")).to_be_hidden()
+    assert "Traceback" not in page.inner_text("main")
+
+    # the real upload with its metadata
+    page.set_input_files("#grind-file", files=[{**npy, "buffer": _npy_bytes(heights_um)}])
+    for field, value in (
+        ("shop_code", "S7"),
+        ("machine", "Wintersteiger Mono"),
+        ("pattern_family", "linear"),
+        ("coarseness_grade", "fine"),
+        ("temperature_window", "-10 .. -2 C"),
+        ("notes", "browser test"),
+    ):
+        form.locator(f"[name={field}]").fill(value)
+    page.click("#grind-submit")
+    expect(page.locator("#grind-job")).to_be_visible()
+    expect(page.locator("#grind-job .accepted")).to_contain_text("64 × 64 grid")
+    expect(page.locator("#grind-job-state")).to_have_text("done")
+    expect(page.locator("#grind-job .percent")).to_have_text("100 %")
+    assert page.locator("#grind-progress").evaluate("el => el.value") == 1
+    expect(page.locator("#grind-file-error")).to_be_hidden()
+    link = page.locator("#grind-done-link")
+    expect(link).to_be_visible()
+    expect(link).to_contain_text("shop7-fine")
+    assert "grind_job=" in page.url  # a reload keeps following the job
+    page.screenshot(path=str(tmp_path / "web-upload.png"), full_page=True)
+    SCREENSHOTS.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(tmp_path / "web-upload.png", SCREENSHOTS / "web-upload.png")
+
+    # back in the form with the new grind selected: compute a contact with it
+    link.click()
+    page.wait_for_url("**/?**")
+    expect(page.locator("input[name=grind][value=shop7-fine]")).to_be_checked()
+    expect(page.locator("input[name=ski][value=ski-a]")).to_be_checked()
+    page.click("#submit")
+    page.wait_for_url("**/results?**")
+    expect(page.locator("#comparison")).to_contain_text("shop7-fine")
+    metric = page.locator('[data-metric="total_real_contact_area_mm2"] .value').first
+    assert float(metric.inner_text()) > 0
+    assert errors == []

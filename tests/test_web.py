@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import io
 import re
+from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
@@ -13,6 +14,7 @@ from app import web
 from app.api import create_app
 from app.settings import Settings
 
+REPO = Path(__file__).resolve().parents[1]
 QUERY = {
     "ski": ["ski-a", "ski-b"],
     "grind": "tiny-grind",
@@ -219,3 +221,274 @@ def test_html_is_escaped(client):
     r = client.get("/results", params=_q(ski="<script>alert(1)</script>"))
     assert r.status_code == 404
     assert "<script>alert(1)</script>" not in r.text
+
+
+# ----------------------------------------------------------------------------- upload page
+
+
+def _upload_fields(html: str, kind: str) -> dict[str, str]:
+    """{input name: its tag} of the ``{kind}-form`` on the upload page (radios: the first)."""
+    form = re.search(rf'<form id="{kind}-form".*?</form>', html, re.S).group(0)
+    out: dict[str, str] = {}
+    for m in re.finditer(r'<(?:input|select|textarea)[^>]*name="([^"]+)"[^>]*>', form):
+        out.setdefault(m.group(1), m.group(0))
+    return out
+
+
+def _multipart_schema(app, route: str) -> dict:
+    spec = app.openapi()
+    body = spec["paths"][route]["post"]["requestBody"]["content"]["multipart/form-data"]
+    ref = body["schema"]["$ref"].rsplit("/", 1)[1]
+    return spec["components"]["schemas"][ref]
+
+
+def page_fields(status: int, body: dict, names: set[str], filename: str) -> set[str]:
+    """The form fields the upload page shows a problem+json answer next to.
+
+    The rule of ``problemFields`` in app/static/upload.js (the browser test runs the script on
+    these answers): ``errors[].field``, ``field``, the first word(s) of ``detail``, "<a> and
+    <b> must be given", 409 "named" → name, 413/415, "line N:" or the file's name → file.
+    """
+    if body.get("errors"):
+        return {e["field"].split(".")[-1] for e in body["errors"]} & names or {"form"}
+    detail = body.get("detail") or body.get("title") or ""
+    if body.get("field") in names:
+        return {body["field"]}
+    m = re.match(r"([a-z_]+)(?: and ([a-z_]+))?\b", detail)
+    if not m or m.group(1) not in names:
+        m = re.search(r"\b([a-z_]+)(?: and ([a-z_]+))? must be given\b", detail)
+    if m and m.group(1) in names:
+        return {g for g in m.groups() if g in names}
+    if status == 409 and " named " in detail:
+        return {"name"}
+    if status in (413, 415) or re.match(r"line \d+", detail) or (filename and filename in detail):
+        return {"file"}
+    return {"form"}
+
+
+def _npy(a) -> bytes:
+    import numpy as np
+
+    buf = io.BytesIO()
+    np.save(buf, a)
+    return buf.getvalue()
+
+
+def _heights_um(shape=(64, 64)):
+    import numpy as np
+
+    from solvers.texture import self_affine_surface
+
+    h = self_affine_surface(shape, 1e-6, hurst=0.8, rms_height_m=1e-6, rng=np.random.default_rng(1))
+    return h * 1e6
+
+
+@pytest.fixture(scope="module")
+def camber_csv(tmp_path_factory) -> bytes:
+    """A valid camber CSV (the demo ski A's beam model, 5 loads × 5 positions, 5 mm)."""
+    import numpy as np
+
+    from app.storage.skis import CamberData, read_ski, write_camber_csv
+    from solvers.beam import G_STANDARD, measure_camber
+
+    rec = read_ski(REPO / "tables" / "skis" / "ski-a.h5")
+    loads = np.array([20.0, 35.0, 50.0, 65.0, 80.0]) * G_STANDARD
+    positions = np.linspace(-0.30, 0.10, 5)
+    f, xf, gaps = measure_camber(rec.beam, loads, positions, noise_m=3e-6, rng=7)
+    sel = np.arange(0, rec.beam.positions_m.size, 5)
+    data = CamberData("my-ski", rec.beam.positions_m[sel], f, xf, ["mean"] * f.size, gaps[:, sel])
+    path = tmp_path_factory.mktemp("csv") / "ski.csv"
+    write_camber_csv(path, data)
+    return path.read_bytes()
+
+
+@pytest.fixture(scope="module")
+def upload_client(catalogue, tmp_path_factory):
+    """An app on its own data directory and a copy of the catalogue: nothing leaks."""
+    from app import service
+
+    cat = service.Catalogue(
+        tables_dir=catalogue.tables_dir, skis=dict(catalogue.skis), grinds=dict(catalogue.grinds)
+    )
+    data_dir = tmp_path_factory.mktemp("web-upload")
+    settings = Settings(data_dir=data_dir, warm_up=False, max_upload_bytes=1_000_000)
+    with TestClient(create_app(settings, catalogue=cat), raise_server_exceptions=False) as c:
+        c.data_dir = data_dir
+        yield c
+
+
+def test_form_links_to_the_upload_page(client):
+    html = client.get("/").text
+    assert 'href="/upload"' in html
+
+
+def test_upload_page_has_both_forms_with_their_metadata(client, catalogue):
+    r = client.get("/upload")
+    assert r.status_code == 200
+    assert r.headers["content-type"].startswith("text/html")
+    html = r.text
+    for kind, route in (("grind", "/v1/grinds"), ("ski", "/v1/skis")):
+        assert re.search(
+            rf'<form id="{kind}-form" class="upload-form" method="post" action="{route}"\s+'
+            r'enctype="multipart/form-data"',
+            html,
+        )
+        # a progress bar, the job's state and the done link per form
+        assert f'<progress max="1" value="0" id="{kind}-progress">' in html
+        assert f'id="{kind}-job-state"' in html and f'id="{kind}-done-link"' in html
+        assert f'id="{kind}-alert" role="alert" hidden' in html
+        fields = _upload_fields(html, kind)
+        assert 'type="file"' in fields["file"] and "required" in fields["file"]
+        # every input has its error slot next to it, hidden until an answer names it
+        for name in fields:
+            assert f'<span class="error" id="{kind}-{name}-error" hidden></span>' in html
+    grind, ski = _upload_fields(html, "grind"), _upload_fields(html, "ski")
+    for name in (
+        "shop_code",
+        "machine",
+        "pattern_family",
+        "coarseness_grade",
+        "temperature_window",
+        "notes",
+        "pixel_size_um",
+        "height_unit",
+    ):
+        assert name in grind
+    for name in ("brand_model", "length_mm", "width_mm", "style", "owner_team", "notes"):
+        assert name in ski
+    assert 'value="classic" checked' in ski["style"]
+    for text in (
+        "Shop code",
+        "Grinding machine",
+        "Pattern family",
+        "Coarseness grade",
+        "Temperature window",
+        "Brand / model",
+        "Ski length [mm]",
+        "Owner / team",
+        "Pixel size [µm]",
+        'value="um">µm<',
+    ):
+        assert text in html
+    # self-contained: inline script and style, no external resources
+    assert "skisnowUpload" in html and "section.upload" in html
+    assert not re.search(r'(src|href)="(https?:)?//', html)
+    assert "Team token" not in html  # teams are off
+
+
+def test_upload_form_fields_are_those_of_the_api(client):
+    """The forms post exactly the multipart fields of POST /v1/grinds and /v1/skis."""
+    html = client.get("/upload").text
+    for kind, route in (("grind", "/v1/grinds"), ("ski", "/v1/skis")):
+        schema = _multipart_schema(client.app, route)
+        fields = _upload_fields(html, kind)
+        assert set(fields) == set(schema["properties"]), kind
+        required = {n for n, tag in fields.items() if re.search(r"\brequired\b", tag)}
+        assert required == set(schema["required"]), kind
+        for name in fields:
+            prop = schema["properties"][name]
+            for value in prop.get("enum", []) + [
+                v for alt in prop.get("anyOf", []) for v in alt.get("enum", [])
+            ]:
+                assert f'value="{value}"' in html, (kind, name, value)
+
+
+def test_upload_done_link_opens_the_form_with_the_item(client):
+    """The done link is the page's data-return query plus ``&{kind}=NAME``."""
+    html = client.get("/upload").text
+    for kind, other in (("grind", "ski-a"), ("ski", "tiny-grind")):
+        ret = re.search(rf'data-kind="{kind}".*?data-return="([^"]+)"', html, re.S).group(1)
+        ret = ret.replace("&amp;", "&")
+        assert ret.startswith("/?")
+        page = client.get(f"{ret}&{kind}={'tiny-grind' if kind == 'grind' else 'ski-b'}")
+        assert page.status_code == 200
+        assert 'class="alert"' not in page.text
+        chosen = "tiny-grind" if kind == "grind" else "ski-b"
+        assert re.search(rf'value="{chosen}" checked', page.text)
+        assert re.search(rf'value="{other}" checked', page.text)
+
+
+def test_upload_page_asks_for_a_team_token_when_teams_are_on(catalogue, tmp_path):
+    settings = Settings(data_dir=tmp_path, warm_up=False, team_tokens={"tok": "team-a"})
+    with TestClient(create_app(settings, catalogue=catalogue)) as c:
+        html = c.get("/upload").text
+    assert html.count("Team token") == 2 and "data-token" in html
+
+
+GRIND_BAD = [
+    # (form fields, file name, content, status, field shown)
+    ({}, "g.npy", b"not numpy at all", 415, "file"),
+    ({}, "g.npy", b"", 422, "file"),
+    ({}, "g.npy", "shape16x8", 422, "file"),
+    ({}, "g.bin", b"\x00\x01garbage" * 10, 415, "file"),
+    ({"pixel_size_um": None, "height_unit": None}, "g.npy", None, 422, "pixel_size_um height_unit"),
+    ({"height_unit": "m"}, "g.npy", None, 422, "height_unit"),
+    ({"pixel_size_um": "0"}, "g.npy", None, 422, "pixel_size_um"),
+    ({"name": "bad name!"}, "g.npy", None, 422, "name"),
+    ({"name": None}, "g.npy", None, 422, "name"),
+    ({"name": "tiny-grind"}, "g.npy", None, 409, "name"),
+    ({"along_ski": "z"}, "g.npy", None, 422, "along_ski"),
+    ({}, "g.npy", "big", 413, "file"),
+]
+
+
+@pytest.mark.parametrize(("fields", "filename", "content", "status", "shown"), GRIND_BAD)
+def test_bad_grind_upload_is_shown_next_to_its_field(
+    upload_client, fields, filename, content, status, shown
+):
+    import numpy as np
+
+    data = {"name": "my-grind", "pixel_size_um": "1", "height_unit": "um", **fields}
+    data = {k: v for k, v in data.items() if v is not None}
+    if content is None:
+        content = _npy(_heights_um())
+    elif content == "shape16x8":
+        content = _npy(np.ones((16, 8)))
+    elif content == "big":
+        content = b"x" * 1_100_000
+    r = upload_client.post(
+        "/v1/grinds", files={"file": (filename, content, "application/octet-stream")}, data=data
+    )
+    _check_shown(upload_client, r, status, shown, _upload_names("grind"), filename)
+
+
+def test_bad_ski_uploads_are_shown_next_to_their_field(upload_client, camber_csv):
+    cases = [
+        ({}, "ski.csv", b"position_mm,gap\n1,2\n", 422, "file"),
+        ({}, "ski.npy", camber_csv, 415, "file"),
+        ({"length_mm": "500"}, "ski.csv", camber_csv, 422, "length_mm"),
+        ({"length_mm": "long"}, "ski.csv", camber_csv, 422, "length_mm"),
+        ({"width_mm": "wide"}, "ski.csv", camber_csv, 422, "width_mm"),
+        ({"width_mm": "40,44"}, "ski.csv", camber_csv, 422, "width_positions_mm"),
+        ({"style": "telemark"}, "ski.csv", camber_csv, 422, "style"),
+        ({"name": "ski-a"}, "ski.csv", camber_csv, 409, "name"),
+        ({"width_mm": None}, "ski.csv", camber_csv, 422, "width_mm"),
+    ]
+    for fields, filename, content, status, shown in cases:
+        data = {"name": "my-ski", "length_mm": "2000", "width_mm": "44", **fields}
+        data = {k: v for k, v in data.items() if v is not None}
+        r = upload_client.post(
+            "/v1/skis", files={"file": (filename, content, "text/csv")}, data=data
+        )
+        _check_shown(upload_client, r, status, shown, _upload_names("ski"), filename)
+
+
+def _upload_names(kind: str) -> set[str]:
+    fields = web.GRIND_UPLOAD_FIELDS if kind == "grind" else web.SKI_UPLOAD_FIELDS
+    return {f.name for f in fields}
+
+
+def _check_shown(client, r, status, shown, names, filename):
+    assert r.status_code == status, r.text[:500]
+    assert r.headers["content-type"].startswith("application/problem+json")
+    body = r.json()
+    assert page_fields(status, body, names, filename) == set(shown.split()), body
+    # readable: one sentence or a few, no traceback, no server path
+    text = str(body.get("detail")) + str(body.get("errors", ""))
+    assert "Traceback" not in text and str(client.data_dir) not in text
+    assert len(body["detail"]) < 600
+    # a refused upload leaves nothing behind
+    stored = [
+        p for p in client.data_dir.rglob("*") if p.is_file() and not p.name.startswith("catalogue")
+    ]
+    assert stored == []

@@ -1,0 +1,245 @@
+"""Background jobs of the service: persisted in the catalogue database, run in a thread pool.
+
+A :class:`JobRunner` lives in each service process. Its poll thread claims jobs from the
+database (queued ones, and running ones whose runner stopped beating: a crashed process), runs
+them in a small thread pool through a handler per job kind, and beats a heartbeat for the jobs
+it runs. Handlers report progress through :class:`JobContext`, which also raises
+:class:`JobInterrupted` once the runner is stopping; an interrupted job goes back to
+``queued`` and resumes in the next process that starts (grind tables from their chunk
+checkpoints, see :mod:`app.build_tables`; ski networks from the start).
+
+Job states: ``queued`` → ``running`` → ``done`` | ``failed`` (``running`` → ``queued`` when the
+service stops mid-job).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import logging
+import os
+import socket
+import threading
+import time
+import uuid
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, field
+
+from app.storage.catalogue import CatalogueDB, ItemRow, JobRow
+from solvers.errors import SkisnowError
+
+__all__ = ["JobContext", "JobInterrupted", "JobRunner"]
+
+log = logging.getLogger(__name__)
+
+
+class JobInterrupted(Exception):
+    """Raised inside a handler when the runner stops; the job goes back to the queue."""
+
+
+@dataclass
+class JobContext:
+    """What a handler gets: its job and item rows, the database, progress reporting."""
+
+    job: JobRow
+    item: ItemRow | None
+    db: CatalogueDB
+    stop_event: threading.Event
+    _last_write: float = field(default=0.0, repr=False)
+    _last_message: str = field(default="", repr=False)
+
+    def check_stop(self) -> None:
+        if self.stop_event.is_set():
+            raise JobInterrupted("the service is stopping")
+
+    def progress(self, fraction: float, message: str | None = None) -> None:
+        """Record progress in [0, 1] (throttled to a write every 0.25 s); may interrupt."""
+        self.check_stop()
+        fraction = min(max(float(fraction), 0.0), 1.0)
+        now = time.monotonic()
+        changed = message is not None and message != self._last_message
+        if changed or now - self._last_write >= 0.25 or fraction >= 1.0:
+            values = {"progress": fraction}
+            if message is not None:
+                values["message"] = message
+                self._last_message = message
+            self.db.update_job(self.job.id, **values)
+            self._last_write = now
+
+
+Handler = Callable[[JobContext], str]
+FailureHook = Callable[[JobContext, BaseException], None]
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # pragma: no cover - another user's process
+        return True
+    return True
+
+
+class JobRunner:
+    """Claim and run the catalogue's jobs in this process.
+
+    Parameters
+    ----------
+    db : CatalogueDB
+        The catalogue database.
+    handlers : dict
+        Job kind → ``handler(ctx) -> final message``; raising fails the job (the message of a
+        :class:`~solvers.errors.SkisnowError` or ``ImportError`` is the job's error).
+    on_failure : callable, optional
+        ``on_failure(ctx, exc)`` after a job failed (clean-up of partial outputs).
+    on_poll : callable, optional
+        Called on every poll (the service syncs its live catalogue with the database there).
+    workers : int
+        Jobs run at once.
+    poll_s : float
+        Poll interval [s].
+    stale_s : float
+        A running job whose heartbeat is older than this is taken over [s].
+    """
+
+    def __init__(
+        self,
+        db: CatalogueDB,
+        handlers: dict[str, Handler],
+        *,
+        on_failure: FailureHook | None = None,
+        on_poll: Callable[[], None] | None = None,
+        workers: int = 1,
+        poll_s: float = 1.0,
+        stale_s: float = 120.0,
+    ) -> None:
+        self.db = db
+        self.handlers = handlers
+        self.on_failure = on_failure
+        self.on_poll = on_poll
+        self.workers = int(workers)
+        self.poll_s = float(poll_s)
+        self.stale_s = float(stale_s)
+        self.host = socket.gethostname()
+        self.runner_id = f"{self.host}:{os.getpid()}:{uuid.uuid4().hex[:8]}"
+        self._stop = threading.Event()
+        self._wake = threading.Event()
+        self._active: dict[str, Future] = {}
+        self._lock = threading.Lock()
+        self._pool: ThreadPoolExecutor | None = None
+        self._thread: threading.Thread | None = None
+
+    # ------------------------------------------------------------------------ control
+
+    def start(self) -> None:
+        """Requeue jobs of dead processes on this host, then start polling."""
+        self._requeue_dead_local_runners()
+        self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="skisnow-job")
+        self._thread = threading.Thread(target=self._loop, name="skisnow-jobs", daemon=True)
+        self._thread.start()
+
+    def stop(self, timeout: float = 60.0) -> None:
+        """Interrupt running jobs (they go back to ``queued``) and wait for the threads."""
+        self._stop.set()
+        self._wake.set()
+        if self._thread is not None:
+            self._thread.join(timeout)
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+
+    def wake(self) -> None:
+        """Poll now (a job was just queued)."""
+        self._wake.set()
+
+    def busy_item_ids(self) -> set[str]:
+        with self._lock:
+            return {item for item, _ in self._active.values() if item}
+
+    # ------------------------------------------------------------------------ internals
+
+    def _requeue_dead_local_runners(self) -> None:
+        for job in self.db.running_jobs_of(f"{self.host}:"):
+            try:
+                pid = int((job.runner or "").split(":")[1])
+            except (IndexError, ValueError):
+                continue
+            if not _pid_alive(pid):
+                log.info("job %s: its process %d is gone; requeued", job.id, pid)
+                self.db.update_job(
+                    job.id, state="queued", runner=None, message="requeued after a crash"
+                )
+
+    def _loop(self) -> None:
+        while not self._stop.is_set():
+            try:
+                self._poll()
+            except Exception:  # pragma: no cover - keep the runner alive on DB hiccups
+                log.exception("job runner poll failed")
+            self._wake.wait(self.poll_s)
+            self._wake.clear()
+
+    def _poll(self) -> None:
+        with self._lock:
+            done = [j for j, (_, fut) in self._active.items() if fut.done()]
+            for j in done:
+                del self._active[j]
+            active = list(self._active)
+        self.db.heartbeat(active, self.runner_id)
+        if self.on_poll is not None:
+            self.on_poll()
+        free = self.workers - len(active)
+        if free <= 0 or self._stop.is_set():
+            return
+        stale_before = _dt.datetime.now(_dt.UTC) - _dt.timedelta(seconds=self.stale_s)
+        for job in self.db.claimable_jobs(stale_before):
+            if free <= 0 or self._stop.is_set():
+                break
+            if job.id in active or job.kind not in self.handlers:
+                continue
+            if not self.db.claim_job(job.id, self.runner_id, stale_before):
+                continue  # another process was quicker
+            fut = self._pool.submit(self._run, job.id)
+            with self._lock:
+                self._active[job.id] = (job.item_id, fut)
+            free -= 1
+
+    def _run(self, job_id: str) -> None:
+        job = self.db.job(job_id)
+        item = self.db.item(job.item_id) if job.item_id else None
+        ctx = JobContext(job, item, self.db, self._stop)
+        t0 = time.perf_counter()
+        try:
+            if job.item_id and item is None:
+                raise SkisnowError("the job's item was deleted")
+            message = self.handlers[job.kind](ctx)
+        except JobInterrupted:
+            log.info("job %s interrupted; it resumes at the next start", job_id)
+            self.db.update_job(
+                job_id,
+                state="queued",
+                runner=None,
+                message="interrupted by a service stop; resumes at the next start",
+            )
+            return
+        except BaseException as exc:
+            if isinstance(exc, SkisnowError | ImportError):
+                error = str(exc)
+            else:
+                log.exception("job %s (%s) failed", job_id, job.kind)
+                error = f"internal error ({type(exc).__name__}: {exc}); it was logged"
+            self.db.update_job(job_id, state="failed", error=error, message="failed")
+            if self.on_failure is not None:
+                try:
+                    self.on_failure(ctx, exc)
+                except Exception:  # pragma: no cover
+                    log.exception("clean-up of failed job %s failed", job_id)
+            if not isinstance(exc, Exception):
+                raise
+            return
+        self.db.update_job(
+            job_id,
+            state="done",
+            progress=1.0,
+            message=message or f"done in {time.perf_counter() - t0:.1f} s",
+        )

@@ -1,0 +1,357 @@
+"""The persistent catalogue: items (skis, grinds) and background jobs in a SQL database.
+
+SQLAlchemy 2 Core over any URL it knows; SQLite (one file under the data directory) by default,
+PostgreSQL for several replicas sharing one catalogue (untested here). The database holds the
+records; the data themselves are the self-describing HDF5 files it points to.
+
+Tables
+------
+``items``
+    ``id`` (hex uuid), ``kind`` (``ski`` | ``grind``), ``name`` (unique per kind),
+    ``metadata`` (JSON: the upload's technician fields and derived figures), ``file_path``
+    (the ready HDF5 file; NULL until the item's job is done), ``sha256`` of that file,
+    ``state`` (``pending`` | ``ready`` | ``failed``), ``read_only`` (shipped demo items),
+    ``team`` (owner team or NULL), ``created_at``, ``updated_at`` (UTC).
+``jobs``
+    ``id`` (hex uuid), ``kind`` (``grind-table`` | ``ski-network``), ``item_id``, ``state``
+    (``queued`` | ``running`` | ``done`` | ``failed``), ``progress`` (0..1), ``message``,
+    ``error``, ``runner`` (``host:pid`` of the process running it), ``heartbeat_at``,
+    ``created_at``, ``updated_at``.
+
+A job is claimed with one conditional ``UPDATE`` (``WHERE state = 'queued'`` or a stale
+heartbeat), so two processes never run the same job.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import uuid
+from dataclasses import dataclass
+from pathlib import Path
+
+import sqlalchemy as sa
+
+from solvers.errors import InputError
+
+__all__ = ["ITEM_KINDS", "JOB_STATES", "CatalogueDB", "ItemRow", "JobRow", "NameTakenError"]
+
+ITEM_KINDS = ("ski", "grind")
+ITEM_STATES = ("pending", "ready", "failed")
+JOB_STATES = ("queued", "running", "done", "failed")
+
+_meta = sa.MetaData()
+
+ITEMS = sa.Table(
+    "items",
+    _meta,
+    sa.Column("id", sa.String(32), primary_key=True),
+    sa.Column("kind", sa.String(16), nullable=False),
+    sa.Column("name", sa.String(64), nullable=False),
+    sa.Column("metadata", sa.JSON, nullable=False, default=dict),
+    sa.Column("file_path", sa.String(1024)),
+    sa.Column("sha256", sa.String(64)),
+    sa.Column("state", sa.String(16), nullable=False),
+    sa.Column("read_only", sa.Boolean, nullable=False, default=False),
+    sa.Column("team", sa.String(64)),
+    sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+    sa.Column("updated_at", sa.DateTime(timezone=True), nullable=False),
+    sa.UniqueConstraint("kind", "name", name="uq_items_kind_name"),
+)
+
+JOBS = sa.Table(
+    "jobs",
+    _meta,
+    sa.Column("id", sa.String(32), primary_key=True),
+    sa.Column("kind", sa.String(32), nullable=False),
+    sa.Column("item_id", sa.String(32), sa.ForeignKey("items.id", ondelete="CASCADE")),
+    sa.Column("state", sa.String(16), nullable=False),
+    sa.Column("progress", sa.Float, nullable=False, default=0.0),
+    sa.Column("message", sa.Text, nullable=False, default=""),
+    sa.Column("error", sa.Text),
+    sa.Column("runner", sa.String(128)),
+    sa.Column("heartbeat_at", sa.DateTime(timezone=True)),
+    sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+    sa.Column("updated_at", sa.DateTime(timezone=True), nullable=False),
+)
+
+
+class NameTakenError(InputError):
+    """An item of this kind already has the name (HTTP 409)."""
+
+
+def _now() -> _dt.datetime:
+    return _dt.datetime.now(_dt.UTC)
+
+
+def _utc(value: _dt.datetime | None) -> _dt.datetime | None:
+    # SQLite gives naive datetimes back; they were stored as UTC
+    if value is not None and value.tzinfo is None:
+        return value.replace(tzinfo=_dt.UTC)
+    return value
+
+
+@dataclass(frozen=True)
+class ItemRow:
+    id: str
+    kind: str
+    name: str
+    metadata: dict
+    file_path: str | None
+    sha256: str | None
+    state: str
+    read_only: bool
+    team: str | None
+    created_at: _dt.datetime
+    updated_at: _dt.datetime
+
+    def public(self) -> dict:
+        """JSON-ready view (no server paths)."""
+        return {
+            "id": self.id,
+            "kind": self.kind,
+            "name": self.name,
+            "state": self.state,
+            "read_only": self.read_only,
+            "team": self.team,
+            "metadata": self.metadata,
+            "file": Path(self.file_path).name if self.file_path else None,
+            "sha256": self.sha256,
+            "created_at": self.created_at.isoformat(timespec="seconds"),
+            "updated_at": self.updated_at.isoformat(timespec="seconds"),
+        }
+
+
+@dataclass(frozen=True)
+class JobRow:
+    id: str
+    kind: str
+    item_id: str | None
+    state: str
+    progress: float
+    message: str
+    error: str | None
+    runner: str | None
+    heartbeat_at: _dt.datetime | None
+    created_at: _dt.datetime
+    updated_at: _dt.datetime
+
+
+def _item(row) -> ItemRow:
+    d = dict(row._mapping)
+    for k in ("created_at", "updated_at"):
+        d[k] = _utc(d[k])
+    d["metadata"] = dict(d["metadata"] or {})
+    return ItemRow(**d)
+
+
+def _job(row) -> JobRow:
+    d = dict(row._mapping)
+    for k in ("created_at", "updated_at", "heartbeat_at"):
+        d[k] = _utc(d[k])
+    return JobRow(**d)
+
+
+class CatalogueDB:
+    """Items and jobs in one database (thread-safe: one short transaction per call).
+
+    Parameters
+    ----------
+    url : str
+        SQLAlchemy database URL, e.g. ``sqlite:////var/lib/skisnow/catalogue.db`` or
+        ``postgresql+psycopg://user@host/skisnow``. The tables are created if missing.
+    """
+
+    def __init__(self, url: str) -> None:
+        kwargs: dict = {"future": True}
+        if url.startswith("sqlite"):
+            path = url.split(":///", 1)[-1]
+            if path and path != ":memory:":
+                Path(path).parent.mkdir(parents=True, exist_ok=True)
+            kwargs["connect_args"] = {"check_same_thread": False, "timeout": 30}
+        self.url = url
+        self.engine = sa.create_engine(url, **kwargs)
+        if url.startswith("sqlite"):
+
+            @sa.event.listens_for(self.engine, "connect")
+            def _pragmas(dbapi_conn, _record):  # pragma: no cover - trivial
+                cur = dbapi_conn.cursor()
+                cur.execute("PRAGMA journal_mode=WAL")
+                cur.execute("PRAGMA foreign_keys=ON")
+                cur.close()
+
+        _meta.create_all(self.engine)
+
+    def close(self) -> None:
+        self.engine.dispose()
+
+    # ------------------------------------------------------------------------- items
+
+    def add_item(
+        self,
+        kind: str,
+        name: str,
+        *,
+        metadata: dict | None = None,
+        state: str = "pending",
+        file_path: str | None = None,
+        sha256: str | None = None,
+        read_only: bool = False,
+        team: str | None = None,
+    ) -> ItemRow:
+        """Insert an item; :class:`NameTakenError` if ``(kind, name)`` exists."""
+        if kind not in ITEM_KINDS or state not in ITEM_STATES:
+            raise InputError(f"bad item kind/state {kind!r}/{state!r}")
+        now = _now()
+        values = {
+            "id": uuid.uuid4().hex,
+            "kind": kind,
+            "name": name,
+            "metadata": metadata or {},
+            "file_path": file_path,
+            "sha256": sha256,
+            "state": state,
+            "read_only": read_only,
+            "team": team,
+            "created_at": now,
+            "updated_at": now,
+        }
+        try:
+            with self.engine.begin() as c:
+                c.execute(ITEMS.insert().values(**values))
+        except sa.exc.IntegrityError:
+            raise NameTakenError(f"a {kind} named {name!r} already exists") from None
+        return self.item(values["id"])
+
+    def item(self, item_id: str) -> ItemRow | None:
+        with self.engine.connect() as c:
+            row = c.execute(ITEMS.select().where(ITEMS.c.id == item_id)).first()
+        return _item(row) if row else None
+
+    def item_by_name(self, kind: str, name: str) -> ItemRow | None:
+        with self.engine.connect() as c:
+            row = c.execute(
+                ITEMS.select().where(ITEMS.c.kind == kind, ITEMS.c.name == name)
+            ).first()
+        return _item(row) if row else None
+
+    def items(self, kind: str | None = None, state: str | None = None) -> list[ItemRow]:
+        q = ITEMS.select().order_by(ITEMS.c.kind, ITEMS.c.name)
+        if kind is not None:
+            q = q.where(ITEMS.c.kind == kind)
+        if state is not None:
+            q = q.where(ITEMS.c.state == state)
+        with self.engine.connect() as c:
+            return [_item(r) for r in c.execute(q)]
+
+    def update_item(self, item_id: str, **values) -> ItemRow:
+        """Update columns of an item; renaming onto a taken name raises NameTakenError."""
+        values["updated_at"] = _now()
+        try:
+            with self.engine.begin() as c:
+                c.execute(ITEMS.update().where(ITEMS.c.id == item_id).values(**values))
+        except sa.exc.IntegrityError:
+            raise NameTakenError(f"name {values.get('name')!r} is already taken") from None
+        return self.item(item_id)
+
+    def delete_item(self, item_id: str) -> None:
+        with self.engine.begin() as c:
+            c.execute(JOBS.delete().where(JOBS.c.item_id == item_id))
+            c.execute(ITEMS.delete().where(ITEMS.c.id == item_id))
+
+    # -------------------------------------------------------------------------- jobs
+
+    def add_job(self, kind: str, item_id: str | None, message: str = "queued") -> JobRow:
+        now = _now()
+        job_id = uuid.uuid4().hex
+        with self.engine.begin() as c:
+            c.execute(
+                JOBS.insert().values(
+                    id=job_id,
+                    kind=kind,
+                    item_id=item_id,
+                    state="queued",
+                    progress=0.0,
+                    message=message,
+                    created_at=now,
+                    updated_at=now,
+                )
+            )
+        return self.job(job_id)
+
+    def job(self, job_id: str) -> JobRow | None:
+        with self.engine.connect() as c:
+            row = c.execute(JOBS.select().where(JOBS.c.id == job_id)).first()
+        return _job(row) if row else None
+
+    def jobs(self, *, item_id: str | None = None, states=None, limit: int = 100) -> list[JobRow]:
+        q = JOBS.select().order_by(JOBS.c.created_at.desc()).limit(limit)
+        if item_id is not None:
+            q = q.where(JOBS.c.item_id == item_id)
+        if states is not None:
+            q = q.where(JOBS.c.state.in_(list(states)))
+        with self.engine.connect() as c:
+            return [_job(r) for r in c.execute(q)]
+
+    def update_job(self, job_id: str, **values) -> None:
+        now = _now()
+        values["updated_at"] = now
+        if values.get("state") == "running" or "progress" in values:
+            values.setdefault("heartbeat_at", now)
+        with self.engine.begin() as c:
+            c.execute(JOBS.update().where(JOBS.c.id == job_id).values(**values))
+
+    def heartbeat(self, job_ids, runner: str) -> None:
+        if not job_ids:
+            return
+        with self.engine.begin() as c:
+            c.execute(
+                JOBS.update()
+                .where(JOBS.c.id.in_(list(job_ids)), JOBS.c.runner == runner)
+                .values(heartbeat_at=_now())
+            )
+
+    def claim_job(self, job_id: str, runner: str, stale_before: _dt.datetime) -> bool:
+        """Atomically mark a queued (or stale running) job as running by ``runner``."""
+        now = _now()
+        with self.engine.begin() as c:
+            res = c.execute(
+                JOBS.update()
+                .where(
+                    JOBS.c.id == job_id,
+                    sa.or_(
+                        JOBS.c.state == "queued",
+                        sa.and_(
+                            JOBS.c.state == "running",
+                            sa.or_(
+                                JOBS.c.heartbeat_at.is_(None), JOBS.c.heartbeat_at < stale_before
+                            ),
+                        ),
+                    ),
+                )
+                .values(state="running", runner=runner, heartbeat_at=now, updated_at=now)
+            )
+        return res.rowcount == 1
+
+    def claimable_jobs(self, stale_before: _dt.datetime) -> list[JobRow]:
+        """Queued jobs, and running jobs whose runner stopped beating (oldest first)."""
+        q = (
+            JOBS.select()
+            .where(
+                sa.or_(
+                    JOBS.c.state == "queued",
+                    sa.and_(
+                        JOBS.c.state == "running",
+                        sa.or_(JOBS.c.heartbeat_at.is_(None), JOBS.c.heartbeat_at < stale_before),
+                    ),
+                )
+            )
+            .order_by(JOBS.c.created_at)
+        )
+        with self.engine.connect() as c:
+            return [_job(r) for r in c.execute(q)]
+
+    def running_jobs_of(self, runner_prefix: str) -> list[JobRow]:
+        """Jobs marked running by runners whose id starts with ``runner_prefix`` (a host)."""
+        q = JOBS.select().where(JOBS.c.state == "running", JOBS.c.runner.like(f"{runner_prefix}%"))
+        with self.engine.connect() as c:
+            return [_job(r) for r in c.execute(q)]
