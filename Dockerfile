@@ -19,13 +19,15 @@ ENV PATH=/opt/venv/bin:$PATH \
     SKISNOW_WORKERS=2 \
     SKISNOW_THREADS_PER_WORKER=1 \
     SKISNOW_TABLES_DIR=/srv/skisnow/tables \
+    SKISNOW_DATA_DIR=/srv/skisnow/data \
     OMP_NUM_THREADS=1 \
     OPENBLAS_NUM_THREADS=1 \
     MKL_NUM_THREADS=1 \
     NUMBA_NUM_THREADS=1 \
     NUMBA_CACHE_DIR=/tmp/numba-cache \
     MPLCONFIGDIR=/tmp/matplotlib
-RUN useradd --system --uid 10001 --home-dir /srv/skisnow skisnow
+RUN useradd --system --uid 10001 --home-dir /srv/skisnow skisnow \
+    && mkdir -p /srv/skisnow/data && chown skisnow:skisnow /srv/skisnow/data
 COPY --from=build /opt/venv /opt/venv
 COPY --chown=skisnow:skisnow tables /srv/skisnow/tables
 USER skisnow
@@ -33,4 +35,6 @@ WORKDIR /srv/skisnow
 EXPOSE 8000
 HEALTHCHECK --interval=30s --timeout=3s --start-period=20s --retries=3 \
     CMD python -c "import urllib.request,sys; sys.exit(0 if urllib.request.urlopen('http://127.0.0.1:8000/healthz', timeout=2).status == 200 else 1)"
+# uploaded skis/grinds and the catalogue database: mount a volume here to keep them
+VOLUME /srv/skisnow/data
 CMD ["skisnow", "serve"]
