@@ -1133,6 +1133,7 @@ def run(args: argparse.Namespace) -> int:
         t = truth_check(
             net,
             record.beam,
+            n_random=32,
             width_m=record.outline.width_m,
             effective_modulus_pa=e_eff,
             width_positions_m=record.outline.positions_m,

@@ -392,3 +392,71 @@ def test_sides_left_right_are_averaged():
     data.sides = ["mean", "left", "right", "mean"]
     _, _, f, _, prof, side = train_camber.camber_training_arrays(data)
     assert side == "mean" and f.size == 2
+
+
+DEMO_SKIS = ("ski-a", "ski-b")
+
+
+@pytest.mark.parametrize("name", DEMO_SKIS)
+def test_demo_ski_network_against_beam_truth(name):
+    """The shipped demo networks against their noise-free beam model (held-out loads).
+
+    Full check with the macro BEM: ``skisnow train-camber --ski NAME`` (stored as
+    ``metric_truth_*``, docs/camber-network.md). Here: RMSE of H* where H* < 0.2 mm on 8 loads
+    drawn in the trained range (measured ≈1 µm, target 5 µm).
+    """
+    from app.storage.common import REPO_ROOT
+    from app.storage.skis import read_ski
+    from solvers.beam import BeamFlexibility, solve_beam_contact
+
+    record = read_ski(REPO_ROOT / "tables" / "skis" / f"{name}.h5")
+    net = camber.network_to_dict(record.network)
+    a = net["attrs"]
+    rng = np.random.default_rng(7)
+    f = rng.uniform(a["load_min_n"], a["load_max_n"], 8)
+    xf = rng.uniform(a["load_position_min_m"], a["load_position_max_m"], 8)
+    flex = BeamFlexibility(record.beam)
+    truth = np.array(
+        [
+            np.interp(
+                net["positions_m"],
+                record.beam.positions_m,
+                solve_beam_contact(record.beam, fk, xk, flexibility=flex).gap_m,
+            )
+            for fk, xk in zip(f, xf, strict=True)
+        ]
+    )
+    pred = camber.predict_profiles(net, f, xf).gaps_m
+    band = truth < camber.CONTACT_BAND_M
+    assert np.sqrt(np.mean((pred - truth)[band] ** 2)) < 2.5e-6
+    # the stored metrics of the full check are there and meet the RMSE target
+    assert a["metric_truth_rmse_band_random_m"] < 5e-6
+    assert a["metric_truth_rmse_band_test_m"] < 5e-6
+
+
+def test_remeasure_keeps_the_calibrated_beam(tmp_path, monkeypatch):
+    """make_demo_skis --remeasure changes only the measurements, never the ski's beam model."""
+    import importlib.util
+
+    from app.storage.common import REPO_ROOT
+    from app.storage.skis import read_ski
+
+    spec = importlib.util.spec_from_file_location(
+        "make_demo_skis", REPO_ROOT / "scripts" / "make_demo_skis.py"
+    )
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    monkeypatch.setattr(script, "MEASURE_LOADS_KG", np.array([20.0, 60.0]))
+    monkeypatch.setattr(script, "MEASURE_POSITIONS_M", np.array([-0.2, 0.0, 0.1]))
+    src = REPO_ROOT / "tables" / "skis" / "ski-b.h5"
+    (tmp_path / "ski-b.h5").write_bytes(src.read_bytes())
+    script.remeasure("ski-b", tmp_path)
+    old, new = read_ski(src), read_ski(tmp_path / "ski-b.h5")
+    for key in ("positions_m", "bending_stiffness_nm2", "unloaded_gap_m"):
+        np.testing.assert_array_equal(getattr(new.beam, key), getattr(old.beam, key))
+    assert new.beam_design == old.beam_design
+    assert new.measurements.profiles_m.shape == (6, old.beam.positions_m.size)
+    np.testing.assert_array_equal(new.measurements.loads_n, np.repeat([20.0, 60.0], 3) * 9.82)
+    assert new.network is None
+    with h5py.File(src) as a, h5py.File(tmp_path / "ski-b.h5") as b:
+        assert a.attrs["parameters_json"] == b.attrs["parameters_json"]
