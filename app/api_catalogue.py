@@ -197,6 +197,16 @@ def _text(value: str | None, field: str, max_len: int = 2000) -> str:
 # ------------------------------------------------------------------------------ routes
 
 
+def _accepted(item, job_id: str, **extra) -> JSONResponse:
+    """202 answer of an upload: the item, its job and where to follow it."""
+    url = f"/v1/jobs/{job_id}"
+    return JSONResponse(
+        {"item": item.public(), "job": job_id, "job_url": url, **extra},
+        status_code=202,
+        headers={"Location": url},
+    )
+
+
 def mount(app: FastAPI) -> None:
     """Add the catalogue routes and the status codes of :mod:`app.uploads` errors."""
     from app.api import problem
@@ -266,16 +276,7 @@ def mount(app: FastAPI) -> None:
                 team=team,
             )
         state.runner.wake()
-        return JSONResponse(
-            {
-                "item": item.public(),
-                "job": job_id,
-                "job_url": f"/v1/jobs/{job_id}",
-                "iso25178": iso,
-            },
-            status_code=202,
-            headers={"Location": f"/v1/jobs/{job_id}"},
-        )
+        return _accepted(item, job_id, iso25178=iso)
 
     @app.post("/v1/skis", status_code=202, tags=["catalogue"], dependencies=[Depends(_multipart)])
     def post_ski(
@@ -315,16 +316,7 @@ def mount(app: FastAPI) -> None:
                 team=team,
             )
         state.runner.wake()
-        return JSONResponse(
-            {
-                "item": item.public(),
-                "job": job_id,
-                "job_url": f"/v1/jobs/{job_id}",
-                "data": figures,
-            },
-            status_code=202,
-            headers={"Location": f"/v1/jobs/{job_id}"},
-        )
+        return _accepted(item, job_id, data=figures)
 
     @app.get("/v1/jobs/{job_id}", tags=["catalogue"])
     def get_job(request: Request, job_id: str) -> dict:
