@@ -312,8 +312,14 @@ def _plot_micro(data: dict, path: Path) -> None:
         fig.savefig(tmp, format="png", dpi=110)
 
 
-def _write_stage(stage: str, data: dict, plot: Callable[[dict, Path], None] | None) -> Path:
-    bench_dir = DOCS / "bench"
+def _write_stage(
+    stage: str,
+    data: dict,
+    plot: Callable[[dict, Path], None] | None,
+    docs_dir: Path | None = None,
+) -> Path:
+    docs_dir = DOCS if docs_dir is None else Path(docs_dir)
+    bench_dir = docs_dir / "bench"
     bench_dir.mkdir(parents=True, exist_ok=True)
     data = {
         "stage": stage,
@@ -326,7 +332,7 @@ def _write_stage(stage: str, data: dict, plot: Callable[[dict, Path], None] | No
         tmp.write_text(json.dumps(data, indent=1, default=float))
     if plot is not None:
         plot(data, bench_dir / f"{stage}.png")
-    write_benchmarks_md()
+    write_benchmarks_md(docs_dir)
     return path
 
 
@@ -405,16 +411,24 @@ def _service_md(d: dict) -> list[str]:
     ]
 
 
+def _accuracy_md(d: dict) -> list[str]:
+    from app.bench_accuracy import render_md
+
+    return render_md(d)
+
+
 STAGE_RENDERERS: dict[str, Callable[[dict], list[str]]] = {
     "micro": _micro_md,
+    "accuracy": _accuracy_md,
     "service": _service_md,
     "service-32": _service_md,
 }
 
 
-def write_benchmarks_md() -> Path:
+def write_benchmarks_md(docs_dir: Path | None = None) -> Path:
     """Regenerate docs/benchmarks.md from every docs/bench/*.json."""
-    bench_dir = DOCS / "bench"
+    docs_dir = DOCS if docs_dir is None else Path(docs_dir)
+    bench_dir = docs_dir / "bench"
     lines = [
         "# Benchmarks",
         "",
@@ -437,7 +451,7 @@ def write_benchmarks_md() -> Path:
             f" with `{prov.get('command_line', '?')}` on {data['machine']['cpus']} cores._",
             "",
         ]
-    out = DOCS / "benchmarks.md"
+    out = docs_dir / "benchmarks.md"
     with atomic_path(out) as tmp:
         tmp.write_text("\n".join(lines))
     return out
@@ -453,6 +467,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     m.add_argument("--table-size", type=int, default=1024)
     m.add_argument("--table-points", type=int, default=12, help="0 skips the table sweep")
     m.set_defaults(func=_run_micro)
+    from app import bench_accuracy
+
+    bench_accuracy.register(bsub)
 
 
 def _run_micro(args: argparse.Namespace) -> int:

@@ -2,7 +2,16 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 from pydantic import BaseModel, ConfigDict, Field
+
+#: names of :data:`app.presets.PRESETS` (checked equal in tests/test_presets.py)
+PresetName = Literal["fast", "default", "fine"]
+_PRESET_DOC = (
+    "accuracy preset: fast (8 mm × 4), default (4 mm × 8), fine (1 mm × 16) macro pixels; "
+    "see docs/benchmarks.md"
+)
 
 
 class ContactBody(BaseModel):
@@ -30,6 +39,7 @@ class ContactBody(BaseModel):
         700.0, ge=1, le=20000, description="Young's modulus of the ski base [MPa]"
     )
     poisson_ratio: float = Field(0.3, ge=0, lt=0.5, description="Poisson's ratio [-]")
+    preset: PresetName = Field("default", description=_PRESET_DOC)
 
 
 class CompareBody(BaseModel):
@@ -45,3 +55,4 @@ class CompareBody(BaseModel):
     porosity: float = Field(..., ge=0, lt=1, examples=[0.5])
     base_modulus_mpa: float = Field(700.0, ge=1, le=20000)
     poisson_ratio: float = Field(0.3, ge=0, lt=0.5)
+    preset: PresetName = Field("default", description=_PRESET_DOC)

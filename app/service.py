@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from app import units
+from app.presets import DEFAULT_PRESET, Preset, get_preset
 from app.storage.common import code_version, sha256_file
 from app.storage.skis import SkiRecord, read_ski
 from app.storage.tables import read_manifest, read_table
@@ -179,6 +180,7 @@ class ContactInputs:
     porosity: float
     base_modulus_mpa: float = 700.0
     poisson_ratio: float = 0.3
+    preset: str = DEFAULT_PRESET
 
 
 def _finite_list(a: np.ndarray, scale: float = 1.0, digits: int = 6) -> list[float | None]:
@@ -216,14 +218,72 @@ def warm_up(cat: Catalogue) -> float:
     return time.perf_counter() - t0
 
 
-def contact(cat: Catalogue, inp: ContactInputs) -> dict:
+#: porosity above which the answers are flagged: P_n = P/(1 − n) grows without bound as n → 1
+POROSITY_WARN = 0.9
+#: load share on pixels below the table's pressure range above which the answer is flagged
+BELOW_TABLE_WARN = 0.01
+
+
+def result_warnings(inp: ContactInputs, gmap, macro, ms) -> list[dict]:
+    """Conditions under which an answer is computed but not trustworthy (docs/limits.md).
+
+    Each warning is ``{"code", "detail"}``; the answer is still returned (HTTP 200) so that a
+    user can see it, but these flags travel with it in the API, the CSV and the web page.
+    """
+    out = []
+    if inp.porosity >= POROSITY_WARN:
+        out.append(
+            {
+                "code": "porosity_near_one",
+                "detail": f"porosity {inp.porosity:g} ≥ {POROSITY_WARN:g}: the texture carries "
+                "only P·(1 − n) (method.md eq. 2), so the real contact area shrinks towards zero "
+                "while the average real contact pressure F/A_tot (full load F, §6) grows "
+                "without bound; very loose snow is outside what the method was made for",
+            }
+        )
+    rows = np.flatnonzero(np.any(np.isfinite(gmap.gap_m), axis=1))
+    if rows.size and macro.zones:
+        dx = gmap.pixel_size_m[0]
+        first, last = gmap.positions_m[rows[0]], gmap.positions_m[rows[-1]]
+        ends = [
+            z for z in macro.zones if z.start_m <= first + 1.5 * dx or z.end_m >= last - 1.5 * dx
+        ]
+        if ends:
+            out.append(
+                {
+                    "code": "contact_at_ski_end",
+                    "detail": "contact reaches the end of the measured profile "
+                    f"({first * 1e3:.0f} … {last * 1e3:.0f} mm): the tip or tail shape beyond "
+                    "the measurement is not modelled; try a stiffer snow or a lighter load",
+                }
+            )
+    share = float(ms.diagnostics.get("load_share_below_table_range", 0.0))
+    if share > BELOW_TABLE_WARN:
+        out.append(
+            {
+                "code": "below_table_range",
+                "detail": f"{share:.1%} of the load sits where the nominal pressure is below "
+                "the texture table's range; there the real contact is interpolated towards the "
+                "unloaded texture, not solved",
+            }
+        )
+    return out
+
+
+def contact(
+    cat: Catalogue, inp: ContactInputs, *, presets: dict[str, Preset] | None = None
+) -> dict:
     """Compute one ski × grind case; returns the JSON-ready answer of ``POST /v1/contact``.
+
+    ``inp.preset`` names the discretisation settings (:mod:`app.presets`); ``presets`` replaces
+    the table of named presets (the accuracy benchmark passes candidate settings this way).
 
     Raises
     ------
     UnknownItemError, InputError, OutOfRangeError, NotConvergedError
     """
     t0 = time.perf_counter()
+    preset = get_preset(inp.preset, presets)
     ski = cat.ski(inp.ski)
     grind = cat.grind(inp.grind)
     load_n = units.kg_to_n(inp.load_kg)
@@ -243,7 +303,14 @@ def contact(cat: Catalogue, inp: ContactInputs) -> dict:
     x, gap = loaded_profile(ski, load_n, x_f)
     t2 = time.perf_counter()
     outline = ski.record.outline
-    gmap = extrude_profile(x, gap, outline.width_m, width_positions_m=outline.positions_m)
+    gmap = extrude_profile(
+        x,
+        gap,
+        outline.width_m,
+        width_positions_m=outline.positions_m,
+        pixel_along_m=preset.pixel_along_m,
+        pixels_across=preset.pixels_across,
+    )
     macro = solve_macro(gmap, load_n, x_f, e_eff)
     if not macro.converged:
         raise NotConvergedError(
@@ -264,6 +331,7 @@ def contact(cat: Catalogue, inp: ContactInputs) -> dict:
             "porosity": inp.porosity,
             "base_modulus_mpa": inp.base_modulus_mpa,
             "poisson_ratio": inp.poisson_ratio,
+            "preset": preset.name,
             "load_n": load_n,
             "effective_modulus_mpa": e_eff / 1e6,
         },
@@ -290,6 +358,7 @@ def contact(cat: Catalogue, inp: ContactInputs) -> dict:
                 for z in ms.zones
             ],
         },
+        "warnings": result_warnings(inp, gmap, macro, ms),
         "distributions": {
             "position_mm": _finite_list(ms.positions_m[rows], 1e3),
             "pressure_kpa": _finite_list(ms.pressure_pa[rows], 1e-3),
@@ -300,6 +369,11 @@ def contact(cat: Catalogue, inp: ContactInputs) -> dict:
         },
         "provenance": {
             "code_version": code_version(),
+            "preset": {
+                **preset.provenance(),
+                "macro_pixel_size_mm": [v * 1e3 for v in macro.pixel_size_m],
+                "texture_pixel_size_um": grind.table.pixel_size_m * 1e6,
+            },
             "table": {
                 "file": grind.path.name,
                 "sha256": grind.sha256,
