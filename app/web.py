@@ -130,6 +130,7 @@ CSV_COLUMNS = (
     "ski_sha256",
     "code_version",
     "compute_time_ms",
+    "warnings",
     "error",
 )
 
@@ -455,9 +456,15 @@ def _metric_cards(results: list[dict]) -> str:
             for z in r["apparent"]["zones"]
         )
         a, table, ski = r["apparent"], prov["table"], prov["ski"]
+        warn = "".join(f"<li>{escape(w['detail'])}</li>" for w in r.get("warnings", []))
+        if warn:
+            warn = (
+                '<div class="alert warnings" role="note"><b>Not trustworthy:</b>'
+                f"<ul>{warn}</ul></div>"
+            )
         cards.append(
             f"""<section class="card"><h3>{escape(inp["ski"])} × {escape(inp["grind"])}</h3>
-<div class="metrics">{metrics}</div>
+{warn}<div class="metrics">{metrics}</div>
 <p class="summary">Apparent contact {a["contact_area_cm2"]:.4g} cm² at a mean apparent pressure
 of {a["mean_pressure_kpa"]:.4g} kPa; computed in {r["timing_ms"]["total"]:.0f} ms.</p>
 <div class="table-wrap"><table class="zones"><tr><th class="text">contact zone</th>
@@ -572,6 +579,7 @@ def render_csv(out: Outcome) -> str:
             "ski_sha256": p["ski"]["sha256"],
             "code_version": p["code_version"],
             "compute_time_ms": round(r["timing_ms"]["total"], 1),
+            "warnings": ";".join(w["code"] for w in r.get("warnings", [])),
             "error": "",
         }
         w.writerow([_csv_value(row.get(c)) for c in CSV_COLUMNS])

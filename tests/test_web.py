@@ -492,3 +492,11 @@ def _check_shown(client, r, status, shown, names, filename):
         p for p in client.data_dir.rglob("*") if p.is_file() and not p.name.startswith("catalogue")
     ]
     assert stored == []
+
+
+def test_results_page_shows_warnings(client):
+    ok = client.get("/results", params=_q())
+    loose = client.get("/results", params=_q(porosity="0.95"))
+    assert ok.status_code == loose.status_code == 200
+    assert "Not trustworthy" not in ok.text
+    assert "Not trustworthy" in loose.text and "porosity 0.95" in loose.text

@@ -1,0 +1,77 @@
+"""Answers that are computed but not trustworthy carry warnings (docs/limits.md)."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from app import service
+
+
+def _case(**kw):
+    base = dict(
+        ski="ski-a",
+        grind="t",
+        load_kg=40.0,
+        load_position_mm=-160.0,
+        snow_modulus_mpa=200.0,
+        porosity=0.5,
+    )
+    base.update(kw)
+    return service.ContactInputs(**base)
+
+
+def _gmap(n=100, dx=0.01):
+    gap = np.full((n, 4), 1e-3)
+    gap[:5] = np.nan  # footprint starts at row 5 and ends at row 94
+    gap[95:] = np.nan
+    return SimpleNamespace(
+        gap_m=gap, positions_m=(np.arange(n) - n / 2) * dx, pixel_size_m=(dx, 0.01)
+    )
+
+
+def _zone(start, end):
+    return SimpleNamespace(start_m=start, end_m=end)
+
+
+def _codes(inp, gmap, zones, share=0.0):
+    macro = SimpleNamespace(zones=zones)
+    ms = SimpleNamespace(diagnostics={"load_share_below_table_range": share})
+    return [w["code"] for w in service.result_warnings(inp, gmap, macro, ms)]
+
+
+def test_no_warning_for_an_ordinary_case():
+    assert _codes(_case(), _gmap(), [_zone(-0.3, -0.2), _zone(0.1, 0.2)]) == []
+
+
+@pytest.mark.parametrize(
+    ("porosity", "flagged"), [(0.5, False), (0.89, False), (0.9, True), (0.999, True)]
+)
+def test_porosity_near_one(porosity, flagged):
+    codes = _codes(_case(porosity=porosity), _gmap(), [_zone(-0.1, 0.1)])
+    assert ("porosity_near_one" in codes) is flagged
+
+
+def test_contact_at_either_end_of_the_profile():
+    g = _gmap()
+    first, last = g.positions_m[5], g.positions_m[94]
+    assert "contact_at_ski_end" in _codes(_case(), g, [_zone(first, first + 0.1)])
+    assert "contact_at_ski_end" in _codes(_case(), g, [_zone(0.0, last)])
+    assert "contact_at_ski_end" not in _codes(_case(), g, [_zone(first + 0.05, last - 0.05)])
+
+
+def test_load_below_the_table_range():
+    assert "below_table_range" in _codes(_case(), _gmap(), [], share=0.2)
+    assert "below_table_range" not in _codes(_case(), _gmap(), [], share=0.005)
+
+
+def test_api_answer_carries_warnings(catalogue):
+    ski = next(iter(catalogue.skis))
+    grind = next(iter(catalogue.grinds))
+    ok = service.contact(catalogue, _case(ski=ski, grind=grind))
+    loose = service.contact(catalogue, _case(ski=ski, grind=grind, porosity=0.95))
+    assert isinstance(ok["warnings"], list)
+    assert "porosity_near_one" in [w["code"] for w in loose["warnings"]]
+    assert all(w["detail"] for w in loose["warnings"])
