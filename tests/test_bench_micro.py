@@ -1,0 +1,26 @@
+"""Smoke test of ``skisnow bench micro`` on tiny grids: structure, and that peers agree."""
+
+from __future__ import annotations
+
+import pytest
+
+from app import bench
+
+
+def test_bench_micro_structure_and_agreement():
+    pytest.importorskip("ContactMechanics")
+    data = bench.bench_micro([32], 1, ["contactmechanics"], 32, 2, ["contactmechanics"])
+    assert data["peers"] == ["contactmechanics"]
+    ours = [r for r in data["runs"] if r["solver"] == "skisnow[scipy]"]
+    peer = [r for r in data["runs"] if r["solver"] == "contactmechanics"]
+    assert len(ours) == len(peer) == len(bench.PRESSURES_PA)
+    for r in ours:
+        assert r["converged"] and r["median_time_s"] > 0 and r["fft_pairs_finest"] > 0
+    for r in peer:
+        assert abs(r["contact_fraction_rel_diff_vs_skisnow"]) < 0.02
+        assert abs(r["mean_gap_rel_diff_vs_skisnow"]) < 0.005
+    table = data["table"]
+    assert table["points"] == 2 and set(table["peers"]) == {"contactmechanics"}
+    assert table["peers"]["contactmechanics"]["max_contact_fraction_rel_diff"] < 0.02
+    lines = bench._micro_md(data)
+    assert any("contactmechanics" in line for line in lines)
