@@ -421,7 +421,14 @@ def _service_md(d: dict) -> list[str]:
         f"{c['answers_differing_from_single_client']} |",
         "",
         f"Server memory (RSS, all workers): {c['server_rss_mb_before']:.0f} MB before the "
-        f"concurrent run, {c['server_rss_mb_after']:.0f} MB after.",
+        f"concurrent run, {c['server_rss_mb_after']:.0f} MB after"
+        + (
+            f"; sampled every second during it ({c['server_rss_mb_samples']} samples): "
+            f"max {c['server_rss_mb_max']:.0f} MB, drift (last tenth − first tenth, medians) "
+            f"{c['server_rss_mb_drift']:+.1f} MB."
+            if c.get("server_rss_mb_samples")
+            else "."
+        ),
         "",
     ]
 

@@ -23,6 +23,7 @@ import os
 import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -171,6 +172,16 @@ def main(argv: list[str] | None = None) -> int:
                     my_mis += 1
             return my_lat, my_mis, my_err, my_n
 
+        samples: list[float] = []
+        sampling = threading.Event()
+
+        def sample_memory() -> None:
+            while not sampling.wait(1.0):
+                if proc is not None:
+                    samples.append(rss_mb(proc.pid))
+
+        sampler = threading.Thread(target=sample_memory, daemon=True)
+        sampler.start()
         t0 = time.perf_counter()
         with cf.ThreadPoolExecutor(args.clients) as ex:
             for my_lat, my_mis, my_err, my_n in ex.map(worker, range(args.clients)):
@@ -179,7 +190,10 @@ def main(argv: list[str] | None = None) -> int:
                 errors += my_err
                 done += my_n
         wall = time.perf_counter() - t0
+        sampling.set()
+        sampler.join()
         mem_after = rss_mb(proc.pid) if proc else float("nan")
+        tenth = max(len(samples) // 10, 1)
         result = {
             "url_started_here": proc is not None,
             "server_workers": args.workers if proc else None,
@@ -202,6 +216,15 @@ def main(argv: list[str] | None = None) -> int:
                 "answers_differing_from_single_client": mismatches,
                 "server_rss_mb_before": mem_before,
                 "server_rss_mb_after": mem_after,
+                # memory drift during the run: median of the last tenth of the 1 s samples
+                # against the first tenth (flat memory: close to 0)
+                "server_rss_mb_samples": len(samples),
+                "server_rss_mb_max": max(samples) if samples else float("nan"),
+                "server_rss_mb_drift": (
+                    float(np.median(samples[-tenth:]) - np.median(samples[:tenth]))
+                    if samples
+                    else float("nan")
+                ),
             },
         }
         print(json.dumps(result, indent=1))
