@@ -216,7 +216,7 @@ def multiscale(
                 end_m=z.end_m,
                 load_n=z.load_n,
                 load_share=z.load_share,
-                apparent_area_m2=float(np.count_nonzero(zl) * da),
+                apparent_area_m2=z.apparent_area_m2,  # sub-pixel edges, sums to the total
                 real_area_m2=float(ar[zl].sum() * da),
             )
         )

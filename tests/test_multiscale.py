@@ -88,6 +88,10 @@ def test_force_and_apparent_pressure_consistent(table, macro_case):
         macro.load_n / res.total_real_contact_area_m2
     )
     assert 0 < res.total_real_contact_area_m2 < res.apparent_contact_area_m2
+    # the zones' apparent areas (sub-pixel edges) add up to the apparent area
+    assert sum(z.apparent_area_m2 for z in res.zones) == pytest.approx(
+        res.apparent_contact_area_m2, rel=1e-12
+    )
 
 
 def test_real_area_follows_pressure(table, macro_case):
