@@ -433,6 +433,67 @@ def _service_md(d: dict) -> list[str]:
     ]
 
 
+def bench_macro_stage(repeats: int = 7, inference_calls: int = 300) -> dict:
+    """``skisnow bench macro``: one macro solve per demo ski at the default grid against the
+    fine reference (``app.commands.macro.bench_macro``), and the network inference time."""
+    from app.commands.macro import SKI_DIR, bench_macro
+    from app.storage.skis import read_ski
+    from solvers import camber
+    from solvers.beam import G_STANDARD
+
+    out = {"skis": bench_macro(repeats=repeats), "inference": {}}
+    for name in out["skis"]:
+        net = read_ski(SKI_DIR / f"{name}.h5").network
+        if net is None:
+            continue
+        camber.predict_profile(net, 40 * G_STANDARD, -0.160)  # warm-up
+        times = []
+        for _ in range(inference_calls):
+            t0 = time.perf_counter()
+            camber.predict_profile(net, 40 * G_STANDARD, -0.160)
+            times.append(time.perf_counter() - t0)
+        out["inference"][name] = {"calls": inference_calls, "median_s": statistics.median(times)}
+    return out
+
+
+def _macro_md(d: dict) -> list[str]:
+    lines = [
+        "## Macro scale: one ski-on-snow solve (`skisnow bench macro`)",
+        "",
+        "Papers' case (40 kg at −160 mm, E_snow 200 MPa), each demo ski's network profile; "
+        "default grid against the 0.5 mm × 16 reference. Targets: ≤ 30 ms per solve, apparent "
+        "area within 1 %, network inference ≤ 1 ms.",
+        "",
+        "| ski | grid [mm] | median solve [ms] | apparent area [cm²] | peak pressure [kPa] "
+        "| iterations | area error | peak error | reference time / default |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, r in d["skis"].items():
+        dflt, fine = r["default"], r["fine"]
+        for label, row in (("default", dflt), ("fine", fine)):
+            err = (
+                f"{100 * r['area_error']:+.2f} % | {100 * r['peak_pressure_error']:+.1f} %"
+                if label == "default"
+                else "— | —"
+            )
+            ratio = (
+                f"{fine['median_time_s'] / dflt['median_time_s']:.1f}" if label == "fine" else ""
+            )
+            lines.append(
+                f"| {name} ({label}) | {row['pixel_mm'][0]:g} × {row['pixel_mm'][1]:.2f} | "
+                f"{1e3 * row['median_time_s']:.1f} | {row['area_cm2']:.2f} | "
+                f"{row['peak_pressure_kpa']:.0f} | {row['iterations']} | {err} | {ratio} |"
+            )
+    for name, r in d.get("inference", {}).items():
+        lines.append("")
+        lines.append(
+            f"Network inference, {name}: median {1e3 * r['median_s']:.2f} ms over "
+            f"{r['calls']} calls."
+        )
+    lines.append("")
+    return lines
+
+
 def _accuracy_md(d: dict) -> list[str]:
     from app.bench_accuracy import render_md
 
@@ -441,6 +502,7 @@ def _accuracy_md(d: dict) -> list[str]:
 
 STAGE_RENDERERS: dict[str, Callable[[dict], list[str]]] = {
     "micro": _micro_md,
+    "macro": _macro_md,
     "accuracy": _accuracy_md,
     "service": _service_md,
     "service-32": _service_md,
@@ -496,6 +558,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="peers that solve the table sweep cold (slow peers take tens of minutes at 1024²)",
     )
     m.set_defaults(func=_run_micro)
+    mac = bsub.add_parser("macro", help="macro BEM per demo ski: default grid vs fine reference")
+    mac.add_argument("--repeats", type=int, default=7)
+    mac.set_defaults(func=_run_macro)
     from app import bench_accuracy
 
     bench_accuracy.register(bsub)
@@ -511,5 +576,11 @@ def _run_micro(args: argparse.Namespace) -> int:
         args.table_peers,
     )
     path = _write_stage("micro", data, _plot_micro)
+    print(f"wrote {path} and {DOCS / 'benchmarks.md'}")
+    return 0
+
+
+def _run_macro(args: argparse.Namespace) -> int:
+    path = _write_stage("macro", bench_macro_stage(args.repeats), None)
     print(f"wrote {path} and {DOCS / 'benchmarks.md'}")
     return 0

@@ -1,4 +1,4 @@
-"""Smoke test of ``skisnow bench micro`` on tiny grids: structure, and that peers agree."""
+"""Smoke tests of `skisnow bench micro` and `bench macro` on small cases: structure, agreement."""
 
 from __future__ import annotations
 
@@ -24,3 +24,14 @@ def test_bench_micro_structure_and_agreement():
     assert table["peers"]["contactmechanics"]["max_contact_fraction_rel_diff"] < 0.02
     lines = bench._micro_md(data)
     assert any("contactmechanics" in line for line in lines)
+
+
+def test_bench_macro_stage_renders():
+    data = bench.bench_macro_stage(repeats=1, inference_calls=3)
+    assert set(data["skis"]) == {"ski-a", "ski-b"}
+    for r in data["skis"].values():
+        assert r["default"]["converged"] and r["fine"]["converged"]
+        assert abs(r["area_error"]) < 0.05
+    lines = bench._macro_md(data)
+    assert sum("(default)" in line for line in lines) == 2
+    assert all(0 < r["median_s"] < 1 for r in data["inference"].values())
