@@ -6,6 +6,8 @@ import argparse
 import json
 import os
 
+from app.presets import DEFAULT_PRESET, PRESETS
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     s = sub.add_parser("serve", help="run the REST API and the technician web form")
@@ -30,6 +32,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     v.add_argument("--base-modulus-mpa", type=float, default=700.0)
     v.add_argument("--poisson", type=float, default=0.3)
     v.add_argument("--tables-dir", default=None)
+    v.add_argument(
+        "--preset",
+        default=DEFAULT_PRESET,
+        choices=list(PRESETS),
+        help="accuracy preset (macro grid; docs/benchmarks.md)",
+    )
     v.add_argument("--json", action="store_true", help="print the full JSON answer")
     v.set_defaults(func=run_solve)
 
@@ -87,6 +95,7 @@ def run_solve(args: argparse.Namespace) -> int:
             porosity=args.porosity,
             base_modulus_mpa=args.base_modulus_mpa,
             poisson_ratio=args.poisson,
+            preset=args.preset,
         )
     except ValidationError as exc:
         msgs = "; ".join(
@@ -119,5 +128,7 @@ def run_solve(args: argparse.Namespace) -> int:
             f"  zone {z['name']:5s} {z['start_mm']:7.0f} … {z['end_mm']:5.0f} mm  "
             f"load share {z['load_share']:.1%}  real area {z['real_area_mm2']:.4g} mm²"
         )
-    print(f"  time {out['timing_ms']['total']:.0f} ms")
+    for w in out["warnings"]:
+        print(f"  WARNING {w['code']}: {w['detail']}")
+    print(f"  time {out['timing_ms']['total']:.0f} ms (preset {args.preset})")
     return 0

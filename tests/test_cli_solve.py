@@ -1,0 +1,76 @@
+"""``skisnow solve``: one case on the command line, the same answer as ``POST /v1/contact``."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from app import service
+from app.cli import main
+
+CASE = [
+    "solve",
+    "--ski",
+    "ski-a",
+    "--grind",
+    "grind-1",
+    "--load-kg",
+    "40",
+    "--load-position-mm",
+    "-160",
+    "--snow-modulus-mpa",
+    "200",
+    "--porosity",
+    "0.5",
+]
+
+
+@pytest.fixture(scope="module")
+def shipped():
+    from app.settings import Settings
+
+    return service.load_catalogue(Settings().tables_dir)
+
+
+def test_json_answer_equals_the_service(capsys, shipped):
+    assert main([*CASE, "--json", "--preset", "fast"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    ref = service.contact(
+        shipped,
+        service.ContactInputs(
+            ski="ski-a",
+            grind="grind-1",
+            load_kg=40,
+            load_position_mm=-160,
+            snow_modulus_mpa=200,
+            porosity=0.5,
+            preset="fast",
+        ),
+    )
+    assert out["metrics"] == ref["metrics"]
+    assert out["provenance"]["preset"]["name"] == "fast"
+
+
+def test_text_output_has_units_and_warnings(capsys):
+    assert main([*CASE[:-1], "0.95"]) == 0
+    text = capsys.readouterr().out
+    assert "mm²" in text and "MPa" in text and "µm" in text
+    assert "WARNING porosity_near_one" in text
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (("--porosity", "1.5"), "--porosity"),
+        (("--ski", "nope"), "unknown ski 'nope'"),
+        (("--load-position-mm", "900"), "outside the range"),
+    ],
+)
+def test_user_mistakes_are_one_line_errors(capsys, change, message):
+    argv = list(CASE)
+    i = argv.index(change[0])
+    argv[i + 1] = change[1]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
