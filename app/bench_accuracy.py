@@ -40,7 +40,7 @@ from app.presets import DEFAULT_PRESET, PRESETS, Preset
 from app.storage.common import REPO_ROOT, provenance
 from solvers.beam import G_STANDARD, BeamFlexibility, solve_beam_contact
 from solvers.elastic import PeriodicHalfSpace, effective_modulus
-from solvers.lookup import MicroTable
+from solvers.lookup import POINT_FIELDS, MicroTable
 from solvers.micro import solve_micro
 from solvers.texture import GrindParameters, linear_grind
 
@@ -291,20 +291,7 @@ def thin_table(table: MicroTable, points: int) -> MicroTable:
     """The table restricted to ``points`` of its pressure nodes, ends kept, near-even in ln r."""
     n = len(table.pressure_ratio)
     idx = np.unique(np.round(np.linspace(0, n - 1, points)).astype(int))
-    arrays = {
-        name: np.asarray(getattr(table, name))[idx]
-        for name in (
-            "pressure_ratio",
-            "real_contact_area_fraction",
-            "mean_gap_m",
-            "mean_reciprocal_gap_per_m",
-            "mean_reciprocal_gap_raw_per_m",
-            "iterations",
-            "residual",
-            "converged",
-            "full_contact",
-        )
-    }
+    arrays = {name: np.asarray(getattr(table, name))[idx] for name in POINT_FIELDS}
     return replace(table, **arrays)
 
 

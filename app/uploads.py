@@ -143,18 +143,13 @@ def _topography():
 
 def _npy_shape(path: Path) -> tuple[int, ...]:
     """Shape declared in a .npy header (read before any array is allocated)."""
+    from app.storage.topography import npy_header
+
     with open(path, "rb") as fh:
-        try:
-            version = np.lib.format.read_magic(fh)
-            if version == (1, 0):
-                shape, _, dtype = np.lib.format.read_array_header_1_0(fh)
-            else:
-                shape, _, dtype = np.lib.format.read_array_header_2_0(fh)
-        except ValueError as exc:
-            raise DataFileError(f"not a readable .npy file: {exc}") from None
+        shape, dtype = npy_header(fh, "file")
     if dtype.hasobject:
         raise UnsupportedContentError(".npy holds Python objects; only numeric arrays are read")
-    return tuple(int(v) for v in shape)
+    return shape
 
 
 def _check_grid_shape(shape: tuple[int, ...], settings: Settings) -> None:

@@ -48,6 +48,7 @@ from scipy.interpolate import PchipInterpolator
 from .errors import InputError, OutOfRangeError
 
 __all__ = [
+    "POINT_FIELDS",
     "TABLE_SCHEMA",
     "MicroTable",
     "chunk_bounds",
@@ -68,6 +69,20 @@ TABLE_SCHEMA = "skisnow.table/1"
 
 #: Relative distance from a table end within which a query is snapped onto it [-]
 _EDGE_RTOL = 1e-9
+
+
+#: the per-pressure-point arrays of a :class:`MicroTable`, pressure axis first
+POINT_FIELDS = (
+    "pressure_ratio",
+    "real_contact_area_fraction",
+    "mean_gap_m",
+    "mean_reciprocal_gap_per_m",
+    "mean_reciprocal_gap_raw_per_m",
+    "iterations",
+    "residual",
+    "converged",
+    "full_contact",
+)
 
 
 @dataclass
@@ -152,16 +167,7 @@ class MicroTable:
             raise InputError(f"pressure_ratio must be 1-D with >= 2 points, got shape {r.shape}")
         if not (np.all(np.isfinite(r)) and r[0] > 0 and np.all(np.diff(r) > 0)):
             raise InputError("pressure_ratio must be finite, > 0 and strictly increasing")
-        for name in (
-            "real_contact_area_fraction",
-            "mean_gap_m",
-            "mean_reciprocal_gap_per_m",
-            "mean_reciprocal_gap_raw_per_m",
-            "iterations",
-            "residual",
-            "converged",
-            "full_contact",
-        ):
+        for name in POINT_FIELDS[1:]:
             arr = np.asarray(getattr(self, name))
             if arr.shape != (n,):
                 raise InputError(f"{name} has shape {arr.shape}, expected ({n},)")

@@ -337,16 +337,27 @@ def _square_pixel(dx: float, dy: float, label: str) -> float:
     return 0.5 * (dx + dy)
 
 
-def _read_npy(data: bytes, label: str, max_pixels: int, min_side: int) -> np.ndarray:
-    buf = io.BytesIO(data)
+def npy_header(fh, label: str) -> tuple[tuple[int, ...], np.dtype]:
+    """Shape and dtype declared in a ``.npy`` header, read before any array is allocated.
+
+    Raises
+    ------
+    DataFileError
+        Not a readable ``.npy`` header.
+    """
     try:
-        version = np.lib.format.read_magic(buf)
+        version = np.lib.format.read_magic(fh)
         if version == (1, 0):
-            shape, _, dtype = np.lib.format.read_array_header_1_0(buf)
+            shape, _, dtype = np.lib.format.read_array_header_1_0(fh)
         else:
-            shape, _, dtype = np.lib.format.read_array_header_2_0(buf)
+            shape, _, dtype = np.lib.format.read_array_header_2_0(fh)
     except (ValueError, OSError, EOFError) as exc:
         raise DataFileError(f"{label}: damaged npy header: {exc}") from None
+    return tuple(int(v) for v in shape), dtype
+
+
+def _read_npy(data: bytes, label: str, max_pixels: int, min_side: int) -> np.ndarray:
+    shape, dtype = npy_header(io.BytesIO(data), label)
     if dtype.hasobject:
         raise InputError(f"{label}: npy holds Python objects; pickles are never loaded")
     if not np.issubdtype(dtype, np.number) or np.issubdtype(dtype, np.complexfloating):
