@@ -43,6 +43,8 @@ from fastapi.responses import HTMLResponse, Response
 from pydantic import ValidationError
 
 from app import plots, service, uploads
+from app.presets import DEFAULT_PRESET
+from app.presets import PRESETS as ACCURACY_PRESETS
 from app.schemas import ContactBody
 from solvers.errors import SkisnowError
 
@@ -174,7 +176,7 @@ def _unique(values: list[str]) -> list[str]:
 def parse_query(request: Request, cat: service.Catalogue, max_cells: int) -> Query:
     """Read and validate the form's query parameters (bounds of :class:`ContactBody`)."""
     qp = request.query_params
-    raw = {k: qp.get(k, "").strip() for k in (*FIELDS, "snow_input")}
+    raw = {k: qp.get(k, "").strip() for k in (*FIELDS, "snow_input", "preset")}
     q = Query(_unique(qp.getlist("ski")), _unique(qp.getlist("grind")), raw)
     if raw["snow_input"] not in ("porosity", "density"):
         raw["snow_input"] = "porosity"
@@ -195,6 +197,13 @@ def parse_query(request: Request, cat: service.Catalogue, max_cells: int) -> Que
             f"combinations; at most {max_cells} per page"
         )
 
+    if raw["preset"] == "":
+        raw["preset"] = DEFAULT_PRESET
+    elif raw["preset"] not in ACCURACY_PRESETS:
+        q.errors["preset"] = (
+            f"unknown accuracy preset {raw['preset']!r}; choose {', '.join(ACCURACY_PRESETS)}"
+        )
+        raw["preset"] = DEFAULT_PRESET
     values = {k: raw[k] for k in NUMERIC}
     if raw["snow_input"] == "density":
         values.pop("porosity")
@@ -212,7 +221,7 @@ def parse_query(request: Request, cat: service.Catalogue, max_cells: int) -> Que
         if text != "" and _finite(text) is None:
             q.errors[key] = "must be a finite number"
     try:
-        body = ContactBody(ski="-", grind="-", **{k: v for k, v in values.items()})
+        body = ContactBody(ski="-", grind="-", preset=raw["preset"], **values)
     except ValidationError as exc:
         for err in exc.errors():
             key = str(err["loc"][0]) if err.get("loc") else "form"
@@ -380,6 +389,21 @@ def _describe_grind(grind: service.Grind) -> str:
     )
 
 
+def _preset_field(q: Query) -> str:
+    chosen = q.raw.get("preset") or DEFAULT_PRESET
+    options = "".join(
+        f'<option value="{name}"{" selected" if name == chosen else ""}>{name} — '
+        f"{p.pixel_along_m * 1e3:g} mm × {p.pixels_across} macro pixels</option>"
+        for name, p in ACCURACY_PRESETS.items()
+    )
+    return (
+        '<label class="field" for="preset"><span>Accuracy preset</span>'
+        f'<select id="preset" name="preset">{options}</select>'
+        '<span class="hint">default: within ~2 % of a converged macro grid; fine: ~1 %, '
+        "8× the time (docs/benchmarks.md)</span></label>"
+    )
+
+
 def render_form(cat: service.Catalogue, q: Query, status: int = 200) -> HTMLResponse:
     alert = ""
     if q.errors:
@@ -392,7 +416,18 @@ def render_form(cat: service.Catalogue, q: Query, status: int = 200) -> HTMLResp
             f"<ul>{items}</ul></div>"
         )
     density_mode = q.raw.get("snow_input") == "density"
-    advanced_open = " open" if {"base_modulus_mpa", "poisson_ratio"} & set(q.errors) else ""
+    advanced = {"base_modulus_mpa", "poisson_ratio", "preset"}
+    advanced_open = (
+        " open"
+        if advanced & set(q.errors)
+        or q.raw.get("preset")
+        not in (
+            None,
+            "",
+            DEFAULT_PRESET,
+        )
+        else ""
+    )
     presets = "\n".join(
         f'<button type="button" {data}>{escape(label)}</button>' for label, data in PRESETS
     )
@@ -428,9 +463,10 @@ snow density ρ</label></div>
 </fieldset>
 </div>
 <fieldset><details class="advanced"{advanced_open}>
-<summary>Advanced: ski-base elasticity</summary>
+<summary>Advanced: ski-base elasticity, accuracy preset</summary>
 {_number_field(q, "base_modulus_mpa")}
 {_number_field(q, "poisson_ratio")}
+{_preset_field(q)}
 </details></fieldset>
 <button type="submit" id="submit" class="primary">Compute contact</button>
 <span class="hint">One ski × grind takes a few seconds.</span>
@@ -479,6 +515,7 @@ of {a["mean_pressure_kpa"]:.4g} kPa; computed in {r["timing_ms"]["total"]:.0f} m
 <dt>macro solve</dt><dd>{prov["macro"]["iterations"]} iterations, converged
 {prov["macro"]["converged"]}, pixel {" × ".join(f"{v:g}" for v in prov["macro"]["pixel_size_mm"])}
 mm</dd>
+<dt>accuracy preset</dt><dd>{escape(str(prov.get("preset", {}).get("name", "default")))}</dd>
 <dt>E′ effective</dt><dd>{inp["effective_modulus_mpa"]:.4g} MPa</dd>
 <dt>code version</dt><dd>{escape(str(prov["code_version"]))}</dd>
 <dt>time</dt><dd>profile {r["timing_ms"]["profile"]:.0f} ms, macro

@@ -500,3 +500,16 @@ def test_results_page_shows_warnings(client):
     assert ok.status_code == loose.status_code == 200
     assert "Not trustworthy" not in ok.text
     assert "Not trustworthy" in loose.text and "porosity 0.95" in loose.text
+
+
+def test_accuracy_preset_is_chosen_in_the_form(client):
+    form = client.get("/")
+    assert 'name="preset"' in form.text and "fine" in form.text
+    fine = client.get("/results", params=_q(preset="fine"))
+    assert fine.status_code == 200
+    assert "<dt>accuracy preset</dt><dd>fine</dd>" in fine.text
+    default = client.get("/results", params=_q())
+    assert "<dt>accuracy preset</dt><dd>default</dd>" in default.text
+    bad = client.get("/results", params=_q(preset="turbo"))
+    assert bad.status_code == 422
+    assert "unknown accuracy preset" in bad.text and "Traceback" not in bad.text
