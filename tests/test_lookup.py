@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import make_table
 
 from solvers import lookup as L
-from solvers.elastic import PeriodicHalfSpace
 from solvers.errors import InputError, OutOfRangeError
-from solvers.micro import full_contact_pressure, solve_micro
+from solvers.micro import solve_micro
 from solvers.texture import self_affine_surface
 
 E_EFF = 1e8  # [Pa]
@@ -18,36 +18,7 @@ TOL = 1e-6
 
 
 def _table(heights, ratios, *, tol=TOL, floor=10e-9) -> L.MicroTable:
-    hs = PeriodicHalfSpace(heights.shape, PIXEL, E_EFF, workers=1)
-    p_fc, _ = full_contact_pressure(heights, PIXEL, E_EFF, halfspace=hs)
-    out = L.solve_table_chunk(
-        heights,
-        PIXEL,
-        ratios,
-        effective_modulus_pa=E_EFF,
-        full_contact_pressure_ratio=p_fc / E_EFF,
-        tol=tol,
-        max_iterations=2000,
-        gap_floor_m=floor,
-    )
-    out.pop("solve_time_s")
-    mean_h0, mean_rec0 = L.unloaded_statistics(heights, floor)
-    clearance = np.geomspace(1e-8, 1e-2, 61)
-    return L.MicroTable(
-        name="synthetic",
-        pixel_size_m=PIXEL,
-        grid_shape=heights.shape,
-        effective_modulus_pa=E_EFF,
-        gap_floor_m=floor,
-        tol=tol,
-        pressure_ratio=ratios,
-        full_contact_pressure_ratio=p_fc / E_EFF,
-        unloaded_mean_gap_m=mean_h0,
-        unloaded_mean_reciprocal_gap_per_m=mean_rec0,
-        clearance_m=clearance,
-        separated_mean_reciprocal_gap_per_m=L.separated_curve(heights, clearance),
-        **out,
-    )
+    return make_table(heights, ratios, pixel_m=PIXEL, e_eff=E_EFF, floor=floor, tol=tol)
 
 
 @pytest.fixture(scope="module")

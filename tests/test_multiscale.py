@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import make_table
 
 from solvers import lookup as L
-from solvers.elastic import PeriodicHalfSpace, effective_modulus
+from solvers.elastic import effective_modulus
 from solvers.errors import InputError, OutOfRangeError
 from solvers.macro import extrude_profile, solve_macro
-from solvers.micro import full_contact_pressure
 from solvers.multiscale import multiscale
 from solvers.texture import self_affine_surface
 
@@ -19,36 +19,7 @@ FLOOR = 10e-9
 
 
 def _table(heights: np.ndarray, ratios: np.ndarray) -> L.MicroTable:
-    hs = PeriodicHalfSpace(heights.shape, PIXEL, E_TABLE, workers=1)
-    p_fc, _ = full_contact_pressure(heights, PIXEL, E_TABLE, halfspace=hs)
-    out = L.solve_table_chunk(
-        heights,
-        PIXEL,
-        ratios,
-        effective_modulus_pa=E_TABLE,
-        full_contact_pressure_ratio=p_fc / E_TABLE,
-        tol=1e-6,
-        max_iterations=2000,
-        gap_floor_m=FLOOR,
-    )
-    out.pop("solve_time_s")
-    mean_h0, mean_rec0 = L.unloaded_statistics(heights, FLOOR)
-    clearance = np.geomspace(1e-8, 1e-2, 61)
-    return L.MicroTable(
-        name="synthetic",
-        pixel_size_m=PIXEL,
-        grid_shape=heights.shape,
-        effective_modulus_pa=E_TABLE,
-        gap_floor_m=FLOOR,
-        tol=1e-6,
-        pressure_ratio=ratios,
-        full_contact_pressure_ratio=p_fc / E_TABLE,
-        unloaded_mean_gap_m=mean_h0,
-        unloaded_mean_reciprocal_gap_per_m=mean_rec0,
-        clearance_m=clearance,
-        separated_mean_reciprocal_gap_per_m=L.separated_curve(heights, clearance),
-        **out,
-    )
+    return make_table(heights, ratios, pixel_m=PIXEL, e_eff=E_TABLE, floor=FLOOR)
 
 
 @pytest.fixture(scope="module")
