@@ -95,3 +95,20 @@ def catalogue(small_table):
         "tiny-grind", REPO / "tables" / "tiny-grind.h5", "0" * 64, small_table
     )
     return cat
+
+
+@pytest.fixture(scope="module")
+def camber_csv(tmp_path_factory) -> bytes:
+    """A valid camber CSV: demo ski A's beam model, 5 loads × 5 positions, 5 mm sampling."""
+    from app.storage.skis import CamberData, read_ski, write_camber_csv
+    from solvers.beam import G_STANDARD, measure_camber
+
+    rec = read_ski(REPO / "tables" / "skis" / "ski-a.h5")
+    loads = np.array([20.0, 35.0, 50.0, 65.0, 80.0]) * G_STANDARD
+    positions = np.linspace(-0.30, 0.10, 5)
+    f, xf, gaps = measure_camber(rec.beam, loads, positions, noise_m=3e-6, rng=7)
+    sel = np.arange(0, rec.beam.positions_m.size, 5)
+    data = CamberData("my-ski", rec.beam.positions_m[sel], f, xf, ["mean"] * f.size, gaps[:, sel])
+    path = tmp_path_factory.mktemp("csv") / "ski.csv"
+    write_camber_csv(path, data)
+    return path.read_bytes()

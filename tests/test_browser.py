@@ -47,22 +47,6 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-@pytest.fixture(scope="module", autouse=True)
-def _numba_threads_env():
-    """Keep ``NUMBA_NUM_THREADS`` at numba's live value while this module runs.
-
-    ``create_app`` sets the variable when absent; once numba's thread pool is up, a later JIT
-    compile that sees a different value raises RuntimeError (numba re-reads its config). That
-    is the app's start-up concern (``skisnow serve`` sets it before numba loads); these tests
-    are about the web layer, so they run with a consistent value whatever ran before.
-    """
-    import numba
-
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("NUMBA_NUM_THREADS", str(numba.config.NUMBA_NUM_THREADS))
-        yield
-
-
 @contextlib.contextmanager
 def _serve(app):
     """Run ``app`` under uvicorn in a background thread; yield its base URL."""

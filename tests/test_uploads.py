@@ -20,8 +20,6 @@ from app import service
 from app.api import create_app
 from app.settings import Settings
 from app.storage.catalogue import CatalogueDB
-from app.storage.skis import CamberData, read_ski, write_camber_csv
-from solvers.beam import G_STANDARD, measure_camber
 from solvers.texture import iso25178_parameters, level_heights, self_affine_surface
 
 REPO = Path(__file__).resolve().parents[1]
@@ -53,20 +51,6 @@ def npy_bytes(a: np.ndarray) -> bytes:
     buf = io.BytesIO()
     np.save(buf, a)
     return buf.getvalue()
-
-
-@pytest.fixture(scope="module")
-def ski_csv(tmp_path_factory) -> bytes:
-    """Camber CSV of the demo ski A's beam model: 5 loads × 5 positions, 5 mm sampling."""
-    rec = read_ski(REPO / "tables" / "skis" / "ski-a.h5")
-    loads = np.array([20.0, 35.0, 50.0, 65.0, 80.0]) * G_STANDARD
-    positions = np.linspace(-0.30, 0.10, 5)
-    f, xf, gaps = measure_camber(rec.beam, loads, positions, noise_m=3e-6, rng=7)
-    sel = np.arange(0, rec.beam.positions_m.size, 5)
-    data = CamberData("my-ski", rec.beam.positions_m[sel], f, xf, ["mean"] * f.size, gaps[:, sel])
-    path = tmp_path_factory.mktemp("csv") / "ski.csv"
-    write_camber_csv(path, data)
-    return path.read_bytes()
 
 
 def make_client(catalogue, data_dir: Path, **overrides) -> TestClient:
@@ -248,10 +232,10 @@ def test_job_of_a_crashed_process_is_requeued(tmp_path):
 # ------------------------------------------------------------------------------- skis
 
 
-def test_ski_upload_train_and_contact(catalogue, tmp_path, ski_csv):
-    assert len(ski_csv) > 64 * 1024  # larger than the JSON body limit: the upload limit applies
+def test_ski_upload_train_and_contact(catalogue, tmp_path, camber_csv):
+    assert len(camber_csv) > 64 * 1024  # larger than the JSON body limit: the upload limit applies
     with make_client(catalogue, tmp_path) as client:
-        r = post_ski(client, ski_csv, brand_model="Fischer Speedmax", owner_team="team-x")
+        r = post_ski(client, camber_csv, brand_model="Fischer Speedmax", owner_team="team-x")
         assert r.status_code == 202, r.text[:500]
         figures = r.json()["data"]
         assert figures["load_cases"] == 25 and figures["sample_spacing_mm"] == pytest.approx(5)
@@ -273,11 +257,11 @@ def test_ski_upload_train_and_contact(catalogue, tmp_path, ski_csv):
         )
 
 
-def test_ski_refused_by_accuracy_check(catalogue, tmp_path, ski_csv):
+def test_ski_refused_by_accuracy_check(catalogue, tmp_path, camber_csv):
     with make_client(
         catalogue, tmp_path, train_epochs=5, train_lbfgs_epochs=0, ski_max_test_rmse_um=8.0
     ) as client:
-        r = post_ski(client, ski_csv, name="rough")
+        r = post_ski(client, camber_csv, name="rough")
         assert r.status_code == 202, r.text[:500]
         job = wait_job(client, r.json()["job"])
         assert job["state"] == "failed"
@@ -298,8 +282,8 @@ def bad_client(catalogue, tmp_path_factory):
         yield client, data_dir
 
 
-def _csv_lines(ski_csv: bytes) -> list[str]:
-    return ski_csv.decode().splitlines()
+def _csv_lines(camber_csv: bytes) -> list[str]:
+    return camber_csv.decode().splitlines()
 
 
 def _huge_npy_header() -> bytes:
@@ -362,23 +346,23 @@ def _ski_cases(lines: list[str]) -> dict:
 @pytest.mark.parametrize(
     "case", ["negative gap", "NaN gap", "truncated", "too sparse", "wrong header"]
 )
-def test_bad_ski_uploads_are_4xx_and_leave_nothing(bad_client, ski_csv, case):
+def test_bad_ski_uploads_are_4xx_and_leave_nothing(bad_client, camber_csv, case):
     client, data_dir = bad_client
-    lines, status, words = _ski_cases(_csv_lines(ski_csv))[case]
+    lines, status, words = _ski_cases(_csv_lines(camber_csv))[case]
     body = is_problem(post_ski(client, ("\n".join(lines) + "\n").encode(), name="bad"), status)
     assert words in body["detail"], body
     assert stored_files(data_dir) == []
 
 
-def test_other_bad_ski_requests(bad_client, ski_csv):
+def test_other_bad_ski_requests(bad_client, camber_csv):
     client, data_dir = bad_client
-    small = ("\n".join(_csv_lines(ski_csv)[:1000]) + "\n").encode()
+    small = ("\n".join(_csv_lines(camber_csv)[:1000]) + "\n").encode()
     is_problem(post_ski(client, small, filename="ski.xlsx"), 415)
     is_problem(post_ski(client, b"\x00\x01binary", filename="ski.csv"), 415)
     is_problem(post_ski(client, small, style="telemark"), 422)
     is_problem(post_ski(client, small, width_mm="400"), 422)
     is_problem(client.post("/v1/skis", json={"name": "x"}), 415)
-    is_problem(post_ski(client, ski_csv * 2), 413)  # 636 kB > this client's 400 kB
+    is_problem(post_ski(client, camber_csv * 2), 413)  # 636 kB > this client's 400 kB
     assert stored_files(data_dir) == []
 
 

@@ -28,22 +28,6 @@ QUERY = {
 }
 
 
-@pytest.fixture(scope="module", autouse=True)
-def _numba_threads_env():
-    """Keep ``NUMBA_NUM_THREADS`` at numba's live value while this module runs.
-
-    ``create_app`` sets the variable when absent; once numba's thread pool is up, a later JIT
-    compile that sees a different value raises RuntimeError (numba re-reads its config). That
-    is the app's start-up concern (``skisnow serve`` sets it before numba loads); these tests
-    are about the web layer, so they run with a consistent value whatever ran before.
-    """
-    import numba
-
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("NUMBA_NUM_THREADS", str(numba.config.NUMBA_NUM_THREADS))
-        yield
-
-
 @pytest.fixture(scope="module")
 def client(catalogue):
     app = create_app(Settings(max_compare_cells=4), catalogue=catalogue)
@@ -281,25 +265,6 @@ def _heights_um(shape=(64, 64)):
 
     h = self_affine_surface(shape, 1e-6, hurst=0.8, rms_height_m=1e-6, rng=np.random.default_rng(1))
     return h * 1e6
-
-
-@pytest.fixture(scope="module")
-def camber_csv(tmp_path_factory) -> bytes:
-    """A valid camber CSV (the demo ski A's beam model, 5 loads × 5 positions, 5 mm)."""
-    import numpy as np
-
-    from app.storage.skis import CamberData, read_ski, write_camber_csv
-    from solvers.beam import G_STANDARD, measure_camber
-
-    rec = read_ski(REPO / "tables" / "skis" / "ski-a.h5")
-    loads = np.array([20.0, 35.0, 50.0, 65.0, 80.0]) * G_STANDARD
-    positions = np.linspace(-0.30, 0.10, 5)
-    f, xf, gaps = measure_camber(rec.beam, loads, positions, noise_m=3e-6, rng=7)
-    sel = np.arange(0, rec.beam.positions_m.size, 5)
-    data = CamberData("my-ski", rec.beam.positions_m[sel], f, xf, ["mean"] * f.size, gaps[:, sel])
-    path = tmp_path_factory.mktemp("csv") / "ski.csv"
-    write_camber_csv(path, data)
-    return path.read_bytes()
 
 
 @pytest.fixture(scope="module")
