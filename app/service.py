@@ -17,7 +17,7 @@ import numpy as np
 from app import units
 from app.presets import DEFAULT_PRESET, Preset, get_preset
 from app.storage.common import code_version, sha256_file
-from app.storage.skis import SkiRecord, read_ski
+from app.storage.skis import SKI_MANIFEST, SkiRecord, read_ski, read_ski_manifest
 from app.storage.tables import read_manifest, read_table
 from solvers.elastic import effective_modulus
 from solvers.errors import DataFileError, NotConvergedError, OutOfRangeError
@@ -26,8 +26,6 @@ from solvers.macro import extrude_profile, solve_macro
 from solvers.multiscale import multiscale
 
 log = logging.getLogger(__name__)
-
-SKI_MANIFEST = "manifest.json"
 
 
 class UnknownItemError(LookupError):
@@ -129,40 +127,6 @@ def load_catalogue(tables_dir: str | Path) -> Catalogue:
     if not cat.skis:
         raise DataFileError(f"no skis listed in {ski_dir / SKI_MANIFEST}")
     return cat
-
-
-def read_ski_manifest(ski_dir: Path) -> dict:
-    import json
-
-    path = ski_dir / SKI_MANIFEST
-    try:
-        data = json.loads(path.read_text())
-    except FileNotFoundError as exc:
-        raise DataFileError(f"ski manifest not found: {path}") from exc
-    except (OSError, json.JSONDecodeError) as exc:
-        raise DataFileError(f"{path}: unreadable ski manifest ({exc})") from exc
-    if data.get("schema") != "skisnow.ski-manifest/1" or not isinstance(data.get("files"), dict):
-        raise DataFileError(f"{path}: unsupported ski manifest")
-    return data
-
-
-def write_ski_manifest(ski_dir: str | Path) -> Path:
-    """(Re)write ``skis/manifest.json`` with sha256 and size of every ski file."""
-    import json
-
-    from app.storage.common import atomic_path
-
-    ski_dir = Path(ski_dir)
-    files = {
-        p.name: {"sha256": sha256_file(p), "size_bytes": p.stat().st_size}
-        for p in sorted(ski_dir.glob("*.h5"))
-    }
-    out = ski_dir / SKI_MANIFEST
-    with atomic_path(out) as tmp:
-        tmp.write_text(
-            json.dumps({"schema": "skisnow.ski-manifest/1", "files": files}, indent=2) + "\n"
-        )
-    return out
 
 
 # ----------------------------------------------------------------------------- compute

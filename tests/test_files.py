@@ -31,7 +31,7 @@ from app.api import create_app
 from app.build_tables import BuildSettings, build_tables
 from app.settings import Settings
 from app.storage.common import sha256_file
-from app.storage.skis import read_ski
+from app.storage.skis import read_ski, write_ski_manifest
 from app.storage.tables import read_table, table_data_sha256, write_manifest, write_table
 from solvers.errors import DataFileError
 from solvers.texture import Texture, self_affine_surface
@@ -51,7 +51,7 @@ def good_dir(tmp_path_factory, small_table) -> Path:
     write_manifest(d)
     (d / "skis").mkdir()
     shutil.copy(SKI, d / "skis" / "ski-a.h5")
-    service.write_ski_manifest(d / "skis")
+    write_ski_manifest(d / "skis")
     return d
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import datetime as _dt
 import hashlib
+import json
 import os
 import shlex
 import subprocess
@@ -89,3 +90,27 @@ def atomic_path(final: str | os.PathLike) -> Iterator[Path]:
         with contextlib.suppress(OSError):
             tmp_path.unlink()
         raise
+
+
+def read_json_manifest(path: str | os.PathLike, schema: str, what: str = "manifest") -> dict:
+    """Read a JSON manifest ``{"schema": schema, "files": {...}}``.
+
+    Raises
+    ------
+    DataFileError
+        Missing, unreadable, another schema, or no ``files`` mapping; the message names the file.
+    """
+    from solvers.errors import DataFileError
+
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError as exc:
+        raise DataFileError(f"{what} not found: {path}") from exc
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DataFileError(f"{path}: unreadable {what} ({exc})") from exc
+    if not isinstance(data, dict) or data.get("schema") != schema:
+        raise DataFileError(f"{path}: unsupported {what} schema, expected {schema!r}")
+    if not isinstance(data.get("files"), dict):
+        raise DataFileError(f"{path}: {what} has no 'files' mapping")
+    return data

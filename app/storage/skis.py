@@ -32,7 +32,7 @@ import numpy as np
 from solvers.beam import G_STANDARD, BeamSki
 from solvers.errors import DataFileError, InputError
 
-from .common import atomic_path, provenance
+from .common import atomic_path, provenance, read_json_manifest, sha256_file
 
 __all__ = [
     "CSV_COLUMNS",
@@ -389,3 +389,25 @@ def read_ski(path: str | os.PathLike) -> SkiRecord:
     except (OSError, KeyError, ValueError, TypeError) as exc:  # ValueError: undecodable text
         raise DataFileError(f"{path}: unreadable or incomplete ski file ({exc})") from exc
     return SkiRecord(meas, outline, metadata, beam, design, network)
+
+
+SKI_MANIFEST = "manifest.json"
+SKI_MANIFEST_SCHEMA = "skisnow.ski-manifest/1"
+
+
+def read_ski_manifest(ski_dir: str | os.PathLike) -> dict:
+    """Read ``skis/manifest.json`` (DataFileError naming the file if missing or invalid)."""
+    return read_json_manifest(Path(ski_dir) / SKI_MANIFEST, SKI_MANIFEST_SCHEMA, "ski manifest")
+
+
+def write_ski_manifest(ski_dir: str | os.PathLike) -> Path:
+    """(Re)write ``skis/manifest.json`` with sha256 and size of every ski file (atomic)."""
+    ski_dir = Path(ski_dir)
+    files = {
+        p.name: {"sha256": sha256_file(p), "size_bytes": p.stat().st_size}
+        for p in sorted(ski_dir.glob("*.h5"))
+    }
+    out = ski_dir / SKI_MANIFEST
+    with atomic_path(out) as tmp:
+        tmp.write_text(json.dumps({"schema": SKI_MANIFEST_SCHEMA, "files": files}, indent=2) + "\n")
+    return out

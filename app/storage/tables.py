@@ -32,7 +32,7 @@ import numpy as np
 from solvers.errors import DataFileError
 from solvers.lookup import TABLE_SCHEMA, MicroTable
 
-from .common import atomic_path, provenance, sha256_file
+from .common import atomic_path, provenance, read_json_manifest, sha256_file
 
 __all__ = [
     "MANIFEST_NAME",
@@ -324,18 +324,7 @@ def write_manifest(directory: str | os.PathLike) -> Path:
 
 def read_manifest(directory: str | os.PathLike) -> dict:
     """Read ``manifest.json`` of a table directory (DataFileError if missing or invalid)."""
-    path = Path(directory) / MANIFEST_NAME
-    try:
-        manifest = json.loads(path.read_text())
-    except FileNotFoundError as exc:
-        raise DataFileError(f"manifest not found: {path}") from exc
-    except (OSError, json.JSONDecodeError) as exc:
-        raise DataFileError(f"{path}: unreadable manifest ({exc})") from exc
-    if not isinstance(manifest, dict) or manifest.get("schema") != MANIFEST_SCHEMA:
-        raise DataFileError(f"{path}: unsupported manifest schema, expected {MANIFEST_SCHEMA!r}")
-    if not isinstance(manifest.get("files"), dict):
-        raise DataFileError(f"{path}: manifest has no 'files' mapping")
-    return manifest
+    return read_json_manifest(Path(directory) / MANIFEST_NAME, MANIFEST_SCHEMA)
 
 
 def verify_manifest(directory: str | os.PathLike) -> list[str]:
