@@ -43,17 +43,26 @@ def gap_and_norms(p, h0, u, delta, g, gc):
 
 
 @njit(parallel=True, cache=True)
-def mask_and_dot(p, z, gc):
-    """z ← z on contact (0 elsewhere); return (Σ z, Σ gc·z)."""
+def mask_and_dots(p, z, gc, gc_prev):
+    """z ← z on contact (0 elsewhere); gc_prev ← gc after reading it.
+
+    Return (Σ_c z, Σ_c gc·z, Σ_c gc_prev·z, Σ_c gc_prev) with the old gc_prev.
+    """
     s = 0.0
     d = 0.0
+    dp = 0.0
+    sp = 0.0
     for i in prange(p.size):
         if p[i] > 0.0:
-            s += z[i]
-            d += gc[i] * z[i]
+            zi = z[i]
+            s += zi
+            d += gc[i] * zi
+            dp += gc_prev[i] * zi
+            sp += gc_prev[i]
         else:
             z[i] = 0.0
-    return s, d
+        gc_prev[i] = gc[i]
+    return s, d, dp, sp
 
 
 @njit(parallel=True, cache=True)
@@ -123,7 +132,7 @@ def warm_up() -> None:
     b = np.zeros(4)
     contact_mean_gap(a, a, b)
     gap_and_norms(a, a, b, 0.0, b.copy(), b.copy())
-    mask_and_dot(a, b.copy(), b)
+    mask_and_dots(a, b.copy(), b, b.copy())
     update_direction(a, b, 0.0, 0.0, b.copy())
     step_sums(a, b, b, b)
     update_pressure(a.copy(), b, b, 1.0, True)

@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.fft
+from numba import njit, prange
 
 from .errors import InputError
 
@@ -78,30 +79,71 @@ def _default_workers() -> int:
     return max(1, os.cpu_count() or 1)
 
 
+def pyfftw_available() -> bool:
+    """True when pyFFTW can be imported (the ``fftw`` extra)."""
+    try:
+        import pyfftw  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def resolve_backend(backend: str) -> str:
+    """``"auto"`` → ``"pyfftw"`` when installed (faster here, docs/benchmarks.md), else scipy."""
+    if backend == "auto":
+        return "pyfftw" if pyfftw_available() else "scipy"
+    if backend not in ("scipy", "pyfftw"):
+        raise InputError(f"backend must be 'auto', 'scipy' or 'pyfftw', got {backend!r}")
+    return backend
+
+
+@njit(parallel=True, cache=True)
+def _multiply_spectrum(spec, kernel, scale):  # pragma: no cover - compiled
+    """spec ← spec · kernel · scale, in place (one pass, all threads)."""
+    nx, ny = spec.shape
+    for i in prange(nx):
+        for j in range(ny):
+            spec[i, j] *= kernel[i, j] * scale
+
+
 @dataclass
 class FFTBackend:
-    """Real 2-D FFT pair for one array shape: ``scipy.fft`` (default) or pyFFTW.
+    """Real 2-D FFT pair for one array shape: ``scipy.fft`` or pyFFTW.
 
     Parameters
     ----------
     shape : tuple of int
         Real-space shape ``(nx, ny)``.
-    backend : {"scipy", "pyfftw"}
-        ``"pyfftw"`` needs the ``fftw`` extra (``pip install 'skisnow[fftw]'``).
+    backend : {"auto", "scipy", "pyfftw"}
+        ``"pyfftw"`` needs the ``fftw`` extra (``pip install 'skisnow[fftw]'``); ``"auto"``
+        uses it when installed.
     workers : int, optional
         Threads; default: all cores.
+
+    Notes
+    -----
+    pyFFTW plans are made with ``FFTW_ESTIMATE``: planning is instant and deterministic (the
+    same plan, hence bit-identical results, in every process), where ``FFTW_MEASURE`` times
+    candidate plans and may pick a different one in each run. :meth:`convolve` executes plans
+    bound to the caller's arrays (no copies) and folds the ``1/N`` of the inverse transform
+    into the spectral multiplication.
     """
 
     shape: tuple[int, int]
-    backend: str = "scipy"
+    backend: str = "auto"
     workers: int | None = None
     _fwd: object = field(init=False, repr=False, default=None)
     _inv: object = field(init=False, repr=False, default=None)
+    _plans: dict = field(init=False, repr=False, default_factory=dict)
+    _work: list = field(init=False, repr=False, default_factory=list)
+    _owned: set = field(init=False, repr=False, default_factory=set)
+    _spectrum: np.ndarray | None = field(init=False, repr=False, default=None)
 
     def __post_init__(self) -> None:
         self.shape = (int(self.shape[0]), int(self.shape[1]))
         if self.workers is None:
             self.workers = _default_workers()
+        self.backend = resolve_backend(self.backend)
         if self.backend == "pyfftw":
             try:
                 import pyfftw
@@ -109,26 +151,30 @@ class FFTBackend:
                 raise ImportError(
                     "backend='pyfftw' needs pyFFTW: pip install 'skisnow[fftw]'"
                 ) from exc
-            a = pyfftw.empty_aligned(self.shape, dtype="float64")
-            b = pyfftw.empty_aligned((self.shape[0], self.shape[1] // 2 + 1), dtype="complex128")
-            self._fwd = pyfftw.FFTW(
-                a,
-                b,
-                axes=(0, 1),
-                direction="FFTW_FORWARD",
-                threads=self.workers,
-                flags=("FFTW_MEASURE",),
-            )
-            self._inv = pyfftw.FFTW(
-                b.copy(),
-                a.copy(),
-                axes=(0, 1),
-                direction="FFTW_BACKWARD",
-                threads=self.workers,
-                flags=("FFTW_MEASURE", "FFTW_DESTROY_INPUT"),
-            )
-        elif self.backend != "scipy":
-            raise InputError(f"backend must be 'scipy' or 'pyfftw', got {self.backend!r}")
+            self._pyfftw = pyfftw
+            self._spectrum = pyfftw.empty_aligned(self.spectrum_shape, dtype="complex128")
+            a = self.empty()
+            self._fwd = self._plan(a, self._spectrum, "FFTW_FORWARD")
+            self._inv = self._plan(self._spectrum, self.empty(), "FFTW_BACKWARD")
+
+    @property
+    def spectrum_shape(self) -> tuple[int, int]:
+        """Shape of the rfft2 half spectrum."""
+        return (self.shape[0], self.shape[1] // 2 + 1)
+
+    def empty(self) -> np.ndarray:
+        """An uninitialised real array of ``shape``, SIMD-aligned for pyFFTW."""
+        if self.backend == "pyfftw":
+            return self._pyfftw.empty_aligned(self.shape, dtype="float64")
+        return np.empty(self.shape)
+
+    def _plan(self, a: np.ndarray, b: np.ndarray, direction: str):
+        flags = ("FFTW_ESTIMATE",)
+        if direction == "FFTW_BACKWARD":
+            flags = ("FFTW_ESTIMATE", "FFTW_DESTROY_INPUT")
+        return self._pyfftw.FFTW(
+            a, b, axes=(0, 1), direction=direction, threads=self.workers, flags=flags
+        )
 
     def rfft2(self, a: np.ndarray) -> np.ndarray:
         """Forward real FFT (unnormalised)."""
@@ -143,6 +189,66 @@ class FFTBackend:
             self._inv.input_array[...] = a
             return self._inv(normalise_idft=True).copy()
         return scipy.fft.irfft2(a, s=self.shape, workers=self.workers)
+
+    def workspace(self, count: int) -> list[np.ndarray]:
+        """``count`` real work arrays of ``shape`` owned by this backend, allocated once.
+
+        Transforms between workspace arrays run on the arrays themselves with plans made
+        once (pyFFTW); the arrays are shared by every caller of this backend, so a solver
+        uses them for the duration of one call only.
+        """
+        while len(self._work) < count:
+            arr = self.empty()
+            self._work.append(arr)
+            self._owned.add(arr.ctypes.data)
+        return self._work[:count]
+
+    def convolve(
+        self, kernel: np.ndarray, src: np.ndarray, out: np.ndarray | None = None
+    ) -> np.ndarray:
+        """``out = irfft2(kernel · rfft2(src))`` with ``kernel`` on the rfft2 layout.
+
+        With pyFFTW, when ``src`` and ``out`` are distinct :meth:`workspace` arrays the
+        transforms run on them directly; other arrays are copied through internal buffers.
+        """
+        if self.backend == "scipy":
+            res = scipy.fft.irfft2(
+                kernel * scipy.fft.rfft2(src, workers=self.workers),
+                s=self.shape,
+                workers=self.workers,
+            )
+            if out is None:
+                return res
+            out[...] = res
+            return out
+        owned = self._owned
+        if (
+            out is not None
+            and out is not src
+            and src.ctypes.data in owned
+            and out.ctypes.data in owned
+        ):
+            key = (src.ctypes.data, out.ctypes.data)
+            plans = self._plans.get(key)
+            if plans is None:
+                plans = (
+                    self._plan(src, self._spectrum, "FFTW_FORWARD"),
+                    self._plan(self._spectrum, out, "FFTW_BACKWARD"),
+                )
+                self._plans[key] = plans
+            fwd, inv, target = plans[0], plans[1], out
+        else:
+            fwd, inv = self._fwd, self._inv
+            fwd.input_array[...] = src
+            target = inv.output_array
+        fwd.execute()
+        _multiply_spectrum(self._spectrum, kernel, 1.0 / (self.shape[0] * self.shape[1]))
+        inv.execute()
+        if out is None:
+            return target.copy()
+        if target is not out:
+            out[...] = target
+        return out
 
 
 class PeriodicHalfSpace:
@@ -166,7 +272,7 @@ class PeriodicHalfSpace:
         pixel_size_m: float | tuple[float, float],
         effective_modulus_pa: float,
         *,
-        backend: str = "scipy",
+        backend: str = "auto",
         workers: int | None = None,
     ) -> None:
         nx, ny = int(shape[0]), int(shape[1])
@@ -208,15 +314,23 @@ class PeriodicHalfSpace:
             self._self_compliance = float(self.displacement(delta)[0, 0])
         return self._self_compliance
 
-    def displacement(self, pressure_pa: np.ndarray) -> np.ndarray:
-        """Zero-mean surface displacement [m] under a periodic pressure field [Pa]."""
-        self.fft_pairs += 1
-        return self.fft.irfft2(self.compliance * self.fft.rfft2(pressure_pa))
+    def workspace(self, count: int) -> list[np.ndarray]:
+        """Work fields of the grid's shape for FFTs without copies (see FFTBackend)."""
+        return self.fft.workspace(count)
 
-    def pressure(self, displacement_m: np.ndarray) -> np.ndarray:
+    def displacement(self, pressure_pa: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Zero-mean surface displacement [m] under a periodic pressure field [Pa].
+
+        ``out`` (optional, not ``pressure_pa``): write the result there; arrays from
+        :meth:`empty` avoid copies with pyFFTW.
+        """
+        self.fft_pairs += 1
+        return self.fft.convolve(self.compliance, pressure_pa, out)
+
+    def pressure(self, displacement_m: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Zero-mean pressure [Pa] that produces a (zero-mean part of a) displacement [m]."""
         self.fft_pairs += 1
-        return self.fft.irfft2(self.stiffness * self.fft.rfft2(displacement_m))
+        return self.fft.convolve(self.stiffness, displacement_m, out)
 
 
 def love_rectangle_influence(

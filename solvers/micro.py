@@ -190,19 +190,26 @@ def _pk_cg(
     total = mean_pressure * n
     h0f = np.ascontiguousarray(h0, dtype=float).ravel()
     scale_h = float(np.sqrt(np.mean((h0f - h0f.mean()) ** 2))) or 1.0
+    # fields the FFTs read and write in place (pyFFTW plans bound to them); flat views of
+    # the same memory go to the element-wise kernels
+    p2, u2, gc2, z2, t2, w2 = hs.workspace(6)
+    p, u, gc, z, t, w = (a.ravel() for a in (p2, u2, gc2, z2, t2, w2))
     if p_init is None:
-        p = np.full(n, mean_pressure)
+        p[:] = mean_pressure
     else:
-        p = np.maximum(np.asarray(p_init, dtype=float).ravel(), 0.0)
+        np.maximum(np.asarray(p_init, dtype=float).reshape(shape), 0.0, out=p2)
         s = p.sum()
-        p = p * (total / s) if s > 0 else np.full(n, mean_pressure)
-    u = hs.displacement(p.reshape(shape)).ravel()
-    t = np.zeros(n)
+        if s > 0:
+            p *= total / s
+        else:
+            p[:] = mean_pressure
+    hs.displacement(p2, out=u2)
+    t[:] = 0.0
+    w[:] = 0.0
     g = np.empty(n)
-    gc = np.empty(n)
-    w = np.zeros(n)
+    gc_prev = np.zeros(n)
     rz_old = 1.0
-    restart = True
+    first = True
     residual = np.inf
     delta = 0.0
     it = 0
@@ -220,7 +227,7 @@ def _pk_cg(
             callback(it, residual)
         if residual < tol:
             if since_refresh:  # confirm on a freshly computed displacement
-                u = hs.displacement(p.reshape(shape)).ravel()
+                hs.displacement(p2, out=u2)
                 since_refresh = 0
                 continue
             converged = True
@@ -229,38 +236,49 @@ def _pk_cg(
             break
         it += 1
         if precondition and nc:
-            z = hs.pressure(gc.reshape(shape)).ravel()
+            hs.pressure(gc2, out=z2)
         else:
-            z = gc.copy()
-        z_sum, rz = _k.mask_and_dot(p, z, gc)
+            z[:] = gc
+        z_sum, rz, z_gp, gp_sum = _k.mask_and_dots(p, z, gc, gc_prev)
         z_mean = z_sum / nc if nc else 0.0
-        # Σ gc = 0 (δ removed the mean on c), so removing z̄ does not change ⟨gc, z⟩
-        beta = 0.0 if restart or rz_old == 0 else rz / rz_old
+        cross = z_gp - z_mean * gp_sum
+        # Polak-Ribière+: β = max(0, ⟨z̃, gc − gc_prev⟩ / ⟨z̃_prev, gc_prev⟩), z̃ = z − z̄ on c
+        # (Σ_c gc = 0, so ⟨z̃, gc⟩ = rz); the previous residual is then replaced by gc
+        beta = 0.0 if first or rz_old <= 0 else max(0.0, (rz - cross) / rz_old)
+        first = False
         _k.update_direction(p, z, z_mean, beta, t)
         rz_old = rz
-        w = hs.displacement(t.reshape(shape)).ravel()
+        hs.displacement(t2, out=w2)
         sw, swt, st, sgt = _k.step_sums(p, w, t, gc)
         w_mean = sw / nc if nc else 0.0
         denom = swt - w_mean * st
         tau = sgt / denom if denom > 0 else 0.0
+        if not tau > 0 and beta != 0.0:
+            # not a descent direction: restart from the preconditioned residual
+            _k.update_direction(p, z, z_mean, 0.0, t)
+            hs.displacement(t2, out=w2)
+            sw, swt, st, sgt = _k.step_sums(p, w, t, gc)
+            w_mean = sw / nc if nc else 0.0
+            denom = swt - w_mean * st
+            tau = sgt / denom if denom > 0 else 0.0
         if not tau > 0:
             # degenerate step (e.g. a single contact point has no gap residual): fall back to
             # the Jacobi step so that penetrating points can still enter the contact set
             tau = 1.0 / hs.self_compliance
         s, clipped, added = _k.update_pressure(p, t, g, tau, pen_norm > 0)
-        restart = clipped > 0 or added > 0
+        changed = clipped > 0 or added > 0
         if s <= 0:
             p[:] = mean_pressure
-            restart = True
+            changed = first = True
             s = total
         factor = total / s
         since_refresh += 1
-        refresh = restart or since_refresh >= refresh_every
+        refresh = changed or since_refresh >= refresh_every
         _k.scale_and_update(p, factor, u, w, tau, not refresh)
         if refresh:
-            u = hs.displacement(p.reshape(shape)).ravel()
+            hs.displacement(p2, out=u2)
             since_refresh = 0
-    p = p.reshape(shape)
+    p = p2.copy()  # the workspace is reused by the next solve on this half-space
     g = g.reshape(shape)
     gap = np.where(p > 0, 0.0, np.maximum(g, 0.0))
     return p, gap, delta, it, float(residual), converged
@@ -277,7 +295,7 @@ def solve_micro(
     initial_pressure_pa: np.ndarray | None = None,
     nested: bool = True,
     gap_floor_m: float = DEFAULT_GAP_FLOOR_M,
-    backend: str = "scipy",
+    backend: str = "auto",
     workers: int | None = None,
     halfspace: PeriodicHalfSpace | None = None,
     callback: Callable[[int, float], None] | None = None,
@@ -306,7 +324,7 @@ def solve_micro(
     gap_floor_m : float
         h_c of the floored mean reciprocal gap [m].
     backend, workers :
-        FFT backend (``"scipy"`` or ``"pyfftw"``) and threads.
+        FFT backend (``"auto"``: pyFFTW when installed, else ``"scipy"``) and threads.
     halfspace : PeriodicHalfSpace, optional
         Reuse a prepared half-space (same shape, pixel size and modulus).
     callback : callable(iteration, residual), optional
@@ -404,7 +422,9 @@ def solve_micro(
     levels: list[int] = []
     p_start = initial_pressure_pa
     if p_start is None and nested:
-        p_start = _nested_start(h, dxy, p_nom, e_eff, tol, max_iterations, levels, workers)
+        p_start = _nested_start(
+            h, dxy, p_nom, e_eff, tol, max_iterations, levels, hs.fft.backend, hs.fft.workers
+        )
     p, gap, delta, its, res, conv = _pk_cg(hs, h0, p_nom, p_start, tol, max_iterations, callback)
     levels.append(its)
     msg = (
@@ -423,6 +443,7 @@ def _nested_start(
     tol: float,
     max_iterations: int,
     levels: list[int],
+    backend: str,
     workers: int | None,
     min_size: int = 64,
 ) -> np.ndarray | None:
@@ -432,11 +453,13 @@ def _nested_start(
         return None
     hc = _coarsen(h)
     dxc = (2 * dxy[0], 2 * dxy[1])
-    hs = PeriodicHalfSpace(hc.shape, dxc, e_eff, workers=workers)
+    hs = PeriodicHalfSpace(hc.shape, dxc, e_eff, backend=backend, workers=workers)
     p_fc, _ = full_contact_pressure(hc, dxc, e_eff, halfspace=hs)
     if p_nom >= p_fc:
         return None
-    p_coarse_start = _nested_start(hc, dxc, p_nom, e_eff, tol, max_iterations, levels, workers)
+    p_coarse_start = _nested_start(
+        hc, dxc, p_nom, e_eff, tol, max_iterations, levels, backend, workers
+    )
     p, _, _, its, _, _ = _pk_cg(
         hs, hc.max() - hc, p_nom, p_coarse_start, max(tol, 1e-4), max_iterations, None
     )
