@@ -25,8 +25,11 @@ def contact_mean_gap(p, h0, u):
 
 
 @njit(parallel=True, cache=True)
-def gap_and_norms(p, h0, u, delta, g, gc):
-    """g = h0 + u − δ; gc = g on contact, 0 elsewhere. Return (Σ gc², Σ penetration²)."""
+def gap_and_norms(p, h0, u, delta, g, gc, gc32):
+    """g = h0 + u − δ; gc = g on contact, 0 elsewhere (and its float32 copy gc32).
+
+    Return (Σ gc², Σ penetration²).
+    """
     gn = 0.0
     pn = 0.0
     for i in prange(p.size):
@@ -39,6 +42,7 @@ def gap_and_norms(p, h0, u, delta, g, gc):
             gc[i] = 0.0
             if gi < 0.0:
                 pn += gi * gi
+        gc32[i] = gc[i]
     return gn, pn
 
 
@@ -93,37 +97,45 @@ def step_sums(p, w, t, gc):
 
 
 @njit(parallel=True, cache=True)
-def update_pressure(p, t, g, tau, use_overlap):
+def update_pressure(p, t, g, tau, use_overlap, corr):
     """p ← max(p − τ t, 0) on contact; p ← −τ g on penetrating free points (if use_overlap).
 
-    Return (Σ p, number clipped, number added).
+    ``corr`` receives the departure from the linear update, ``p_new − (p − τ t)``: non-zero
+    only where a pressure was clipped or a point added. Return (Σ p, clipped, added).
     """
     s = 0.0
     clipped = 0
     added = 0
     for i in prange(p.size):
+        c = 0.0
         if p[i] > 0.0:
             v = p[i] - tau * t[i]
             if v < 0.0:
+                c = -v
                 v = 0.0
                 clipped += 1
             p[i] = v
             s += v
         elif use_overlap and g[i] < 0.0:
             v = -tau * g[i]
+            c = v - (p[i] - tau * t[i])
             p[i] = v
             s += v
             added += 1
+        corr[i] = c
     return s, clipped, added
 
 
 @njit(parallel=True, cache=True)
-def scale_and_update(p, factor, u, w, tau, update_u):
-    """p ← factor·p; if update_u: u ← factor·(u − τ w)."""
+def scale_and_update(p, factor, u, w, tau, update_u, du, use_du):
+    """p ← factor·p; if update_u: u ← factor·(u − τ w [+ du if use_du])."""
     for i in prange(p.size):
         p[i] *= factor
         if update_u:
-            u[i] = factor * (u[i] - tau * w[i])
+            v = u[i] - tau * w[i]
+            if use_du:
+                v += du[i]
+            u[i] = factor * v
 
 
 def warm_up() -> None:
@@ -131,9 +143,10 @@ def warm_up() -> None:
     a = np.ones(4)
     b = np.zeros(4)
     contact_mean_gap(a, a, b)
-    gap_and_norms(a, a, b, 0.0, b.copy(), b.copy())
-    mask_and_dots(a, b.copy(), b, b.copy())
-    update_direction(a, b, 0.0, 0.0, b.copy())
+    f = np.zeros(4, dtype=np.float32)
+    gap_and_norms(a, a, b, 0.0, b.copy(), b.copy(), f.copy())
+    mask_and_dots(a, f.copy(), b, b.copy())
+    update_direction(a, f, 0.0, 0.0, b.copy())
     step_sums(a, b, b, b)
-    update_pressure(a.copy(), b, b, 1.0, True)
-    scale_and_update(a.copy(), 1.0, b.copy(), b, 1.0, True)
+    update_pressure(a.copy(), b, b, 1.0, True, f.copy())
+    scale_and_update(a.copy(), 1.0, b.copy(), b, 1.0, True, f, True)

@@ -192,8 +192,12 @@ def _pk_cg(
     scale_h = float(np.sqrt(np.mean((h0f - h0f.mean()) ** 2))) or 1.0
     # fields the FFTs read and write in place (pyFFTW plans bound to them); flat views of
     # the same memory go to the element-wise kernels
-    p2, u2, gc2, z2, t2, w2 = hs.workspace(6)
-    p, u, gc, z, t, w = (a.ravel() for a in (p2, u2, gc2, z2, t2, w2))
+    p2, u2, t2, w2 = hs.workspace(4)
+    p, u, t, w = (a.ravel() for a in (p2, u2, t2, w2))
+    # single precision: the preconditioner's input and output, and the displacement of the
+    # clipping/adding correction (small against u, so its float32 error is negligible)
+    gc32_2, z32_2, corr32_2, du32_2 = hs.workspace32(4)
+    gc32, z, corr32, du32 = (a.ravel() for a in (gc32_2, z32_2, corr32_2, du32_2))
     if p_init is None:
         p[:] = mean_pressure
     else:
@@ -207,6 +211,7 @@ def _pk_cg(
     t[:] = 0.0
     w[:] = 0.0
     g = np.empty(n)
+    gc = np.empty(n)
     gc_prev = np.zeros(n)
     rz_old = 1.0
     first = True
@@ -221,7 +226,7 @@ def _pk_cg(
             delta = sum_c / nc
         else:
             delta = float(np.min(h0f + u))
-        g_norm, pen_norm = _k.gap_and_norms(p, h0f, u, delta, g, gc)
+        g_norm, pen_norm = _k.gap_and_norms(p, h0f, u, delta, g, gc, gc32)
         residual = (np.sqrt(g_norm / max(nc, 1)) + np.sqrt(pen_norm / max(nc, 1))) / scale_h
         if callback is not None:
             callback(it, residual)
@@ -236,9 +241,9 @@ def _pk_cg(
             break
         it += 1
         if precondition and nc:
-            hs.pressure(gc2, out=z2)
+            hs.pressure32(gc32_2, out=z32_2)
         else:
-            z[:] = gc
+            z[:] = gc32
         z_sum, rz, z_gp, gp_sum = _k.mask_and_dots(p, z, gc, gc_prev)
         z_mean = z_sum / nc if nc else 0.0
         cross = z_gp - z_mean * gp_sum
@@ -265,16 +270,19 @@ def _pk_cg(
             # degenerate step (e.g. a single contact point has no gap residual): fall back to
             # the Jacobi step so that penetrating points can still enter the contact set
             tau = 1.0 / hs.self_compliance
-        s, clipped, added = _k.update_pressure(p, t, g, tau, pen_norm > 0)
+        s, clipped, added = _k.update_pressure(p, t, g, tau, pen_norm > 0, corr32)
         changed = clipped > 0 or added > 0
+        refresh = False
         if s <= 0:
             p[:] = mean_pressure
-            changed = first = True
+            refresh = first = True
             s = total
         factor = total / s
         since_refresh += 1
-        refresh = changed or since_refresh >= refresh_every
-        _k.scale_and_update(p, factor, u, w, tau, not refresh)
+        refresh = refresh or since_refresh >= refresh_every
+        if changed and not refresh:
+            hs.displacement32(corr32_2, out=du32_2)
+        _k.scale_and_update(p, factor, u, w, tau, not refresh, du32, changed)
         if refresh:
             hs.displacement(p2, out=u2)
             since_refresh = 0

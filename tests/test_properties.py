@@ -204,11 +204,14 @@ def test_micro_depends_on_pressure_over_modulus_only(
     assert a.full_contact == b.full_contact
     assert a.real_contact_area_fraction == b.real_contact_area_fraction
     np.testing.assert_allclose(a.gap_m, b.gap_m, rtol=0, atol=1e-6 * RMS_M)
+    # the solver is converged to TOL, and its float32 preconditioner rounds differently at the
+    # two moduli: pressures agree to a few TOL of the pressure scale, not to machine precision
+    pa = a.pressure_pa / a.effective_modulus_pa
     np.testing.assert_allclose(
-        a.pressure_pa / a.effective_modulus_pa,
+        pa,
         b.pressure_pa / b.effective_modulus_pa,
-        rtol=1e-6,
-        atol=1e-9 * ratio,
+        rtol=20 * TOL,
+        atol=20 * TOL * float(pa.max()),
     )
 
 
