@@ -25,10 +25,10 @@ def contact_mean_gap(p, h0, u):
 
 
 @njit(parallel=True, cache=True)
-def gap_and_norms(p, h0, u, delta, g, gc, gc32):
-    """g = h0 + u − δ; gc = g on contact, 0 elsewhere (and its float32 copy gc32).
+def gap_and_norms(p, h0, u, delta, g, gc32):
+    """g = h0 + u − δ; gc32 = g on contact, 0 elsewhere, in single precision.
 
-    Return (Σ gc², Σ penetration²).
+    Return (Σ_c g², Σ penetration²).
     """
     gn = 0.0
     pn = 0.0
@@ -36,21 +36,20 @@ def gap_and_norms(p, h0, u, delta, g, gc, gc32):
         gi = h0[i] + u[i] - delta
         g[i] = gi
         if p[i] > 0.0:
-            gc[i] = gi
+            gc32[i] = gi
             gn += gi * gi
         else:
-            gc[i] = 0.0
+            gc32[i] = 0.0
             if gi < 0.0:
                 pn += gi * gi
-        gc32[i] = gc[i]
     return gn, pn
 
 
 @njit(parallel=True, cache=True)
-def mask_and_dots(p, z, gc, gc_prev):
-    """z ← z on contact (0 elsewhere); gc_prev ← gc after reading it.
+def mask_and_dots(p, z, g, gc_prev):
+    """z ← z on contact (0 elsewhere); gc_prev ← g on contact (0 elsewhere) after reading it.
 
-    Return (Σ_c z, Σ_c gc·z, Σ_c gc_prev·z, Σ_c gc_prev) with the old gc_prev.
+    Return (Σ_c z, Σ_c g·z, Σ_c gc_prev·z, Σ_c gc_prev) with the old gc_prev.
     """
     s = 0.0
     d = 0.0
@@ -60,28 +59,30 @@ def mask_and_dots(p, z, gc, gc_prev):
         if p[i] > 0.0:
             zi = z[i]
             s += zi
-            d += gc[i] * zi
+            d += g[i] * zi
             dp += gc_prev[i] * zi
             sp += gc_prev[i]
+            gc_prev[i] = g[i]
         else:
             z[i] = 0.0
-        gc_prev[i] = gc[i]
+            gc_prev[i] = 0.0
     return s, d, dp, sp
 
 
 @njit(parallel=True, cache=True)
-def update_direction(p, z, z_mean, beta, t):
-    """t ← (z − z̄) + β t on contact, 0 elsewhere."""
+def update_direction(p, z, z_mean, beta, t, t32):
+    """t ← (z − z̄) + β t on contact, 0 elsewhere; t32 ← t in single precision."""
     for i in prange(p.size):
         if p[i] > 0.0:
             t[i] = z[i] - z_mean + beta * t[i]
         else:
             t[i] = 0.0
+        t32[i] = t[i]
 
 
 @njit(parallel=True, cache=True)
-def step_sums(p, w, t, gc):
-    """Return (Σ_{p>0} w, Σ w·t, Σ t, Σ gc·t)."""
+def step_sums(p, w, t, g):
+    """Return (Σ_{p>0} w, Σ w·t, Σ t, Σ g·t); t is zero off the contact set."""
     sw = 0.0
     swt = 0.0
     st = 0.0
@@ -90,7 +91,7 @@ def step_sums(p, w, t, gc):
         ti = t[i]
         swt += w[i] * ti
         st += ti
-        sgt += gc[i] * ti
+        sgt += g[i] * ti
         if p[i] > 0.0:
             sw += w[i]
     return sw, swt, st, sgt
@@ -127,8 +128,13 @@ def update_pressure(p, t, g, tau, use_overlap, corr):
 
 
 @njit(parallel=True, cache=True)
-def scale_and_update(p, factor, u, w, tau, update_u, du, use_du):
-    """p ← factor·p; if update_u: u ← factor·(u − τ w [+ du if use_du])."""
+def scale_and_update(p, factor, u, w, tau, update_u, du, use_du, h0):
+    """p ← factor·p; if update_u: u ← factor·(u − τ w [+ du if use_du]).
+
+    Return (nc, Σ_{p>0} (h0 + u)) of the updated fields (meaningful when update_u).
+    """
+    nc = 0
+    s = 0.0
     for i in prange(p.size):
         p[i] *= factor
         if update_u:
@@ -136,6 +142,10 @@ def scale_and_update(p, factor, u, w, tau, update_u, du, use_du):
             if use_du:
                 v += du[i]
             u[i] = factor * v
+            if p[i] > 0.0:
+                nc += 1
+                s += h0[i] + u[i]
+    return nc, s
 
 
 def warm_up() -> None:
@@ -144,9 +154,9 @@ def warm_up() -> None:
     b = np.zeros(4)
     contact_mean_gap(a, a, b)
     f = np.zeros(4, dtype=np.float32)
-    gap_and_norms(a, a, b, 0.0, b.copy(), b.copy(), f.copy())
+    gap_and_norms(a, a, b, 0.0, b.copy(), f.copy())
     mask_and_dots(a, f.copy(), b, b.copy())
-    update_direction(a, f, 0.0, 0.0, b.copy())
-    step_sums(a, b, b, b)
+    update_direction(a, f, 0.0, 0.0, b.copy(), f.copy())
+    step_sums(a, f, b, b)
     update_pressure(a.copy(), b, b, 1.0, True, f.copy())
-    scale_and_update(a.copy(), 1.0, b.copy(), b, 1.0, True, f, True)
+    scale_and_update(a.copy(), 1.0, b.copy(), f, 1.0, True, f, True, a)

@@ -192,12 +192,14 @@ def _pk_cg(
     scale_h = float(np.sqrt(np.mean((h0f - h0f.mean()) ** 2))) or 1.0
     # fields the FFTs read and write in place (pyFFTW plans bound to them); flat views of
     # the same memory go to the element-wise kernels
-    p2, u2, t2, w2 = hs.workspace(4)
-    p, u, t, w = (a.ravel() for a in (p2, u2, t2, w2))
+    p2, u2 = hs.workspace(2)
+    p, u = p2.ravel(), u2.ravel()
     # single precision: the preconditioner's input and output, and the displacement of the
     # clipping/adding correction (small against u, so its float32 error is negligible)
-    gc32_2, z32_2, corr32_2, du32_2 = hs.workspace32(4)
-    gc32, z, corr32, du32 = (a.ravel() for a in (gc32_2, z32_2, corr32_2, du32_2))
+    gc32_2, z32_2, corr32_2, du32_2, t32_2, w32_2 = hs.workspace32(6)
+    gc32, z, corr32, du32, t32, w = (
+        a.ravel() for a in (gc32_2, z32_2, corr32_2, du32_2, t32_2, w32_2)
+    )
     if p_init is None:
         p[:] = mean_pressure
     else:
@@ -208,10 +210,9 @@ def _pk_cg(
         else:
             p[:] = mean_pressure
     hs.displacement(p2, out=u2)
-    t[:] = 0.0
-    w[:] = 0.0
+    nc, sum_c = _k.contact_mean_gap(p, h0f, u)
+    t = np.zeros(n)
     g = np.empty(n)
-    gc = np.empty(n)
     gc_prev = np.zeros(n)
     rz_old = 1.0
     first = True
@@ -221,18 +222,18 @@ def _pk_cg(
     converged = False
     since_refresh = 0
     while True:
-        nc, sum_c = _k.contact_mean_gap(p, h0f, u)
         if nc:
             delta = sum_c / nc
         else:
             delta = float(np.min(h0f + u))
-        g_norm, pen_norm = _k.gap_and_norms(p, h0f, u, delta, g, gc, gc32)
+        g_norm, pen_norm = _k.gap_and_norms(p, h0f, u, delta, g, gc32)
         residual = (np.sqrt(g_norm / max(nc, 1)) + np.sqrt(pen_norm / max(nc, 1))) / scale_h
         if callback is not None:
             callback(it, residual)
         if residual < tol:
             if since_refresh:  # confirm on a freshly computed displacement
                 hs.displacement(p2, out=u2)
+                nc, sum_c = _k.contact_mean_gap(p, h0f, u)
                 since_refresh = 0
                 continue
             converged = True
@@ -244,25 +245,25 @@ def _pk_cg(
             hs.pressure32(gc32_2, out=z32_2)
         else:
             z[:] = gc32
-        z_sum, rz, z_gp, gp_sum = _k.mask_and_dots(p, z, gc, gc_prev)
+        z_sum, rz, z_gp, gp_sum = _k.mask_and_dots(p, z, g, gc_prev)
         z_mean = z_sum / nc if nc else 0.0
         cross = z_gp - z_mean * gp_sum
         # Polak-Ribière+: β = max(0, ⟨z̃, gc − gc_prev⟩ / ⟨z̃_prev, gc_prev⟩), z̃ = z − z̄ on c
         # (Σ_c gc = 0, so ⟨z̃, gc⟩ = rz); the previous residual is then replaced by gc
         beta = 0.0 if first or rz_old <= 0 else max(0.0, (rz - cross) / rz_old)
         first = False
-        _k.update_direction(p, z, z_mean, beta, t)
+        _k.update_direction(p, z, z_mean, beta, t, t32)
         rz_old = rz
-        hs.displacement(t2, out=w2)
-        sw, swt, st, sgt = _k.step_sums(p, w, t, gc)
+        hs.displacement32(t32_2, out=w32_2)
+        sw, swt, st, sgt = _k.step_sums(p, w, t, g)
         w_mean = sw / nc if nc else 0.0
         denom = swt - w_mean * st
         tau = sgt / denom if denom > 0 else 0.0
         if not tau > 0 and beta != 0.0:
             # not a descent direction: restart from the preconditioned residual
-            _k.update_direction(p, z, z_mean, 0.0, t)
-            hs.displacement(t2, out=w2)
-            sw, swt, st, sgt = _k.step_sums(p, w, t, gc)
+            _k.update_direction(p, z, z_mean, 0.0, t, t32)
+            hs.displacement32(t32_2, out=w32_2)
+            sw, swt, st, sgt = _k.step_sums(p, w, t, g)
             w_mean = sw / nc if nc else 0.0
             denom = swt - w_mean * st
             tau = sgt / denom if denom > 0 else 0.0
@@ -282,9 +283,10 @@ def _pk_cg(
         refresh = refresh or since_refresh >= refresh_every
         if changed and not refresh:
             hs.displacement32(corr32_2, out=du32_2)
-        _k.scale_and_update(p, factor, u, w, tau, not refresh, du32, changed)
+        nc, sum_c = _k.scale_and_update(p, factor, u, w, tau, not refresh, du32, changed, h0f)
         if refresh:
             hs.displacement(p2, out=u2)
+            nc, sum_c = _k.contact_mean_gap(p, h0f, u)
             since_refresh = 0
     p = p2.copy()  # the workspace is reused by the next solve on this half-space
     g = g.reshape(shape)
