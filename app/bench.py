@@ -22,7 +22,7 @@ import numpy as np
 import scipy.fft
 
 from app.storage.common import REPO_ROOT, atomic_path, provenance
-from solvers.elastic import FFTBackend, PeriodicHalfSpace
+from solvers.elastic import FFTBackend, PeriodicHalfSpace, resolve_backend
 from solvers.micro import solve_micro
 from solvers.texture import self_affine_surface
 
@@ -241,6 +241,9 @@ def bench_micro(
         else:
             available[name] = solver
     out["peers"] = sorted(available)
+    # peers are compared with what ``solve_micro`` uses by default (backend "auto")
+    default_solver = f"skisnow[{resolve_backend('auto')}]"
+    out["default_solver"] = default_solver
     for n in sizes:
         h = bench_surface(n)
         floors = {b: fft_floor_s(n, b) for b in backends}
@@ -289,7 +292,7 @@ def bench_micro(
             ref = next(
                 r
                 for r in out["runs"]
-                if r["n"] == n and r["pressure_pa"] == pressure and r["solver"] == "skisnow[scipy]"
+                if r["n"] == n and r["pressure_pa"] == pressure and r["solver"] == default_solver
             )
             for name, solver in available.items():
                 res = solver(h, pressure, e_eff)
@@ -413,7 +416,8 @@ def _micro_md(d: dict) -> list[str]:
         "",
         f"Self-affine surface (H = 0.8, Sq = 2 µm, 1 µm pixels, seeded), E* = 200 MPa. "
         f"Median of repeats for skisnow; one run per peer. Peers in this run: "
-        f"{', '.join(d.get('peers', [])) or 'none installed'}.",
+        f"{', '.join(d.get('peers', [])) or 'none installed'}. Peers are compared with "
+        f"{d.get('default_solver', 'skisnow[scipy]')}, what `solve_micro` uses by default.",
         "",
         "| N | P [kPa] | solver | median time [s] | iterations (levels) | a_r | "
         "time ratio peer/skisnow | a_r diff | mean-gap diff | finest level: time / FFT floor |",

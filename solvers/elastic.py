@@ -328,6 +328,7 @@ class PeriodicHalfSpace:
         self.effective_modulus_pa = float(effective_modulus_pa)
         self.fft = FFTBackend(self.shape, backend=backend, workers=workers)
         self._self_compliance: float | None = None
+        self._coarse: PeriodicHalfSpace | None = None
         #: number of FFT pairs (forward + inverse) applied so far (for benchmarks)
         self.fft_pairs = 0
         #: number of single-precision FFT pairs applied so far (for benchmarks)
@@ -353,6 +354,23 @@ class PeriodicHalfSpace:
             delta[0, 0] = 1.0
             self._self_compliance = float(self.displacement(delta)[0, 0])
         return self._self_compliance
+
+    def coarsened(self) -> PeriodicHalfSpace:
+        """The half-space on the 2×-coarsened grid (pixels twice as large; same modulus,
+        backend and threads), built on first use and kept."""
+        if self._coarse is None:
+            nx, ny = self.shape
+            if nx % 2 or ny % 2:
+                raise InputError(f"grid {self.shape} cannot be coarsened by 2")
+            dx, dy = self.pixel_size_m
+            self._coarse = PeriodicHalfSpace(
+                (nx // 2, ny // 2),
+                (2 * dx, 2 * dy),
+                self.effective_modulus_pa,
+                backend=self.fft.backend,
+                workers=self.fft.workers,
+            )
+        return self._coarse
 
     def workspace(self, count: int) -> list[np.ndarray]:
         """Work fields of the grid's shape for FFTs without copies (see FFTBackend)."""

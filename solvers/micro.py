@@ -1,8 +1,12 @@
 """Micro scale: a rigid periodic texture pressed into an elastic half-space (method.md §5).
 
 Load-controlled constrained conjugate gradients after Polonsky & Keer (Wear 231, 1999, 206-219),
-on the periodic FFT half-space of :mod:`solvers.elastic` (FFT convention stated there). One
-iteration costs two FFT pairs: ``u(p)`` for the gap and ``u(t)`` for the conjugate direction.
+on the periodic FFT half-space of :mod:`solvers.elastic` (FFT convention stated there), with
+a spectral preconditioner and Polak–Ribière+ directions that survive contact-set changes. One
+iteration costs three single-precision FFT pairs (preconditioner, ``u(t)`` of the direction,
+``u`` of the clipping correction when the set changed) and six fused element-wise passes; the
+displacement ``u(p)`` itself is kept in double precision and recomputed exactly in double
+precision every 50 iterations and before convergence is accepted (see :func:`_pk_cg`).
 
 Gap convention (method.md §5): the texture's highest point touches first, so the unloaded gap
 is ``h_0 = max h* − h*``; under load ``g = h_0 + u(p) − δ ≥ 0`` with rigid approach ``δ``,
@@ -175,15 +179,22 @@ def _pk_cg(
     1. gap ``g = h_0 + u(p) − δ`` with δ the mean of ``h_0 + u`` over ``c``; residual ``g|_c``;
     2. preconditioned residual ``z = K(g|_c)|_c − mean`` with the stiffness ``K = E'|q|/4``
        (the inverse of the full-cell compliance; one FFT pair);
-    3. conjugate direction ``t = z + β t`` on ``c`` (β = 0 after a contact-set change);
+    3. conjugate direction ``t = z + β t`` on ``c`` with the Polak–Ribière+ β (which restarts
+       itself, β = 0, when the new residual is not conjugate to the old one); Polonsky–Keer's
+       Fletcher–Reeves β with a restart at every contact-set change needed twice as many
+       iterations (35 → 18 at 1024², 60 kPa; 93 → 33 at 1 MPa). If ``t`` is not a descent
+       direction the step is retried with β = 0;
     4. step ``τ = ⟨g|_c, t⟩ / ⟨u(t) − mean, t⟩`` (one FFT pair for ``u(t)``);
     5. ``p ← max(p − τ t, 0)`` on ``c``; free points that penetrate get ``−τ g``;
        rescale to the imposed mean pressure.
 
-    While the contact set does not change, ``u(p)`` is updated from ``u(t)`` (linearity)
-    instead of being recomputed, with a full recomputation every ``refresh_every`` iterations
-    and before convergence is accepted. The element-wise work is fused in
-    :mod:`solvers._pk_kernels`.
+    ``u(p)`` is updated by linearity, ``u ← factor·(u − τ u(t) + u(corr))`` with ``corr`` the
+    clipped and added pressures (non-zero on a few points), and recomputed exactly every
+    ``refresh_every`` iterations and before convergence is accepted. The preconditioner,
+    ``u(t)`` and ``u(corr)`` are evaluated in single precision: they steer the iteration or
+    are small increments, so their ~1e-7 relative rounding does not limit the converged
+    residual, which is always measured on the exact double-precision ``u(p)``. The
+    element-wise work is fused in :mod:`solvers._pk_kernels`.
     """
     shape = h0.shape
     n = h0.size
@@ -432,9 +443,7 @@ def solve_micro(
     levels: list[int] = []
     p_start = initial_pressure_pa
     if p_start is None and nested:
-        p_start = _nested_start(
-            h, dxy, p_nom, e_eff, tol, max_iterations, levels, hs.fft.backend, hs.fft.workers
-        )
+        p_start = _nested_start(h, hs, p_nom, tol, max_iterations, levels)
     p, gap, delta, its, res, conv = _pk_cg(hs, h0, p_nom, p_start, tol, max_iterations, callback)
     levels.append(its)
     msg = (
@@ -447,31 +456,29 @@ def solve_micro(
 
 def _nested_start(
     h: np.ndarray,
-    dxy: tuple[float, float],
+    hs: PeriodicHalfSpace,
     p_nom: float,
-    e_eff: float,
     tol: float,
     max_iterations: int,
     levels: list[int],
-    backend: str,
-    workers: int | None,
     min_size: int = 64,
 ) -> np.ndarray | None:
-    """Pressure guess from solves on 2×-coarsened grids (None if the grid cannot coarsen)."""
+    """Pressure guess from solves on 2×-coarsened grids (None if the grid cannot coarsen).
+
+    The coarse half-spaces are built once per fine half-space (:meth:`coarsened`), so a
+    table build that reuses its half-space pays their set-up once.
+    """
     nx, ny = h.shape
     if nx % 2 or ny % 2 or min(nx, ny) < 2 * min_size:
         return None
     hc = _coarsen(h)
-    dxc = (2 * dxy[0], 2 * dxy[1])
-    hs = PeriodicHalfSpace(hc.shape, dxc, e_eff, backend=backend, workers=workers)
-    p_fc, _ = full_contact_pressure(hc, dxc, e_eff, halfspace=hs)
+    hsc = hs.coarsened()
+    p_fc, _ = full_contact_pressure(hc, hsc.pixel_size_m, hsc.effective_modulus_pa, halfspace=hsc)
     if p_nom >= p_fc:
         return None
-    p_coarse_start = _nested_start(
-        hc, dxc, p_nom, e_eff, tol, max_iterations, levels, backend, workers
-    )
+    p_coarse_start = _nested_start(hc, hsc, p_nom, tol, max_iterations, levels, min_size)
     p, _, _, its, _, _ = _pk_cg(
-        hs, hc.max() - hc, p_nom, p_coarse_start, max(tol, 1e-4), max_iterations, None
+        hsc, hc.max() - hc, p_nom, p_coarse_start, max(tol, 1e-4), max_iterations, None
     )
     levels.append(its)
     return _prolong(p)
