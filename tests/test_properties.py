@@ -194,7 +194,10 @@ def test_micro_depends_on_pressure_over_modulus_only(
     out = []
     for log_e in (log_e1, log_e2):
         e_eff = 10.0**log_e
-        res = solve_micro(h, PIXEL_M, ratio * e_eff, e_eff, tol=TOL, max_iterations=MAX_IT)
+        # pressures are compared pointwise to 1e-6 below, so both solves are converged well
+        # below that (the float32 preconditioner rounds differently at the two moduli and
+        # the two iterations part at the level of the tolerance)
+        res = solve_micro(h, PIXEL_M, ratio * e_eff, e_eff, tol=1e-3 * TOL, max_iterations=MAX_IT)
         _assert_micro_result_sound(res, h, ratio * e_eff, e_eff)
         out.append(res)
     a, b = out
@@ -204,14 +207,15 @@ def test_micro_depends_on_pressure_over_modulus_only(
     assert a.full_contact == b.full_contact
     assert a.real_contact_area_fraction == b.real_contact_area_fraction
     np.testing.assert_allclose(a.gap_m, b.gap_m, rtol=0, atol=1e-6 * RMS_M)
-    # the solver is converged to TOL, and its float32 preconditioner rounds differently at the
-    # two moduli: pressures agree to a few TOL of the pressure scale, not to machine precision
+    # pointwise to 1e-6, and absolutely to 1e-6 of the pressure scale: points with a tiny
+    # pressure carry the solvers' absolute error (~1e-9 of the scale here), which is no
+    # longer bit-identical between the moduli now that the preconditioner is float32
     pa = a.pressure_pa / a.effective_modulus_pa
     np.testing.assert_allclose(
         pa,
         b.pressure_pa / b.effective_modulus_pa,
-        rtol=20 * TOL,
-        atol=20 * TOL * float(pa.max()),
+        rtol=1e-6,
+        atol=1e-6 * float(pa.max()),
     )
 
 
