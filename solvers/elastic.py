@@ -143,6 +143,7 @@ class FFTBackend:
 
     def __post_init__(self) -> None:
         self.shape = (int(self.shape[0]), int(self.shape[1]))
+        self._inverse_scale = 1.0 / (self.shape[0] * self.shape[1])
         if self.workers is None:
             self.workers = _default_workers()
         self.backend = resolve_backend(self.backend)
@@ -223,10 +224,10 @@ class FFTBackend:
             out[...] = scipy.fft.irfft2(spec, s=self.shape, workers=self.workers)
             return out
         key = (src.ctypes.data, out.ctypes.data)
-        if out is src or src.ctypes.data not in self._owned or out.ctypes.data not in self._owned:
-            raise InputError("convolve32 needs two distinct workspace32 arrays")
         plans = self._plans.get(key)
         if plans is None:
+            if out is src or key[0] not in self._owned or key[1] not in self._owned:
+                raise InputError("convolve32 needs two distinct workspace32 arrays")
             if self._spectrum32 is None:
                 self._spectrum32 = self._pyfftw.empty_aligned(
                     self.spectrum_shape, dtype="complex64"
@@ -237,7 +238,7 @@ class FFTBackend:
             )
             self._plans[key] = plans
         plans[0].execute()
-        _multiply_spectrum(self._spectrum32, kernel, 1.0 / (self.shape[0] * self.shape[1]))
+        _multiply_spectrum(self._spectrum32, kernel, self._inverse_scale)
         plans[1].execute()
         return out
 
@@ -280,7 +281,7 @@ class FFTBackend:
             fwd.input_array[...] = src
             target = inv.output_array
         fwd.execute()
-        _multiply_spectrum(self._spectrum, kernel, 1.0 / (self.shape[0] * self.shape[1]))
+        _multiply_spectrum(self._spectrum, kernel, self._inverse_scale)
         inv.execute()
         if out is None:
             return target.copy()
