@@ -179,20 +179,6 @@ class FFTBackend:
             a, b, axes=(0, 1), direction=direction, threads=self.workers, flags=flags
         )
 
-    def rfft2(self, a: np.ndarray) -> np.ndarray:
-        """Forward real FFT (unnormalised)."""
-        if self._fwd is not None:
-            self._fwd.input_array[...] = a
-            return self._fwd().copy()
-        return scipy.fft.rfft2(a, workers=self.workers)
-
-    def irfft2(self, a: np.ndarray) -> np.ndarray:
-        """Inverse real FFT (carries 1/N)."""
-        if self._inv is not None:
-            self._inv.input_array[...] = a
-            return self._inv(normalise_idft=True).copy()
-        return scipy.fft.irfft2(a, s=self.shape, workers=self.workers)
-
     def workspace(self, count: int) -> list[np.ndarray]:
         """``count`` real work arrays of ``shape`` owned by this backend, allocated once.
 
