@@ -401,3 +401,19 @@ def test_undecodable_text_in_a_ski_file_is_a_data_file_error(tables):
     _flip(_ski(tables), hits)
     with pytest.raises(DataFileError, match=r"ski-a\.h5.*(decode|heap)"):
         read_ski(_ski(tables))
+
+
+def test_atomic_writes_get_normal_file_permissions(tmp_path):
+    """Files written through atomic_path are readable like any new file (not mkstemp's 0600)."""
+    import os
+    import stat
+
+    from app.storage.common import atomic_path
+
+    target = tmp_path / "out.txt"
+    with atomic_path(target) as tmp:
+        tmp.write_text("x")
+    mask = os.umask(0o022)
+    os.umask(mask)
+    assert stat.S_IMODE(target.stat().st_mode) == 0o666 & ~mask
+    assert not list(tmp_path.glob(".out.txt.*.part"))

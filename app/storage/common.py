@@ -73,9 +73,26 @@ def provenance(parameters: dict | None = None) -> dict[str, str]:
     return attrs
 
 
+def _process_umask() -> int:
+    # read once at import (os.umask can only be read by setting it; doing that later, in a
+    # threaded server, could race with another thread creating a file)
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+#: permissions a plain ``open(path, "w")`` would give a new file (mkstemp gives 0600)
+_FILE_MODE = 0o666 & ~_process_umask()
+
+
 @contextlib.contextmanager
 def atomic_path(final: str | os.PathLike) -> Iterator[Path]:
-    """Yield a temporary path beside ``final``; rename it onto ``final`` only on success."""
+    """Yield a temporary path beside ``final``; rename it onto ``final`` only on success.
+
+    The final file gets the permissions of a normally created file (``0666 & ~umask``), not
+    the owner-only 0600 of the temporary file, so a service running as another user can read
+    tables and skis that a build wrote.
+    """
     final = Path(final)
     final.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{final.name}.", suffix=".part", dir=final.parent)
@@ -85,6 +102,7 @@ def atomic_path(final: str | os.PathLike) -> Iterator[Path]:
         yield tmp_path
         with open(tmp_path, "rb+") as fh:
             os.fsync(fh.fileno())
+        os.chmod(tmp_path, _FILE_MODE)
         os.replace(tmp_path, final)
     except BaseException:
         with contextlib.suppress(OSError):
