@@ -81,6 +81,17 @@ def small_table() -> L.MicroTable:
     return make_table(h, np.geomspace(1e-8, 1e-2, 25), name="tiny-grind")
 
 
+#: a valid /v1/contact body for the ``catalogue`` fixture (demo ski on the small table)
+CONTACT_BODY = {
+    "ski": "ski-a",
+    "grind": "tiny-grind",
+    "load_kg": 40,
+    "load_position_mm": -160,
+    "snow_modulus_mpa": 200,
+    "porosity": 0.5,
+}
+
+
 @pytest.fixture(scope="session")
 def catalogue(small_table):
     """Demo skis from tables/skis plus the small synthetic table as grind ``tiny-grind``."""

@@ -3,19 +3,13 @@
 from __future__ import annotations
 
 import pytest
+from conftest import CONTACT_BODY
 from fastapi.testclient import TestClient
 
 from app.api import create_app
 from app.settings import Settings
 
-BODY = {
-    "ski": "ski-a",
-    "grind": "tiny-grind",
-    "load_kg": 40,
-    "load_position_mm": -160,
-    "snow_modulus_mpa": 200,
-    "porosity": 0.5,
-}
+BODY = CONTACT_BODY
 
 
 @pytest.fixture(scope="module")

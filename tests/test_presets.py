@@ -7,6 +7,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
+from conftest import CONTACT_BODY
 from fastapi.testclient import TestClient
 
 from app import service
@@ -17,14 +18,7 @@ from app.settings import Settings
 from solvers.errors import InputError
 from solvers.macro import DEFAULT_PIXEL_ACROSS, DEFAULT_PIXEL_ALONG_M
 
-BODY = {
-    "ski": "ski-a",
-    "grind": "tiny-grind",
-    "load_kg": 40,
-    "load_position_mm": -160,
-    "snow_modulus_mpa": 200,
-    "porosity": 0.5,
-}
+BODY = CONTACT_BODY
 #: the metrics the presets' documented errors cover (the minimum average separation does not
 #: converge with the macro grid where it sits at a short tip/tail contact: docs/benchmarks.md)
 METRICS = (
