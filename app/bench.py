@@ -156,20 +156,9 @@ def fft_floor_s(n: int, backend: str, repeats: int = 15, single: bool = False) -
     dtype = np.float32 if single else np.float64
     a = np.random.default_rng(0).random((n, n)).astype(dtype)
     if fft.backend == "pyfftw":
-        import pyfftw
-
-        x = pyfftw.empty_aligned((n, n), dtype=dtype)
-        y = pyfftw.empty_aligned(fft.spectrum_shape, dtype=np.complex64 if single else complex)
-        x[...] = a
-        fwd = pyfftw.FFTW(x, y, axes=(0, 1), threads=fft.workers, flags=("FFTW_ESTIMATE",))
-        inv = pyfftw.FFTW(
-            y,
-            x,
-            axes=(0, 1),
-            direction="FFTW_BACKWARD",
-            threads=fft.workers,
-            flags=("FFTW_ESTIMATE", "FFTW_DESTROY_INPUT"),
-        )
+        src, out = fft.workspace(2, dtype)
+        src[...] = a
+        fwd, inv, _ = fft.bound_plans(src, out)  # the plans the solver itself executes
 
         def pair() -> None:
             fwd.execute()

@@ -135,11 +135,9 @@ class FFTBackend:
     _fwd: object = field(init=False, repr=False, default=None)
     _inv: object = field(init=False, repr=False, default=None)
     _plans: dict = field(init=False, repr=False, default_factory=dict)
-    _work: list = field(init=False, repr=False, default_factory=list)
+    _work: dict = field(init=False, repr=False, default_factory=dict)
     _owned: set = field(init=False, repr=False, default_factory=set)
-    _spectrum: np.ndarray | None = field(init=False, repr=False, default=None)
-    _spectrum32: np.ndarray | None = field(init=False, repr=False, default=None)
-    _work32: list = field(init=False, repr=False, default_factory=list)
+    _spectra: dict = field(init=False, repr=False, default_factory=dict)
 
     def __post_init__(self) -> None:
         self.shape = (int(self.shape[0]), int(self.shape[1]))
@@ -155,10 +153,10 @@ class FFTBackend:
                     "backend='pyfftw' needs pyFFTW: pip install 'skisnow[fftw]'"
                 ) from exc
             self._pyfftw = pyfftw
-            self._spectrum = pyfftw.empty_aligned(self.spectrum_shape, dtype="complex128")
-            a = self.empty()
-            self._fwd = self._plan(a, self._spectrum, "FFTW_FORWARD")
-            self._inv = self._plan(self._spectrum, self.empty(), "FFTW_BACKWARD")
+            # private buffers for arrays that are not workspace arrays (copied in and out)
+            buffers = (self.empty(), self.empty())
+            self._owned.update(b.ctypes.data for b in buffers)
+            self._fwd, self._inv, _ = self.bound_plans(*buffers)
 
     @property
     def spectrum_shape(self) -> tuple[int, int]:
@@ -179,62 +177,55 @@ class FFTBackend:
             a, b, axes=(0, 1), direction=direction, threads=self.workers, flags=flags
         )
 
-    def workspace(self, count: int) -> list[np.ndarray]:
-        """``count`` real work arrays of ``shape`` owned by this backend, allocated once.
+    def workspace(self, count: int, dtype: type = np.float64) -> list[np.ndarray]:
+        """``count`` real work arrays of ``shape`` and ``dtype`` owned by this backend,
+        allocated once.
 
         Transforms between workspace arrays run on the arrays themselves with plans made
         once (pyFFTW); the arrays are shared by every caller of this backend, so a solver
-        uses them for the duration of one call only.
+        uses them for the duration of one call only. float32 arrays give single-precision
+        transforms (relative error ~1e-7 of the result's scale: for preconditioners and
+        small corrections, never for a field that must be exact).
         """
-        while len(self._work) < count:
-            arr = self.empty()
-            self._work.append(arr)
+        work = self._work.setdefault(np.dtype(dtype), [])
+        while len(work) < count:
+            arr = self.empty(dtype)
+            work.append(arr)
             self._owned.add(arr.ctypes.data)
-        return self._work[:count]
+        return work[:count]
 
-    def workspace32(self, count: int) -> list[np.ndarray]:
-        """Like :meth:`workspace`, in single precision (float32) for :meth:`convolve32`."""
-        while len(self._work32) < count:
-            arr = self.empty(np.float32)
-            self._work32.append(arr)
-            self._owned.add(arr.ctypes.data)
-        return self._work32[:count]
-
-    def convolve32(self, kernel: np.ndarray, src: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """:meth:`convolve` in single precision between two distinct :meth:`workspace32`
-        arrays (relative error ~1e-7 of the result's scale: for preconditioners and small
-        corrections, never for a field that must be exact)."""
-        if self.backend == "scipy":
-            spec = scipy.fft.rfft2(src, workers=self.workers)
-            spec *= kernel.astype(np.float32)
-            out[...] = scipy.fft.irfft2(spec, s=self.shape, workers=self.workers)
-            return out
+    def bound_plans(self, src: np.ndarray, out: np.ndarray) -> tuple:
+        """pyFFTW ``(forward, inverse, spectrum)`` bound to two distinct workspace arrays of
+        one dtype, made once: ``forward.execute()`` transforms ``src`` into ``spectrum``,
+        ``inverse.execute()`` the spectrum into ``out`` (unnormalised, destroying it)."""
         key = (src.ctypes.data, out.ctypes.data)
         plans = self._plans.get(key)
         if plans is None:
             if out is src or key[0] not in self._owned or key[1] not in self._owned:
-                raise InputError("convolve32 needs two distinct workspace32 arrays")
-            if self._spectrum32 is None:
-                self._spectrum32 = self._pyfftw.empty_aligned(
-                    self.spectrum_shape, dtype="complex64"
-                )
+                raise InputError("bound_plans needs two distinct workspace arrays")
+            if src.dtype != out.dtype:
+                raise InputError("bound_plans needs two workspace arrays of one dtype")
+            complex_dtype = np.result_type(src.dtype, np.complex64)
+            spectrum = self._spectra.get(complex_dtype)
+            if spectrum is None:
+                spectrum = self._pyfftw.empty_aligned(self.spectrum_shape, dtype=complex_dtype)
+                self._spectra[complex_dtype] = spectrum
             plans = (
-                self._plan(src, self._spectrum32, "FFTW_FORWARD"),
-                self._plan(self._spectrum32, out, "FFTW_BACKWARD"),
+                self._plan(src, spectrum, "FFTW_FORWARD"),
+                self._plan(spectrum, out, "FFTW_BACKWARD"),
+                spectrum,
             )
             self._plans[key] = plans
-        plans[0].execute()
-        _multiply_spectrum(self._spectrum32, kernel, self._inverse_scale)
-        plans[1].execute()
-        return out
+        return plans
 
     def convolve(
         self, kernel: np.ndarray, src: np.ndarray, out: np.ndarray | None = None
     ) -> np.ndarray:
         """``out = irfft2(kernel · rfft2(src))`` with ``kernel`` on the rfft2 layout.
 
-        With pyFFTW, when ``src`` and ``out`` are distinct :meth:`workspace` arrays the
-        transforms run on them directly; other arrays are copied through internal buffers.
+        With pyFFTW, when ``src`` and ``out`` are distinct :meth:`workspace` arrays of one
+        dtype the transforms run on them directly, in that precision; other arrays are
+        copied through internal float64 buffers.
         """
         if self.backend == "scipy":
             res = scipy.fft.irfft2(
@@ -246,28 +237,22 @@ class FFTBackend:
                 return res
             out[...] = res
             return out
-        owned = self._owned
         if (
             out is not None
             and out is not src
-            and src.ctypes.data in owned
-            and out.ctypes.data in owned
+            and src.dtype == out.dtype
+            and src.ctypes.data in self._owned
+            and out.ctypes.data in self._owned
         ):
-            key = (src.ctypes.data, out.ctypes.data)
-            plans = self._plans.get(key)
-            if plans is None:
-                plans = (
-                    self._plan(src, self._spectrum, "FFTW_FORWARD"),
-                    self._plan(self._spectrum, out, "FFTW_BACKWARD"),
-                )
-                self._plans[key] = plans
-            fwd, inv, target = plans[0], plans[1], out
+            fwd, inv, spectrum = self.bound_plans(src, out)
+            target = out
         else:
             fwd, inv = self._fwd, self._inv
+            spectrum = fwd.output_array
             fwd.input_array[...] = src
             target = inv.output_array
         fwd.execute()
-        _multiply_spectrum(self._spectrum, kernel, self._inverse_scale)
+        _multiply_spectrum(spectrum, kernel, self._inverse_scale)
         inv.execute()
         if out is None:
             return target.copy()
@@ -359,36 +344,30 @@ class PeriodicHalfSpace:
             )
         return self._coarse
 
-    def workspace(self, count: int) -> list[np.ndarray]:
+    def workspace(self, count: int, dtype: type = np.float64) -> list[np.ndarray]:
         """Work fields of the grid's shape for FFTs without copies (see FFTBackend)."""
-        return self.fft.workspace(count)
+        return self.fft.workspace(count, dtype)
 
-    def workspace32(self, count: int) -> list[np.ndarray]:
-        """Single-precision work fields for :meth:`displacement32` / :meth:`pressure32`."""
-        return self.fft.workspace32(count)
-
-    def displacement32(self, pressure_pa: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """:meth:`displacement` in single precision between workspace32 fields."""
-        self.fft_pairs32 += 1
-        return self.fft.convolve32(self.compliance, pressure_pa, out)
-
-    def pressure32(self, displacement_m: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """:meth:`pressure` in single precision between workspace32 fields."""
-        self.fft_pairs32 += 1
-        return self.fft.convolve32(self.stiffness, displacement_m, out)
+    def _count(self, out: np.ndarray | None) -> None:
+        if out is not None and out.dtype == np.float32:
+            self.fft_pairs32 += 1
+        else:
+            self.fft_pairs += 1
 
     def displacement(self, pressure_pa: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Zero-mean surface displacement [m] under a periodic pressure field [Pa].
 
-        ``out`` (optional, not ``pressure_pa``): write the result there; arrays from
-        :meth:`empty` avoid copies with pyFFTW.
+        ``out`` (optional, not ``pressure_pa``): write the result there; two
+        :meth:`workspace` arrays avoid copies with pyFFTW, and two float32 ones give a
+        single-precision pair (counted in ``fft_pairs32``).
         """
-        self.fft_pairs += 1
+        self._count(out)
         return self.fft.convolve(self.compliance, pressure_pa, out)
 
     def pressure(self, displacement_m: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """Zero-mean pressure [Pa] that produces a (zero-mean part of a) displacement [m]."""
-        self.fft_pairs += 1
+        """Zero-mean pressure [Pa] that produces a (zero-mean part of a) displacement [m]
+        (``out`` as in :meth:`displacement`)."""
+        self._count(out)
         return self.fft.convolve(self.stiffness, displacement_m, out)
 
 

@@ -211,7 +211,7 @@ def _pk_cg(
     p, u = p2.ravel(), u2.ravel()
     # single precision: the preconditioner's input and output, and the displacement of the
     # clipping/adding correction (small against u, so its float32 error is negligible)
-    gc32_2, z32_2, corr32_2, du32_2, t32_2, w32_2 = hs.workspace32(6)
+    gc32_2, z32_2, corr32_2, du32_2, t32_2, w32_2 = hs.workspace(6, np.float32)
     gc32, z, corr32, du32, t32, w = (
         a.ravel() for a in (gc32_2, z32_2, corr32_2, du32_2, t32_2, w32_2)
     )
@@ -257,7 +257,7 @@ def _pk_cg(
             break
         it += 1
         if precondition and nc:
-            hs.pressure32(gc32_2, out=z32_2)
+            hs.pressure(gc32_2, out=z32_2)
         else:
             z[:] = gc32
         z_sum, rz, z_gp, gp_sum = _k.mask_and_dots(p, z, g, gc_prev)
@@ -269,7 +269,7 @@ def _pk_cg(
         first = False
         _k.update_direction(p, z, z_mean, beta, t, t32)
         rz_old = rz
-        hs.displacement32(t32_2, out=w32_2)
+        hs.displacement(t32_2, out=w32_2)
         sw, swt, st, sgt = _k.step_sums(p, w, t, g)
         w_mean = sw / nc if nc else 0.0
         denom = swt - w_mean * st
@@ -277,7 +277,7 @@ def _pk_cg(
         if not tau > 0 and beta != 0.0:
             # not a descent direction: restart from the preconditioned residual
             _k.update_direction(p, z, z_mean, 0.0, t, t32)
-            hs.displacement32(t32_2, out=w32_2)
+            hs.displacement(t32_2, out=w32_2)
             sw, swt, st, sgt = _k.step_sums(p, w, t, g)
             w_mean = sw / nc if nc else 0.0
             denom = swt - w_mean * st
@@ -297,7 +297,7 @@ def _pk_cg(
         since_refresh += 1
         refresh = refresh or since_refresh >= refresh_every
         if changed and not refresh:
-            hs.displacement32(corr32_2, out=du32_2)
+            hs.displacement(corr32_2, out=du32_2)
         nc, sum_c = _k.scale_and_update(p, factor, u, w, tau, not refresh, du32, changed, h0f)
         if refresh:
             hs.displacement(p2, out=u2)

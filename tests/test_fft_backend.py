@@ -50,20 +50,39 @@ def test_single_precision_pair_is_float32_accurate(shape, backend):
     src = rng.normal(size=shape)
     ref = FFTBackend(shape, backend="scipy").convolve(kernel, src)
     fft = FFTBackend(shape, backend=backend)
-    a, b = fft.workspace32(2)
+    a, b = fft.workspace(2, np.float32)
     a[...] = src
-    fft.convolve32(kernel, a, b)
+    fft.convolve(kernel, a, b)
     assert b.dtype == np.float32
     err = np.abs(b - ref).max() / np.abs(ref).max()
     assert 0 < err < 1e-5  # float32 rounding: present, and ~1e-7 of the scale
 
 
 @needs_pyfftw
-def test_convolve32_refuses_arrays_it_does_not_own():
+def test_bound_plans_refuse_arrays_the_backend_does_not_own():
     fft = FFTBackend((16, 16), backend="pyfftw")
-    a = fft.workspace32(1)[0]
+    a = fft.workspace(1, np.float32)[0]
     with pytest.raises(InputError):
-        fft.convolve32(_kernel((16, 16)), a, np.zeros((16, 16), dtype=np.float32))
+        fft.bound_plans(a, np.zeros((16, 16), dtype=np.float32))
+    with pytest.raises(InputError):
+        fft.bound_plans(a, a)
+    with pytest.raises(InputError):
+        fft.bound_plans(a, fft.workspace(1)[0])  # float32 into float64
+
+
+@needs_pyfftw
+def test_foreign_arrays_do_not_touch_the_workspace():
+    shape = (32, 32)
+    kernel = _kernel(shape)
+    fft = FFTBackend(shape, backend="pyfftw")
+    work = fft.workspace(2)
+    for w in work:
+        w[...] = 7.0
+    src = np.random.default_rng(1).normal(size=shape).astype(np.float32)
+    ref = FFTBackend(shape, backend="scipy").convolve(kernel, src.astype(float))
+    res = fft.convolve(kernel, src)
+    np.testing.assert_allclose(res, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+    assert all(np.all(w == 7.0) for w in work)
 
 
 def test_backend_names():
