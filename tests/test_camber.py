@@ -434,6 +434,76 @@ def test_demo_ski_network_against_beam_truth(name):
     assert a["metric_truth_rmse_band_test_m"] < 5e-6
 
 
+def _demo_area_errors(name: str, n_random: int = 12) -> tuple[np.ndarray, np.ndarray]:
+    """Loads and relative apparent-area errors (network vs beam truth, macro BEM) of a demo ski.
+
+    Cases: the papers' 40 kg at −160 mm first, then ``n_random`` loads drawn uniformly (seed 11)
+    from the trained range; E_snow = 200 MPa, default macro grid, tilt on.
+    """
+    from app.storage.common import REPO_ROOT
+    from app.storage.skis import read_ski
+    from solvers.beam import G_STANDARD, BeamFlexibility, solve_beam_contact
+    from solvers.elastic import effective_modulus
+
+    record = read_ski(REPO_ROOT / "tables" / "skis" / f"{name}.h5")
+    net = camber.network_to_dict(record.network)
+    a = net["attrs"]
+    rng = np.random.default_rng(11)
+    f = np.concatenate(
+        [[40.0 * G_STANDARD], rng.uniform(a["load_min_n"], a["load_max_n"], n_random)]
+    )
+    xf = np.concatenate(
+        [[-0.160], rng.uniform(a["load_position_min_m"], a["load_position_max_m"], n_random)]
+    )
+    flex = BeamFlexibility(record.beam)
+    truth = np.array(
+        [
+            np.interp(
+                net["positions_m"],
+                record.beam.positions_m,
+                solve_beam_contact(record.beam, fk, xk, flexibility=flex).gap_m,
+            )
+            for fk, xk in zip(f, xf, strict=True)
+        ]
+    )
+    check = train_camber.contact_area_check(
+        net,
+        f,
+        xf,
+        truth,
+        width_m=record.outline.width_m,
+        width_positions_m=record.outline.positions_m,
+        effective_modulus_pa=effective_modulus(200e6),
+    )
+    assert check["converged"]
+    return f, check["relative_error"]
+
+
+@pytest.mark.parametrize("name", DEMO_SKIS)
+def test_demo_ski_network_apparent_area_papers_case_and_median(name):
+    """Apparent area from the network vs from the true profile (issue #3 target: 3 %).
+
+    Met for the papers' case and in the median over random loads in range (stored full check:
+    median 1.1 % / 0.9 %); the light-load misses are the strict xfail below.
+    """
+    _, err = _demo_area_errors(name)
+    assert abs(err[0]) <= 0.03, f"papers' case: {err[0]:+.1%}"
+    assert np.median(np.abs(err)) <= 0.03, f"median |error| {np.median(np.abs(err)):.1%}"
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="known gap (issue #3; docs/camber-network.md, 'What limits the area accuracy'): at "
+    "light loads (~100-400 N) the apparent area reacts to sub-µm profile errors, and the "
+    "network trained on 3 µm-noise measurements is 0.5-1 µm off",
+)
+@pytest.mark.parametrize("name", DEMO_SKIS)
+def test_demo_ski_network_apparent_area_within_3_percent_everywhere(name):
+    f, err = _demo_area_errors(name)
+    worst = int(np.argmax(np.abs(err)))
+    assert np.all(np.abs(err) <= 0.03), f"{err[worst]:+.1%} at {f[worst]:.0f} N"
+
+
 def test_remeasure_keeps_the_calibrated_beam(tmp_path, monkeypatch):
     """make_demo_skis --remeasure changes only the measurements, never the ski's beam model."""
     import importlib.util
