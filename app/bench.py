@@ -501,6 +501,13 @@ def _service_md(d: dict) -> list[str]:
             f"{c['server_rss_mb_drift']:+.1f} MB."
             if c.get("server_rss_mb_samples")
             else "."
+        )
+        + (
+            " Median RSS per tenth of the run: "
+            + ", ".join(f"{v:.0f}" for v in c["server_rss_mb_by_tenth"])
+            + f" MB; drift over the second half {c['server_rss_mb_drift_second_half']:+.1f} MB."
+            if c.get("server_rss_mb_by_tenth")
+            else ""
         ),
         "",
     ]
@@ -596,7 +603,10 @@ def write_benchmarks_md(docs_dir: Path | None = None) -> Path:
     ]
     for path in sorted(bench_dir.glob("*.json")):
         data = json.loads(path.read_text())
-        stage = data.get("stage", path.stem)
+        if "stage" not in data or "machine" not in data:
+            log.warning("%s is not a benchmark stage file (no stage/machine); skipped", path)
+            continue
+        stage = data["stage"]
         render = STAGE_RENDERERS.get(stage)
         prov = data.get("provenance", {})
         if render is None:

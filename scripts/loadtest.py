@@ -225,6 +225,19 @@ def main(argv: list[str] | None = None) -> int:
                     if samples
                     else float("nan")
                 ),
+                # median of each tenth of the run: warm-up growth that levels off vs a leak
+                "server_rss_mb_by_tenth": [
+                    float(np.median(part)) for part in np.array_split(samples, 10) if len(part)
+                ],
+                # drift over the second half only (after warm-up): ~0 when memory is flat
+                "server_rss_mb_drift_second_half": (
+                    float(
+                        np.median(samples[-tenth:])
+                        - np.median(samples[len(samples) // 2 :][:tenth])
+                    )
+                    if len(samples) >= 20
+                    else float("nan")
+                ),
             },
         }
         print(json.dumps(result, indent=1))

@@ -35,3 +35,22 @@ def test_bench_macro_stage_renders():
     lines = bench._macro_md(data)
     assert sum("(default)" in line for line in lines) == 2
     assert all(0 < r["median_s"] < 1 for r in data["inference"].values())
+
+
+def test_benchmarks_md_renders_stages_and_skips_other_json(tmp_path):
+    """docs/bench may hold files that are not stages; the page is still written (no KeyError)."""
+    import json
+
+    bench_dir = tmp_path / "bench"
+    bench_dir.mkdir()
+    stage = {
+        "stage": "custom",
+        "machine": {"cpus": 2},
+        "provenance": {"created_utc": "2026-01-01", "git_commit": "abc", "command_line": "x"},
+    }
+    (bench_dir / "custom.json").write_text(json.dumps(stage))
+    (bench_dir / "notes.json").write_text(json.dumps({"results": []}))
+    out = bench.write_benchmarks_md(tmp_path)
+    text = out.read_text()
+    assert "## custom" in text and "on 2 cores" in text
+    assert "notes" not in text
