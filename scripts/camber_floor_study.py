@@ -19,7 +19,7 @@ Every variant is one ensemble member (``--ensemble``), seed 0, the command's oth
 (relu 2 × 64, 5 mm nodes, 10 mm output smoothing), checked by
 :func:`app.train_camber.truth_check` on the network's held-out test cases, 32 loads drawn
 uniformly from the trained range (seed 0) and the papers' case 40 kg at −160 mm, through the
-macro BEM at E_snow = 200 MPa. Results: ``docs/bench/camber-floor.json`` and ``.png``
+macro BEM at E_snow = 200 MPa. Results: ``docs/studies/camber-floor.json`` and ``.png``
 (atomic writes, provenance inside).
 
 Usage::
@@ -323,7 +323,7 @@ def main(argv: list[str] | None = None) -> int:
         help="also train a second network on what the first leaves (prototype, not shipped)",
     )
     ap.add_argument("--jobs", type=int, default=2, help="skis studied in parallel (default 2)")
-    ap.add_argument("--out", type=Path, default=REPO / "docs" / "bench" / "camber-floor.json")
+    ap.add_argument("--out", type=Path, default=REPO / "docs" / "studies" / "camber-floor.json")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
     grid = None
