@@ -57,6 +57,7 @@ from solvers.errors import DataFileError, InputError
 
 __all__ = [
     "TrainingResult",
+    "beam_truth_profiles",
     "camber_training_arrays",
     "contact_area_check",
     "evaluate_network",
@@ -549,8 +550,13 @@ def _fit_member(
     learning_rate,
     patience,
     progress,
+    base=None,
 ) -> dict:
-    """Train one MLP (Adam, then L-BFGS) with early stopping; the best-validation weights win."""
+    """Train one MLP (Adam, then L-BFGS) with early stopping; the best-validation weights win.
+
+    ``base`` (K, K_c), if given, is a fixed signed gap added to the network's output for each
+    load case before the loss (a second network trained on what a first one leaves).
+    """
     gen = torch.Generator().manual_seed(int(seed))
     layers = _build_layers(torch, sizes, gen)
     with torch.no_grad():  # small last layer: start near the mean profile
@@ -564,12 +570,15 @@ def _fit_member(
     t_zero = t_h == 0.0
     t_wt = 1.0 / torch.clamp(t_h, min=contact_band_m)
     t_off = torch.as_tensor(out_offset)
+    t_base = None if base is None else torch.as_tensor(base)
     t_scale = torch.as_tensor(out_scale)
     t_smooth = torch.as_tensor(smoother)
     t_tr, t_va = torch.as_tensor(rows[0]), torch.as_tensor(rows[1])
 
     def loss_on(idx):
         s = _node_output(torch, layers, t_in[idx], t_off, t_scale, activation, t_smooth)
+        if t_base is not None:
+            s = s + t_base[idx]
         r = torch.where(t_zero[idx], torch.relu(s), s - t_h[idx]) * t_wt[idx]
         return torch.mean(r * r)
 
@@ -993,6 +1002,27 @@ def camber_training_arrays(data) -> tuple[str, np.ndarray, np.ndarray, np.ndarra
     )
 
 
+def beam_truth_profiles(
+    beam, positions_m: np.ndarray, loads_n: np.ndarray, load_positions_m: np.ndarray
+) -> np.ndarray:
+    """Noise-free loaded gaps H*(X) [m] of a beam ski at load cases (F [N], x_F [m]), shape
+    (K, M), interpolated onto ``positions_m`` (:func:`solvers.beam.solve_beam_contact`)."""
+    from solvers.beam import BeamFlexibility, solve_beam_contact
+
+    flex = BeamFlexibility(beam)
+    x = np.asarray(positions_m, dtype=float)
+    return np.array(
+        [
+            np.interp(x, beam.positions_m, solve_beam_contact(beam, f, p, flexibility=flex).gap_m)
+            for f, p in zip(
+                np.atleast_1d(np.asarray(loads_n, dtype=float)),
+                np.atleast_1d(np.asarray(load_positions_m, dtype=float)),
+                strict=True,
+            )
+        ]
+    ).reshape(-1, x.size)
+
+
 def truth_check(
     network: Mapping[str, object],
     beam,
@@ -1017,8 +1047,6 @@ def truth_check(
     dict
         Scalar metrics (keys ``truth_*``) and per-case arrays (``truth_cases_*``).
     """
-    from solvers.beam import BeamFlexibility, solve_beam_contact
-
     attrs = network["attrs"]
     rng = np.random.default_rng(seed)
     f = list(np.asarray(network.get("split_test_loads_n", np.empty(0)), dtype=float))
@@ -1030,12 +1058,7 @@ def truth_check(
         f.append(a)
         xf.append(b)
     f, xf = np.asarray(f), np.asarray(xf)
-    x = np.asarray(network["positions_m"])
-    flex = BeamFlexibility(beam)
-    truth = np.empty((f.size, x.size))
-    for k in range(f.size):
-        res = solve_beam_contact(beam, float(f[k]), float(xf[k]), flexibility=flex)
-        truth[k] = np.interp(x, beam.positions_m, res.gap_m)
+    truth = beam_truth_profiles(beam, network["positions_m"], f, xf)
     pred = camber.predict_profiles(network, f, xf).gaps_m
     rmse = np.array([camber.contact_band_rmse_m(p, t) for p, t in zip(pred, truth, strict=True)])
     area = contact_area_check(

@@ -50,51 +50,34 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from app.storage.common import atomic_path, provenance  # noqa: E402
-from app.storage.skis import read_ski  # noqa: E402
-from app.train_camber import (  # noqa: E402
-    camber_training_arrays,
-    train_camber_network,
-    truth_check,
-)
-from solvers.beam import G_STANDARD, BeamFlexibility, measure_camber, solve_beam_contact  # noqa: E402
-from solvers.elastic import effective_modulus  # noqa: E402
+from app import train_camber as tc  # noqa: E402
+from app.storage import common, skis  # noqa: E402
+from solvers import beam, elastic  # noqa: E402
 
 log = logging.getLogger("camber_floor_study")
 
 SNOW_MODULUS_PA = 200e6
-PAPERS_CASE = (40.0 * G_STANDARD, -0.160)
+PAPERS_CASE = (40.0 * beam.G_STANDARD, -0.160)
 TARGET = 0.03
 NOISE_M = 3e-6
 GRID_SEED = 7
 
 
-def truth_profiles(beam, x_m, loads_n, positions_m) -> np.ndarray:
-    """Noise-free loaded gaps of the beam model at the given load cases, on grid x [m]."""
-    flex = BeamFlexibility(beam)
-    return np.array(
-        [
-            np.interp(x_m, beam.positions_m, solve_beam_contact(beam, f, p, flexibility=flex).gap_m)
-            for f, p in zip(loads_n, positions_m, strict=True)
-        ]
-    )
-
-
 def variants(record, grid: tuple[int, int] | None):
     """(name, loads [N], positions [m], profiles [m]) of every training set to compare."""
-    _, x, f, xf, h, _ = camber_training_arrays(record.measurements)
+    _, x, f, xf, h, _ = tc.camber_training_arrays(record.measurements)
     out = [
         ("measured", f, xf, h),
-        ("noise-free", f, xf, truth_profiles(record.beam, x, f, xf)),
+        ("noise-free", f, xf, tc.beam_truth_profiles(record.beam, x, f, xf)),
     ]
     if grid is not None:
-        loads = np.linspace(10.0, 90.0, grid[0]) * G_STANDARD
+        loads = np.linspace(10.0, 90.0, grid[0]) * beam.G_STANDARD
         pos = np.linspace(-0.300, 0.100, grid[1])
         for name, noise in (
             (f"measured {grid[0]}x{grid[1]}", NOISE_M),
             (f"noise-free {grid[0]}x{grid[1]}", 0.0),
         ):
-            gf, gxf, gh = measure_camber(
+            gf, gxf, gh = beam.measure_camber(
                 record.beam, loads, pos, noise_m=noise, rng=np.random.default_rng(GRID_SEED)
             )
             gh = np.array([np.interp(x, record.beam.positions_m, row) for row in gh])
@@ -121,7 +104,8 @@ def residual_stage(
     *,
     scale_m: float = 2e-6,
     smoothing_m: float = 3e-3,
-    epochs: int = 3000,
+    epochs: int = 4000,
+    lbfgs_epochs: int = 1500,
     patience: int = 400,
     seed: int = 100,
 ) -> dict:
@@ -129,13 +113,13 @@ def residual_stage(
 
     The first network (frozen) gives S1 at the nodes; a second relu MLP of the same width, with
     its output scaled to ``scale_m`` per node and smoothed by ``smoothing_m``, minimises the
-    training loss of S1 + S2 (same loss, split and early stopping as the first). The sum is one
+    training loss of S1 + S2 (``app.train_camber._fit_member`` with ``base = S1``: same loss,
+    split, Adam then L-BFGS and early stopping as the first). The sum is one
     MLP of the stored schema (stacked first layer, block-diagonal hidden layers, concatenated
     last layer), exactly like the ensemble fold.
     """
     import torch
 
-    from app import train_camber as tc
     from solvers import camber
 
     x = np.asarray(network["positions_m"])
@@ -144,53 +128,28 @@ def residual_stage(
     split = tc.split_load_cases(f, xf, seed=int(network["attrs"]["seed"]))
     band = float(network["attrs"]["contact_band_m"])
     hidden = [int(v) for v in str(network["attrs"]["hidden_layers"]).split(",")]
+    f_in = (np.stack([f, xf], axis=1) - network["input_offset"]) / network["input_scale"]
     with tc._torch_threads(torch, 1):
-        s1 = torch.as_tensor(_signed_nodes(network, f, xf))
-        th = torch.as_tensor(h[:, node_idx])
-        zero = th == 0.0
-        wt = 1.0 / torch.clamp(th, min=band)
-        z = torch.as_tensor(
-            (np.stack([f, xf], 1) - network["input_offset"]) / network["input_scale"]
+        member = tc._fit_member(
+            torch,
+            seed=seed,
+            sizes=[2, *hidden, int(nodes.size)],
+            inputs=f_in,
+            targets=h[:, node_idx],
+            rows=(split["train"], split["validation"]),
+            out_offset=np.zeros(nodes.size),
+            out_scale=np.full(nodes.size, scale_m),
+            smoother=tc.smoothing_matrix(nodes, smoothing_m),
+            activation="relu",
+            contact_band_m=band,
+            epochs=epochs,
+            lbfgs_epochs=lbfgs_epochs,
+            learning_rate=1e-2,
+            patience=patience,
+            progress=None,
+            base=_signed_nodes(network, f, xf),
         )
-        smoother = torch.as_tensor(tc.smoothing_matrix(nodes, smoothing_m))
-        layers = tc._build_layers(
-            torch, [2, *hidden, nodes.size], torch.Generator().manual_seed(seed)
-        )
-        with torch.no_grad():
-            layers[-1].weight.mul_(0.01)
-        scale = torch.full((nodes.size,), scale_m, dtype=torch.float64)
-        tr, va = torch.as_tensor(split["train"]), torch.as_tensor(split["validation"])
-
-        def loss_on(idx):
-            s2 = tc._node_output(
-                torch, layers, z[idx], torch.zeros_like(scale), scale, "relu", smoother
-            )
-            s = s1[idx] + s2
-            r = torch.where(zero[idx], torch.relu(s), s - th[idx]) * wt[idx]
-            return torch.mean(r * r)
-
-        params = list(layers.parameters())
-        opt = torch.optim.Adam(params, lr=1e-2)
-        sched = torch.optim.lr_scheduler.ReduceLROnPlateau(
-            opt, factor=0.5, patience=100, min_lr=1e-5
-        )
-        best, best_state, stale = np.inf, [p.detach().clone() for p in params], 0
-        for _ in range(epochs):
-            opt.zero_grad()
-            loss = loss_on(tr)
-            loss.backward()
-            opt.step()
-            sched.step(float(loss.detach()))
-            with torch.no_grad():
-                lv = float(loss_on(va))
-            if lv < best * (1 - 1e-6):
-                best, best_state, stale = lv, [p.detach().clone() for p in params], 0
-            else:
-                stale += 1
-                if stale >= patience:
-                    break
-        w2 = [b.numpy().copy() for b in best_state[0::2]]
-        b2 = [b.numpy().copy() for b in best_state[1::2]]
+    w2, b2 = member["weights"], member["biases"]
     g = tc.smoothing_matrix(nodes, smoothing_m)
     w2[-1] = g @ (scale_m * w2[-1])
     b2[-1] = g @ (scale_m * b2[-1])
@@ -215,14 +174,14 @@ def residual_stage(
 
 def evaluate(record, network, name: str, n_cases: int, train_s: float) -> dict:
     """Truth check of one trained network (module docstring) as a JSON-ready row."""
-    t = truth_check(
+    t = tc.truth_check(
         network,
         record.beam,
         n_random=32,
         seed=0,
         width_m=record.outline.width_m,
         width_positions_m=record.outline.positions_m,
-        effective_modulus_pa=effective_modulus(SNOW_MODULUS_PA),
+        effective_modulus_pa=elastic.effective_modulus(SNOW_MODULUS_PA),
         extra_cases=[PAPERS_CASE],
     )
     err = t["truth_cases_area_pred_m2"] / t["truth_cases_area_true_m2"] - 1.0
@@ -248,7 +207,7 @@ def run_variant(record, x, name, f, xf, h, ensemble: int, residual: bool) -> lis
     """Train on one training set and check against the truth; with ``residual`` also the
     network plus a residual stage (:func:`residual_stage`)."""
     t0 = time.perf_counter()
-    res = train_camber_network(x, f, xf, h, ensemble=ensemble, seed=0, ski_id=name)
+    res = tc.train_camber_network(x, f, xf, h, ensemble=ensemble, seed=0, ski_id=name)
     rows = [evaluate(record, res.network, name, f.size, time.perf_counter() - t0)]
     if residual:
         t0 = time.perf_counter()
@@ -265,7 +224,7 @@ def run_variant(record, x, name, f, xf, h, ensemble: int, residual: bool) -> lis
 def study_ski(ski: str, grid, ensemble: int, residual: bool) -> list[dict]:
     """All variants of one demo ski (runs in a worker process)."""
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
-    record = read_ski(REPO / "tables" / "skis" / f"{ski}.h5")
+    record = skis.read_ski(REPO / "tables" / "skis" / f"{ski}.h5")
     x, sets = variants(record, grid)
     out: list[dict] = []
     for i, (name, f, xf, h) in enumerate(sets, 1):
@@ -288,10 +247,10 @@ def study_ski(ski: str, grid, ensemble: int, residual: bool) -> list[dict]:
 def plot(results: dict, path: Path) -> None:
     from matplotlib.figure import Figure
 
-    skis = list(results)
-    fig = Figure(figsize=(5.0 * len(skis), 3.8), layout="constrained")
-    axes = fig.subplots(1, len(skis), squeeze=False)[0]
-    for ax, ski in zip(axes, skis, strict=True):
+    names = list(results)
+    fig = Figure(figsize=(5.0 * len(names), 3.8), layout="constrained")
+    axes = fig.subplots(1, len(names), squeeze=False)[0]
+    for ax, ski in zip(axes, names, strict=True):
         for row, marker in zip(results[ski], "os^vDP<>", strict=False):
             ax.scatter(
                 row["cases_load_n"],
@@ -308,7 +267,7 @@ def plot(results: dict, path: Path) -> None:
         ax.set_ylabel("|area error| vs beam truth [%]")
         ax.set_title(f"{ski}: trained on measured vs noise-free profiles", fontsize=9)
         ax.legend(fontsize=7)
-    with atomic_path(path) as tmp:
+    with common.atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=110)
 
 
@@ -334,16 +293,16 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"--grid must look like 49x33, got {args.grid!r}")
         if len(grid) != 2 or min(grid) < 3:
             ap.error(f"--grid needs two counts >= 3, got {args.grid!r}")
-    skis = args.ski or ["ski-a", "ski-b"]
+    names = args.ski or ["ski-a", "ski-b"]
     # one process per ski (each trains with one torch thread)
-    with ProcessPoolExecutor(max_workers=min(len(skis), args.jobs)) as pool:
+    with ProcessPoolExecutor(max_workers=min(len(names), args.jobs)) as pool:
         futures = [
-            pool.submit(study_ski, ski, grid, args.ensemble, args.residual_stage) for ski in skis
+            pool.submit(study_ski, ski, grid, args.ensemble, args.residual_stage) for ski in names
         ]
-        results = dict(zip(skis, (fut.result() for fut in futures), strict=True))
+        results = dict(zip(names, (fut.result() for fut in futures), strict=True))
     doc = {
         "schema": "skisnow.camber-floor/1",
-        "provenance": provenance(
+        "provenance": common.provenance(
             {
                 "ensemble": args.ensemble,
                 "grid": args.grid,
@@ -354,7 +313,7 @@ def main(argv: list[str] | None = None) -> int:
         "units": {"rmse": "µm", "area errors": "% of the area from the true profile"},
         "results": results,
     }
-    with atomic_path(args.out) as tmp:
+    with common.atomic_path(args.out) as tmp:
         tmp.write_text(json.dumps(doc, indent=1), encoding="utf-8")
     plot(results, args.out.with_suffix(".png"))
     print(

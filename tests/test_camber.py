@@ -397,6 +397,15 @@ def test_sides_left_right_are_averaged():
 DEMO_SKIS = ("ski-a", "ski-b")
 
 
+def _demo_ski(name: str):
+    """The shipped demo ski record and its network dict."""
+    from app.storage.common import REPO_ROOT
+    from app.storage.skis import read_ski
+
+    record = read_ski(REPO_ROOT / "tables" / "skis" / f"{name}.h5")
+    return record, camber.network_to_dict(record.network)
+
+
 @pytest.mark.parametrize("name", DEMO_SKIS)
 def test_demo_ski_network_against_beam_truth(name):
     """The shipped demo networks against their noise-free beam model (held-out loads).
@@ -405,27 +414,12 @@ def test_demo_ski_network_against_beam_truth(name):
     ``metric_truth_*``, docs/camber-network.md). Here: RMSE of H* where H* < 0.2 mm on 8 loads
     drawn in the trained range (measured ≈1 µm, target 5 µm).
     """
-    from app.storage.common import REPO_ROOT
-    from app.storage.skis import read_ski
-    from solvers.beam import BeamFlexibility, solve_beam_contact
-
-    record = read_ski(REPO_ROOT / "tables" / "skis" / f"{name}.h5")
-    net = camber.network_to_dict(record.network)
+    record, net = _demo_ski(name)
     a = net["attrs"]
     rng = np.random.default_rng(7)
     f = rng.uniform(a["load_min_n"], a["load_max_n"], 8)
     xf = rng.uniform(a["load_position_min_m"], a["load_position_max_m"], 8)
-    flex = BeamFlexibility(record.beam)
-    truth = np.array(
-        [
-            np.interp(
-                net["positions_m"],
-                record.beam.positions_m,
-                solve_beam_contact(record.beam, fk, xk, flexibility=flex).gap_m,
-            )
-            for fk, xk in zip(f, xf, strict=True)
-        ]
-    )
+    truth = train_camber.beam_truth_profiles(record.beam, net["positions_m"], f, xf)
     pred = camber.predict_profiles(net, f, xf).gaps_m
     band = truth < camber.CONTACT_BAND_M
     assert np.sqrt(np.mean((pred - truth)[band] ** 2)) < 2.5e-6
@@ -440,13 +434,10 @@ def _demo_area_errors(name: str, n_random: int = 12) -> tuple[np.ndarray, np.nda
     Cases: the papers' 40 kg at −160 mm first, then ``n_random`` loads drawn uniformly (seed 11)
     from the trained range; E_snow = 200 MPa, default macro grid, tilt on.
     """
-    from app.storage.common import REPO_ROOT
-    from app.storage.skis import read_ski
-    from solvers.beam import G_STANDARD, BeamFlexibility, solve_beam_contact
+    from solvers.beam import G_STANDARD
     from solvers.elastic import effective_modulus
 
-    record = read_ski(REPO_ROOT / "tables" / "skis" / f"{name}.h5")
-    net = camber.network_to_dict(record.network)
+    record, net = _demo_ski(name)
     a = net["attrs"]
     rng = np.random.default_rng(11)
     f = np.concatenate(
@@ -455,17 +446,7 @@ def _demo_area_errors(name: str, n_random: int = 12) -> tuple[np.ndarray, np.nda
     xf = np.concatenate(
         [[-0.160], rng.uniform(a["load_position_min_m"], a["load_position_max_m"], n_random)]
     )
-    flex = BeamFlexibility(record.beam)
-    truth = np.array(
-        [
-            np.interp(
-                net["positions_m"],
-                record.beam.positions_m,
-                solve_beam_contact(record.beam, fk, xk, flexibility=flex).gap_m,
-            )
-            for fk, xk in zip(f, xf, strict=True)
-        ]
-    )
+    truth = train_camber.beam_truth_profiles(record.beam, net["positions_m"], f, xf)
     check = train_camber.contact_area_check(
         net,
         f,
