@@ -64,6 +64,7 @@ __all__ = [
     "register",
     "run",
     "split_load_cases",
+    "sum_networks",
     "torch_predict",
     "train_camber_network",
     "truth_check",
@@ -678,11 +679,33 @@ def _fold_members(members, out_offset, out_scale, smoother):
     output offset ``G off`` (set by the caller) with unit output scale.
     """
     n = len(members)
-    n_layers = len(members[0]["weights"])
+    scaled = []
+    for m in members:
+        w, b = list(m["weights"]), list(m["biases"])
+        w[-1] = smoother @ (out_scale[:, None] * w[-1]) / n
+        b[-1] = smoother @ (out_scale * b[-1]) / n
+        scaled.append((w, b))
+    return sum_networks(scaled)
+
+
+def sum_networks(
+    members: list[tuple[list[np.ndarray], list[np.ndarray]]],
+) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Weights and biases of one MLP whose output is the sum of the members' outputs.
+
+    Each member is ``(weights, biases)`` with the same number of layers and activation: the
+    first layers are stacked, hidden layers block-diagonal, the last layers concatenated
+    (biases summed). A single-layer (linear) member set is summed directly.
+    """
+    n_layers = len(members[0][0])
+    if any(len(w) != n_layers for w, _ in members):
+        raise InputError("sum_networks needs members with the same number of layers")
+    if n_layers == 1:
+        return [sum(w[0] for w, _ in members)], [sum(b[0] for _, b in members)]
     weights, biases = [], []
     for i in range(n_layers):
-        ws = [m["weights"][i] for m in members]
-        bs = [m["biases"][i] for m in members]
+        ws = [w[i] for w, _ in members]
+        bs = [b[i] for _, b in members]
         if i == 0:
             weights.append(np.vstack(ws))
             biases.append(np.concatenate(bs))
@@ -690,13 +713,8 @@ def _fold_members(members, out_offset, out_scale, smoother):
             weights.append(_block_diag(ws))
             biases.append(np.concatenate(bs))
         else:
-            weights.append(smoother @ (out_scale[:, None] * np.hstack(ws)) / n)
-            biases.append(smoother @ (out_scale * np.mean(bs, axis=0)))
-    if n_layers == 1:  # a purely linear model: average instead of stacking
-        weights = [
-            smoother @ (out_scale[:, None] * np.mean([m["weights"][0] for m in members], axis=0))
-        ]
-        biases = [smoother @ (out_scale * np.mean([m["biases"][0] for m in members], axis=0))]
+            weights.append(np.hstack(ws))
+            biases.append(np.sum(bs, axis=0))
     return weights, biases
 
 

@@ -85,17 +85,6 @@ def variants(record, grid: tuple[int, int] | None):
     return x, out
 
 
-def _signed_nodes(network, f, xf) -> np.ndarray:
-    """Signed gap S at the network's nodes (before interpolation and ReLU) [m], shape (K, K_c)."""
-    a = (np.stack([f, xf], axis=1) - network["input_offset"]) / network["input_scale"]
-    n = int(network["attrs"]["n_layers"])
-    for i in range(n):
-        a = a @ np.asarray(network[f"layer{i}_weight"]).T + network[f"layer{i}_bias"]
-        if i < n - 1:
-            a = np.maximum(a, 0.0)
-    return network["output_offset"] + network["output_scale"] * a
-
-
 def residual_stage(
     network: dict,
     f: np.ndarray,
@@ -111,11 +100,12 @@ def residual_stage(
 ) -> dict:
     """Second network fitted to what the first one leaves, folded into one MLP (prototype).
 
-    The first network (frozen) gives S1 at the nodes; a second relu MLP of the same width, with
-    its output scaled to ``scale_m`` per node and smoothed by ``smoothing_m``, minimises the
-    training loss of S1 + S2 (``app.train_camber._fit_member`` with ``base = S1``: same loss,
-    split, Adam then L-BFGS and early stopping as the first). The sum is one
-    MLP of the stored schema (stacked first layer, block-diagonal hidden layers, concatenated
+    The first network (frozen) gives S1 at the nodes; a second MLP of the same width and
+    activation, with its output scaled to ``scale_m`` per node and smoothed by
+    ``smoothing_m``, minimises the training loss of S1 + S2 (``app.train_camber._fit_member``
+    with ``base = S1``: same loss, split, Adam then L-BFGS and early stopping as the first).
+    :func:`app.train_camber.sum_networks` adds the two into one MLP of the stored schema
+    (stacked first layer, block-diagonal hidden layers, concatenated
     last layer), exactly like the ensemble fold.
     """
     import torch
@@ -128,6 +118,10 @@ def residual_stage(
     split = tc.split_load_cases(f, xf, seed=int(network["attrs"]["seed"]))
     band = float(network["attrs"]["contact_band_m"])
     hidden = [int(v) for v in str(network["attrs"]["hidden_layers"]).split(",")]
+    if not np.allclose(network["output_scale"], 1.0):
+        raise ValueError("residual_stage needs a folded network (output_scale 1)")
+    activation = str(network["attrs"]["activation"])
+    g = tc.smoothing_matrix(nodes, smoothing_m)
     f_in = (np.stack([f, xf], axis=1) - network["input_offset"]) / network["input_scale"]
     with tc._torch_threads(torch, 1):
         member = tc._fit_member(
@@ -139,35 +133,29 @@ def residual_stage(
             rows=(split["train"], split["validation"]),
             out_offset=np.zeros(nodes.size),
             out_scale=np.full(nodes.size, scale_m),
-            smoother=tc.smoothing_matrix(nodes, smoothing_m),
-            activation="relu",
+            smoother=g,
+            activation=activation,
             contact_band_m=band,
             epochs=epochs,
             lbfgs_epochs=lbfgs_epochs,
             learning_rate=1e-2,
             patience=patience,
             progress=None,
-            base=_signed_nodes(network, f, xf),
+            base=camber.signed_node_gaps(network, np.stack([f, xf], axis=1)),
         )
-    w2, b2 = member["weights"], member["biases"]
-    g = tc.smoothing_matrix(nodes, smoothing_m)
+    w2, b2 = list(member["weights"]), list(member["biases"])
     w2[-1] = g @ (scale_m * w2[-1])
     b2[-1] = g @ (scale_m * b2[-1])
     n = int(network["attrs"]["n_layers"])
-    if not np.allclose(network["output_scale"], 1.0):
-        raise ValueError("residual_stage needs a folded network (output_scale 1)")
-    w1 = [np.asarray(network[f"layer{i}_weight"]) for i in range(n)]
-    b1 = [np.asarray(network[f"layer{i}_bias"]) for i in range(n)]
+    first = (
+        [np.asarray(network[f"layer{i}_weight"]) for i in range(n)],
+        [np.asarray(network[f"layer{i}_bias"]) for i in range(n)],
+    )
+    weights, biases = tc.sum_networks([first, (w2, b2)])
     out = dict(network)
     out["attrs"] = dict(network["attrs"])
     for i in range(n):
-        if i == 0:
-            w, b = np.vstack([w1[0], w2[0]]), np.concatenate([b1[0], b2[0]])
-        elif i < n - 1:
-            w, b = tc._block_diag([w1[i], w2[i]]), np.concatenate([b1[i], b2[i]])
-        else:
-            w, b = np.hstack([w1[i], w2[i]]), b1[i] + b2[i]
-        out[f"layer{i}_weight"], out[f"layer{i}_bias"] = w, b
+        out[f"layer{i}_weight"], out[f"layer{i}_bias"] = weights[i], biases[i]
     out["attrs"]["residual_stage"] = f"scale {scale_m:g} m, smoothing {smoothing_m:g} m"
     return out
 

@@ -78,6 +78,7 @@ __all__ = [
     "predict_profile",
     "predict_profiles",
     "select_nodes",
+    "signed_node_gaps",
 ]
 
 #: schema string stored in the ``schema`` attribute of every camber network
@@ -440,16 +441,25 @@ def contact_band_rmse_m(
     return float(np.sqrt(np.mean((p[mask] - t[mask]) ** 2)))
 
 
-def _forward(network: Mapping[str, object], inputs: np.ndarray) -> np.ndarray:
-    """Gaps (N, M) for normalised-unit-free inputs (N, 2) = (F [N], x_F [m])."""
-    a = (inputs - network["input_offset"]) / network["input_scale"]
+def signed_node_gaps(network: Mapping[str, object], inputs: np.ndarray) -> np.ndarray:
+    """Signed gap S at the output nodes [m], shape (N, K_c), before interpolation and ReLU.
+
+    ``inputs`` (N, 2) are (F [N], x_F [m]) in physical units; no range check (use
+    :func:`predict_profiles` for answers).
+    """
+    a = (np.asarray(inputs, dtype=float) - network["input_offset"]) / network["input_scale"]
     n_layers = int(network["attrs"]["n_layers"])
     sigma = ACTIVATIONS[network["attrs"]["activation"]]
     for i in range(n_layers):
         a = a @ np.asarray(network[f"layer{i}_weight"]).T + network[f"layer{i}_bias"]
         if i < n_layers - 1:
             a = sigma(a)
-    s_nodes = network["output_offset"] + network["output_scale"] * a
+    return network["output_offset"] + network["output_scale"] * a
+
+
+def _forward(network: Mapping[str, object], inputs: np.ndarray) -> np.ndarray:
+    """Gaps (N, M) for inputs (N, 2) = (F [N], x_F [m])."""
+    s_nodes = signed_node_gaps(network, inputs)
     i, w = interpolation_weights(network["node_positions_m"], network["positions_m"])
     if s_nodes.shape[1] == 1:
         s = np.repeat(s_nodes, i.size, axis=1)

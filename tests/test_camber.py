@@ -306,6 +306,48 @@ def test_ensemble_fold_equals_mean_of_members():
     np.testing.assert_allclose(g @ off + forward(weights, biases), mean, rtol=1e-12, atol=1e-12)
 
 
+@pytest.mark.parametrize("sizes", [[2, 7, 5, 4], [2, 4]])
+def test_sum_networks_output_is_the_sum(sizes):
+    """sum_networks (used by the ensemble fold and the residual stage) adds member outputs."""
+    rng = np.random.default_rng(9)
+    members = [
+        (
+            [rng.normal(size=(o, i)) for i, o in itertools.pairwise(sizes)],
+            [rng.normal(size=o) for o in sizes[1:]],
+        )
+        for _ in range(2)
+    ]
+    weights, biases = train_camber.sum_networks(members)
+    z = rng.normal(size=(6, 2))
+
+    def forward(ws, bs):
+        a = z
+        for i, (w, b) in enumerate(zip(ws, bs, strict=True)):
+            a = a @ w.T + b
+            if i < len(ws) - 1:
+                a = np.tanh(a)
+        return a
+
+    expected = sum(forward(w, b) for w, b in members)
+    np.testing.assert_allclose(forward(weights, biases), expected, rtol=1e-12, atol=1e-12)
+    with pytest.raises(InputError):
+        extra = (members[1][0] + members[1][0][-1:], members[1][1] + members[1][1][-1:])
+        train_camber.sum_networks([members[0], extra])
+
+
+def test_signed_node_gaps_interpolate_to_the_prediction(trained):
+    """predict_profiles is the ReLU of the node signed gaps interpolated onto the grid."""
+    net = trained[0].network
+    f, xf = np.array([250.0, 520.0]), np.array([-0.2, 0.0])
+    s = camber.signed_node_gaps(net, np.stack([f, xf], axis=1))
+    assert s.shape == (2, np.asarray(net["node_positions_m"]).size)
+    expected = np.maximum(
+        [np.interp(net["positions_m"], net["node_positions_m"], row) for row in s], 0.0
+    )
+    got = camber.predict_profiles(net, f, xf).gaps_m
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-15)
+
+
 def test_relu_ensemble_numpy_matches_torch():
     f, xf = _cases()
     h = synthetic_profiles(f, xf, GRID_M)
