@@ -276,6 +276,20 @@ def test_training_rejects_bad_data():
         train_camber.train_camber_network(GRID_M, f, xf, h[:, :-1], epochs=1)
 
 
+def _relu(a):
+    return np.maximum(a, 0.0)
+
+
+def _mlp(z, weights, biases, sigma):
+    """Plain numpy MLP: hidden layers with ``sigma``, linear last layer."""
+    a = z
+    for i, (w, b) in enumerate(zip(weights, biases, strict=True)):
+        a = a @ w.T + b
+        if i < len(weights) - 1:
+            a = sigma(a)
+    return a
+
+
 def test_ensemble_fold_equals_mean_of_members():
     """Folding members into one MLP (stacked, block-diagonal) gives the mean of their outputs."""
     rng = np.random.default_rng(5)
@@ -293,17 +307,12 @@ def test_ensemble_fold_equals_mean_of_members():
     np.testing.assert_allclose(g.sum(axis=1), 1.0)
     weights, biases = train_camber._fold_members(members, off, scale, g)
     z = rng.normal(size=(4, 2))
-
-    def forward(ws, bs):
-        a = z
-        for i, (w, b) in enumerate(zip(ws, bs, strict=True)):
-            a = a @ w.T + b
-            if i < len(ws) - 1:
-                a = np.maximum(a, 0.0)
-        return a
-
-    mean = np.mean([(off + scale * forward(m["weights"], m["biases"])) @ g.T for m in members], 0)
-    np.testing.assert_allclose(g @ off + forward(weights, biases), mean, rtol=1e-12, atol=1e-12)
+    mean = np.mean(
+        [(off + scale * _mlp(z, m["weights"], m["biases"], _relu)) @ g.T for m in members], 0
+    )
+    np.testing.assert_allclose(
+        g @ off + _mlp(z, weights, biases, _relu), mean, rtol=1e-12, atol=1e-12
+    )
 
 
 @pytest.mark.parametrize("sizes", [[2, 7, 5, 4], [2, 4]])
@@ -319,17 +328,8 @@ def test_sum_networks_output_is_the_sum(sizes):
     ]
     weights, biases = train_camber.sum_networks(members)
     z = rng.normal(size=(6, 2))
-
-    def forward(ws, bs):
-        a = z
-        for i, (w, b) in enumerate(zip(ws, bs, strict=True)):
-            a = a @ w.T + b
-            if i < len(ws) - 1:
-                a = np.tanh(a)
-        return a
-
-    expected = sum(forward(w, b) for w, b in members)
-    np.testing.assert_allclose(forward(weights, biases), expected, rtol=1e-12, atol=1e-12)
+    expected = sum(_mlp(z, w, b, np.tanh) for w, b in members)
+    np.testing.assert_allclose(_mlp(z, weights, biases, np.tanh), expected, rtol=1e-12, atol=1e-12)
     with pytest.raises(InputError):
         extra = (members[1][0] + members[1][0][-1:], members[1][1] + members[1][1][-1:])
         train_camber.sum_networks([members[0], extra])
