@@ -1,0 +1,844 @@
+"""Macro scale with a ski that bends on the snow (method.md §4b).
+
+Problem
+-------
+The ski is a free Euler–Bernoulli beam (:class:`solvers.beam.BeamSki`: bending stiffness EI(X),
+unloaded camber c(X)), rigid across its width, loaded by the point load F at x_F (down) and by
+the snow pressure P(X, Y) ≥ 0 (up). With the rigid approach δ and the tilt θ (positive: tip
+down) the clearance is
+
+    H(X, Y) = c(X) + w(X; P, F) + u(X, Y; P) − δ − θ (X − x_F) ≥ 0,   P ≥ 0,   P · H = 0,
+
+with w the beam's *upward* deflection (method.md writes −w with w downward), known up to a rigid
+motion that δ and θ carry, u the half-space displacement of :mod:`solvers.macro`, ``Σ P dA = F``
+and ``Σ P (X − x_F) dA = 0``. With rigid snow (E' = ∞, u = 0) this is the measuring device of
+:func:`solvers.beam.solve_beam_contact`.
+
+Discretisation
+--------------
+The footprint grid is :func:`solvers.macro.extrude_profile`'s (the rigid solve's pixels). The
+beam lives on the pixel-row centres X_i, EI and c interpolated linearly from the ski's own grid;
+its loads are the row forces ``r_i = Σ_j P_ij dx dy`` and F, split linearly between the two rows
+around x_F (force and moment about x_F exact). Its flexibility is the device's
+(:class:`solvers.beam.BeamFlexibility` on the rows: M/EI piecewise linear, integrated exactly),
+projected on self-equilibrated loads: ``B = Π G Π``, ``Π = I − R (RᵀR)⁻¹ Rᵀ``, ``R = [1, X]``.
+For equilibrated loads ``B f = G f`` up to a rigid motion, so with u = 0 the model is the
+device's discrete beam exactly. B is symmetric positive semi-definite up to the O(dx²)
+asymmetry of that quadrature (7e-6 of its largest entry at 4 mm on the demo skis).
+
+The operator on the pressure is ``A P = u(P) + B r(P)`` (beam term broadcast across the
+width) with ``h0 = c − F B e_F``: ``H = h0 + A P − δ − θ (X − x_F)``. Half-space: the exact
+zero-padded Love convolution of :class:`solvers.macro._LineOperator` (its FFT convention: real
+FFT of length 2n along X, ``norm="backward"``, no q = 0 special case). The per-ski part (B, the
+banded beam stiffness, the footprint) is a :class:`FlexibleModel` built once by
+:func:`prepare_flexible` and reused for every load and modulus.
+
+Solver
+------
+The Polonsky–Keer CG of the rigid solve stalls here: pressing one zone lifts another through
+the beam, so its penetration-driven contact updates swing over hundreds of pixels (measured:
+~2000 iterations on demo ski B at 200 MPa, even from a converged coarse solution). Instead:
+
+1. Warm start **(choice)**: the rigid-shape solve (:func:`solvers.macro.solve_macro`) of the
+   device's loaded profile on the same rows — the papers' model, a few ms.
+2. Primal–dual active set (Hintermüller, Ito & Kunisch, SIAM J. Optim. 13, 2002): on the set C
+   of pixels in contact the clearance is zero (``A_CC P_C − δ − θ (X − x_F) = −h0_C`` with force
+   and moment balance), elsewhere P = 0; the next C is ``{P > 0} ∪ {H < 0}``; when C repeats
+   it is solved once more to ``tol`` and checked again (then P > 0 on C and H ≥ 0 off C: the
+   discrete problem is solved). The first sets are solved loosely (``_LOOSE_TOL``).
+3. Each set is solved by projected preconditioned CG (the projection removes a least-squares
+   fit a + b (X − x_F) on C, so every iterate keeps force and moment). Preconditioner
+   ``M = (ρ I + S_Cᵀ B̃ S_C)⁻¹`` (S_C sums C's pixels per row, ``B̃ = dx dy K_b⁺``): the snow
+   as the scalar ρ (its compliance to a uniform pressure on C), the beam through the
+   pentadiagonal finite-difference stiffness K_b (beam.py's energy ``Σ EI (Δ²w)²/dx³``, within
+   a factor 3 of B⁻¹ on every mode) — Woodbury, one banded Cholesky per set, O(nx) per use.
+4. On stiff snow (E' ≳ 5 GPa, beyond real snow) the primal–dual sets can wander; after
+   ``_MAX_PDAS_UPDATES`` the solve switches to a monotone Lawson–Hanson active set (the
+   algorithm of :func:`solvers.beam.solve_beam_contact`: add the deepest penetration of each
+   run, step back when a pressure would turn negative), started from the device's contacts.
+   ``message`` says when that happened.
+
+Rigid snow (``effective_modulus_pa = inf``): one unknown per footprint row (the row force),
+the Lawson–Hanson loop with dense KKT solves from the lowest row on each side of the load; each
+row's force is spread uniformly over its footprint pixels (across the width the pressure is not
+unique when u = 0).
+
+Units: SI throughout (m, N, Pa, N·m²).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg
+
+from . import macro
+from .beam import BeamFlexibility, BeamSki, solve_beam_contact
+from .errors import InputError
+
+__all__ = ["FlexibleModel", "prepare_flexible", "solve_flexible"]
+
+#: relative CG tolerance of the primal-dual steps before the set settles: coarse for the first
+#: _COARSE_UPDATES sets, then finer (choice, measured on the demo skis: coarse solves alone make
+#: the set wander on stiff snow); the last set is always solved to ``tol``
+_LOOSE_TOL = (1e-2, 1e-4)
+_COARSE_UPDATES = 3
+#: primal-dual active-set updates before the switch to Lawson-Hanson
+_MAX_PDAS_UPDATES = 40
+#: Lawson-Hanson steps (each adds or drops at least one unknown)
+_MAX_LH_STEPS = 2000
+#: CG iterations per active set
+_MAX_CG = 400
+#: a free pixel penetrates when H < −_PEN_TOL · tol · (largest displacement): below the
+#: accuracy the CG solves are asked for, so rounding does not enter the contact set
+_PEN_TOL = 0.5
+
+
+def _equilibrated_flexibility(ski: BeamSki) -> tuple[BeamFlexibility, np.ndarray]:
+    """Device flexibility G of ``ski`` and ``B = Π G Π`` on its nodes [m/N]."""
+    flex = BeamFlexibility(ski)
+    q = _rigid_basis(ski.positions_m)
+    g = flex.matrix
+    gp = g - (g @ q) @ q.T  # G Π
+    return flex, gp - q @ (q.T @ gp)  # Π G Π
+
+
+def _rigid_basis(x: np.ndarray) -> np.ndarray:
+    """Orthonormal basis (n, 2) of the rigid motions span{1, X}."""
+    xc = (x - x.mean()) / max(float(np.ptp(x)), 1e-300)
+    q, _ = np.linalg.qr(np.stack([np.ones_like(xc), xc], axis=1))
+    return q
+
+
+def _banded_stiffness(ei_nm2: np.ndarray, dx: float) -> np.ndarray:
+    """Finite-difference beam stiffness ``D2ᵀ diag(EI/dx³) D2`` [N/m], upper banded (3, n).
+
+    ``ab[2 - k, j] = K[j - k, j]`` (the layout of :func:`scipy.linalg.cholesky_banded`); the
+    second difference is taken at the interior nodes (free ends), so the null space is the
+    rigid motions.
+    """
+    n = ei_nm2.size
+    w = ei_nm2[1:-1] / dx**3
+    ab = np.zeros((3, n))
+    # node i (interior) couples i-1, i, i+1 with w [1, -2, 1]ᵀ[1, -2, 1]
+    np.add.at(ab[2], np.arange(0, n - 2), w)
+    np.add.at(ab[2], np.arange(1, n - 1), 4 * w)
+    np.add.at(ab[2], np.arange(2, n), w)
+    np.add.at(ab[1], np.arange(1, n - 1), -2 * w)  # K[i-1, i]
+    np.add.at(ab[1], np.arange(2, n), -2 * w)  # K[i, i+1]
+    ab[0, 2:] = w  # K[i-1, i+1]
+    return ab
+
+
+@dataclass(frozen=True, eq=False)
+class FlexibleModel:
+    """A beam ski on one footprint grid: what every flexible solve of this ski reuses.
+
+    Build with :func:`prepare_flexible`; keep it (per ski and grid) and pass it to
+    :func:`solve_flexible` for every load, load position and modulus. Compared and hashed by
+    identity (a cache key that stays valid as long as the model is kept).
+
+    Attributes
+    ----------
+    ski : BeamSki
+        The beam model on its own grid.
+    unloaded_map : GapMap
+        Unloaded camber c(X) on the footprint [m] (NaN outside), on exactly the pixels of
+        :func:`solvers.macro.extrude_profile` for the same width and pixel parameters.
+    row_beam : BeamSki
+        The beam on the pixel-row centres (EI and c interpolated linearly from ``ski``).
+    row_flexibility : BeamFlexibility
+        Device flexibility G of ``row_beam`` [m/N].
+    compliance_m_per_n : ndarray (nx, nx)
+        ``B = Π G Π``: upward deflection at row i per upward force at row j, exact up to a rigid
+        motion for self-equilibrated row forces [m/N].
+    stiffness_banded_n_per_m : ndarray (3, nx)
+        Finite-difference beam stiffness on the rows, upper banded (preconditioner) [N/m].
+    """
+
+    ski: BeamSki = field(repr=False)
+    unloaded_map: macro.GapMap = field(repr=False)
+    row_beam: BeamSki = field(repr=False)
+    row_flexibility: BeamFlexibility = field(repr=False)
+    compliance_m_per_n: np.ndarray = field(repr=False)
+    stiffness_banded_n_per_m: np.ndarray = field(repr=False)
+
+    @property
+    def positions_m(self) -> np.ndarray:
+        """Pixel-row centres X [m]."""
+        return self.unloaded_map.positions_m
+
+
+def prepare_flexible(
+    ski: BeamSki,
+    width_m: float | np.ndarray,
+    *,
+    pixel_along_m: float = macro.DEFAULT_PIXEL_ALONG_M,
+    pixels_across: int = macro.DEFAULT_PIXEL_ACROSS,
+    width_positions_m: np.ndarray | None = None,
+) -> FlexibleModel:
+    """Footprint grid and beam compliance of a ski for :func:`solve_flexible` (keep per ski).
+
+    Parameters
+    ----------
+    ski : BeamSki
+        Beam model: positions, EI(X) > 0 and unloaded camber c(X) ≥ 0.
+    width_m : float or ndarray
+        Ski width [m], constant, or sampled at ``width_positions_m``.
+    pixel_along_m : float
+        Pixel length dx along the ski [m].
+    pixels_across : int
+        Number of pixels across the maximum width [-].
+    width_positions_m : ndarray, optional
+        Positions [m] of a width profile given in ``width_m``.
+
+    Returns
+    -------
+    FlexibleModel
+        Build cost ~10 ms at 4 mm on a 2 m ski (a few (nx, nx) products).
+    """
+    if not isinstance(ski, BeamSki):
+        raise InputError(f"ski must be a solvers.beam.BeamSki, got {type(ski).__name__}")
+    unloaded = macro.extrude_profile(
+        ski.positions_m,
+        ski.unloaded_gap_m,
+        width_m,
+        pixel_along_m=pixel_along_m,
+        pixels_across=pixels_across,
+        width_positions_m=width_positions_m,
+    )
+    rows = unloaded.positions_m
+    if rows.size < 5:
+        raise InputError(
+            f"pixel_along_m {pixel_along_m} leaves {rows.size} pixel rows along the ski; the "
+            "beam needs at least 5"
+        )
+    x = ski.positions_m
+    row_beam = BeamSki(
+        rows,
+        np.interp(rows, x, ski.bending_stiffness_nm2),
+        np.interp(rows, x, ski.unloaded_gap_m),
+    )
+    flex, b = _equilibrated_flexibility(row_beam)
+    k_band = _banded_stiffness(row_beam.bending_stiffness_nm2, unloaded.pixel_size_m[0])
+    return FlexibleModel(ski, unloaded, row_beam, flex, b, k_band)
+
+
+def _load_split(rows_m: np.ndarray, load_position_m: float) -> tuple[int, float]:
+    """Row i and weight t: F goes (1 − t) to row i and t to row i + 1 (force, moment exact)."""
+    dx = float(rows_m[1] - rows_m[0])
+    s = (load_position_m - rows_m[0]) / dx
+    i = min(max(int(np.floor(s)), 0), rows_m.size - 2)
+    return i, float(s - i)
+
+
+class _Pixels:
+    """The flexible problem on the footprint pixels, as compressed vectors (internal).
+
+    ``apply(P)`` is ``A P`` [m] for pixel pressures P [Pa]; ``h0`` [m], ``xs = X − x_F`` [m]
+    and ``rows`` (row of each pixel) are per pixel.
+    """
+
+    def __init__(
+        self, model: FlexibleModel, inside: np.ndarray, f: float, xf: float, e_eff: float
+    ) -> None:
+        gmap = model.unloaded_map
+        x = gmap.positions_m
+        dx, dy = gmap.pixel_size_m
+        nx, ny = inside.shape
+        self.nx, self.ny, self.area = nx, ny, dx * dy
+        self.n_box = macro._fast_rows(nx)
+        self.hs = macro._halfspace((self.n_box, ny), dx, dy, e_eff)
+        self.b = model.compliance_m_per_n
+        i, t = _load_split(x, xf)
+        #: beam deflection under the load alone, −F B e_F [m] (rows)
+        self.load_deflection = -f * ((1.0 - t) * self.b[:, i] + t * self.b[:, i + 1])
+        self.idx = np.flatnonzero(inside)
+        self.rows = self.idx // ny
+        self.xs = x[self.rows] - xf
+        self.h0 = (model.row_beam.unloaded_gap_m + self.load_deflection)[self.rows]
+        self.total = f / self.area  # Σ P over pixels [Pa]
+        self.box = np.zeros((self.n_box, ny))
+        self.flat = self.box.reshape(-1)
+        self.k_band = model.stiffness_banded_n_per_m / self.area  # K̃ = K_b / (dx dy)
+        self.rigid = _rigid_basis(x)
+        self.u_load = self.load_deflection[self.rows]
+
+    def solve(self, contact, p_start, rel_tol, tol):
+        """Zero clearance on C with balance (see :func:`_cg_on_set`)."""
+        return _cg_on_set(self, contact, p_start, rel_tol, tol, _MAX_CG)
+
+    def row_sum(self, v: np.ndarray) -> np.ndarray:
+        return np.bincount(self.rows, weights=v, minlength=self.nx)
+
+    def snow(self, v: np.ndarray) -> np.ndarray:
+        """Half-space displacement [m] at the pixels under pixel pressures v [Pa]."""
+        self.box[:] = 0.0
+        self.flat[self.idx] = v
+        return self.hs.displacement(self.box).reshape(-1)[self.idx]
+
+    def beam(self, row_force_n: np.ndarray) -> np.ndarray:
+        """Upward beam deflection at the rows [m] under upward row forces [N]."""
+        return self.b @ row_force_n
+
+    def apply(self, v: np.ndarray) -> np.ndarray:
+        return self.snow(v) + self.beam(self.row_sum(v) * self.area)[self.rows]
+
+
+class _Preconditioner:
+    """``M = (ρ I + S_Cᵀ B̃ S_C)⁻¹`` with ``B̃ = K̃⁺`` (banded beam stiffness) on a contact set C.
+
+    With ``S_C = D Q`` (D² = C's pixels per row, Q with orthonormal rows):
+    ``M = (I − QᵀQ)/ρ + Qᵀ T Q`` and ``T = (ρ I + D K̃⁺ D)⁻¹ = (I − D Y D)/ρ``, where
+    ``Y = Z⁻¹ − Z⁻¹R (RᵀZ⁻¹R)⁻¹ RᵀZ⁻¹`` and ``Z = ρ K̃ + D²`` (pentadiagonal; R the rigid
+    motions, the limit of ``K̃ + κ RRᵀ`` for κ → ∞, i.e. K̃⁺). Vectors live on C only.
+    """
+
+    def __init__(self, pix: _Pixels, crow: np.ndarray, rho: float) -> None:
+        self.rho, self.crow, self.nx, self.rigid = rho, crow, pix.nx, pix.rigid
+        counts = np.bincount(crow, minlength=pix.nx).astype(float)
+        self.d = np.sqrt(counts)
+        touching = counts > 0
+        self.inv_counts = np.where(touching, 1.0 / np.where(touching, counts, 1.0), 0.0)
+        self.inv_d = np.sqrt(self.inv_counts)
+        z = rho * pix.k_band
+        z[2] += counts
+        self.factor = scipy.linalg.cholesky_banded(z, lower=False, check_finite=False)
+        self.zr = self._z_solve(self.rigid)
+        self.rzr = np.linalg.inv(self.rigid.T @ self.zr)
+
+    def _z_solve(self, v: np.ndarray) -> np.ndarray:
+        return scipy.linalg.cho_solve_banded((self.factor, False), v, check_finite=False)
+
+    def __call__(self, v: np.ndarray) -> np.ndarray:
+        s = np.bincount(self.crow, weights=v, minlength=self.nx)  # S v
+        qv = s * self.inv_d  # Q v
+        y = self._z_solve(s)  # D Q v = S v
+        y -= self.zr @ (self.rzr @ (self.rigid.T @ y))  # Y D Q v
+        back = (qv - self.d * y) * self.inv_d  # per row: (Qᵀ (T Q v)) · ρ
+        return (v - (s * self.inv_counts)[self.crow] + back[self.crow]) / self.rho
+
+
+def _cg_on_set(
+    pix: _Pixels,
+    contact: np.ndarray,
+    p_start: np.ndarray,
+    rel_tol: float,
+    tol: float,
+    max_iterations: int,
+) -> tuple[np.ndarray, np.ndarray, int] | None:
+    """Zero clearance on C with force and moment balance: projected preconditioned CG.
+
+    Returns (P, A P, iterations) on all pixels, or None if C lies on one row (no moment
+    balance). The start is ``p_start`` on C plus the a + b xs that restores ``Σ P = total``,
+    ``Σ P xs = 0``; the projection removes a least-squares fit a + b xs on C from residuals and
+    preconditioned residuals, so every iterate keeps both. Stops when the projected residual
+    (the clearance on C with δ, θ fitted) has dropped by ``rel_tol``, or when its RMS is below
+    ``tol / 4`` of the largest elastic displacement (the final test of :func:`_residual`).
+    """
+    cidx = np.flatnonzero(contact)
+    xc = pix.xs[cidx]
+    if cidx.size < 2 or np.ptp(xc) <= 0:
+        return None
+    q, _ = np.linalg.qr(np.stack([np.ones_like(xc), xc], axis=1))
+
+    def project(v: np.ndarray) -> np.ndarray:
+        return v - q @ (q.T @ v)
+
+    full = np.zeros(pix.xs.size)
+
+    def apply(v: np.ndarray) -> np.ndarray:
+        full[cidx] = v
+        return pix.apply(full)
+
+    p = np.array(p_start[cidx], dtype=float) if p_start is not None else np.zeros(cidx.size)
+    m = np.array([[xc.size, xc.sum()], [xc.sum(), xc @ xc]])
+    ab = np.linalg.solve(m, [pix.total - p.sum(), -(p @ xc)])
+    p += ab[0] + ab[1] * xc
+    full[cidx] = 1.0  # ρ: the snow's mean displacement under a unit pressure on C [m/Pa]
+    rho = float(pix.snow(full)[cidx].mean())
+    precond = _Preconditioner(pix, pix.rows[cidx], rho)
+    u = apply(p)
+    abs_tol = 0.25 * tol * float(np.max(np.abs(u + pix.u_load))) * np.sqrt(cidx.size)
+    r = project(-(pix.h0[cidx] + u[cidx]))
+    r0 = float(np.sqrt(r @ r))
+    z = project(precond(r))
+    d = z.copy()
+    rz = float(r @ z)
+    its = 0
+    while its < max_iterations:
+        rn = float(np.sqrt(r @ r))
+        if rn <= rel_tol * r0 or rn <= abs_tol or not rz > 0:
+            break
+        its += 1
+        ad = apply(d)
+        adc = ad[cidx]
+        den = float(d @ adc)
+        if not den > 0:
+            break
+        alpha = rz / den
+        p += alpha * d
+        u += alpha * ad
+        r -= alpha * project(adc)
+        z = project(precond(r))
+        rz_new = float(r @ z)
+        d = z + (rz_new / rz) * d
+        rz = rz_new
+    full[:] = 0.0
+    full[cidx] = p
+    return full.copy(), u, its
+
+
+@dataclass
+class _ActiveSetSolve:
+    pressure: np.ndarray  # unknowns (pixel pressures [Pa] or row forces [N])
+    clearance: np.ndarray  # H [m] per unknown, 0 on contact
+    delta: float
+    theta: float
+    iterations: int  # CG iterations (operator applications)
+    set_updates: int
+    residual: float
+    converged: bool
+    note: str
+
+
+def _residual(h: np.ndarray, contact: np.ndarray, u_ref: float) -> float:
+    """macro's residual: (RMS H on contact + RMS penetration off contact) / u_ref."""
+    nc = max(int(contact.sum()), 1)
+    hc, pen = h[contact], np.minimum(h[~contact], 0.0)
+    return float((np.sqrt(hc @ hc / nc) + np.sqrt(pen @ pen / nc)) / max(u_ref, 1e-30))
+
+
+class _Rows:
+    """Rigid snow: one unknown per footprint row, the row force [N]; dense KKT per set."""
+
+    def __init__(self, model: FlexibleModel, row_in: np.ndarray, f: float, xf: float) -> None:
+        x = model.positions_m
+        b = model.compliance_m_per_n
+        i, t = _load_split(x, xf)
+        self.load_deflection = -f * ((1.0 - t) * b[:, i] + t * b[:, i + 1])
+        self.idx = np.flatnonzero(row_in)
+        self.rows = np.arange(self.idx.size)  # each unknown is its own "row"
+        self.b = b[np.ix_(self.idx, self.idx)]
+        self.xs = x[self.idx] - xf
+        self.h0 = (model.row_beam.unloaded_gap_m + self.load_deflection)[self.idx]
+        self.total = f
+        self.u_load = self.load_deflection[self.idx]
+
+    def apply(self, r: np.ndarray) -> np.ndarray:
+        return self.b @ r
+
+    def solve(self, contact, p_start, rel_tol, tol):
+        idx = np.flatnonzero(contact)
+        m = idx.size
+        if m < 2 or np.ptp(self.xs[idx]) <= 0:
+            return None
+        kkt = np.zeros((m + 2, m + 2))
+        kkt[:m, :m] = self.b[np.ix_(idx, idx)]
+        kkt[:m, m] = -1.0
+        kkt[:m, m + 1] = -self.xs[idx]
+        kkt[m, :m] = 1.0
+        kkt[m + 1, :m] = self.xs[idx]
+        rhs = np.concatenate([-self.h0[idx], [self.total, 0.0]])
+        try:
+            sol = np.linalg.solve(kkt, rhs)
+        except np.linalg.LinAlgError:
+            sol = np.linalg.lstsq(kkt, rhs, rcond=None)[0]
+        r = np.zeros(self.xs.size)
+        r[idx] = sol[:m]
+        return r, self.b[:, idx] @ sol[:m], 0
+
+
+def _clearance(prob, contact: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """H for every unknown with δ, θ fitted (least squares) on C; returns (H, δ, θ)."""
+    g = prob.h0 + u
+    xc, gc = prob.xs[contact], g[contact]
+    m = np.array([[xc.size, xc.sum()], [xc.sum(), xc @ xc]])
+    delta, theta = np.linalg.solve(m, [gc.sum(), xc @ gc])
+    return g - delta - theta * prob.xs, float(delta), float(theta)
+
+
+def _u_ref(prob, u: np.ndarray) -> float:
+    """Largest elastic displacement (snow plus beam under P and F) [m]."""
+    return float(np.max(np.abs(u + prob.u_load)))
+
+
+def _runs_deepest(prob, pen: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """Penetrating unknowns of the deepest row in each run of rows that penetrate."""
+    rows_pen = np.zeros(int(prob.rows.max()) + 1, dtype=bool)
+    rows_pen[prob.rows[pen]] = True
+    deepest = np.full(rows_pen.size, np.inf)
+    np.minimum.at(deepest, prob.rows[pen], h[pen])
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], rows_pen.astype(np.int8), [0]])))
+    chosen = np.zeros(rows_pen.size, dtype=bool)
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        chosen[a + int(np.argmin(deepest[a:b]))] = True
+    return pen & chosen[prob.rows]
+
+
+def _primal_dual(prob, p, contact, tol, budget):
+    """Primal–dual active set: C ← {P > 0} ∪ {H < 0}; loose solves until the set settles.
+
+    Returns (solve or None, p, contact, its, updates, note); None when it cycles or runs out
+    of updates (the caller continues with :func:`_lawson_hanson`).
+    """
+    seen = {np.packbits(contact).tobytes()}
+    its = 0
+    loose = True
+    for update in range(1, _MAX_PDAS_UPDATES + 1):
+        rel = _LOOSE_TOL[update > _COARSE_UPDATES] if loose else 0.0
+        sol = prob.solve(contact, p, rel, tol)
+        if sol is None:
+            return None, p, contact, its, update, "set cannot balance the moment"
+        p, u, k = sol
+        its += k
+        h, delta, theta = _clearance(prob, contact, u)
+        u_ref = _u_ref(prob, u)
+        new = np.where(contact, p > 0, h < -_PEN_TOL * tol * u_ref)
+        if np.array_equal(new, contact):
+            if not loose:
+                res = _residual(h, contact, u_ref)
+                h = np.where(contact, 0.0, np.maximum(h, 0.0))
+                out = _ActiveSetSolve(p, h, delta, theta, its, update, res, res < tol, "")
+                return out, p, contact, its, update, ""
+            loose = False  # the set has settled: solve it to tol and check it again
+            continue
+        key = np.packbits(new).tobytes()
+        if key in seen:
+            if not loose:
+                return None, p, contact, its, update, "primal-dual active set cycled"
+            loose = False  # a cycle of loose solves: decide with exact ones from now on
+            seen = set()
+        seen.add(key)
+        contact = new
+        if its >= budget:
+            break
+    return None, p, contact, its, update, "primal-dual active set did not settle"
+
+
+def _lawson_hanson(prob, p, contact, tol, budget):
+    """Monotone active set from a feasible balanced P (Lawson–Hanson, as solve_beam_contact).
+
+    Try adding the deepest penetrating row of each penetrating run at once; if that leaves a
+    negative pressure, add the single deepest unknown instead and, whenever a pressure would
+    turn negative, step back along the segment to the first zero and drop it. Every set is
+    solved to ``tol``.
+    """
+    its = 0
+    steps = 0
+    note = ""
+    sol = prob.solve(contact, p, 0.0, tol)
+    while sol is not None and its <= budget and steps < _MAX_LH_STEPS:
+        steps += 1
+        p_n, u_n, k = sol
+        its += k
+        neg = contact & (p_n <= 0)
+        if neg.any():  # step back to the first zero, drop it
+            ratios = p[neg] / (p[neg] - p_n[neg])
+            alpha = float(ratios.min())
+            if not alpha > 0:
+                note = "stalled: the deepest penetrating unknown comes out without pressure"
+                break
+            p = np.where(contact, p + alpha * (p_n - p), 0.0)
+            contact = contact & (p > 0)
+            contact[np.flatnonzero(neg)[np.argmin(ratios)]] = False
+            p = np.where(contact, p, 0.0)
+            sol = prob.solve(contact, p, 0.0, tol)
+            continue
+        p = p_n
+        h, delta, theta = _clearance(prob, contact, u_n)
+        u_ref = _u_ref(prob, u_n)
+        pen = ~contact & (h < -_PEN_TOL * tol * u_ref)
+        if not pen.any():
+            res = _residual(h, contact, u_ref)
+            h = np.where(contact, 0.0, np.maximum(h, 0.0))
+            return _ActiveSetSolve(p, h, delta, theta, its, steps, res, res < tol, "")
+        block = contact | _runs_deepest(prob, pen, h)
+        sol = prob.solve(block, p, 0.0, tol)
+        if sol is not None and np.all(sol[0][block] > 0):
+            contact = block
+            continue
+        if sol is not None:
+            its += sol[2]
+        single = contact.copy()
+        single[np.flatnonzero(pen)[np.argmin(h[pen])]] = True
+        contact = single
+        sol = prob.solve(contact, p, 0.0, tol)
+    if sol is None:
+        note = note or "set cannot balance the moment"
+    elif not note:
+        note = "iteration budget spent"
+    p = np.where(contact, np.maximum(p, 0.0), 0.0)
+    u = prob.apply(p)
+    h, delta, theta = _clearance(prob, contact, u)
+    u_ref = _u_ref(prob, u)
+    res = _residual(h, contact, u_ref)
+    h = np.where(contact, 0.0, np.maximum(h, 0.0))
+    return _ActiveSetSolve(p, h, delta, theta, its, steps, res, False, note)
+
+
+def _lowest_rows_start(prob) -> np.ndarray:
+    """Balanced P ≥ 0 on the lowest row (least h0) on each side of the load (lever rule)."""
+    rear, front = np.flatnonzero(prob.xs <= 0), np.flatnonzero(prob.xs > 0)
+    r_row = prob.rows[rear[np.argmin(prob.h0[rear])]]
+    f_row = prob.rows[front[np.argmin(prob.h0[front])]]
+    p = np.zeros(prob.xs.size)
+    x_r = float(prob.xs[prob.rows == r_row][0])
+    x_f = float(prob.xs[prob.rows == f_row][0])
+    for row, share in ((r_row, x_f / (x_f - x_r)), (f_row, -x_r / (x_f - x_r))):
+        sel = prob.rows == row
+        p[sel] = share * prob.total / np.count_nonzero(sel)
+    return p
+
+
+def _active_set(prob, p0: np.ndarray, tol: float, max_iterations: int, pdas: bool, lh_start=None):
+    """Primal–dual active set (fast), then Lawson–Hanson (monotone) if it does not settle.
+
+    ``lh_start()``, if given, returns the feasible balanced start of the monotone phase (else
+    the lowest row on each side of the load).
+    """
+    contact = p0 > 0
+    if not (np.any(prob.xs[contact] < 0) and np.any(prob.xs[contact] > 0)):
+        contact = np.ones(prob.xs.size, dtype=bool)
+        p0 = np.ones(prob.xs.size)
+    p, its, updates, note = p0, 0, 0, ""
+    if pdas:
+        out, p, contact, its, updates, note = _primal_dual(prob, p0, contact, tol, max_iterations)
+        if out is not None:
+            return out
+        # the monotone phase starts from a small set (stiff snow: the device's contacts) and
+        # grows it; the primal-dual sets were too wide, and dropping one unknown per step is slow
+        p = lh_start() if lh_start is not None else None
+        if p is None:
+            p = _lowest_rows_start(prob)
+        contact = p > 0
+    out = _lawson_hanson(prob, p, contact, tol, max_iterations - its)
+    out.iterations += its
+    out.set_updates += updates
+    if note:
+        out.note = f"{note}; {out.note}" if out.note else f"{note}, then Lawson-Hanson"
+    return out
+
+
+def solve_flexible(
+    model: FlexibleModel,
+    load_n: float,
+    load_position_m: float,
+    effective_modulus_pa: float,
+    *,
+    tol: float = 1e-8,
+    max_iterations: int = 3000,
+    initial_pressure_pa: np.ndarray | None = None,
+) -> macro.MacroResult:
+    """Press a bending beam ski into the snow half-space (method.md §4b).
+
+    Parameters
+    ----------
+    model : FlexibleModel
+        Ski and footprint grid from :func:`prepare_flexible`.
+    load_n : float
+        Point load F ≥ 0 [N], down.
+    load_position_m : float
+        x_F [m], inside the footprint, with footprint rows on both sides.
+    effective_modulus_pa : float
+        E' of method.md eq. (1) [Pa], > 0; ``numpy.inf`` for rigid snow (the measuring device).
+    tol : float
+        Relative residual: RMS clearance on the contact set plus RMS penetration outside it,
+        over the largest elastic displacement (snow plus beam) [-].
+    max_iterations : int
+        Operator applications (CG iterations) in all; exhausting them returns
+        ``converged=False``.
+    initial_pressure_pa : ndarray (nx, ny), optional
+        Warm start [Pa] on the model's grid (e.g. a previous result's ``pressure_pa``); default
+        the rigid-shape solve of the device's loaded profile.
+
+    Returns
+    -------
+    MacroResult
+        Same fields and meaning as :func:`solvers.macro.solve_macro` (zones, sub-pixel apparent
+        area, line pressure); the window is the whole footprint (``window_gap_m = inf``);
+        ``iterations`` counts CG iterations. In ``extra``:
+
+        - ``beam_gap_m`` (nx,): the ski's loaded profile ``c + w − δ − θ (X − x_F)`` [m], the
+          base's height above the undeformed snow surface (negative where it has sunk in; the
+          clearance is this plus the snow displacement);
+        - ``beam_deflection_m`` (nx,): elastic deflection w, upward, with the rigid motion that
+          makes it orthogonal to 1 and X over the rows removed [m];
+        - ``beam_reaction_row_n`` (nx,): snow force on each pixel row [N];
+        - ``set_updates``: active-set updates; ``warm_start``: where the start came from.
+    """
+    t0 = time.perf_counter()
+    if not isinstance(model, FlexibleModel):
+        raise InputError(
+            f"model must be a FlexibleModel from prepare_flexible, got {type(model).__name__}"
+        )
+    gmap = model.unloaded_map
+    c_map = gmap.gap_m
+    rows = gmap.positions_m
+    dx, dy = gmap.pixel_size_m
+    inside = np.isfinite(c_map)
+    f = _finite_float(load_n, "load_n")
+    xf = _finite_float(load_position_m, "load_position_m")
+    e_eff = _float(effective_modulus_pa, "effective_modulus_pa")
+    if f < 0:
+        raise InputError(f"load_n must be >= 0, got {load_n!r}")
+    if np.isnan(e_eff) or e_eff <= 0:
+        raise InputError(
+            f"effective_modulus_pa must be > 0 (inf for rigid snow), got {effective_modulus_pa!r}"
+        )
+    if not (np.isfinite(tol) and tol > 0):
+        raise InputError(f"tol must be finite and > 0, got {tol!r}")
+    if int(max_iterations) != max_iterations or max_iterations < 1:
+        raise InputError(f"max_iterations must be an integer >= 1, got {max_iterations!r}")
+    foot = rows[inside.any(axis=1)]
+    if not (foot.min() < xf < foot.max()):
+        raise InputError(
+            f"load_position_m {xf} m must lie between the first and last footprint rows "
+            f"({foot.min():.4g} .. {foot.max():.4g} m): no moment balance otherwise"
+        )
+    p_warm = None
+    if initial_pressure_pa is not None:
+        p_warm = np.asarray(initial_pressure_pa, dtype=float)
+        if p_warm.shape != c_map.shape:
+            raise InputError(
+                f"initial_pressure_pa has shape {p_warm.shape}, expected the grid's {c_map.shape}"
+            )
+        p_warm = np.where(inside & np.isfinite(p_warm), np.maximum(p_warm, 0.0), 0.0)
+        if not p_warm.sum() > 0:
+            p_warm = None
+    window = (float(rows[0] - dx / 2), float(rows[-1] + dx / 2))
+    n_inside = int(np.count_nonzero(inside))
+    b = model.compliance_m_per_n
+    c_rows = model.row_beam.unloaded_gap_m
+    if f == 0.0:
+        return macro._finish(
+            gmap,
+            np.where(inside, 0.0, np.nan),
+            np.where(inside, c_map - np.nanmin(c_map), np.nan),
+            f,
+            xf,
+            e_eff,
+            0.0,
+            0.0,
+            window,
+            np.inf,
+            n_inside,
+            True,
+            0,
+            0.0,
+            "zero load: no contact",
+            t0,
+            window_length=window[1] - window[0],
+        )
+    extra: dict = {}
+    if np.isinf(e_eff):
+        prob = _Rows(model, inside.any(axis=1), f, xf)
+        p0 = _lowest_rows_start(prob)
+        sol = _active_set(prob, p0, tol, max_iterations, pdas=False)
+        row_force = np.zeros(rows.size)
+        row_force[prob.idx] = sol.pressure
+        counts = inside.sum(axis=1)
+        p = np.where(inside, (row_force / np.maximum(counts, 1) / (dx * dy))[:, None], 0.0)
+        u_snow = np.zeros(c_map.shape)
+        extra["warm_start"] = "lowest row on each side of the load (Lawson-Hanson start)"
+    else:
+        pix = _Pixels(model, inside, f, xf, e_eff)
+        dev = solve_beam_contact(model.row_beam, f, xf, flexibility=model.row_flexibility)
+        if p_warm is None:
+            p_warm = _rigid_start(model, dev.gap_m, inside, f, xf, e_eff)
+            extra["warm_start"] = "rigid-shape solve of the device profile"
+        else:
+            extra["warm_start"] = "initial_pressure_pa"
+        p0 = np.ascontiguousarray(p_warm.reshape(-1)[pix.idx])
+        if not macro._restore_balance(p0, pix.xs, pix.total, True):
+            p0 = np.zeros(pix.xs.size)
+
+        def device_start() -> np.ndarray | None:
+            """The device's row reactions spread over their rows' pixels (stiff-snow limit)."""
+            counts = np.bincount(pix.rows, minlength=pix.nx)
+            if not dev.converged or np.any((dev.reaction_n > 0) & (counts == 0)):
+                return None
+            per_pixel = dev.reaction_n / np.maximum(counts, 1) / pix.area
+            return np.ascontiguousarray(per_pixel[pix.rows])
+
+        sol = _active_set(pix, p0, tol, max_iterations, pdas=True, lh_start=device_start)
+        p = np.zeros(c_map.size)
+        p[pix.idx] = sol.pressure
+        p = p.reshape(c_map.shape)
+        row_force = p.sum(axis=1) * dx * dy
+        u_snow = np.zeros(c_map.size)
+        u_snow[pix.idx] = pix.snow(sol.pressure)
+        u_snow = u_snow.reshape(c_map.shape)
+    delta, theta, its, res = sol.delta, sol.theta, sol.iterations, sol.residual
+    updates, conv, note = sol.set_updates, sol.converged, sol.note
+    i, t = _load_split(rows, xf)
+    w = b @ row_force - f * ((1.0 - t) * b[:, i] + t * b[:, i + 1])
+    xs = rows - xf
+    beam_gap = c_rows + w - delta - theta * xs
+    clear = np.where(inside, beam_gap[:, None] + u_snow, np.nan)
+    clear[p > 0] = 0.0
+    clear = np.where(inside, np.maximum(clear, 0.0), np.nan)
+    detail = f"{updates} active-set updates" + (f", {note}" if note else "")
+    msg = (
+        f"converged: {its} CG iterations, {detail} (residual {res:.3g} < tol {tol:.3g})"
+        if conv
+        else f"not converged: {its} CG iterations, {detail}, residual {res:.3g} (tol {tol:.3g})"
+    )
+    result = macro._finish(
+        gmap,
+        np.where(inside, p, np.nan),
+        clear,
+        f,
+        xf,
+        e_eff,
+        delta,
+        theta,
+        window,
+        np.inf,
+        n_inside,
+        conv,
+        its,
+        res,
+        msg,
+        t0,
+        window_length=window[1] - window[0],
+    )
+    extra.update(
+        beam_gap_m=beam_gap,
+        beam_deflection_m=w,
+        beam_reaction_row_n=row_force,
+        set_updates=updates,
+    )
+    result.extra.update(extra)
+    return result
+
+
+def _rigid_start(
+    model: FlexibleModel,
+    device_gap_m: np.ndarray,
+    inside: np.ndarray,
+    f: float,
+    xf: float,
+    e_eff: float,
+) -> np.ndarray:
+    """Pressure [Pa] of the rigid-shape model: the device's profile pressed by solve_macro."""
+    gmap = model.unloaded_map
+    h = np.where(inside, device_gap_m[:, None], np.nan)
+    rigid = macro.solve_macro(macro.GapMap(h, gmap.positions_m, gmap.pixel_size_m), f, xf, e_eff)
+    return np.where(inside, rigid.pressure_pa, 0.0)
+
+
+def _float(value, name: str) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a number, got {value!r}") from None
+
+
+def _finite_float(value, name: str) -> float:
+    v = _float(value, name)
+    if not np.isfinite(v):
+        raise InputError(f"{name} must be a finite number, got {value!r}")
+    return v

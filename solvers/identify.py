@@ -1,0 +1,831 @@
+"""Beam identification: a ski's bending stiffness EI(X) and unloaded camber c(X) from its camber
+measurements (method.md §4c).
+
+Problem
+-------
+A measuring device presses the ski with K point loads (F_k at x_k) onto a rigid flat and records
+the loaded gap y_k(X) on the nodes X_i, with device noise σ. The virtual device of
+:mod:`solvers.beam` models every case as a free Euler–Bernoulli beam:
+
+    H_k(X) = c(X) + u_k(X) + a_k + b_k X,   u_k = ∫∫ M_k / EI  (zero value, slope at the tail)
+
+with M_k the bending moment of the upward reactions R_kj at the contact points ξ_kj and the load
+−F_k at x_k: ``M_k(X) = Σ_j R_kj (X − ξ_kj)_+ − F_k (X − x_k)_+``. Force and moment balance fix
+two reactions; the other n_k − 2 are redundants z_k: ``R_k = R0_k + N_k z_k``.
+
+Structure used (no lucky start needed)
+--------------------------------------
+- The contacts are few (2–4 short contacts on the demo skis) and are read from the data: first
+  from where the smoothed measured gap is within the noise of zero, then, once a beam is
+  identified, from the exact contact solve of that beam (:func:`solvers.beam.solve_beam_contact`),
+  until the contact sets repeat.
+- With a uniform stiffness 1/EI = q0 the model is *linear* in (c, q0, a_k, b_k, q0 z_k), so the
+  first estimate is one linear least-squares solve.
+- 1/EI(X) = Σ_m exp(γ_m) φ_m(X) on hat functions φ_m (positive by construction). For fixed
+  contacts the gaps are bilinear in (γ, z): a damped Gauss–Newton (Levenberg–Marquardt) from the
+  linear start converges in a few steps. Each step eliminates the per-case unknowns
+  (a_k, b_k, z_k) exactly (block elimination, variable projection), leaving a dense system in c
+  (one value per node) and γ.
+- Smoothness of log EI (second differences of γ) is the only regularisation; it decides EI
+  where moments vanish (beyond the outermost contacts), where EI does not change any measured
+  case.
+
+Uncertainty: the Gauss–Newton covariance ``σ̂² S⁻¹`` (σ̂ from the residual) gives bands on c(X)
+and EI(X) and draws of plausible beams (:func:`sample_beams`) that downstream solves propagate.
+
+Units: SI throughout (m, N, N·m²).
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg
+
+from .beam import BeamFlexibility, BeamSki, solve_beam_contact
+from .errors import InputError
+
+__all__ = [
+    "IdentifiedBeam",
+    "estimate_noise",
+    "identify_beam",
+    "predict_gaps",
+    "sample_beams",
+]
+
+#: default spacing of the hat functions of 1/EI [m]
+DEFAULT_KNOT_SPACING_M = 0.05
+#: weight of the second differences of log(1/EI) in units of the noise [-]
+DEFAULT_SMOOTHING = 10.0
+#: misfit over the noise above which the data are not explained by a beam [-]
+MISFIT_LIMIT = 1.5
+#: equivalent smoothing length of the camber c(X) [m]; 0 fits c node by node. Smoothing (with
+#: robust weights that keep kinks) was measured on the demo skis and did not lower the held-out
+#: error (docs/camber-identification.md), so it is off by default
+DEFAULT_CAMBER_SMOOTHING_M = 0.0
+
+
+@dataclass
+class IdentifiedBeam:
+    """A beam identified from camber measurements, with diagnostics and uncertainty.
+
+    Attributes
+    ----------
+    beam : BeamSki
+        The identified beam on the measurement nodes (camber shifted to min 0 on the flat).
+    ok : bool
+        True when the beam explains the data: converged and ``misfit_m`` within
+        ``MISFIT_LIMIT`` × the noise estimate, with enough cases. ``reason`` says why not.
+    reason : str
+        Empty when ``ok``; else the reason the data do not identify a beam.
+    noise_m : float
+        Device noise σ estimated from the data alone (second differences) [m].
+    misfit_m : float
+        RMS residual over all cases and nodes [m].
+    case_misfit_m : ndarray (K,)
+        RMS residual per case [m].
+    stiffness_band_nm2 : ndarray (2, N)
+        5 % and 95 % bounds of EI(X) from the Gauss–Newton covariance [N·m²].
+    camber_band_m : ndarray (N,)
+        Standard deviation of c(X) relative to its line of best fit [m].
+    iterations : int
+        Gauss–Newton steps over all contact passes.
+    contact_passes : int
+        Passes of contact detection → fit.
+    knots_m : ndarray (m,)
+        Hat-function knots of 1/EI [m].
+    log_compliance : ndarray (m,)
+        γ: log of 1/EI at the knots [log(1/(N·m²))].
+    log_compliance_covariance : ndarray (m, m)
+        Covariance of γ, σ̂² T⁻¹ (T: the Gauss–Newton normal matrix reduced to γ) [-].
+    camber_sensitivity : ndarray (N, m)
+        dĉ/dγ along the fit: c moves with γ as ``ĉ − D (γ − γ̂)`` [m].
+    camber_sd_m : ndarray (N,)
+        Standard deviation of c(X) given γ (the per-node part) [m].
+    solve_time_s : float
+        Wall time [s].
+    extra : dict
+        Further diagnostics (per-pass misfits, number of contacts per case).
+    """
+
+    beam: BeamSki
+    ok: bool
+    reason: str
+    noise_m: float
+    misfit_m: float
+    case_misfit_m: np.ndarray
+    stiffness_band_nm2: np.ndarray
+    camber_band_m: np.ndarray
+    iterations: int
+    contact_passes: int
+    knots_m: np.ndarray
+    log_compliance: np.ndarray
+    log_compliance_covariance: np.ndarray
+    camber_sensitivity: np.ndarray
+    camber_sd_m: np.ndarray
+    solve_time_s: float = 0.0
+    extra: dict = field(default_factory=dict)
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def estimate_noise(profiles_m: np.ndarray) -> float:
+    """Device noise σ [m] from the measured profiles alone: robust scale of the second
+    differences (a smooth gap has second differences far below the noise at mm sampling;
+    contact kinks are rare and the median ignores them)."""
+    y = np.asarray(profiles_m, dtype=float)
+    d2 = y[:, 2:] - 2.0 * y[:, 1:-1] + y[:, :-2]
+    mad = float(np.median(np.abs(d2 - np.median(d2))))
+    return mad / 0.6745 / np.sqrt(6.0)
+
+
+def _double_integral(kappa: np.ndarray, dx: np.ndarray) -> np.ndarray:
+    """∫∫ κ from the first node along the last axis (zero value and slope there); κ piecewise
+    linear between nodes, integrated exactly (same rule as :class:`solvers.beam.BeamFlexibility`).
+    ``dx`` (N−1,) node spacings [m]."""
+    k0, k1 = kappa[..., :-1], kappa[..., 1:]
+    slope = np.zeros_like(kappa)
+    np.cumsum(0.5 * dx * (k0 + k1), axis=-1, out=slope[..., 1:])
+    w = np.zeros_like(kappa)
+    np.cumsum(dx * slope[..., :-1] + dx * dx * (2.0 * k0 + k1) / 6.0, axis=-1, out=w[..., 1:])
+    return w
+
+
+def _hats(x: np.ndarray, knots: np.ndarray) -> np.ndarray:
+    """(N, m) piecewise-linear hat functions on ``knots`` evaluated at ``x`` (constant beyond)."""
+    eye = np.eye(knots.size)
+    return np.stack([np.interp(x, knots, eye[m]) for m in range(knots.size)], axis=1)
+
+
+@dataclass
+class _Case:
+    """Statics of one case for fixed contact points."""
+
+    r0: np.ndarray  # (n,) particular reactions [N]
+    null: np.ndarray  # (n, n-2) redundant directions
+    m0: np.ndarray  # (N,) moment of the particular solution [N·m]
+    mz: np.ndarray  # (n-2, N) moments of the redundants [N·m per unit z]
+    points: np.ndarray  # (n,) contact positions [m]
+
+
+def _statics(x: np.ndarray, load: float, xf: float, points: np.ndarray) -> _Case | None:
+    """Particular reactions and redundant directions for contacts ``points``; None when force and
+    moment balance cannot hold (all contacts on one side of the load)."""
+    pts = np.unique(np.asarray(points, dtype=float))
+    if pts.size < 2 or not (pts.min() < xf < pts.max()):
+        return None
+    a = np.vstack([np.ones(pts.size), pts - xf])
+    r0 = a.T @ np.linalg.solve(a @ a.T, np.array([load, 0.0]))
+    _, _, vt = np.linalg.svd(a)
+    null = vt[2:].T  # (n, n-2)
+    hinge = np.maximum(x[None, :] - pts[:, None], 0.0)  # (n, N)
+    m0 = r0 @ hinge - load * np.maximum(x - xf, 0.0)
+    mz = null.T @ hinge
+    return _Case(r0, null, m0, mz, pts)
+
+
+def _contacts_from_data(x: np.ndarray, y: np.ndarray, noise: float, xf: float) -> np.ndarray:
+    """Candidate contact points read from one measured profile: within each run of nodes that
+    lie within 3 σ of the profile's floor, every minimum of the ±2-node mean over a ±10 mm
+    window. Generous on purpose: a spurious contact only adds a redundant reaction that the fit
+    sets near zero, a missed one biases the fit; the next pass takes the contacts from the
+    identified beam's own contact solve."""
+    ys = np.convolve(np.pad(y, 2, mode="edge"), np.ones(5) / 5.0, mode="valid")
+    floor = min(float(np.median(np.sort(y)[:5])), 0.0)
+    low = y <= floor + 3.0 * noise
+    dx = float(np.mean(np.diff(x)))
+    half = max(1, round(0.010 / dx))
+    pad = np.pad(ys, half, mode="constant", constant_values=np.inf)
+    win = np.lib.stride_tricks.sliding_window_view(pad, 2 * half + 1).min(axis=1)
+    is_min = low & (ys <= win)
+    pts: list[float] = []
+    for i in np.flatnonzero(is_min):
+        # the raw lowest node near the smoothed minimum: exact at a kink (a shovel's start)
+        j = max(i - 2, 0) + int(np.argmin(y[max(i - 2, 0) : i + 3]))
+        if pts and x[j] - pts[-1] < 0.010:
+            continue
+        pts.append(float(x[j]))
+    out = np.asarray(pts)
+    if out.size >= 2 and out.min() < xf < out.max():
+        return out
+    # fall back: the lowest node on each side of the load
+    rear, front = x < xf, x > xf
+    return np.array([x[rear][np.argmin(ys[rear])], x[front][np.argmin(ys[front])]])
+
+
+def _contacts_from_beam(res, min_share: float = 1e-4) -> np.ndarray:
+    """Contact points of a forward solve: reaction-weighted centre of each contact run."""
+    x, r = res.positions_m, res.reaction_n
+    on = r > min_share * res.load_n
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], on.astype(np.int8), [0]])))
+    pts = []
+    for s0, s1 in zip(edges[::2], edges[1::2], strict=True):
+        w = r[s0:s1]
+        pts.append(float(np.sum(w * x[s0:s1]) / w.sum()))
+    return np.asarray(pts)
+
+
+def _merge_points(primary: np.ndarray, extra: np.ndarray, gap_m: float) -> np.ndarray:
+    """``primary`` plus the points of ``extra`` farther than ``gap_m`` from all of them."""
+    if primary.size == 0:
+        return np.sort(extra)
+    far = [p for p in extra if np.abs(primary - p).min() > gap_m]
+    return np.sort(np.concatenate([primary, np.asarray(far, dtype=float)]))
+
+
+def _camber_on_flat(x: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """c minus the supporting line of its lower convex hull that spans the middle of the ski:
+    ≥ 0, zero at two nodes (the unloaded ski resting on the flat). Only c's shape matters to the
+    contact model; the line is a convention."""
+    # lower hull (monotone chain)
+    hull: list[int] = []
+    for i in range(x.size):
+        while len(hull) >= 2:
+            i0, i1 = hull[-2], hull[-1]
+            cross = (x[i1] - x[i0]) * (c[i] - c[i0]) - (c[i1] - c[i0]) * (x[i] - x[i0])
+            if cross <= 0:
+                hull.pop()
+            else:
+                break
+        hull.append(i)
+    mid = 0.5 * (x[0] + x[-1])
+    for i0, i1 in itertools.pairwise(hull):
+        if x[i0] <= mid <= x[i1]:
+            break
+    slope = (c[i1] - c[i0]) / (x[i1] - x[i0])
+    out = c - (c[i0] + slope * (x - x[i0]))
+    return np.maximum(out, 0.0)
+
+
+# ----------------------------------------------------------------------------- the fit
+
+
+def _banded_matvec(ab: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Symmetric pentadiagonal (upper banded form (3, N)) times v."""
+    out = ab[2] * v
+    out[:-1] += ab[1, 1:] * v[1:]
+    out[1:] += ab[1, 1:] * v[:-1]
+    out[:-2] += ab[0, 2:] * v[2:]
+    out[2:] += ab[0, 2:] * v[:-2]
+    return out
+
+
+@dataclass
+class _Fit:
+    c: np.ndarray
+    gamma: np.ndarray
+    local: list[np.ndarray]  # per case (a, b, z...)
+    ssr: float
+    posterior: _Posterior | None = None
+    iterations: int = 0
+
+
+@dataclass
+class _Posterior:
+    """Gauss–Newton covariance of (c, γ), kept in factored form (internal).
+
+    Cov(γ) = σ̂² T⁻¹ (T the reduced normal matrix); c | γ = ĉ − D (γ − γ̂) + ε with
+    D = S_cc⁻¹ S_cγ (``sensitivity``) and Cov(ε) = σ̂² S_cc⁻¹.
+    """
+
+    noise: float
+    cases: int
+    line: np.ndarray
+    w: np.ndarray
+    gram_f: tuple
+    reduced: np.ndarray | None
+    sensitivity: np.ndarray
+    dummy: object = None  # banded Woodbury parts when the camber is smoothed
+
+    def camber_sd(self) -> np.ndarray:
+        """√diag(S_cc⁻¹) [m] (per unit σ̂): the white part of c's uncertainty."""
+        if self.dummy is not None:
+            chol_b, bu, mid_f, u_mat = self.dummy
+            n = u_mat.shape[0]
+            binv = scipy.linalg.cho_solve_banded((chol_b, False), np.eye(n), check_finite=False)
+            corr = np.einsum("ij,ji->i", bu, scipy.linalg.lu_solve(mid_f, bu.T, check_finite=False))
+            return np.sqrt(np.maximum(np.diag(binv) - corr, 0.0))
+        lw = np.sum(self.line**2, axis=1)
+        u = scipy.linalg.solve_triangular(self.gram_f[0], self.w.T, trans="T", check_finite=False)
+        diag = lw + (1.0 - lw + np.sum(u**2, axis=0)) / self.cases
+        return self.noise * np.sqrt(np.maximum(diag, 0.0))
+
+
+class _Problem:
+    """Measured data, basis and current contact statics; evaluates residuals and GN steps."""
+
+    def __init__(self, x, loads, xfs, y, knots, noise, smoothing, camber_smoothing_m=0.0):
+        self.x, self.loads, self.xfs, self.y = x, loads, xfs, y
+        self.dx = np.diff(x)
+        self.knots = knots
+        self.phi = _hats(x, knots)  # (N, m)
+        self.noise = noise
+        self.smoothing = smoothing
+        m = knots.size
+        d2 = np.zeros((max(m - 2, 0), m))
+        for i in range(m - 2):
+            d2[i, i : i + 3] = (1.0, -2.0, 1.0)
+        self.reg = smoothing * d2  # rows in units of σ
+        self.cases: list[_Case] = []
+        # centred, scaled X for the rigid-motion columns, and their orthonormal basis
+        self.xn = (x - x.mean()) / max(np.ptp(x), 1e-9)
+        self.line, _ = np.linalg.qr(np.stack([np.ones(x.size), self.xn], axis=1))
+        # camber smoothness: λ ‖Ω^½ D2 c‖² with λ = (K/σ²)(ℓ/dx)⁴, an equivalent smoothing length
+        # ℓ (cubic smoothing spline); Ω are robust (Huber) weights that free the kinks
+        ell_nodes = camber_smoothing_m / float(np.mean(self.dx))
+        self.camber_lambda = loads.size / noise**2 * ell_nodes**4
+        self.camber_weights = np.ones(max(x.size - 2, 0))
+
+    def camber_penalty(self, c: np.ndarray) -> float:
+        d2c = c[2:] - 2.0 * c[1:-1] + c[:-2]
+        return self.camber_lambda * float(np.sum(self.camber_weights * d2c * d2c))
+
+    def update_camber_weights(self, c: np.ndarray) -> None:
+        """Huber weights of the camber's second differences: full weight up to a robust
+        threshold (5 × their median), 1/|excess| beyond (kinks, e.g. where a shovel starts)."""
+        if self.camber_lambda == 0.0:
+            return
+        d2c = np.abs(c[2:] - 2.0 * c[1:-1] + c[:-2])
+        delta = 5.0 * float(np.median(d2c)) + 1e-15
+        self.camber_weights = np.minimum(1.0, delta / np.maximum(d2c, 1e-300))
+
+    def _band(self) -> np.ndarray:
+        """Upper banded form (3, N) of λ D2ᵀ Ω D2 (pentadiagonal)."""
+        n = self.x.size
+        w = self.camber_weights * self.camber_lambda
+        ab = np.zeros((3, n))
+        # D2 rows i: (i, i+1, i+2) with (1, −2, 1)
+        coef = np.array([1.0, -2.0, 1.0])
+        diag0 = np.zeros(n)
+        diag1 = np.zeros(n - 1)
+        diag2 = np.zeros(n - 2)
+        for a in range(3):
+            diag0[a : a + n - 2] += w * coef[a] ** 2
+        for a in range(2):
+            diag1[a : a + n - 2] += w * coef[a] * coef[a + 1]
+        diag2 += w * coef[0] * coef[2]
+        ab[2] = diag0
+        ab[1, 1:] = diag1
+        ab[0, 2:] = diag2
+        return ab
+
+    def set_contacts(self, points: list[np.ndarray]) -> None:
+        self.cases = []
+        for k, pts in enumerate(points):
+            st = _statics(self.x, self.loads[k], self.xfs[k], pts)
+            if st is None:
+                raise InputError(f"case {k}: contacts {pts} cannot balance the load")
+            self.cases.append(st)
+
+    def model(self, k: int, c, q, loc) -> np.ndarray:
+        st = self.cases[k]
+        mom = st.m0 + (loc[2:] @ st.mz if st.mz.shape[0] else 0.0)
+        u = _double_integral(mom * q, self.dx)
+        return c + u + loc[0] + loc[1] * self.xn
+
+    def residuals(self, c, gamma, local) -> tuple[float, np.ndarray]:
+        q = self.phi @ np.exp(gamma)
+        per = np.empty(len(self.cases))
+        ssr = 0.0
+        for k in range(len(self.cases)):
+            r = self.model(k, c, q, local[k]) - self.y[k]
+            per[k] = float(r @ r)
+            ssr += per[k]
+        reg = self.reg @ gamma
+        return ssr / self.noise**2 + float(reg @ reg) + self.camber_penalty(c), per
+
+    def linear_start(self) -> _Fit:
+        """Uniform 1/EI = q0: the model is linear in (c, q0, a, b, q0 z)."""
+        n = self.x.size
+        blocks = []
+        for _k, st in enumerate(self.cases):
+            a_loc = [np.ones(n), self.xn] + [_double_integral(mz, self.dx) for mz in st.mz]
+            blocks.append((np.stack(a_loc, axis=1), _double_integral(st.m0, self.dx)[:, None]))
+        sol_c, sol_g, locs, _factor = self._solve(
+            blocks,
+            [self.y[k] for k in range(len(self.cases))],
+            np.zeros((0, 1)),
+            np.zeros(0),
+            damping=0.0,
+        )
+        q0 = float(sol_g[0])
+        if not q0 > 0:
+            # contacts misread so badly that no positive stiffness fits: a neutral start
+            q0 = 1.0 / 1000.0
+        gamma = np.full(self.knots.size, np.log(q0))
+        local = []
+        for loc in locs:
+            out = loc.copy()
+            out[2:] = loc[2:] / q0
+            local.append(out)
+        fit = _Fit(sol_c, gamma, local, 0.0)
+        fit.ssr = self.residuals(fit.c, fit.gamma, fit.local)[0]
+        return fit
+
+    def _solve(self, blocks, targets, reg_rows, reg_target, damping, c_base=None):
+        """Least squares for Σ_k ‖c + A_k l_k + B_k g − t_k‖² / σ² + ‖R g − r‖², eliminating the
+        per-case l_k exactly and c by Woodbury (no dense N × N factorisation).
+
+        ``A_k``'s first two columns are the rigid motion [1, X̂]; c's own rigid motion is pinned
+        by a prior of one σ (it is carried by every case's a_k, b_k). Marquardt damping
+        ``damping`` acts on the reduced g system. Returns c, g, [l_k] and a :class:`_Posterior`
+        of (c, g) (undamped).
+        """
+        n = self.x.size
+        kk = len(blocks)
+        mg = blocks[0][1].shape[1]
+        line = self.line
+        wcols, q_list = [], []
+        s_cg = np.zeros((n, mg))
+        s_gg = np.zeros((mg, mg))
+        rhs_c = np.zeros(n)
+        rhs_g = np.zeros(mg)
+        for (a_loc, b_glob), t in zip(blocks, targets, strict=True):
+            z = a_loc[:, 2:]
+            if z.shape[1]:
+                z = z - line @ (line.T @ z)
+                q, _ = np.linalg.qr(z)
+                wcols.append(q)
+            else:
+                q = np.zeros((n, 0))
+            q_list.append(q)
+            # Q_k v = v − L Lᵀ v − q qᵀ v
+            qb = b_glob - line @ (line.T @ b_glob) - q @ (q.T @ b_glob)
+            qt = t - line @ (line.T @ t) - q @ (q.T @ t)
+            s_cg += qb
+            s_gg += b_glob.T @ qb
+            rhs_c += qt
+            rhs_g += b_glob.T @ qt
+        # everything above in units of 1/σ²: scale once
+        inv_var = 1.0 / self.noise**2
+        s_cg *= inv_var
+        s_gg *= inv_var
+        rhs_c *= inv_var
+        rhs_g *= inv_var
+        w = np.concatenate(wcols, axis=1) if wcols else np.zeros((n, 0))
+        if self.camber_lambda > 0.0:
+            # S_cc = B + U C Uᵀ with B = (K/σ²) I + λ D2ᵀΩD2 (banded), U = [L, W],
+            # C = diag((1 − K)/σ² ×2, −1/σ² × p): Woodbury with banded solves
+            band = self._band()
+            band[2] += kk * inv_var
+            u_mat = np.concatenate([line, w], axis=1)
+            c_diag = np.concatenate(
+                [np.full(2, (1.0 - kk) * inv_var), np.full(w.shape[1], -inv_var)]
+            )
+            chol_b = scipy.linalg.cholesky_banded(band, lower=False, check_finite=False)
+            bu = scipy.linalg.cho_solve_banded((chol_b, False), u_mat, check_finite=False)
+            mid = np.diag(1.0 / c_diag) + u_mat.T @ bu
+            mid_f = scipy.linalg.lu_factor(mid, check_finite=False)
+            if c_base is not None:
+                rhs_c = rhs_c - _banded_matvec(self._band(), c_base)
+
+            def scc_inv(v: np.ndarray) -> np.ndarray:
+                bv = scipy.linalg.cho_solve_banded((chol_b, False), v, check_finite=False)
+                return bv - bu @ scipy.linalg.lu_solve(mid_f, u_mat.T @ bv, check_finite=False)
+
+            gram_f = None
+            post_parts = (chol_b, bu, mid_f, u_mat)
+        else:
+            gram = kk * np.eye(w.shape[1]) - w.T @ w
+            # a redundant direction shared by every case would make this singular: 1e-9 ridge
+            gram[np.diag_indices_from(gram)] += 1e-9 * kk
+            gram_f = scipy.linalg.cho_factor(gram, lower=False, check_finite=False)
+            post_parts = None
+
+            def scc_inv(v: np.ndarray) -> np.ndarray:
+                """S_cc⁻¹ v with S_cc = (1/σ²)(K P + L Lᵀ − W Wᵀ), P = I − L Lᵀ, W ⊥ L."""
+                lv = line @ (line.T @ v)
+                pv = v - lv
+                wv = scipy.linalg.cho_solve(gram_f, w.T @ pv, check_finite=False)
+                return self.noise**2 * (lv + (pv + w @ wv) / kk)
+
+        c_of_g = scc_inv(rhs_c)
+        post = _Posterior(self.noise, kk, line, w, gram_f, None, np.zeros((n, mg)), post_parts)
+        if mg:
+            sens = scc_inv(s_cg)  # S_cc⁻¹ S_cg (n, mg)
+            t_mat = s_gg + reg_rows.T @ reg_rows - s_cg.T @ sens
+            t_mat = 0.5 * (t_mat + t_mat.T)
+            rhs = rhs_g + reg_rows.T @ reg_target - s_cg.T @ c_of_g
+            damped = t_mat + damping * np.diag(np.diag(t_mat))
+            try:
+                g = scipy.linalg.solve(damped, rhs, assume_a="pos", check_finite=False)
+            except (np.linalg.LinAlgError, ValueError):
+                g = np.linalg.lstsq(damped, rhs, rcond=None)[0]
+            c = c_of_g - sens @ g
+            post.sensitivity = sens
+            post.reduced = t_mat
+        else:
+            g = np.zeros(0)
+            c = c_of_g
+        locs = []
+        for (a_loc, b_glob), t in zip(blocks, targets, strict=True):
+            r = t - c - b_glob @ g
+            locs.append(np.linalg.lstsq(a_loc, r, rcond=None)[0])
+        return c, g, locs, post
+
+    def solve_linear(self, gamma: np.ndarray) -> _Fit:
+        """For fixed γ the gaps are linear in (c, a_k, b_k, z_k): solve them exactly."""
+        q = self.phi @ np.exp(gamma)
+        n = self.x.size
+        blocks, targets = [], []
+        for k, st in enumerate(self.cases):
+            cols = [np.ones(n), self.xn] + [_double_integral(mz * q, self.dx) for mz in st.mz]
+            blocks.append((np.stack(cols, axis=1), np.zeros((n, 0))))
+            targets.append(self.y[k] - _double_integral(st.m0 * q, self.dx))
+        c, _, locs, _ = self._solve(blocks, targets, np.zeros((0, 0)), np.zeros(0), 0.0)
+        fit = _Fit(c, np.asarray(gamma, dtype=float).copy(), locs, 0.0)
+        fit.ssr = self.residuals(fit.c, fit.gamma, fit.local)[0]
+        return fit
+
+    def gauss_newton(self, fit: _Fit, max_steps: int = 40, rtol: float = 1e-6) -> _Fit:
+        """Variable projection (Golub–Pereyra, Kaufman's Jacobian) on γ = log(1/EI): each step
+        is the damped Gauss–Newton step of the joint problem, and every trial γ gets its exact
+        linear unknowns (c, a_k, b_k, z_k), which keeps the bilinear coupling of γ and z from
+        spoiling the step."""
+        lam = 1e-3
+        cur = self.solve_linear(fit.gamma)
+        cur.iterations = fit.iterations
+        post = None
+        for _ in range(max_steps):
+            beta = np.exp(cur.gamma)
+            q = self.phi @ beta
+            blocks, targets = [], []
+            for k, st in enumerate(self.cases):
+                loc = cur.local[k]
+                mom = st.m0 + (loc[2:] @ st.mz if st.mz.shape[0] else 0.0)
+                cols = [np.ones(self.x.size), self.xn]
+                cols += [_double_integral(mz * q, self.dx) for mz in st.mz]
+                b_glob = _double_integral(mom[None, :] * self.phi.T, self.dx).T * beta
+                blocks.append((np.stack(cols, axis=1), b_glob))
+                targets.append(self.y[k] - self.model(k, cur.c, q, loc))
+            reg_target = -(self.reg @ cur.gamma)
+            while True:
+                _, dg, _, post = self._solve(
+                    blocks, targets, self.reg, reg_target, lam, c_base=cur.c
+                )
+                trial = self.solve_linear(cur.gamma + np.clip(dg, -1.0, 1.0))
+                cur.iterations += 1
+                if trial.ssr <= cur.ssr or lam > 1e8:
+                    break
+                lam *= 10.0
+            if trial.ssr > cur.ssr:
+                break
+            improvement = (cur.ssr - trial.ssr) / max(cur.ssr, 1e-300)
+            trial.iterations = cur.iterations
+            cur = trial
+            lam = max(lam / 10.0, 1e-9)
+            if improvement < rtol:
+                break
+        cur.posterior = post
+        return cur
+
+
+def identify_beam(
+    positions_m: np.ndarray,
+    loads_n: np.ndarray,
+    load_positions_m: np.ndarray,
+    profiles_m: np.ndarray,
+    *,
+    noise_m: float | None = None,
+    knot_spacing_m: float = DEFAULT_KNOT_SPACING_M,
+    smoothing: float = DEFAULT_SMOOTHING,
+    camber_smoothing_m: float = DEFAULT_CAMBER_SMOOTHING_M,
+    max_contact_passes: int = 6,
+    min_cases: int = 6,
+) -> IdentifiedBeam:
+    """Identify EI(X) > 0 and c(X) so that the device model reproduces every measured case.
+
+    Parameters
+    ----------
+    positions_m : ndarray (N,)
+        Measurement nodes X [m], uniformly spaced, increasing.
+    loads_n, load_positions_m : ndarray (K,)
+        Load F_k [N] (> 0) and position x_k [m] of each case.
+    profiles_m : ndarray (K, N)
+        Measured loaded gaps [m] (noise included, not clipped).
+    noise_m : float, optional
+        Device noise σ [m]; default: estimated from the data (:func:`estimate_noise`).
+    knot_spacing_m : float
+        Spacing of the hat functions of 1/EI [m].
+    smoothing : float
+        Weight of the second differences of log(1/EI), in units of the noise [-].
+    camber_smoothing_m : float
+        Equivalent smoothing length of c(X) [m] (a cubic smoothing spline with robust weights
+        that keep kinks); 0 fits c node by node.
+    max_contact_passes : int
+        Contact detection → fit passes (stops early when the contact sets repeat).
+    min_cases : int
+        Fewer valid cases than this cannot identify a beam (``ok=False``).
+
+    Returns
+    -------
+    IdentifiedBeam
+        ``ok=False`` with a ``reason`` when the data do not identify a beam; the beam is then the
+        best fit found (for diagnostics only).
+    """
+    t0 = time.perf_counter()
+    x = np.asarray(positions_m, dtype=float)
+    loads = np.asarray(loads_n, dtype=float).ravel()
+    xfs = np.asarray(load_positions_m, dtype=float).ravel()
+    y = np.asarray(profiles_m, dtype=float)
+    if x.ndim != 1 or x.size < 20:
+        raise InputError(f"positions_m must be 1-D with at least 20 nodes, got shape {x.shape}")
+    dxs = np.diff(x)
+    if np.any(dxs <= 0) or np.ptp(dxs) > 1e-6 * dxs.mean():
+        raise InputError("positions_m must be increasing with a uniform spacing")
+    if y.ndim != 2 or y.shape[1] != x.size or loads.size != y.shape[0] or xfs.size != loads.size:
+        raise InputError(
+            f"profiles_m must be (K, {x.size}) with K = len(loads_n) = len(load_positions_m); got "
+            f"{y.shape}, {loads.size}, {xfs.size}"
+        )
+    if not (np.all(np.isfinite(y)) and np.all(np.isfinite(loads)) and np.all(np.isfinite(xfs))):
+        raise InputError("profiles, loads and load positions must be finite")
+    if not np.all(loads > 0):
+        raise InputError("loads_n must be > 0 in every case (a zero load identifies nothing)")
+    if not (np.isfinite(knot_spacing_m) and knot_spacing_m > 0):
+        raise InputError(f"knot_spacing_m must be finite and > 0, got {knot_spacing_m!r}")
+    inside = (xfs > x[0]) & (xfs < x[-1])
+    if not inside.all():
+        raise InputError(f"{int((~inside).sum())} load positions lie outside the measured nodes")
+    noise = float(noise_m) if noise_m is not None else estimate_noise(y)
+    noise = max(noise, 1e-9)  # noise-free data: 1 nm, far below any device
+    span = float(x[-1] - x[0])
+    nk = max(3, round(span / knot_spacing_m) + 1)
+    knots = np.linspace(x[0], x[-1], nk)
+    if not (np.isfinite(camber_smoothing_m) and camber_smoothing_m >= 0):
+        raise InputError(f"camber_smoothing_m must be finite and >= 0, got {camber_smoothing_m!r}")
+    prob = _Problem(x, loads, xfs, y, knots, noise, smoothing, camber_smoothing_m)
+
+    def fail_result(reason: str, fit: _Fit | None, passes: int) -> IdentifiedBeam:
+        ei = np.full(x.size, np.nan)
+        c = np.zeros(x.size)
+        if fit is not None:
+            ei = 1.0 / (prob.phi @ np.exp(fit.gamma))
+            c = _camber_on_flat(x, fit.c)
+        beam = BeamSki(x, np.where(np.isfinite(ei) & (ei > 0), ei, 1.0), c)
+        return IdentifiedBeam(
+            beam=beam,
+            ok=False,
+            reason=reason,
+            noise_m=noise,
+            misfit_m=float("nan"),
+            case_misfit_m=np.full(loads.size, np.nan),
+            stiffness_band_nm2=np.full((2, x.size), np.nan),
+            camber_band_m=np.full(x.size, np.nan),
+            iterations=0 if fit is None else fit.iterations,
+            contact_passes=passes,
+            knots_m=knots,
+            log_compliance=np.full(nk, np.nan) if fit is None else fit.gamma,
+            log_compliance_covariance=np.full((nk, nk), np.nan),
+            camber_sensitivity=np.zeros((x.size, nk)),
+            camber_sd_m=np.full(x.size, np.nan),
+            solve_time_s=time.perf_counter() - t0,
+        )
+
+    if loads.size < min_cases:
+        return fail_result(
+            f"{loads.size} load cases; at least {min_cases} are needed to identify a beam", None, 0
+        )
+    if np.unique(np.round(loads, 6)).size < 2:
+        return fail_result(
+            "all cases have the same load: stiffness cannot be told from camber", None, 0
+        )
+
+    data_points = [_contacts_from_data(x, y[k], noise, xfs[k]) for k in range(loads.size)]
+    points = data_points
+    prob.set_contacts(points)
+    fit = prob.linear_start()
+    history = []
+    passes = 0
+    best: tuple[float, _Fit, list[np.ndarray]] | None = None
+    for passes in range(1, max_contact_passes + 1):  # noqa: B007
+        prob.update_camber_weights(fit.c)
+        fit = prob.gauss_newton(fit)
+        history.append(float(np.sqrt(fit.ssr * noise**2 / y.size)))
+        if best is None or fit.ssr < best[0]:
+            best = (fit.ssr, fit, points)
+        beam = _beam_of(x, prob, fit)
+        flex = BeamFlexibility(beam)
+        new_points = []
+        for k in range(loads.size):
+            res = solve_beam_contact(beam, loads[k], xfs[k], flexibility=flex)
+            pts = _merge_points(_contacts_from_beam(res), data_points[k], 0.003)
+            new_points.append(
+                pts if (pts.size >= 2 and pts.min() < xfs[k] < pts.max()) else points[k]
+            )
+        same = all(
+            a.size == b.size and np.allclose(a, b, atol=1.5 * float(dxs.mean()))
+            for a, b in zip(points, new_points, strict=True)
+        )
+        if same:
+            break
+        # carry the redundants over: re-solve the per-case statics by projection
+        points = new_points
+        prob.set_contacts(points)  # the next Gauss–Newton re-solves the per-case unknowns
+    else:  # the last contact sets were not refitted yet
+        fit = prob.gauss_newton(fit)
+        if fit.ssr < best[0]:
+            best = (fit.ssr, fit, points)
+    # the best pass (a contact update can make the fit worse when the beam was still poor)
+    _, fit, points = best
+    prob.set_contacts(points)
+    beam = _beam_of(x, prob, fit)
+    _, per = prob.residuals(fit.c, fit.gamma, fit.local)
+    case_misfit = np.sqrt(per / x.size)
+    misfit = float(np.sqrt(per.sum() / y.size))
+    # uncertainty from the Gauss–Newton normal matrix, σ̂ from the residual
+    sigma_hat = misfit / noise
+    post = fit.posterior
+    cov_g = np.linalg.pinv(post.reduced, hermitian=True) * sigma_hat**2
+    cov_g = 0.5 * (cov_g + cov_g.T)
+    band_ei = _stiffness_band(prob.phi, fit.gamma, cov_g)
+    camber_sd = post.camber_sd() * sigma_hat
+    ok, reason = True, ""
+    if misfit > MISFIT_LIMIT * noise and misfit > 1e-6:
+        ok = False
+        reason = (
+            f"misfit {misfit * 1e6:.2f} µm is {misfit / noise:.1f}× the device noise "
+            f"{noise * 1e6:.2f} µm: the cases are not explained by one beam (sides differ, the "
+            "device has systematic errors, or the ski is not a clean beam)"
+        )
+    return IdentifiedBeam(
+        beam=beam,
+        ok=ok,
+        reason=reason,
+        noise_m=noise,
+        misfit_m=misfit,
+        case_misfit_m=case_misfit,
+        stiffness_band_nm2=band_ei,
+        camber_band_m=np.sqrt(
+            camber_sd**2 + np.einsum("im,mn,in->i", post.sensitivity, cov_g, post.sensitivity)
+        ),
+        iterations=fit.iterations,
+        contact_passes=passes,
+        knots_m=knots,
+        log_compliance=fit.gamma.copy(),
+        log_compliance_covariance=cov_g,
+        camber_sensitivity=post.sensitivity,
+        camber_sd_m=camber_sd,
+        solve_time_s=time.perf_counter() - t0,
+        extra={
+            "misfit_per_pass_m": history,
+            "contacts_per_case": [int(p.size) for p in points],
+            "sigma_ratio": sigma_hat,
+        },
+    )
+
+
+def _beam_of(x: np.ndarray, prob: _Problem, fit: _Fit) -> BeamSki:
+    ei = 1.0 / (prob.phi @ np.exp(fit.gamma))
+    return BeamSki(x, ei, _camber_on_flat(x, fit.c))
+
+
+def _stiffness_band(phi: np.ndarray, gamma: np.ndarray, cov_g: np.ndarray) -> np.ndarray:
+    """5 % and 95 % bounds of EI(X) (2, N) [N·m²] from the covariance of γ (delta method on
+    log(1/EI))."""
+    beta = np.exp(gamma)
+    q = phi @ beta
+    jac = phi * beta[None, :] / q[:, None]  # d log q / d γ
+    sd = np.sqrt(np.maximum(np.einsum("im,mn,in->i", jac, cov_g, jac), 0.0))
+    z90 = 1.6448536269514722
+    ei = 1.0 / q
+    return np.stack([ei * np.exp(-z90 * sd), ei * np.exp(z90 * sd)])
+
+
+def sample_beams(
+    ident: IdentifiedBeam, count: int, rng: np.random.Generator | int
+) -> list[BeamSki]:
+    """Draw ``count`` plausible beams from the identification's Gauss–Newton covariance.
+
+    Each draw perturbs log(1/EI) by the covariance of γ and c(X) consistently with it
+    (``ĉ − D Δγ`` plus its per-node scatter). Draws feed the error bands of downstream solves.
+    """
+    if not ident.ok:
+        raise InputError(f"no identified beam to sample: {ident.reason}")
+    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+    x = ident.beam.positions_m
+    phi = _hats(x, ident.knots_m)
+    chol = np.linalg.cholesky(ident.log_compliance_covariance + 1e-15 * np.eye(ident.knots_m.size))
+    c_hat = ident.beam.unloaded_gap_m
+    out = []
+    for _ in range(int(count)):
+        dg = chol @ gen.standard_normal(ident.knots_m.size)
+        c = c_hat - ident.camber_sensitivity @ dg + ident.camber_sd_m * gen.standard_normal(x.size)
+        gamma = ident.log_compliance + dg
+        out.append(BeamSki(x, 1.0 / (phi @ np.exp(gamma)), _camber_on_flat(x, c)))
+    return out
+
+
+def predict_gaps(beam: BeamSki, loads_n: np.ndarray, load_positions_m: np.ndarray) -> np.ndarray:
+    """Loaded gaps (K, N) [m] of ``beam`` on the rigid flat for each case (the device model)."""
+    flex = BeamFlexibility(beam)
+    loads = np.atleast_1d(np.asarray(loads_n, dtype=float))
+    pos = np.atleast_1d(np.asarray(load_positions_m, dtype=float))
+    out = np.empty((loads.size, beam.positions_m.size))
+    for k, (f, xf) in enumerate(zip(loads, pos, strict=True)):
+        out[k] = solve_beam_contact(beam, f, xf, flexibility=flex).gap_m
+    return out

@@ -1,0 +1,206 @@
+"""Beam identification (solvers.identify): recovery of EI(X) and c(X) from virtual-device data,
+misfit at the noise, honest failure, the Woodbury solve against a dense least-squares oracle."""
+
+import numpy as np
+import pytest
+
+from solvers import identify
+from solvers.beam import ClassicSkiDesign, measure_camber, solve_beam_contact
+from solvers.errors import InputError
+
+LOADS_N = np.linspace(10, 90, 7) * 9.82
+POSITIONS_M = np.linspace(-0.30, 0.10, 6)
+
+#: two designs unlike the demo skis: short stiff pocket, long soft pocket with a forward peak
+DESIGNS = {
+    "stiff": ClassicSkiDesign(
+        camber_height_m=0.0025,
+        pocket_m=(-0.30, 0.35),
+        pocket_height_m=6e-4,
+        stiffness_nm2=2200.0,
+        end_stiffness_ratio=0.2,
+    ),
+    "soft": ClassicSkiDesign(
+        camber_height_m=0.0012,
+        tail_contact_m=-0.85,
+        tip_contact_m=0.75,
+        pocket_m=(-0.45, 0.50),
+        camber_peak_m=0.05,
+        pocket_height_m=4e-4,
+        stiffness_nm2=700.0,
+        end_stiffness_ratio=0.35,
+    ),
+}
+
+
+def _data(design, spacing_m, noise_m, seed):
+    ski = design.build(spacing_m)
+    f, xf, y = measure_camber(ski, LOADS_N, POSITIONS_M, noise_m=noise_m, rng=seed)
+    return ski, f, xf, y
+
+
+def _held_out(ski, beam, seed, count=12):
+    rng = np.random.default_rng(seed)
+    f = rng.uniform(15, 85, count) * 9.82
+    xf = rng.uniform(-0.28, 0.08, count)
+    return identify.predict_gaps(ski, f, xf), identify.predict_gaps(beam, f, xf)
+
+
+_SOFT_XFAIL = pytest.mark.xfail(
+    strict=True,
+    reason="the 'soft' design (long near-flat contacts) settles on a wrong EI whose held-out "
+    "profiles are tens of um off although every measured case fits to ~1 um (issue #12)",
+)
+
+
+@pytest.mark.parametrize("name", [pytest.param("soft", marks=_SOFT_XFAIL), "stiff"])
+def test_noise_free_profiles(name):
+    """Noise-free data: every case is reproduced and held-out loaded profiles agree to about
+    a µm (the contact points, read first from the data, converge over the passes; the 1/EI
+    basis alone adds ~0.01 µm)."""
+    ski, f, xf, y = _data(DESIGNS[name], 4e-3, 0.0, None)
+    ident = identify.identify_beam(ski.positions_m, f, xf, y, noise_m=3e-6)
+    assert ident.ok, ident.reason
+    assert ident.misfit_m < 1.5e-6
+    truth, pred = _held_out(ski, ident.beam, 1)
+    near = truth < 2e-4
+    assert np.sqrt(np.mean((pred - truth)[near] ** 2)) < 1.5e-6
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="EI(X) is not yet identified reliably: contact candidates read from the data add "
+    "redundant reactions that absorb part of the bending (noise-free 'soft' design: EI off "
+    "up to 5x while every case fits to 1.2 um); contact positions must become fitted "
+    "parameters (issue #12)",
+)
+@pytest.mark.parametrize("name", sorted(DESIGNS))
+def test_noise_free_stiffness(name):
+    ski, f, xf, y = _data(DESIGNS[name], 4e-3, 0.0, None)
+    ident = identify.identify_beam(ski.positions_m, f, xf, y, noise_m=3e-6)
+    mid = np.abs(ski.positions_m) < 0.25
+    rel = ident.beam.bending_stiffness_nm2[mid] / ski.bending_stiffness_nm2[mid] - 1
+    assert np.abs(rel).max() < 0.03
+
+
+def test_noisy_misfit_at_the_noise():
+    """3 µm device noise: the noise estimate is right, the misfit comes down to the noise in
+    every case, the bands are ordered."""
+    ski, f, xf, y = _data(DESIGNS["soft"], 2e-3, 3e-6, 7)
+    ident = identify.identify_beam(ski.positions_m, f, xf, y)
+    assert ident.ok, ident.reason
+    assert ident.noise_m == pytest.approx(3e-6, rel=0.05)
+    assert ident.misfit_m == pytest.approx(ident.noise_m, rel=0.1)
+    assert ident.case_misfit_m.max() < 1.5 * ident.noise_m
+    lo, hi = ident.stiffness_band_nm2
+    assert np.all(lo < hi) and np.all(ident.camber_band_m > 0)
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="held-out loaded profiles from 3 um data are 2-6 um RMS from the truth near "
+    "contact (target 0.3 um, issue #12): the identified EI is biased (see "
+    "test_noise_free_stiffness)",
+)
+def test_noisy_held_out_profiles():
+    ski, f, xf, y = _data(DESIGNS["soft"], 2e-3, 3e-6, 7)
+    ident = identify.identify_beam(ski.positions_m, f, xf, y)
+    truth, pred = _held_out(ski, ident.beam, 2)
+    near = truth < 2e-4
+    assert np.sqrt(np.mean((pred - truth)[near] ** 2)) < 1e-6
+
+
+def test_not_a_beam_is_reported():
+    """Cases of two different skis mixed (like left and right sides that differ): no beam fits,
+    the result says so instead of returning a bad beam as good."""
+    a, f, xf, ya = _data(DESIGNS["stiff"], 4e-3, 3e-6, 3)
+    _b, _, _, yb = _data(DESIGNS["soft"], 4e-3, 3e-6, 4)
+    y = np.where((np.arange(f.size) % 2 == 0)[:, None], ya, yb)
+    ident = identify.identify_beam(a.positions_m, f, xf, y)
+    assert not ident.ok
+    assert "misfit" in ident.reason
+
+
+def test_too_few_cases_and_one_load():
+    ski, f, xf, y = _data(DESIGNS["stiff"], 4e-3, 0.0, None)
+    few = identify.identify_beam(ski.positions_m, f[:3], xf[:3], y[:3])
+    assert not few.ok and "at least" in few.reason
+    same = f == f[0]
+    one = identify.identify_beam(ski.positions_m, f[same], xf[same], y[same])
+    assert not one.ok and "same load" in one.reason
+
+
+def test_bad_input():
+    ski, f, xf, y = _data(DESIGNS["stiff"], 4e-3, 0.0, None)
+    with pytest.raises(InputError, match="uniform"):
+        x = ski.positions_m.copy()
+        x[5] += 1e-4
+        identify.identify_beam(x, f, xf, y)
+    with pytest.raises(InputError, match="loads_n"):
+        identify.identify_beam(ski.positions_m, -f, xf, y)
+    with pytest.raises(InputError, match="finite"):
+        y2 = y.copy()
+        y2[0, 0] = np.nan
+        identify.identify_beam(ski.positions_m, f, xf, y2)
+    with pytest.raises(InputError, match="profiles_m"):
+        identify.identify_beam(ski.positions_m, f, xf, y[:, :-1])
+
+
+def test_estimate_noise():
+    _ski, _f, _xf, y = _data(DESIGNS["soft"], 2e-3, 5e-6, 11)
+    assert identify.estimate_noise(y) == pytest.approx(5e-6, rel=0.05)
+
+
+def test_sample_beams_seeded_and_positive():
+    ski, f, xf, y = _data(DESIGNS["stiff"], 4e-3, 3e-6, 5)
+    ident = identify.identify_beam(ski.positions_m, f, xf, y)
+    one = identify.sample_beams(ident, 3, 42)
+    two = identify.sample_beams(ident, 3, 42)
+    for a, b in zip(one, two, strict=True):
+        np.testing.assert_array_equal(a.bending_stiffness_nm2, b.bending_stiffness_nm2)
+        assert np.all(a.bending_stiffness_nm2 > 0) and a.unloaded_gap_m.min() == 0
+    assert not np.array_equal(one[0].unloaded_gap_m, one[1].unloaded_gap_m)
+
+
+@pytest.mark.parametrize("smoothing_m", [0.0, 0.03])
+def test_block_solve_matches_dense_least_squares(smoothing_m):
+    """The per-case elimination + Woodbury (and banded Woodbury with camber smoothing) solve
+    equals a dense least-squares solve of the same linear problem."""
+    ski = DESIGNS["stiff"].build(1e-2)
+    f, xf, y = measure_camber(ski, LOADS_N[::2], POSITIONS_M[::2], noise_m=3e-6, rng=1)
+    x = ski.positions_m
+    n = x.size
+    knots = np.linspace(x[0], x[-1], 11)
+    prob = identify._Problem(x, f, xf, y, knots, 3e-6, 10.0, smoothing_m)
+    prob.camber_weights = np.random.default_rng(0).uniform(0.1, 1.0, n - 2)
+    prob.set_contacts(
+        [
+            identify._contacts_from_beam(solve_beam_contact(ski, a, b))
+            for a, b in zip(f, xf, strict=False)
+        ]
+    )
+    q = prob.phi @ np.full(knots.size, 1e-3)
+    blocks, targets = [], []
+    for k, st in enumerate(prob.cases):
+        cols = [np.ones(n), prob.xn] + [identify._double_integral(mz * q, prob.dx) for mz in st.mz]
+        blocks.append((np.stack(cols, 1), np.zeros((n, 0))))
+        targets.append(y[k] - identify._double_integral(st.m0 * q, prob.dx))
+    c, _, _, _ = prob._solve(blocks, targets, np.zeros((0, 0)), np.zeros(0), 0.0)
+    sizes = [b[0].shape[1] for b in blocks]
+    off = np.cumsum([0, *sizes])
+    rows = len(blocks) * n + (n - 2) + 2
+    jac = np.zeros((rows, n + off[-1]))
+    rhs = np.zeros(rows)
+    s = 1 / 3e-6
+    for k, (a_loc, _) in enumerate(blocks):
+        jac[k * n : (k + 1) * n, :n] = np.eye(n) * s
+        jac[k * n : (k + 1) * n, n + off[k] : n + off[k + 1]] = a_loc * s
+        rhs[k * n : (k + 1) * n] = targets[k] * s
+    d2 = np.zeros((n - 2, n))
+    for i in range(n - 2):
+        d2[i, i : i + 3] = (1, -2, 1)
+    r0 = len(blocks) * n
+    jac[r0 : r0 + n - 2, :n] = np.sqrt(prob.camber_lambda * prob.camber_weights)[:, None] * d2
+    jac[-2:, :n] = prob.line.T * s  # c's rigid motion pinned with a one-σ prior
+    ref = np.linalg.lstsq(jac, rhs, rcond=None)[0][:n]
+    assert np.abs(c - ref).max() < 1e-9 * np.abs(ref).max()
