@@ -163,6 +163,7 @@ def _inputs(ski: str, grind: str, porosity: float, **over) -> ContactInputs:
         "porosity": porosity,
         "base_modulus_mpa": BASE_MODULUS_MPA,
         "poisson_ratio": POISSON_RATIO,
+        "ski_model": "rigid",  # the papers' model: the ski keeps its device shape
     }
     kw.update(over)
     return ContactInputs(ski=ski, grind=grind, **kw)

@@ -14,6 +14,15 @@ _PRESET_DOC = (
 )
 
 
+SkiModelName = Literal["rigid", "flexible", "auto"]
+_SKI_MODEL_DOC = (
+    "rigid: the ski keeps its loaded shape on the measuring device's flat (the papers' model); "
+    "flexible: the ski bends on the snow (beam and snow solved together, method.md §4b); "
+    "auto: rigid where it is within 2 % of flexible in apparent area, rear load share and the "
+    "four metrics, flexible elsewhere. provenance.ski_model says which was used and why."
+)
+
+
 class ContactBody(BaseModel):
     """Body of ``POST /v1/contact``."""
 
@@ -40,6 +49,7 @@ class ContactBody(BaseModel):
     )
     poisson_ratio: float = Field(0.3, ge=0, lt=0.5, description="Poisson's ratio [-]")
     preset: PresetName = Field("default", description=_PRESET_DOC)
+    ski_model: SkiModelName = Field("auto", description=_SKI_MODEL_DOC)
 
 
 class CompareBody(BaseModel):
@@ -56,3 +66,4 @@ class CompareBody(BaseModel):
     base_modulus_mpa: float = Field(700.0, ge=1, le=20000)
     poisson_ratio: float = Field(0.3, ge=0, lt=0.5)
     preset: PresetName = Field("default", description=_PRESET_DOC)
+    ski_model: SkiModelName = Field("auto", description=_SKI_MODEL_DOC)

@@ -19,8 +19,10 @@ from app.presets import DEFAULT_PRESET, Preset, get_preset
 from app.storage.common import code_version, sha256_file
 from app.storage.skis import SKI_MANIFEST, SkiRecord, read_ski, read_ski_manifest
 from app.storage.tables import read_manifest, read_table
+from solvers.beam import BeamSki
 from solvers.elastic import effective_modulus
-from solvers.errors import DataFileError, NotConvergedError, OutOfRangeError
+from solvers.errors import DataFileError, NotConvergedError, OutOfRangeError, SkisnowError
+from solvers.flexible import FlexibleModel, prepare_flexible, solve_flexible
 from solvers.lookup import MicroTable
 from solvers.macro import extrude_profile, solve_macro
 from solvers.multiscale import multiscale
@@ -38,6 +40,17 @@ class UnknownItemError(LookupError):
         self.known = known
 
 
+class ModelUnavailableError(SkisnowError):
+    """The requested ski model cannot be used for this ski (HTTP 422, the message says why)."""
+
+
+#: ski models a request can ask for (method.md §4 step 3 and §4b)
+SKI_MODELS = ("rigid", "flexible", "auto")
+#: ``auto`` answers with the rigid shape when every compared quantity is within this of the
+#: flexible solve [-]
+AUTO_RIGID_TOLERANCE = 0.02
+
+
 @dataclass
 class Grind:
     name: str
@@ -52,6 +65,35 @@ class Ski:
     path: Path
     sha256: str
     record: SkiRecord
+    _flexible: dict = field(default_factory=dict, repr=False)
+
+    def beam(self) -> tuple[BeamSki | None, str]:
+        """The ski's beam model and where it comes from, or (None, why there is none)."""
+        if self.record.beam is not None:
+            return self.record.beam, "design beam stored with the ski (demo ski: its own beam)"
+        return None, (
+            f"ski {self.name!r} has no beam model: its camber measurements have not identified "
+            "one (see the ski's job result); use ski_model 'rigid'"
+        )
+
+    def flexible_model(self, pixel_along_m: float, pixels_across: int) -> FlexibleModel:
+        """The prepared flexible model on a preset's grid (built once per worker)."""
+        key = (float(pixel_along_m), int(pixels_across))
+        model = self._flexible.get(key)
+        if model is None:
+            beam, why = self.beam()
+            if beam is None:
+                raise ModelUnavailableError(why)
+            outline = self.record.outline
+            model = prepare_flexible(
+                beam,
+                outline.width_m,
+                pixel_along_m=pixel_along_m,
+                pixels_across=pixels_across,
+                width_positions_m=outline.positions_m,
+            )
+            self._flexible[key] = model
+        return model
 
     @property
     def position_range_m(self) -> tuple[float, float]:
@@ -145,6 +187,7 @@ class ContactInputs:
     base_modulus_mpa: float = 700.0
     poisson_ratio: float = 0.3
     preset: str = DEFAULT_PRESET
+    ski_model: str = "auto"
 
 
 def _finite_list(a: np.ndarray, scale: float = 1.0, digits: int = 6) -> list[float | None]:
@@ -284,6 +327,8 @@ def contact(
     t3 = time.perf_counter()
     ms = multiscale(macro, grind.table, inp.porosity, e_eff)
     t4 = time.perf_counter()
+    macro, ms, model_info = _choose_ski_model(inp, ski, preset, macro, ms, grind, e_eff)
+    t5 = time.perf_counter()
     rows = np.isfinite(ms.average_separation_m)
     return {
         "inputs": {
@@ -322,7 +367,7 @@ def contact(
                 for z in ms.zones
             ],
         },
-        "warnings": result_warnings(inp, gmap, macro, ms),
+        "warnings": result_warnings(inp, gmap, macro, ms) + model_info.pop("warnings"),
         "distributions": {
             "position_mm": _finite_list(ms.positions_m[rows], 1e3),
             "pressure_kpa": _finite_list(ms.pressure_pa[rows], 1e-3),
@@ -349,6 +394,7 @@ def contact(
                 "sha256": ski.sha256,
                 "profile_model": "network" if ski.record.network is not None else "beam",
             },
+            "ski_model": model_info,
             "macro": {
                 "converged": macro.converged,
                 "iterations": macro.iterations,
@@ -363,6 +409,84 @@ def contact(
             "profile": (t2 - t1) * 1e3,
             "macro": (t3 - t2) * 1e3,
             "multiscale": (t4 - t3) * 1e3,
+            "ski_model": (t5 - t4) * 1e3,
             "total": (time.perf_counter() - t0) * 1e3,
         },
     }
+
+
+def _compared(macro, ms) -> dict[str, float]:
+    """The quantities ``auto`` compares between the rigid and the flexible solve."""
+    out = {
+        "apparent_area": ms.apparent_contact_area_m2,
+        "total_real_contact_area": ms.total_real_contact_area_m2,
+        "average_real_contact_pressure": ms.average_real_contact_pressure_pa,
+        "min_average_separation": ms.min_average_separation_m,
+        "total_reciprocal_separation": ms.total_reciprocal_separation_m,
+    }
+    p = np.nan_to_num(macro.pressure_pa)
+    rear = macro.positions_m < macro.load_position_m
+    out["rear_load_share"] = float(p[rear].sum() / max(p.sum(), 1e-300))
+    return out
+
+
+def _choose_ski_model(inp: ContactInputs, ski: Ski, preset: Preset, rigid, ms_rigid, grind, e_eff):
+    """Apply ``inp.ski_model``: the rigid answer, the flexible one, or (``auto``) the rigid one
+    when it is within :data:`AUTO_RIGID_TOLERANCE` of the flexible one in every compared
+    quantity. Returns (macro, multiscale, provenance dict with a ``warnings`` list)."""
+    if inp.ski_model not in SKI_MODELS:
+        raise ModelUnavailableError(
+            f"ski_model must be one of {', '.join(SKI_MODELS)}, got {inp.ski_model!r}"
+        )
+    info: dict = {"requested": inp.ski_model, "warnings": []}
+    if inp.ski_model == "rigid":
+        info.update(used="rigid", reason="requested")
+        return rigid, ms_rigid, info
+    beam, why = ski.beam()
+    if beam is None:
+        if inp.ski_model == "flexible":
+            raise ModelUnavailableError(why)
+        info.update(used="rigid", reason=why)
+        info["warnings"].append({"code": "flexible_unavailable", "detail": why})
+        return rigid, ms_rigid, info
+    model = ski.flexible_model(preset.pixel_along_m, preset.pixels_across)
+    flex = solve_flexible(
+        model, rigid.load_n, rigid.load_position_m, e_eff, initial_pressure_pa=rigid.pressure_pa
+    )
+    info["beam_source"] = why
+    info["flexible"] = {
+        "converged": flex.converged,
+        "iterations": flex.iterations,
+        "message": flex.message,
+        "solve_time_ms": flex.solve_time_s * 1e3,
+    }
+    if not flex.converged:
+        if inp.ski_model == "flexible":
+            raise NotConvergedError(
+                f"the flexible ski-on-snow solve did not converge: {flex.message}"
+            )
+        info.update(used="rigid", reason=f"the flexible solve did not converge ({flex.message})")
+        info["warnings"].append({"code": "flexible_not_converged", "detail": info["reason"]})
+        return rigid, ms_rigid, info
+    ms_flex = multiscale(flex, grind.table, inp.porosity, e_eff)
+    a, b = _compared(rigid, ms_rigid), _compared(flex, ms_flex)
+    diff = {k: (a[k] - b[k]) / b[k] if b[k] else 0.0 for k in a}
+    diff["rear_load_share"] = a["rear_load_share"] - b["rear_load_share"]
+    info["rigid_minus_flexible"] = diff
+    if inp.ski_model == "flexible":
+        info.update(used="flexible", reason="requested")
+        return flex, ms_flex, info
+    worst = max(diff, key=lambda k: abs(diff[k]))
+    if abs(diff[worst]) <= AUTO_RIGID_TOLERANCE:
+        info.update(
+            used="rigid",
+            reason=f"the rigid shape is within {AUTO_RIGID_TOLERANCE:.0%} of the flexible ski "
+            f"in every compared quantity (largest: {worst} {diff[worst]:+.1%})",
+        )
+        return rigid, ms_rigid, info
+    info.update(
+        used="flexible",
+        reason=f"the rigid shape differs from the bending ski by {diff[worst]:+.1%} in {worst} "
+        f"(more than {AUTO_RIGID_TOLERANCE:.0%})",
+    )
+    return flex, ms_flex, info

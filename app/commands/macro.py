@@ -56,6 +56,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--base-modulus-mpa", type=float, default=700.0, help="E_base [MPa]")
     p.add_argument("--poisson", type=float, default=0.3, help="Poisson's ratio [-]")
     p.add_argument("--no-tilt", action="store_true", help="no tilt: force balance only")
+    p.add_argument(
+        "--ski-model",
+        choices=["rigid", "flexible", "auto"],
+        default="auto",
+        help="with --ski: rigid (device shape), flexible (the ski bends on the snow), auto "
+        "(default: flexible where it differs from rigid by more than 2 %% in apparent area or "
+        "rear load share); --profile and --gap-map have no beam and stay rigid",
+    )
     p.add_argument("--json", action="store_true", help="one JSON object with distributions")
     p.set_defaults(func=run)
 
@@ -108,6 +116,42 @@ def loaded_profile(ski, load_n: float, load_position_m: float) -> tuple[np.ndarr
     if not res.converged:
         raise InputError(f"beam model did not converge: {res.message}")
     return res.positions_m, res.gap_m
+
+
+def _flexible_choice(args: argparse.Namespace, si: dict, rigid):
+    """The flexible solve of a stored ski with a beam, and which model answers."""
+    from solvers.flexible import prepare_flexible, solve_flexible
+
+    path = Path(args.ski)
+    if not path.suffix:
+        path = SKI_DIR / f"{args.ski}.h5"
+    ski = read_ski(path)
+    if ski.beam is None:
+        if args.ski_model == "flexible":
+            raise InputError(f"ski {ski.ski_id!r} has no beam model: use --ski-model rigid")
+        return rigid, "rigid (no beam model)"
+    model = prepare_flexible(
+        ski.beam, ski.outline.width_m, width_positions_m=ski.outline.positions_m
+    )
+    flex = solve_flexible(
+        model,
+        si["load_n"],
+        si["load_position_m"],
+        si["effective_modulus_pa"],
+        initial_pressure_pa=rigid.pressure_pa,
+    )
+    if args.ski_model == "flexible":
+        return flex, "flexible"
+
+    def rear(r):
+        p = np.nan_to_num(r.pressure_pa)
+        return float(p[r.positions_m < r.load_position_m].sum() / max(p.sum(), 1e-300))
+
+    d_area = rigid.apparent_contact_area_m2 / flex.apparent_contact_area_m2 - 1.0
+    d_rear = rear(rigid) - rear(flex)
+    if flex.converged and max(abs(d_area), abs(d_rear)) > 0.02:
+        return flex, f"flexible (rigid differs by {d_area:+.1%} in area, {d_rear:+.3f} rear share)"
+    return rigid, "rigid (within 2 % of flexible)"
 
 
 def _gap_map(args: argparse.Namespace, si: dict) -> GapMap:
@@ -182,7 +226,13 @@ def run(args: argparse.Namespace) -> int:
     res = solve_macro(
         gm, si["load_n"], si["load_position_m"], si["effective_modulus_pa"], tilt=not args.no_tilt
     )
+    used = "rigid"
+    if args.ski and args.ski_model != "rigid":
+        res, used = _flexible_choice(args, si, res)
+    elif args.ski_model == "flexible":
+        raise InputError("--ski-model flexible needs --ski (a profile or gap map has no beam)")
     rep = _report(res, args.json)
+    rep["ski_model"] = used
     if args.json:
         print(json.dumps(rep))
     else:
@@ -194,6 +244,7 @@ def run(args: argparse.Namespace) -> int:
                 f"  start_mm {z['start_mm']:8.1f}  end_mm {z['end_mm']:8.1f}  "
                 f"length_mm {z['length_mm']:6.1f}  load_share {z['load_share']:.3f}"
             )
+        print(f"ski_model                  {used}")
         print(f"converged                  {rep['converged']}")
         print(f"iterations                 {rep['iterations']}")
         print(f"solve_time_s               {rep['solve_time_s']:.4f}")

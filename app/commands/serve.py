@@ -38,6 +38,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         choices=list(PRESETS),
         help="accuracy preset (macro grid; docs/benchmarks.md)",
     )
+    v.add_argument(
+        "--ski-model",
+        default="auto",
+        choices=["rigid", "flexible", "auto"],
+        help="rigid: the device's loaded shape (the papers' model); flexible: the ski bends on "
+        "the snow; auto (default): rigid where within 2 %% of flexible",
+    )
     v.add_argument("--json", action="store_true", help="print the full JSON answer")
     v.set_defaults(func=run_solve)
 
@@ -96,6 +103,7 @@ def run_solve(args: argparse.Namespace) -> int:
             base_modulus_mpa=args.base_modulus_mpa,
             poisson_ratio=args.poisson,
             preset=args.preset,
+            ski_model=args.ski_model,
         )
     except ValidationError as exc:
         msgs = "; ".join(
@@ -128,6 +136,8 @@ def run_solve(args: argparse.Namespace) -> int:
             f"  zone {z['name']:5s} {z['start_mm']:7.0f} … {z['end_mm']:5.0f} mm  "
             f"load share {z['load_share']:.1%}  real area {z['real_area_mm2']:.4g} mm²"
         )
+    sm = out["provenance"]["ski_model"]
+    print(f"  ski model        {sm['used']} ({sm['reason']})")
     for w in out["warnings"]:
         print(f"  WARNING {w['code']}: {w['detail']}")
     print(f"  time {out['timing_ms']['total']:.0f} ms (preset {args.preset})")
