@@ -1,0 +1,160 @@
+"""``skisnow identify-ski``: identify a ski's beam (EI(X), c(X)) from its camber measurements.
+
+Runs :func:`solvers.identify.identify_beam` on the measured cases of a stored ski (or a neutral
+camber CSV), holding out a seeded fraction of the cases, and reports the misfit per case (it
+should come down to the device noise), EI(X) with its 90 % band, and the held-out errors: against
+the held-out measurements, and, for a ski that stores its design beam (the demo skis), against
+that beam's noise-free profiles where H* < 0.2 mm. ``--out`` writes the report as JSON
+(atomically, with provenance).
+
+Left/right profiles of one case are averaged into one profile (said in the report); the
+measurements themselves are never changed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from app.storage.common import atomic_path, provenance
+from app.storage.skis import CamberData, read_camber_csv, read_ski
+from solvers.errors import InputError
+from solvers.identify import identify_beam, predict_gaps
+
+SKI_DIR = Path(__file__).resolve().parents[2] / "tables" / "skis"
+#: where held-out profiles are compared with a design beam: near contact [m]
+NEAR_CONTACT_M = 2e-4
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "identify-ski",
+        help="identify a ski's beam (EI, camber) from its camber measurements",
+        description=__doc__.splitlines()[0],
+    )
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--ski", metavar="NAME", help="stored ski (tables/skis/NAME.h5) or a path")
+    src.add_argument("--csv", metavar="CSV", help="neutral camber CSV (docs/macro.md)")
+    p.add_argument(
+        "--holdout", type=float, default=0.2, help="fraction of cases held out [-] (0: none)"
+    )
+    p.add_argument("--seed", type=int, default=0, help="seed of the held-out draw")
+    p.add_argument("--out", type=Path, help="write the report as JSON here")
+    p.add_argument("--json", action="store_true", help="print the report as JSON")
+    p.set_defaults(func=run)
+
+
+def _mean_sides(data: CamberData) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
+    """One profile per (load, position): left and right averaged. Returns F, x_F, profiles,
+    and a note on what was done."""
+    keys = list(zip(np.round(data.loads_n, 9), np.round(data.load_positions_m, 9), strict=True))
+    if all(s == "mean" for s in data.sides) and len(set(keys)) == len(keys):
+        return data.loads_n, data.load_positions_m, data.profiles_m, "one profile per case"
+    groups: dict = {}
+    for k, key in enumerate(keys):
+        groups.setdefault(key, []).append(k)
+    f = np.array([data.loads_n[v[0]] for v in groups.values()])
+    x = np.array([data.load_positions_m[v[0]] for v in groups.values()])
+    y = np.stack([data.profiles_m[v].mean(axis=0) for v in groups.values()])
+    return f, x, y, "left and right profiles of each case averaged"
+
+
+def identify_report(data: CamberData, design_beam, holdout: float, seed: int) -> dict:
+    """Identify on the kept cases and measure on the held-out ones; a JSON-ready report."""
+    if not (0.0 <= holdout < 0.9):
+        raise InputError(f"--holdout must be in [0, 0.9), got {holdout}")
+    f, xf, y, sides_note = _mean_sides(data)
+    rng = np.random.default_rng(seed)
+    held = np.zeros(f.size, dtype=bool)
+    n_held = round(holdout * f.size)
+    if n_held:
+        held[rng.choice(f.size, n_held, replace=False)] = True
+    t0 = time.perf_counter()
+    ident = identify_beam(data.positions_m, f[~held], xf[~held], y[~held])
+    elapsed = time.perf_counter() - t0
+    x = data.positions_m
+    report: dict = {
+        "ski_id": data.ski_id,
+        "cases": int(f.size),
+        "held_out_cases": int(held.sum()),
+        "sides": sides_note,
+        "identified": bool(ident.ok),
+        "reason": ident.reason,
+        "noise_um": ident.noise_m * 1e6,
+        "misfit_um": ident.misfit_m * 1e6,
+        "case_misfit_um": {
+            "median": float(np.median(ident.case_misfit_m)) * 1e6,
+            "max": float(np.max(ident.case_misfit_m)) * 1e6,
+        },
+        "iterations": ident.iterations,
+        "contact_passes": ident.contact_passes,
+        "time_s": elapsed,
+        "stiffness": [
+            {
+                "position_mm": float(x[i] * 1e3),
+                "ei_nm2": float(ident.beam.bending_stiffness_nm2[i]),
+                "band_90_nm2": [float(v) for v in ident.stiffness_band_nm2[:, i]],
+            }
+            for i in np.linspace(0, x.size - 1, 21).astype(int)
+        ],
+    }
+    if held.any():
+        pred = predict_gaps(ident.beam, f[held], xf[held])
+        res = pred - y[held]
+        report["held_out_vs_measured_rms_um"] = float(np.sqrt(np.mean(res**2))) * 1e6
+        if design_beam is not None:
+            truth = predict_gaps(design_beam, f[held], xf[held])
+            near = truth < NEAR_CONTACT_M
+            err = (pred - truth)[near]
+            report["held_out_vs_design_beam_rms_um"] = float(np.sqrt(np.mean(err**2))) * 1e6
+    return report
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.ski:
+        path = Path(args.ski)
+        if not path.suffix:
+            path = SKI_DIR / f"{args.ski}.h5"
+        record = read_ski(path)
+        data, design = record.measurements, record.beam
+    else:
+        data, design = read_camber_csv(args.csv), None
+    rep = identify_report(data, design, args.holdout, args.seed)
+    if args.out:
+        with atomic_path(args.out) as tmp:
+            Path(tmp).write_text(
+                json.dumps({"report": rep, "provenance": provenance(vars_of(args))}, indent=1)
+            )
+    if args.json:
+        print(json.dumps(rep))
+        return 0 if rep["identified"] else 1
+    print(
+        f"ski {rep['ski_id']}: {rep['cases']} cases ({rep['sides']}), "
+        f"{rep['held_out_cases']} held out"
+    )
+    print(f"  identified        {rep['identified']} {rep['reason']}")
+    print(f"  device noise      {rep['noise_um']:.2f} µm (from the data)")
+    print(
+        f"  misfit            {rep['misfit_um']:.2f} µm RMS; per case median "
+        f"{rep['case_misfit_um']['median']:.2f}, max {rep['case_misfit_um']['max']:.2f} µm"
+    )
+    for key, label in (
+        ("held_out_vs_measured_rms_um", "held-out vs measured"),
+        ("held_out_vs_design_beam_rms_um", "held-out vs design beam (H* < 0.2 mm)"),
+    ):
+        if key in rep:
+            print(f"  {label:38s} {rep[key]:.2f} µm RMS")
+    print("  EI(X) [N·m²] with 90 % band:")
+    for s in rep["stiffness"][::2]:
+        lo, hi = s["band_90_nm2"]
+        print(f"    {s['position_mm']:7.0f} mm  {s['ei_nm2']:8.1f}  [{lo:8.1f} … {hi:8.1f}]")
+    print(f"  time {rep['time_s']:.1f} s, {rep['iterations']} Gauss–Newton steps")
+    return 0 if rep["identified"] else 1
+
+
+def vars_of(args: argparse.Namespace) -> dict:
+    return {k: str(v) for k, v in vars(args).items() if k != "func"}
