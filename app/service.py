@@ -96,6 +96,19 @@ class Ski:
         return model
 
     @property
+    def load_range_n(self) -> tuple[float, float]:
+        """Loads the ski's camber model covers [N]: the network's trained range, else the range
+        of the measured load cases."""
+        net = self.record.network
+        if net is not None and "attrs" in net:
+            a = net["attrs"]
+            lo, hi = a.get("load_min_n"), a.get("load_max_n")
+            if lo is not None and hi is not None:
+                return float(lo), float(hi)
+        f = np.asarray(self.record.measurements.loads_n, dtype=float)
+        return float(f.min()), float(f.max())
+
+    @property
     def position_range_m(self) -> tuple[float, float]:
         """Load positions the ski's model covers [m]: the network's trained range, else the
         range of the measured load cases."""
@@ -300,6 +313,13 @@ def contact(
         raise OutOfRangeError(
             f"load_position_mm {inp.load_position_mm:g} is outside the range the ski "
             f"{ski.name!r} covers ({lo * 1e3:g} … {hi * 1e3:g} mm)"
+        )
+    f_lo, f_hi = ski.load_range_n
+    if not (f_lo * (1 - 1e-9) <= load_n <= f_hi * (1 + 1e-9)):
+        raise OutOfRangeError(
+            f"load_kg {inp.load_kg:g} is outside the range the ski {ski.name!r} covers "
+            f"({units.n_to_kg(f_lo):.4g} … {units.n_to_kg(f_hi):.4g} kg): its camber model is "
+            "not extrapolated"
         )
     e_eff = effective_modulus(
         units.mpa_to_pa(inp.snow_modulus_mpa),

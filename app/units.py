@@ -26,6 +26,11 @@ def kg_to_n(load_kg: float) -> float:
     return float(load_kg) * G_STANDARD
 
 
+def n_to_kg(load_n: float) -> float:
+    """Load [N] → the equivalent mass [kg] (g = 9.82 m/s², method.md §2), for messages."""
+    return load_n / G_STANDARD
+
+
 def mm_to_m(value_mm: float) -> float:
     return float(value_mm) * 1e-3
 

@@ -124,6 +124,7 @@ CSV_COLUMNS = (
     "rear_zone_load_share",
     "mid_zone_load_share",
     "front_zone_load_share",
+    "ski_model",
     "table_file",
     "table_sha256",
     "texture_pixel_size_um",
@@ -176,7 +177,7 @@ def _unique(values: list[str]) -> list[str]:
 def parse_query(request: Request, cat: service.Catalogue, max_cells: int) -> Query:
     """Read and validate the form's query parameters (bounds of :class:`ContactBody`)."""
     qp = request.query_params
-    raw = {k: qp.get(k, "").strip() for k in (*FIELDS, "snow_input", "preset")}
+    raw = {k: qp.get(k, "").strip() for k in (*FIELDS, "snow_input", "preset", "ski_model")}
     q = Query(_unique(qp.getlist("ski")), _unique(qp.getlist("grind")), raw)
     if raw["snow_input"] not in ("porosity", "density"):
         raw["snow_input"] = "porosity"
@@ -204,6 +205,13 @@ def parse_query(request: Request, cat: service.Catalogue, max_cells: int) -> Que
             f"unknown accuracy preset {raw['preset']!r}; choose {', '.join(ACCURACY_PRESETS)}"
         )
         raw["preset"] = DEFAULT_PRESET
+    if raw["ski_model"] == "":
+        raw["ski_model"] = "auto"
+    elif raw["ski_model"] not in service.SKI_MODELS:
+        q.errors["ski_model"] = (
+            f"unknown ski model {raw['ski_model']!r}; choose {', '.join(service.SKI_MODELS)}"
+        )
+        raw["ski_model"] = "auto"
     values = {k: raw[k] for k in NUMERIC}
     if raw["snow_input"] == "density":
         values.pop("porosity")
@@ -221,7 +229,9 @@ def parse_query(request: Request, cat: service.Catalogue, max_cells: int) -> Que
         if text != "" and _finite(text) is None:
             q.errors[key] = "must be a finite number"
     try:
-        body = ContactBody(ski="-", grind="-", preset=raw["preset"], **values)
+        body = ContactBody(
+            ski="-", grind="-", preset=raw["preset"], ski_model=raw["ski_model"], **values
+        )
     except ValidationError as exc:
         for err in exc.errors():
             key = str(err["loc"][0]) if err.get("loc") else "form"
@@ -404,6 +414,28 @@ def _preset_field(q: Query) -> str:
     )
 
 
+#: the ski-model choices of the form, with the words a technician reads
+SKI_MODEL_LABELS = {
+    "auto": "auto — rigid where within 2 % of the bending ski, else bending",
+    "rigid": "rigid — the shape on the measuring device (the papers' model)",
+    "flexible": "flexible — the ski bends on the snow",
+}
+
+
+def _ski_model_field(q: Query) -> str:
+    chosen = q.raw.get("ski_model") or "auto"
+    options = "".join(
+        f'<option value="{name}"{" selected" if name == chosen else ""}>{escape(label)}</option>'
+        for name, label in SKI_MODEL_LABELS.items()
+    )
+    return (
+        '<label class="field" for="ski_model"><span>Ski model</span>'
+        f'<select id="ski_model" name="ski_model">{options}</select>'
+        '<span class="hint">how far apart the two are over the snow range: '
+        "docs/rigid-vs-flexible.md</span></label>"
+    )
+
+
 def render_form(cat: service.Catalogue, q: Query, status: int = 200) -> HTMLResponse:
     alert = ""
     if q.errors:
@@ -416,7 +448,7 @@ def render_form(cat: service.Catalogue, q: Query, status: int = 200) -> HTMLResp
             f"<ul>{items}</ul></div>"
         )
     density_mode = q.raw.get("snow_input") == "density"
-    advanced = {"base_modulus_mpa", "poisson_ratio", "preset"}
+    advanced = {"base_modulus_mpa", "poisson_ratio", "preset", "ski_model"}
     advanced_open = (
         " open"
         if advanced & set(q.errors)
@@ -426,6 +458,7 @@ def render_form(cat: service.Catalogue, q: Query, status: int = 200) -> HTMLResp
             "",
             DEFAULT_PRESET,
         )
+        or q.raw.get("ski_model") not in (None, "", "auto")
         else ""
     )
     presets = "\n".join(
@@ -463,10 +496,11 @@ snow density ρ</label></div>
 </fieldset>
 </div>
 <fieldset><details class="advanced"{advanced_open}>
-<summary>Advanced: ski-base elasticity, accuracy preset</summary>
+<summary>Advanced: ski-base elasticity, accuracy preset, ski model</summary>
 {_number_field(q, "base_modulus_mpa")}
 {_number_field(q, "poisson_ratio")}
 {_preset_field(q)}
+{_ski_model_field(q)}
 </details></fieldset>
 <button type="submit" id="submit" class="primary">Compute contact</button>
 <span class="hint">One ski × grind takes a few seconds.</span>
@@ -512,6 +546,8 @@ of {a["mean_pressure_kpa"]:.4g} kPa; computed in {r["timing_ms"]["total"]:.0f} m
 <dt>gap floor h_c</dt><dd>{table["gap_floor_nm"]:.4g} nm</dd>
 <dt>ski file</dt><dd>{escape(ski["file"])} · sha256 {ski["sha256"][:12]}</dd>
 <dt>camber model</dt><dd>{escape(str(ski["profile_model"]))}</dd>
+<dt>ski model</dt><dd>{escape(str(prov["ski_model"]["used"]))}:
+{escape(str(prov["ski_model"]["reason"]))}</dd>
 <dt>macro solve</dt><dd>{prov["macro"]["iterations"]} iterations, converged
 {prov["macro"]["converged"]}, pixel {" × ".join(f"{v:g}" for v in prov["macro"]["pixel_size_mm"])}
 mm</dd>
@@ -608,6 +644,7 @@ def render_csv(out: Outcome) -> str:
             "rear_zone_load_share": share["rear"],
             "mid_zone_load_share": share["mid"],
             "front_zone_load_share": share["front"],
+            "ski_model": p["ski_model"]["used"],
             "table_file": p["table"]["file"],
             "table_sha256": p["table"]["sha256"],
             "texture_pixel_size_um": p["table"]["texture_pixel_size_um"],
