@@ -522,6 +522,7 @@ def bench_macro_stage(repeats: int = 7, inference_calls: int = 300) -> dict:
     from solvers.beam import G_STANDARD
 
     out = {"skis": bench_macro(repeats=repeats), "inference": {}}
+    out["flexible"] = bench_flexible(repeats=repeats)
     for name in out["skis"]:
         net = read_ski(SKI_DIR / f"{name}.h5").network
         if net is None:
@@ -534,6 +535,106 @@ def bench_macro_stage(repeats: int = 7, inference_calls: int = 300) -> dict:
             times.append(time.perf_counter() - t0)
         out["inference"][name] = {"calls": inference_calls, "median_s": statistics.median(times)}
     return out
+
+
+def bench_flexible(repeats: int = 7, skis: tuple[str, ...] = ("ski-a", "ski-b")) -> dict:
+    """Per demo ski at the papers' case, default grid, in one run: the beam's loaded profile on
+    the flat (cached flexibility), the rigid solve of that profile, the flexible solve (cold, and
+    warm-started from the rigid pressure as the service does), and one whole ``/v1/contact``
+    computation (``service.contact``) with ``ski_model`` rigid and auto. Medians [s]."""
+    from app import service
+    from app.commands.macro import SKI_DIR
+    from app.storage.skis import read_ski
+    from solvers.beam import G_STANDARD, BeamFlexibility, solve_beam_contact
+    from solvers.elastic import effective_modulus
+    from solvers.flexible import prepare_flexible, solve_flexible
+    from solvers.macro import extrude_profile, solve_macro
+
+    e_eff = effective_modulus(200e6, 0.7e9, 0.3)
+    load_n, xf = 40.0 * G_STANDARD, -0.160
+    cat = service.load_catalogue(SKI_DIR.parent)
+    grind = sorted(cat.grinds)[0]
+
+    def median_of(fn) -> tuple[float, object]:
+        res = fn()  # warm-up
+        times = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            res = fn()
+            times.append(time.perf_counter() - t0)
+        return float(np.median(times)), res
+
+    out: dict = {}
+    for name in skis:
+        rec = read_ski(SKI_DIR / f"{name}.h5")
+        if rec.beam is None:
+            continue
+        flex_beam = BeamFlexibility(rec.beam)
+        t_prof, beam_res = median_of(
+            lambda rec=rec, fb=flex_beam: solve_beam_contact(rec.beam, load_n, xf, flexibility=fb)
+        )
+        gm = extrude_profile(
+            beam_res.positions_m,
+            beam_res.gap_m,
+            rec.outline.width_m,
+            width_positions_m=rec.outline.positions_m,
+        )
+        t_rigid, rigid = median_of(lambda gm=gm: solve_macro(gm, load_n, xf, e_eff))
+        model = prepare_flexible(
+            rec.beam, rec.outline.width_m, width_positions_m=rec.outline.positions_m
+        )
+        t_cold, flex = median_of(lambda m=model: solve_flexible(m, load_n, xf, e_eff))
+        t_warm, _ = median_of(
+            lambda m=model, r=rigid: solve_flexible(
+                m, load_n, xf, e_eff, initial_pressure_pa=r.pressure_pa
+            )
+        )
+        req = {}
+        for mode in ("rigid", "auto"):
+            inp = service.ContactInputs(name, grind, 40.0, -160.0, 200.0, 0.5, ski_model=mode)
+            req[mode], _ = median_of(lambda inp=inp: service.contact(cat, inp))
+        out[name] = {
+            "beam_profile_s": t_prof,
+            "rigid_solve_s": t_rigid,
+            "flexible_cold_s": t_cold,
+            "flexible_warm_s": t_warm,
+            "flexible_iterations": flex.iterations,
+            "rigid_area_cm2": rigid.apparent_contact_area_m2 * 1e4,
+            "flexible_area_cm2": flex.apparent_contact_area_m2 * 1e4,
+            "contact_rigid_s": req["rigid"],
+            "contact_auto_s": req["auto"],
+            "grind": grind,
+        }
+    return out
+
+
+def _flexible_md(d: dict) -> list[str]:
+    if not d:
+        return []
+    lines = [
+        "### The bending ski (issue #12)",
+        "",
+        "Papers' case, default grid, same run. Beam profile: one device solve on the flat with "
+        "the cached flexibility (target ≤ 10 ms). Flexible solve: beam and snow as one "
+        "complementarity problem (target ≤ 2 × rigid and ≤ 40 ms), cold and warm-started from "
+        "the rigid pressure (as the service does). Request: one `service.contact` computation "
+        "(profile, macro, multiscale; auto also solves the flexible ski).",
+        "",
+        "| ski | beam profile [ms] | rigid solve [ms] | flexible cold [ms] | flexible warm "
+        "[ms] | warm / rigid | request rigid [ms] | request auto [ms] | area rigid → flexible "
+        "[cm²] |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, r in d.items():
+        lines.append(
+            f"| {name} | {1e3 * r['beam_profile_s']:.2f} | {1e3 * r['rigid_solve_s']:.1f} | "
+            f"{1e3 * r['flexible_cold_s']:.1f} | {1e3 * r['flexible_warm_s']:.1f} | "
+            f"{r['flexible_warm_s'] / r['rigid_solve_s']:.1f} | "
+            f"{1e3 * r['contact_rigid_s']:.1f} | {1e3 * r['contact_auto_s']:.1f} | "
+            f"{r['rigid_area_cm2']:.2f} → {r['flexible_area_cm2']:.2f} |"
+        )
+    lines.append("")
+    return lines
 
 
 def _macro_md(d: dict) -> list[str]:
@@ -571,6 +672,7 @@ def _macro_md(d: dict) -> list[str]:
             f"{r['calls']} calls."
         )
     lines.append("")
+    lines += _flexible_md(d.get("flexible", {}))
     return lines
 
 

@@ -62,6 +62,8 @@ DEFAULT_KNOT_SPACING_M = 0.05
 DEFAULT_SMOOTHING = 10.0
 #: misfit over the noise above which the data are not explained by a beam [-]
 MISFIT_LIMIT = 1.5
+#: a contact point whose fitted reaction is below −this × F is dropped in the next pass [-]
+NEGATIVE_REACTION_SHARE = 0.002
 #: equivalent smoothing length of the camber c(X) [m]; 0 fits c node by node. Smoothing (with
 #: robust weights that keep kinks) was measured on the demo skis and did not lower the held-out
 #: error (docs/camber-identification.md), so it is off by default
@@ -134,13 +136,14 @@ class IdentifiedBeam:
 
 
 def estimate_noise(profiles_m: np.ndarray) -> float:
-    """Device noise σ [m] from the measured profiles alone: robust scale of the second
-    differences (a smooth gap has second differences far below the noise at mm sampling;
-    contact kinks are rare and the median ignores them)."""
+    """Device noise σ [m] from the measured profiles alone: robust scale (median absolute
+    deviation) of the fourth differences, which cancel a smooth gap up to cubic terms (the
+    parabolic shovels, the camber arch) at any sampling; contact kinks are rare and the median
+    ignores them. Var(Δ⁴ noise) = 70 σ²."""
     y = np.asarray(profiles_m, dtype=float)
-    d2 = y[:, 2:] - 2.0 * y[:, 1:-1] + y[:, :-2]
-    mad = float(np.median(np.abs(d2 - np.median(d2))))
-    return mad / 0.6745 / np.sqrt(6.0)
+    d4 = np.diff(y, n=4, axis=-1)
+    mad = float(np.median(np.abs(d4 - np.median(d4))))
+    return mad / 0.6744897501960817 / np.sqrt(70.0)
 
 
 def _double_integral(kappa: np.ndarray, dx: np.ndarray) -> np.ndarray:
@@ -713,7 +716,12 @@ def identify_beam(
         new_points = []
         for k in range(loads.size):
             res = solve_beam_contact(beam, loads[k], xfs[k], flexibility=flex)
-            pts = _merge_points(_contacts_from_beam(res), data_points[k], 0.003)
+            # the beam's own contacts, plus the current points whose fitted reaction is not
+            # negative (a negative reaction is no contact: dropped, as in an active-set step)
+            st = prob.cases[k]
+            react = st.r0 + st.null @ fit.local[k][2:]
+            kept = st.points[react > -NEGATIVE_REACTION_SHARE * loads[k]]
+            pts = _merge_points(_contacts_from_beam(res), kept, 0.003)
             new_points.append(
                 pts if (pts.size >= 2 and pts.min() < xfs[k] < pts.max()) else points[k]
             )

@@ -1,6 +1,8 @@
 """Beam identification (solvers.identify): recovery of EI(X) and c(X) from virtual-device data,
 misfit at the noise, honest failure, the Woodbury solve against a dense least-squares oracle."""
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -39,6 +41,13 @@ def _data(design, spacing_m, noise_m, seed):
     return ski, f, xf, y
 
 
+@functools.lru_cache(maxsize=8)
+def _identified(name, spacing_m, noise_m, seed, assumed_noise_m=None):
+    """Data and identification, shared by the tests that look at the same case."""
+    ski, f, xf, y = _data(DESIGNS[name], spacing_m, noise_m, seed)
+    return ski, identify.identify_beam(ski.positions_m, f, xf, y, noise_m=assumed_noise_m)
+
+
 def _held_out(ski, beam, seed, count=12):
     rng = np.random.default_rng(seed)
     f = rng.uniform(15, 85, count) * 9.82
@@ -58,8 +67,7 @@ def test_noise_free_profiles(name):
     """Noise-free data: every case is reproduced and held-out loaded profiles agree to about
     a µm (the contact points, read first from the data, converge over the passes; the 1/EI
     basis alone adds ~0.01 µm)."""
-    ski, f, xf, y = _data(DESIGNS[name], 4e-3, 0.0, None)
-    ident = identify.identify_beam(ski.positions_m, f, xf, y, noise_m=3e-6)
+    ski, ident = _identified(name, 4e-3, 0.0, None, 3e-6)
     assert ident.ok, ident.reason
     assert ident.misfit_m < 1.5e-6
     truth, pred = _held_out(ski, ident.beam, 1)
@@ -76,8 +84,7 @@ def test_noise_free_profiles(name):
 )
 @pytest.mark.parametrize("name", sorted(DESIGNS))
 def test_noise_free_stiffness(name):
-    ski, f, xf, y = _data(DESIGNS[name], 4e-3, 0.0, None)
-    ident = identify.identify_beam(ski.positions_m, f, xf, y, noise_m=3e-6)
+    ski, ident = _identified(name, 4e-3, 0.0, None, 3e-6)
     mid = np.abs(ski.positions_m) < 0.25
     rel = ident.beam.bending_stiffness_nm2[mid] / ski.bending_stiffness_nm2[mid] - 1
     assert np.abs(rel).max() < 0.03
@@ -86,8 +93,7 @@ def test_noise_free_stiffness(name):
 def test_noisy_misfit_at_the_noise():
     """3 µm device noise: the noise estimate is right, the misfit comes down to the noise in
     every case, the bands are ordered."""
-    ski, f, xf, y = _data(DESIGNS["soft"], 2e-3, 3e-6, 7)
-    ident = identify.identify_beam(ski.positions_m, f, xf, y)
+    _ski, ident = _identified("soft", 4e-3, 3e-6, 7)
     assert ident.ok, ident.reason
     assert ident.noise_m == pytest.approx(3e-6, rel=0.05)
     assert ident.misfit_m == pytest.approx(ident.noise_m, rel=0.1)
@@ -103,8 +109,7 @@ def test_noisy_misfit_at_the_noise():
     "test_noise_free_stiffness)",
 )
 def test_noisy_held_out_profiles():
-    ski, f, xf, y = _data(DESIGNS["soft"], 2e-3, 3e-6, 7)
-    ident = identify.identify_beam(ski.positions_m, f, xf, y)
+    ski, ident = _identified("soft", 4e-3, 3e-6, 7)
     truth, pred = _held_out(ski, ident.beam, 2)
     near = truth < 2e-4
     assert np.sqrt(np.mean((pred - truth)[near] ** 2)) < 1e-6
@@ -147,7 +152,7 @@ def test_bad_input():
 
 
 def test_estimate_noise():
-    _ski, _f, _xf, y = _data(DESIGNS["soft"], 2e-3, 5e-6, 11)
+    _ski, _f, _xf, y = _data(DESIGNS["soft"], 4e-3, 5e-6, 11)
     assert identify.estimate_noise(y) == pytest.approx(5e-6, rel=0.05)
 
 
