@@ -34,7 +34,7 @@ from app.service import Catalogue, ContactInputs, contact, load_catalogue
 from app.storage.common import REPO_ROOT, atomic_path, provenance
 from solvers import lookup
 from solvers.elastic import effective_modulus
-from solvers.errors import InputError, NotConvergedError, OutOfRangeError
+from solvers.errors import InputError, NotConvergedError, OutOfRangeError, SkisnowError
 
 log = logging.getLogger(__name__)
 
@@ -135,6 +135,9 @@ class PaperCase:
         ``snow_modulus_mpa`` and ``error`` for a failed solve).
     curves : dict
         ``{"pressure_kpa": [...], grind: {porosity: a_r [%] list}}`` at E_snow 200 MPa.
+    flexible : dict
+        ``{(ski, grind): contact() answer}`` at the paper case with the bending ski
+        (``ski_model: flexible``, method.md §4b), or ``{"error": message}``.
     tables, skis : dict
         Per file: name, sha256 and profile model (skis) / pixel size and gap floor (tables).
     provenance : dict
@@ -148,6 +151,7 @@ class PaperCase:
     load_checks: dict = field(default_factory=dict)
     sweep: list = field(default_factory=list)
     curves: dict = field(default_factory=dict)
+    flexible: dict = field(default_factory=dict)
     iso: dict = field(default_factory=dict)
     tables: dict = field(default_factory=dict)
     skis: dict = field(default_factory=dict)
@@ -303,6 +307,10 @@ def compute_paper_case(
     for s in SKIS:
         for g in GRINDS:
             case.results[(s, g)] = contact(cat, _inputs(s, g, porosity))
+            try:
+                case.flexible[(s, g)] = contact(cat, _inputs(s, g, porosity, ski_model="flexible"))
+            except SkisnowError as exc:  # no beam, or not converged: said in the report
+                case.flexible[(s, g)] = {"error": str(exc)}
             case.load_checks[(s, g)] = {
                 float(kg): (
                     case.results[(s, g)]["metrics"]
@@ -740,6 +748,49 @@ def render_markdown(case: PaperCase, figures: Sequence[tuple[str, str]], fig_dir
         rows,
     )
     add("")
+    add(
+        "The bending ski (our extension, method.md §4b; `ski_model: flexible`) beside the "
+        f"papers' rigid model, same skis, no recalibration; porosity {fmt(case.porosity)}:"
+    )
+    add("")
+    rows = []
+    for s in SKIS:
+        for g in GRINDS:
+            rig = case.results[(s, g)]
+            flx = case.flexible.get((s, g), {"error": "not computed"})
+            if "error" in flx:
+                rows.append([s, g, fmt(rig["apparent"]["contact_area_cm2"]), "—", "—", "—", "—"])
+                continue
+            pub = PUBLISHED_APPARENT[s]["contact_area_cm2"]
+            a_r, a_f = rig["apparent"]["contact_area_cm2"], flx["apparent"]["contact_area_cm2"]
+            rows.append(
+                [
+                    s,
+                    g,
+                    fmt(a_r),
+                    fmt(a_f),
+                    f"{100 * (a_f / pub - 1):+.1f} %",
+                    f"{100 * zone_pressures(rig)['rear']['load_share']:.1f} % → "
+                    f"{100 * zone_pressures(flx)['rear']['load_share']:.1f} %",
+                    " · ".join(
+                        f"{100 * (flx['metrics'][k] / rig['metrics'][k] - 1):+.1f} %"
+                        for k in rig["metrics"]
+                    ),
+                ]
+            )
+    L += _table(
+        [
+            "ski",
+            "grind",
+            "A_app rigid [cm²]",
+            "A_app flexible [cm²]",
+            "flexible vs published",
+            "rear share rigid → flexible",
+            "four metrics, flexible vs rigid (A_tot · p_real · min h̄ · Σ1/h)",
+        ],
+        rows,
+    )
+    add("")
     add("Contact zones of our skis (rear to front):")
     add("")
     rows = []
@@ -966,6 +1017,14 @@ def _json_ready(case: PaperCase) -> dict:
         "load_checks": [
             {"ski": s, "grind": g, "by_load_kg": {f"{kg:g}": m for kg, m in by.items()}}
             for (s, g), by in case.load_checks.items()
+        ],
+        "flexible": [
+            {
+                "ski": s,
+                "grind": g,
+                **{k: v for k, v in r.items() if k not in ("timing_ms", "distributions")},
+            }
+            for (s, g), r in case.flexible.items()
         ],
         "zone_pressure_sweep": case.sweep,
         "real_area_curves_percent": case.curves,
