@@ -20,7 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from app import uploads
 from app.jobs import JobRunner
-from app.service import UnknownItemError
+from app.service import UnknownItemError, beam_report
 from app.storage.catalogue import CatalogueDB, ItemRow, JobRow, NameTakenError
 from solvers.errors import DataFileError, InputError
 
@@ -343,11 +343,15 @@ def _item_routes(app: FastAPI, kind: str, plural: str) -> None:
         """One item: state, metadata, file and its jobs."""
         state = _state(request)
         row = _item_or_404(state, kind, name)
-        return {
+        cat = request.app.state.catalogue
+        out = {
             **row.public(),
-            "usable": name in getattr(request.app.state.catalogue, plural),
+            "usable": name in getattr(cat, plural),
             "jobs": [_job_view(state.db, j) for j in state.db.jobs(item_id=row.id)],
         }
+        if kind == "ski" and name in cat.skis:
+            out["beam"] = beam_report(cat.skis[name])
+        return out
 
     @app.patch(f"/v1/{plural}/{{name}}", tags=["catalogue"], name=f"rename_{kind}")
     def rename(request: Request, name: str, body: RenameBody, team: Team) -> dict:

@@ -17,7 +17,13 @@ import numpy as np
 from app import units
 from app.presets import DEFAULT_PRESET, Preset, get_preset
 from app.storage.common import code_version, sha256_file
-from app.storage.skis import SKI_MANIFEST, SkiRecord, read_ski, read_ski_manifest
+from app.storage.skis import (
+    SKI_MANIFEST,
+    SkiRecord,
+    identified_beam,
+    read_ski,
+    read_ski_manifest,
+)
 from app.storage.tables import read_manifest, read_table
 from solvers.beam import BeamSki
 from solvers.elastic import effective_modulus
@@ -67,21 +73,41 @@ class Ski:
     record: SkiRecord
     _flexible: dict = field(default_factory=dict, repr=False)
 
-    def beam(self) -> tuple[BeamSki | None, str]:
-        """The ski's beam model and where it comes from, or (None, why there is none)."""
+    def beam(self) -> tuple[BeamSki | None, str, bool]:
+        """The ski's beam model, where it comes from, and whether ``auto`` may use it; or
+        (None, why there is none, False).
+
+        A design beam stored with the ski (the demo skis) is used by ``auto``. A beam identified
+        from camber measurements (uploaded skis, method.md §4c) answers ``flexible`` when asked
+        for, with a warning; ``auto`` does not use it yet, because identification does not yet
+        recover EI(X) reliably (docs/camber-identification.md).
+        """
         if self.record.beam is not None:
-            return self.record.beam, "design beam stored with the ski (demo ski: its own beam)"
-        return None, (
-            f"ski {self.name!r} has no beam model: its camber measurements have not identified "
-            "one (see the ski's job result); use ski_model 'rigid'"
-        )
+            return (
+                self.record.beam,
+                "design beam stored with the ski (demo ski: its own beam)",
+                True,
+            )
+        ident = self.record.identified
+        beam = identified_beam(ident)
+        if beam is not None:
+            a = ident["attrs"]
+            return (
+                beam,
+                f"identified from the camber data (misfit {a['misfit_m'] * 1e6:.2f} µm, device "
+                f"noise {a['noise_m'] * 1e6:.2f} µm); EI(X) from camber data is not yet validated "
+                "(docs/camber-identification.md)",
+                False,
+            )
+        why = (ident or {}).get("attrs", {}).get("reason") or "no identification was run"
+        return None, (f"ski {self.name!r} has no beam model ({why}); use ski_model 'rigid'"), False
 
     def flexible_model(self, pixel_along_m: float, pixels_across: int) -> FlexibleModel:
         """The prepared flexible model on a preset's grid (built once per worker)."""
         key = (float(pixel_along_m), int(pixels_across))
         model = self._flexible.get(key)
         if model is None:
-            beam, why = self.beam()
+            beam, why, _ = self.beam()
             if beam is None:
                 raise ModelUnavailableError(why)
             outline = self.record.outline
@@ -462,13 +488,15 @@ def _choose_ski_model(inp: ContactInputs, ski: Ski, preset: Preset, rigid, ms_ri
     if inp.ski_model == "rigid":
         info.update(used="rigid", reason="requested")
         return rigid, ms_rigid, info
-    beam, why = ski.beam()
-    if beam is None:
+    beam, why, validated = ski.beam()
+    if beam is None or (inp.ski_model == "auto" and not validated):
         if inp.ski_model == "flexible":
             raise ModelUnavailableError(why)
         info.update(used="rigid", reason=why)
         info["warnings"].append({"code": "flexible_unavailable", "detail": why})
         return rigid, ms_rigid, info
+    if not validated:
+        info["warnings"].append({"code": "identified_beam", "detail": why})
     model = ski.flexible_model(preset.pixel_along_m, preset.pixels_across)
     flex = solve_flexible(
         model, rigid.load_n, rigid.load_position_m, e_eff, initial_pressure_pa=rigid.pressure_pa
@@ -510,3 +538,37 @@ def _choose_ski_model(inp: ContactInputs, ski: Ski, preset: Preset, rigid, ms_ri
         f"(more than {AUTO_RIGID_TOLERANCE:.0%})",
     )
     return flex, ms_flex, info
+
+
+def beam_report(ski: Ski, points: int = 41) -> dict:
+    """The ski's beam for ``GET /v1/skis/{name}``: where it comes from, EI(X) and c(X) sampled
+    along the ski (with the identification's 90 % band on EI and 1-σ band on c), and the misfit
+    per measured case. Technician units: mm, N·m², µm."""
+    beam, source, validated = ski.beam()
+    out: dict = {"available": beam is not None, "source": source, "used_by_auto": validated}
+    ident = ski.record.identified
+    if ident:
+        a = ident.get("attrs", {})
+        out["identification"] = {
+            "ok": bool(a.get("ok", False)),
+            "reason": a.get("reason", ""),
+            "noise_um": a["noise_m"] * 1e6 if "noise_m" in a else None,
+            "misfit_um": a["misfit_m"] * 1e6 if "misfit_m" in a else None,
+            "case_misfit_um": _finite_list(np.asarray(ident["case_misfit_m"]), 1e6, 4)
+            if "case_misfit_m" in ident
+            else [],
+        }
+    if beam is None:
+        return out
+    idx = np.linspace(0, beam.positions_m.size - 1, points).round().astype(int)
+    out["position_mm"] = _finite_list(beam.positions_m[idx], 1e3)
+    out["bending_stiffness_nm2"] = _finite_list(beam.bending_stiffness_nm2[idx])
+    out["camber_um"] = _finite_list(beam.unloaded_gap_m[idx], 1e6)
+    if ident and "stiffness_band_nm2" in ident and beam is not ski.record.beam:
+        band = np.asarray(ident["stiffness_band_nm2"])
+        out["bending_stiffness_band_90_nm2"] = [
+            _finite_list(band[0][idx]),
+            _finite_list(band[1][idx]),
+        ]
+        out["camber_sd_um"] = _finite_list(np.asarray(ident["camber_band_m"])[idx], 1e6)
+    return out

@@ -629,6 +629,8 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
         }
         | {"description": f"uploaded ski {item.name}", "item_id": item.id},
     )
+    ctx.progress(0.96, "identifying the ski's beam from its camber cases")
+    record.identified, beam_note = _identify(data, item)
     work = layout.work(item.id)
     work.mkdir(parents=True, exist_ok=True)
     staged = work / "ski.h5"
@@ -644,7 +646,32 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
         item.id, state="ready", file_path=str(final), sha256=sha256_file(final), metadata=meta
     )
     on_ready(db_item)
-    return f"network trained; {figures}"
+    return f"network trained; {figures}; {beam_note}"
+
+
+def _identify(data, item) -> tuple[dict, str]:
+    """Identify the beam of an uploaded ski (method.md §4c): the stored ``identified`` group and
+    one sentence for the job result. A failure is recorded, never raised: the ski still works
+    with the rigid model and its network."""
+    from app.storage.skis import identified_to_dict, mean_profiles
+    from solvers.identify import identify_beam
+
+    try:
+        f, xf, y, note = mean_profiles(data)
+        ident = identify_beam(data.positions_m, f, xf, y)
+    except SkisnowError as exc:
+        reason = f"beam not identified: {exc}"
+        return {"attrs": {"ok": False, "reason": reason}}, reason + " (rigid model only)"
+    params = {"item": item.id, "profiles": note}
+    if not ident.ok:
+        return (
+            identified_to_dict(ident, params),
+            f"beam not identified: {ident.reason} (rigid model only)",
+        )
+    return identified_to_dict(ident, params), (
+        f"beam identified: misfit {ident.misfit_m * 1e6:.2f} µm against device noise "
+        f"{ident.noise_m * 1e6:.2f} µm over {f.size} cases ({note})"
+    )
 
 
 def on_job_failure(ctx: JobContext, layout: Layout) -> None:

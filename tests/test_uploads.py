@@ -255,6 +255,25 @@ def test_ski_upload_train_and_contact(catalogue, tmp_path, camber_csv):
         assert sorted(stored_files(tmp_path)) == sorted(
             [f"skis/{shown['id']}.h5", f"uploads/{shown['id']}.csv"]
         )
+        # the job identified (or failed to identify) the ski's beam, and says which
+        beam = shown["beam"]
+        ident = beam["identification"]
+        assert len(ident["case_misfit_um"]) == 25
+        assert ident["noise_um"] == pytest.approx(3.0, rel=0.15)
+        body = {"ski": "my-ski", "grind": "tiny-grind", **CONTACT}
+        flex = client.post("/v1/contact", json={**body, "ski_model": "flexible"})
+        auto = client.post("/v1/contact", json={**body, "ski_model": "auto"}).json()
+        # auto never uses a beam identified from camber data (not yet validated)
+        assert auto["provenance"]["ski_model"]["used"] == "rigid"
+        assert "flexible_unavailable" in [w["code"] for w in auto["warnings"]]
+        if ident["ok"]:
+            assert "beam identified" in job["message"]
+            assert beam["available"] and len(beam["bending_stiffness_nm2"]) == 41
+            assert flex.status_code == 200, flex.text[:300]
+            assert "identified_beam" in [w["code"] for w in flex.json()["warnings"]]
+        else:
+            assert "beam not identified" in job["message"]
+            assert flex.status_code == 422 and "no beam model" in flex.json()["detail"]
 
 
 def test_ski_refused_by_accuracy_check(catalogue, tmp_path, camber_csv):

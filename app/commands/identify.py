@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from app.storage.common import atomic_path, provenance
-from app.storage.skis import CamberData, read_camber_csv, read_ski
+from app.storage.skis import CamberData, mean_profiles, read_camber_csv, read_ski
 from solvers.errors import InputError
 from solvers.identify import identify_beam, predict_gaps
 
@@ -48,26 +48,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _mean_sides(data: CamberData) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
-    """One profile per (load, position): left and right averaged. Returns F, x_F, profiles,
-    and a note on what was done."""
-    keys = list(zip(np.round(data.loads_n, 9), np.round(data.load_positions_m, 9), strict=True))
-    if all(s == "mean" for s in data.sides) and len(set(keys)) == len(keys):
-        return data.loads_n, data.load_positions_m, data.profiles_m, "one profile per case"
-    groups: dict = {}
-    for k, key in enumerate(keys):
-        groups.setdefault(key, []).append(k)
-    f = np.array([data.loads_n[v[0]] for v in groups.values()])
-    x = np.array([data.load_positions_m[v[0]] for v in groups.values()])
-    y = np.stack([data.profiles_m[v].mean(axis=0) for v in groups.values()])
-    return f, x, y, "left and right profiles of each case averaged"
-
-
 def identify_report(data: CamberData, design_beam, holdout: float, seed: int) -> dict:
     """Identify on the kept cases and measure on the held-out ones; a JSON-ready report."""
     if not (0.0 <= holdout < 0.9):
         raise InputError(f"--holdout must be in [0, 0.9), got {holdout}")
-    f, xf, y, sides_note = _mean_sides(data)
+    f, xf, y, sides_note = mean_profiles(data)
     rng = np.random.default_rng(seed)
     held = np.zeros(f.size, dtype=bool)
     n_held = round(holdout * f.size)

@@ -119,6 +119,7 @@ class SkiRecord:
     beam: BeamSki | None = None
     beam_design: dict | None = None
     network: dict | None = None
+    identified: dict | None = None
 
     @property
     def ski_id(self) -> str:
@@ -341,6 +342,8 @@ def write_ski(
                 b.create_dataset(name, data=arr).attrs["units"] = unit
         if net is not None:
             _write_dict(f.create_group("network"), net)
+        if ski.identified is not None:
+            _write_dict(f.create_group("identified"), ski.identified)
 
 
 def read_ski(path: str | os.PathLike) -> SkiRecord:
@@ -386,9 +389,10 @@ def read_ski(path: str | os.PathLike) -> SkiRecord:
                 if "design_json" in b.attrs:
                     design = json.loads(_attr(b.attrs["design_json"]))
             network = _read_dict(f["network"]) if "network" in f else None
+            identified = _read_dict(f["identified"]) if "identified" in f else None
     except (OSError, KeyError, ValueError, TypeError) as exc:  # ValueError: undecodable text
         raise DataFileError(f"{path}: unreadable or incomplete ski file ({exc})") from exc
-    return SkiRecord(meas, outline, metadata, beam, design, network)
+    return SkiRecord(meas, outline, metadata, beam, design, network, identified)
 
 
 SKI_MANIFEST = "manifest.json"
@@ -411,3 +415,59 @@ def write_ski_manifest(ski_dir: str | os.PathLike) -> Path:
     with atomic_path(out) as tmp:
         tmp.write_text(json.dumps({"schema": SKI_MANIFEST_SCHEMA, "files": files}, indent=2) + "\n")
     return out
+
+
+def identified_to_dict(ident, parameters: dict | None = None) -> dict:
+    """An :class:`solvers.identify.IdentifiedBeam` as the ``identified`` group of a ski file:
+    the beam, its bands and diagnostics (SI, units in the names) and provenance attributes."""
+    b = ident.beam
+    attrs = {
+        "description": "beam identified from the camber measurements (solvers.identify)",
+        "ok": bool(ident.ok),
+        "reason": ident.reason,
+        "noise_m": float(ident.noise_m),
+        "misfit_m": float(ident.misfit_m),
+        "iterations": int(ident.iterations),
+        "contact_passes": int(ident.contact_passes),
+        "solve_time_s": float(ident.solve_time_s),
+        **provenance(parameters),
+    }
+    return {
+        "attrs": attrs,
+        "positions_m": b.positions_m,
+        "bending_stiffness_nm2": b.bending_stiffness_nm2,
+        "unloaded_gap_m": b.unloaded_gap_m,
+        "stiffness_band_nm2": ident.stiffness_band_nm2,
+        "camber_band_m": ident.camber_band_m,
+        "case_misfit_m": ident.case_misfit_m,
+        "knots_m": ident.knots_m,
+        "log_compliance": ident.log_compliance,
+        "log_compliance_covariance": ident.log_compliance_covariance,
+    }
+
+
+def identified_beam(identified: dict | None) -> BeamSki | None:
+    """The beam of a stored identification, or None when there is none or it failed."""
+    if not identified or not identified.get("attrs", {}).get("ok", False):
+        return None
+    return BeamSki(
+        np.asarray(identified["positions_m"], dtype=float),
+        np.asarray(identified["bending_stiffness_nm2"], dtype=float),
+        np.asarray(identified["unloaded_gap_m"], dtype=float),
+    )
+
+
+def mean_profiles(data: CamberData) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
+    """One profile per (load, position) for beam identification: left and right profiles of a
+    case averaged (the measurements themselves are not changed). Returns F [N], x_F [m],
+    profiles [m] and a note saying what was done."""
+    keys = list(zip(np.round(data.loads_n, 9), np.round(data.load_positions_m, 9), strict=True))
+    if all(s == "mean" for s in data.sides) and len(set(keys)) == len(keys):
+        return data.loads_n, data.load_positions_m, data.profiles_m, "one profile per case"
+    groups: dict = {}
+    for k, key in enumerate(keys):
+        groups.setdefault(key, []).append(k)
+    f = np.array([data.loads_n[v[0]] for v in groups.values()])
+    x = np.array([data.load_positions_m[v[0]] for v in groups.values()])
+    y = np.stack([data.profiles_m[v].mean(axis=0) for v in groups.values()])
+    return f, x, y, "left and right profiles of each case averaged"
