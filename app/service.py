@@ -121,31 +121,31 @@ class Ski:
             self._flexible[key] = model
         return model
 
-    @property
-    def load_range_n(self) -> tuple[float, float]:
-        """Loads the ski's camber model covers [N]: the network's trained range, else the range
-        of the measured load cases."""
+    def _covered(self, lo_key: str, hi_key: str, measured: np.ndarray) -> tuple[float, float]:
+        """The network's trained range (attributes ``lo_key``, ``hi_key``), else the range of
+        the measured load cases."""
         net = self.record.network
         if net is not None and "attrs" in net:
             a = net["attrs"]
-            lo, hi = a.get("load_min_n"), a.get("load_max_n")
+            lo, hi = a.get(lo_key), a.get(hi_key)
             if lo is not None and hi is not None:
                 return float(lo), float(hi)
-        f = np.asarray(self.record.measurements.loads_n, dtype=float)
-        return float(f.min()), float(f.max())
+        v = np.asarray(measured, dtype=float)
+        return float(v.min()), float(v.max())
+
+    @property
+    def load_range_n(self) -> tuple[float, float]:
+        """Loads the ski's camber model covers [N]."""
+        return self._covered("load_min_n", "load_max_n", self.record.measurements.loads_n)
 
     @property
     def position_range_m(self) -> tuple[float, float]:
-        """Load positions the ski's model covers [m]: the network's trained range, else the
-        range of the measured load cases."""
-        net = self.record.network
-        if net is not None and "attrs" in net:
-            a = net["attrs"]
-            lo, hi = a.get("load_position_min_m"), a.get("load_position_max_m")
-            if lo is not None and hi is not None:
-                return float(lo), float(hi)
-        x = np.asarray(self.record.measurements.load_positions_m, dtype=float)
-        return float(x.min()), float(x.max())
+        """Load positions the ski's camber model covers [m]."""
+        return self._covered(
+            "load_position_min_m",
+            "load_position_max_m",
+            self.record.measurements.load_positions_m,
+        )
 
 
 @dataclass
@@ -497,10 +497,22 @@ def _choose_ski_model(inp: ContactInputs, ski: Ski, preset: Preset, rigid, ms_ri
         return rigid, ms_rigid, info
     if not validated:
         info["warnings"].append({"code": "identified_beam", "detail": why})
-    model = ski.flexible_model(preset.pixel_along_m, preset.pixels_across)
-    flex = solve_flexible(
-        model, rigid.load_n, rigid.load_position_m, e_eff, initial_pressure_pa=rigid.pressure_pa
-    )
+    try:
+        model = ski.flexible_model(preset.pixel_along_m, preset.pixels_across)
+        flex = solve_flexible(
+            model,
+            rigid.load_n,
+            rigid.load_position_m,
+            e_eff,
+            initial_pressure_pa=rigid.pressure_pa,
+        )
+    except SkisnowError as exc:
+        if inp.ski_model == "flexible":
+            raise
+        reason = f"the flexible model cannot answer this case ({exc})"
+        info.update(used="rigid", reason=reason)
+        info["warnings"].append({"code": "flexible_unavailable", "detail": reason})
+        return rigid, ms_rigid, info
     info["beam_source"] = why
     info["flexible"] = {
         "converged": flex.converged,
