@@ -654,15 +654,15 @@ def _identify(data, item) -> tuple[dict, str]:
     one sentence for the job result. A failure is recorded, never raised: the ski still works
     with the rigid model and its network."""
     from app.storage.skis import identified_to_dict, mean_profiles
-    from solvers.identify import identify_beam
+    from solvers.identify import identify_beam_checked
 
     try:
         f, xf, y, note = mean_profiles(data)
-        ident = identify_beam(data.positions_m, f, xf, y)
+        ident, check = identify_beam_checked(data.positions_m, f, xf, y)
     except SkisnowError as exc:
         reason = f"beam not identified: {exc}"
         return {"attrs": {"ok": False, "reason": reason}}, reason + " (rigid model only)"
-    params = {"item": item.id, "profiles": note}
+    params = {"item": item.id, "profiles": note, **check}
     if not ident.ok:
         return (
             identified_to_dict(ident, params),
@@ -670,7 +670,9 @@ def _identify(data, item) -> tuple[dict, str]:
         )
     return identified_to_dict(ident, params), (
         f"beam identified: misfit {ident.misfit_m * 1e6:.2f} µm against device noise "
-        f"{ident.noise_m * 1e6:.2f} µm over {f.size} cases ({note})"
+        f"{ident.noise_m * 1e6:.2f} µm over {f.size - check['held_out_cases']} cases, "
+        f"{(check['held_out_rms_m'] or 0.0) * 1e6:.2f} µm on {check['held_out_cases']} held-out "
+        f"cases ({note})"
     )
 
 

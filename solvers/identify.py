@@ -837,3 +837,48 @@ def predict_gaps(beam: BeamSki, loads_n: np.ndarray, load_positions_m: np.ndarra
     for k, (f, xf) in enumerate(zip(loads, pos, strict=True)):
         out[k] = solve_beam_contact(beam, f, xf, flexibility=flex).gap_m
     return out
+
+
+#: held-out RMS over the noise above which an identified beam is rejected [-]
+HELD_OUT_LIMIT = 2.0
+
+
+def identify_beam_checked(
+    positions_m: np.ndarray,
+    loads_n: np.ndarray,
+    load_positions_m: np.ndarray,
+    profiles_m: np.ndarray,
+    *,
+    holdout: float = 0.2,
+    seed: int = 0,
+    **kwargs,
+) -> tuple[IdentifiedBeam, dict]:
+    """:func:`identify_beam` on the cases left after a seeded held-out draw, then a check on
+    the held-out cases: a misfit at the noise alone does not prove a good beam (the fit has
+    freedom to spare), so the beam must also predict cases it has not seen, within
+    ``HELD_OUT_LIMIT`` × the noise. Returns the identification (``ok=False`` with the reason
+    when the check fails) and the check's figures (held-out RMS [m], case count, seed).
+    """
+    loads = np.asarray(loads_n, dtype=float).ravel()
+    xfs = np.asarray(load_positions_m, dtype=float).ravel()
+    y = np.asarray(profiles_m, dtype=float)
+    if not (0.0 <= holdout < 0.9):
+        raise InputError(f"holdout must be in [0, 0.9), got {holdout!r}")
+    held = np.zeros(loads.size, dtype=bool)
+    count = round(holdout * loads.size)
+    if count:
+        held[np.random.default_rng(seed).choice(loads.size, count, replace=False)] = True
+    ident = identify_beam(positions_m, loads[~held], xfs[~held], y[~held], **kwargs)
+    check = {"held_out_cases": int(held.sum()), "seed": int(seed), "held_out_rms_m": None}
+    if held.any() and ident.ok:
+        pred = predict_gaps(ident.beam, loads[held], xfs[held])
+        rms = float(np.sqrt(np.mean((pred - y[held]) ** 2)))
+        check["held_out_rms_m"] = rms
+        if rms > HELD_OUT_LIMIT * ident.noise_m:
+            ident.ok = False
+            ident.reason = (
+                f"held-out cases miss by {rms * 1e6:.2f} µm RMS, more than {HELD_OUT_LIMIT:g}× "
+                f"the device noise {ident.noise_m * 1e6:.2f} µm: the beam fits the measured "
+                "cases but does not predict others"
+            )
+    return ident, check

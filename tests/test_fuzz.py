@@ -210,7 +210,11 @@ def test_fuzz_solver_operations_positive(schema, session, fuzz_catalogue):
         schema, session, fuzz_catalogue, GenerationMode.POSITIVE, SOLVER_REQUESTS, SOLVER_OPERATIONS
     )
     _assert_coverage(counts, SOLVER_REQUESTS, GenerationMode.POSITIVE)
-    assert counts.get("POST /v1/contact 200", 0) >= SOLVER_REQUESTS // 10, counts
+    # at least a tenth of the requests were solved; contact and compare both run the solvers,
+    # and how the derandomized draw splits between them moves with the schema's shape (adding
+    # ski_model moved it from contact to compare)
+    solved = counts.get("POST /v1/contact 200", 0) + counts.get("POST /v1/compare 200", 0)
+    assert solved >= SOLVER_REQUESTS // 10, counts
 
 
 def test_fuzz_every_operation_negative(schema, session, fuzz_catalogue):

@@ -209,3 +209,20 @@ def test_block_solve_matches_dense_least_squares(smoothing_m):
     jac[-2:, :n] = prob.line.T * s  # c's rigid motion pinned with a one-σ prior
     ref = np.linalg.lstsq(jac, rhs, rcond=None)[0][:n]
     assert np.abs(c - ref).max() < 1e-9 * np.abs(ref).max()
+
+
+def test_held_out_check_rejects_a_beam_that_does_not_predict():
+    """identify_beam_checked: the kept cases identify a clean beam; held-out cases that no beam
+    of the kept ones explains (a 30 µm bump) fail the check, and the result says so."""
+    ski, f, xf, y = _data(DESIGNS["stiff"], 4e-3, 0.0, None)
+    count = round(0.2 * f.size)
+    held = np.zeros(f.size, dtype=bool)
+    held[np.random.default_rng(3).choice(f.size, count, replace=False)] = True
+    bump = 30e-6 * np.exp(-(((ski.positions_m - 0.2) / 0.1) ** 2))
+    clean, check = identify.identify_beam_checked(ski.positions_m, f, xf, y, seed=3, noise_m=3e-6)
+    assert clean.ok, clean.reason
+    assert check["held_out_cases"] == count and check["held_out_rms_m"] < 2e-6
+    y_bad = np.where(held[:, None], y + bump, y)
+    bad, check = identify.identify_beam_checked(ski.positions_m, f, xf, y_bad, seed=3, noise_m=3e-6)
+    assert not bad.ok and "held-out" in bad.reason
+    assert check["held_out_rms_m"] > 6e-6

@@ -23,7 +23,7 @@ import numpy as np
 from app.storage.common import atomic_path, provenance
 from app.storage.skis import CamberData, mean_profiles, read_camber_csv, read_ski
 from solvers.errors import InputError
-from solvers.identify import identify_beam, predict_gaps
+from solvers.identify import identify_beam_checked, predict_gaps
 
 SKI_DIR = Path(__file__).resolve().parents[2] / "tables" / "skis"
 #: where held-out profiles are compared with a design beam: near contact [m]
@@ -59,7 +59,7 @@ def identify_report(data: CamberData, design_beam, holdout: float, seed: int) ->
     if n_held:
         held[rng.choice(f.size, n_held, replace=False)] = True
     t0 = time.perf_counter()
-    ident = identify_beam(data.positions_m, f[~held], xf[~held], y[~held])
+    ident, _ = identify_beam_checked(data.positions_m, f, xf, y, holdout=holdout, seed=seed)
     elapsed = time.perf_counter() - t0
     x = data.positions_m
     report: dict = {
