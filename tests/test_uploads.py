@@ -258,7 +258,7 @@ def test_ski_upload_train_and_contact(catalogue, tmp_path, camber_csv):
         # the job identified (or failed to identify) the ski's beam, and says which
         beam = shown["beam"]
         ident = beam["identification"]
-        assert len(ident["case_misfit_um"]) == 25
+        assert len(ident["case_misfit_um"]) == 20  # 5 of the 25 cases held out
         assert ident["noise_um"] == pytest.approx(3.0, rel=0.15)
         body = {"ski": "my-ski", "grind": "tiny-grind", **CONTACT}
         flex = client.post("/v1/contact", json={**body, "ski_model": "flexible"})
