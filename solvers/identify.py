@@ -857,7 +857,7 @@ def identify_beam_checked(
     the held-out cases: a misfit at the noise alone does not prove a good beam (the fit has
     freedom to spare), so the beam must also predict cases it has not seen, within
     ``HELD_OUT_LIMIT`` × the noise. Returns the identification (``ok=False`` with the reason
-    when the check fails) and the check's figures (held-out RMS [m], case count, seed).
+    when the check fails) and the check's figures (held-out RMS [m], count, indices, seed).
     """
     loads = np.asarray(loads_n, dtype=float).ravel()
     xfs = np.asarray(load_positions_m, dtype=float).ravel()
@@ -869,7 +869,12 @@ def identify_beam_checked(
     if count:
         held[np.random.default_rng(seed).choice(loads.size, count, replace=False)] = True
     ident = identify_beam(positions_m, loads[~held], xfs[~held], y[~held], **kwargs)
-    check = {"held_out_cases": int(held.sum()), "seed": int(seed), "held_out_rms_m": None}
+    check = {
+        "held_out_cases": int(held.sum()),
+        "held_out_index": np.flatnonzero(held).tolist(),
+        "seed": int(seed),
+        "held_out_rms_m": None,
+    }
     if held.any() and ident.ok:
         pred = predict_gaps(ident.beam, loads[held], xfs[held])
         rms = float(np.sqrt(np.mean((pred - y[held]) ** 2)))

@@ -53,14 +53,11 @@ def identify_report(data: CamberData, design_beam, holdout: float, seed: int) ->
     if not (0.0 <= holdout < 0.9):
         raise InputError(f"--holdout must be in [0, 0.9), got {holdout}")
     f, xf, y, sides_note = mean_profiles(data)
-    rng = np.random.default_rng(seed)
-    held = np.zeros(f.size, dtype=bool)
-    n_held = round(holdout * f.size)
-    if n_held:
-        held[rng.choice(f.size, n_held, replace=False)] = True
     t0 = time.perf_counter()
-    ident, _ = identify_beam_checked(data.positions_m, f, xf, y, holdout=holdout, seed=seed)
+    ident, check = identify_beam_checked(data.positions_m, f, xf, y, holdout=holdout, seed=seed)
     elapsed = time.perf_counter() - t0
+    held = np.zeros(f.size, dtype=bool)
+    held[check["held_out_index"]] = True
     x = data.positions_m
     report: dict = {
         "ski_id": data.ski_id,
