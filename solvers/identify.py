@@ -302,12 +302,12 @@ class _Posterior:
     gram_f: tuple
     reduced: np.ndarray | None
     sensitivity: np.ndarray
-    dummy: object = None  # banded Woodbury parts when the camber is smoothed
+    banded: tuple | None = None  # banded Woodbury parts when the camber is smoothed
 
     def camber_sd(self) -> np.ndarray:
         """√diag(S_cc⁻¹) [m] (per unit σ̂): the white part of c's uncertainty."""
-        if self.dummy is not None:
-            chol_b, bu, mid_f, u_mat = self.dummy
+        if self.banded is not None:
+            chol_b, bu, mid_f, u_mat = self.banded
             n = u_mat.shape[0]
             binv = scipy.linalg.cho_solve_banded((chol_b, False), np.eye(n), check_finite=False)
             corr = np.einsum("ij,ji->i", bu, scipy.linalg.lu_solve(mid_f, bu.T, check_finite=False))
@@ -384,6 +384,13 @@ class _Problem:
                 raise InputError(f"case {k}: contacts {pts} cannot balance the load")
             self.cases.append(st)
 
+    def local_columns(self, st: _Case, q: np.ndarray | float) -> np.ndarray:
+        """(N, 2 + n_z) Jacobian of a case's gaps in its own unknowns: rigid motion [1, X̂]
+        and the redundant reactions (deflection of each redundant moment over EI)."""
+        cols = [np.ones(self.x.size), self.xn]
+        cols += [_double_integral(mz * q, self.dx) for mz in st.mz]
+        return np.stack(cols, axis=1)
+
     def model(self, k: int, c, q, loc) -> np.ndarray:
         st = self.cases[k]
         mom = st.m0 + (loc[2:] @ st.mz if st.mz.shape[0] else 0.0)
@@ -403,12 +410,11 @@ class _Problem:
 
     def linear_start(self) -> _Fit:
         """Uniform 1/EI = q0: the model is linear in (c, q0, a, b, q0 z)."""
-        n = self.x.size
-        blocks = []
-        for _k, st in enumerate(self.cases):
-            a_loc = [np.ones(n), self.xn] + [_double_integral(mz, self.dx) for mz in st.mz]
-            blocks.append((np.stack(a_loc, axis=1), _double_integral(st.m0, self.dx)[:, None]))
-        sol_c, sol_g, locs, _factor = self._solve(
+        blocks = [
+            (self.local_columns(st, 1.0), _double_integral(st.m0, self.dx)[:, None])
+            for st in self.cases
+        ]
+        sol_c, sol_g, locs, _ = self._solve(
             blocks,
             [self.y[k] for k in range(len(self.cases))],
             np.zeros((0, 1)),
@@ -442,7 +448,7 @@ class _Problem:
         kk = len(blocks)
         mg = blocks[0][1].shape[1]
         line = self.line
-        wcols, q_list = [], []
+        wcols = []
         s_cg = np.zeros((n, mg))
         s_gg = np.zeros((mg, mg))
         rhs_c = np.zeros(n)
@@ -455,7 +461,6 @@ class _Problem:
                 wcols.append(q)
             else:
                 q = np.zeros((n, 0))
-            q_list.append(q)
             # Q_k v = v − L Lᵀ v − q qᵀ v
             qb = b_glob - line @ (line.T @ b_glob) - q @ (q.T @ b_glob)
             qt = t - line @ (line.T @ t) - q @ (q.T @ t)
@@ -536,8 +541,7 @@ class _Problem:
         n = self.x.size
         blocks, targets = [], []
         for k, st in enumerate(self.cases):
-            cols = [np.ones(n), self.xn] + [_double_integral(mz * q, self.dx) for mz in st.mz]
-            blocks.append((np.stack(cols, axis=1), np.zeros((n, 0))))
+            blocks.append((self.local_columns(st, q), np.zeros((n, 0))))
             targets.append(self.y[k] - _double_integral(st.m0 * q, self.dx))
         c, _, locs, _ = self._solve(blocks, targets, np.zeros((0, 0)), np.zeros(0), 0.0)
         fit = _Fit(c, np.asarray(gamma, dtype=float).copy(), locs, 0.0)
@@ -560,10 +564,8 @@ class _Problem:
             for k, st in enumerate(self.cases):
                 loc = cur.local[k]
                 mom = st.m0 + (loc[2:] @ st.mz if st.mz.shape[0] else 0.0)
-                cols = [np.ones(self.x.size), self.xn]
-                cols += [_double_integral(mz * q, self.dx) for mz in st.mz]
                 b_glob = _double_integral(mom[None, :] * self.phi.T, self.dx).T * beta
-                blocks.append((np.stack(cols, axis=1), b_glob))
+                blocks.append((self.local_columns(st, q), b_glob))
                 targets.append(self.y[k] - self.model(k, cur.c, q, loc))
             reg_target = -(self.reg @ cur.gamma)
             while True:
