@@ -461,19 +461,46 @@ def contact(
     }
 
 
-def _compared(macro, ms) -> dict[str, float]:
-    """The quantities ``auto`` compares between the rigid and the flexible solve."""
-    out = {
-        "apparent_area": ms.apparent_contact_area_m2,
-        "total_real_contact_area": ms.total_real_contact_area_m2,
-        "average_real_contact_pressure": ms.average_real_contact_pressure_pa,
-        "min_average_separation": ms.min_average_separation_m,
-        "total_reciprocal_separation": ms.total_reciprocal_separation_m,
-    }
-    p = np.nan_to_num(macro.pressure_pa)
-    rear = macro.positions_m < macro.load_position_m
-    out["rear_load_share"] = float(p[rear].sum() / max(p.sum(), 1e-300))
-    return out
+def rigid_minus_flexible(rigid, flex, ms_rigid=None, ms_flex=None) -> dict[str, float]:
+    """What ``auto`` compares: relative differences (rigid − flexible) / flexible of the
+    apparent area and, when the multiscale results are given, the four metrics; the rear load
+    share (behind the load point) as an absolute difference [-]."""
+
+    def values(macro, ms) -> dict[str, float]:
+        out = {"apparent_area": macro.apparent_contact_area_m2}
+        if ms is not None:
+            out |= {
+                "total_real_contact_area": ms.total_real_contact_area_m2,
+                "average_real_contact_pressure": ms.average_real_contact_pressure_pa,
+                "min_average_separation": ms.min_average_separation_m,
+                "total_reciprocal_separation": ms.total_reciprocal_separation_m,
+            }
+        return out
+
+    def rear_share(macro) -> float:
+        p = np.nan_to_num(macro.pressure_pa)
+        rear = macro.positions_m < macro.load_position_m
+        return float(p[rear].sum() / max(p.sum(), 1e-300))
+
+    a, b = values(rigid, ms_rigid), values(flex, ms_flex)
+    diff = {k: (a[k] - b[k]) / b[k] if b[k] else 0.0 for k in a}
+    diff["rear_load_share"] = rear_share(rigid) - rear_share(flex)
+    return diff
+
+
+def auto_uses_flexible(diff: dict[str, float]) -> tuple[bool, str]:
+    """``auto``'s rule on :func:`rigid_minus_flexible`: flexible when any compared quantity
+    differs by more than :data:`AUTO_RIGID_TOLERANCE`; returns the choice and the reason."""
+    worst = max(diff, key=lambda k: abs(diff[k]))
+    if abs(diff[worst]) <= AUTO_RIGID_TOLERANCE:
+        return False, (
+            f"the rigid shape is within {AUTO_RIGID_TOLERANCE:.0%} of the flexible ski in every "
+            f"compared quantity (largest: {worst} {diff[worst]:+.1%})"
+        )
+    return True, (
+        f"the rigid shape differs from the bending ski by {diff[worst]:+.1%} in {worst} "
+        f"(more than {AUTO_RIGID_TOLERANCE:.0%})"
+    )
 
 
 def _choose_ski_model(inp: ContactInputs, ski: Ski, preset: Preset, rigid, ms_rigid, grind, e_eff):
@@ -529,27 +556,14 @@ def _choose_ski_model(inp: ContactInputs, ski: Ski, preset: Preset, rigid, ms_ri
         info["warnings"].append({"code": "flexible_not_converged", "detail": info["reason"]})
         return rigid, ms_rigid, info
     ms_flex = multiscale(flex, grind.table, inp.porosity, e_eff)
-    a, b = _compared(rigid, ms_rigid), _compared(flex, ms_flex)
-    diff = {k: (a[k] - b[k]) / b[k] if b[k] else 0.0 for k in a}
-    diff["rear_load_share"] = a["rear_load_share"] - b["rear_load_share"]
+    diff = rigid_minus_flexible(rigid, flex, ms_rigid, ms_flex)
     info["rigid_minus_flexible"] = diff
     if inp.ski_model == "flexible":
         info.update(used="flexible", reason="requested")
         return flex, ms_flex, info
-    worst = max(diff, key=lambda k: abs(diff[k]))
-    if abs(diff[worst]) <= AUTO_RIGID_TOLERANCE:
-        info.update(
-            used="rigid",
-            reason=f"the rigid shape is within {AUTO_RIGID_TOLERANCE:.0%} of the flexible ski "
-            f"in every compared quantity (largest: {worst} {diff[worst]:+.1%})",
-        )
-        return rigid, ms_rigid, info
-    info.update(
-        used="flexible",
-        reason=f"the rigid shape differs from the bending ski by {diff[worst]:+.1%} in {worst} "
-        f"(more than {AUTO_RIGID_TOLERANCE:.0%})",
-    )
-    return flex, ms_flex, info
+    use_flexible, reason = auto_uses_flexible(diff)
+    info.update(used="flexible" if use_flexible else "rigid", reason=reason)
+    return (flex, ms_flex, info) if use_flexible else (rigid, ms_rigid, info)
 
 
 def beam_report(ski: Ski, points: int = 41) -> dict:

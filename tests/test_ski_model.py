@@ -103,3 +103,31 @@ def test_compare_takes_ski_model(client):
     )
     assert r.status_code == 200, r.text[:300]
     assert "rigid" in r.text
+
+
+def test_macro_command_ski_model(capsys, tmp_path):
+    """``skisnow macro``: the service's rule and beam sources; a bare profile has no beam."""
+    import json
+
+    from app.cli import main
+
+    base = ["macro", "--ski", "ski-b", "--load-kg", "40", "--load-position-mm", "-160"]
+    base += ["--snow-modulus-mpa", "200", "--json"]
+    assert main([*base, "--ski-model", "auto"]) == 0
+    auto = json.loads(capsys.readouterr().out)
+    assert auto["ski_model"].startswith("flexible (") and "apparent_area" in auto["ski_model"]
+    assert main([*base, "--ski-model", "rigid"]) == 0
+    rigid = json.loads(capsys.readouterr().out)
+    assert rigid["ski_model"] == "rigid"
+    assert auto["apparent_contact_area_cm2"] < 0.8 * rigid["apparent_contact_area_cm2"]
+    import numpy as np
+
+    gap = tmp_path / "gap.npy"
+    x = np.linspace(-1, 1, 101)
+    np.save(gap, np.tile((x**2)[:, None], (1, 4)))  # gaps [mm]
+    bare = ["macro", "--gap-map", str(gap), "--pixel-size-mm", "4", "--load-kg", "40"]
+    bare += ["--load-position-mm", "0", "--snow-modulus-mpa", "200"]
+    assert main([*bare, "--ski-model", "rigid"]) == 0
+    capsys.readouterr()
+    assert main([*bare, "--ski-model", "flexible"]) == 2
+    assert "needs --ski" in capsys.readouterr().err

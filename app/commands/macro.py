@@ -119,19 +119,19 @@ def loaded_profile(ski, load_n: float, load_position_m: float) -> tuple[np.ndarr
 
 
 def _flexible_choice(args: argparse.Namespace, si: dict, rigid):
-    """The flexible solve of a stored ski with a beam, and which model answers."""
+    """The flexible solve of a stored ski with a beam, and which model answers (the service's
+    rule and beam sources; without a grind, auto compares apparent area and rear load share)."""
+    from app import service
     from solvers.flexible import prepare_flexible, solve_flexible
 
-    path = Path(args.ski)
-    if not path.suffix:
-        path = SKI_DIR / f"{args.ski}.h5"
-    ski = read_ski(path)
-    if ski.beam is None:
+    record = read_ski(_ski_path(args.ski))
+    beam, why, validated = service.Ski(record.ski_id, _ski_path(args.ski), "", record).beam()
+    if beam is None or (args.ski_model == "auto" and not validated):
         if args.ski_model == "flexible":
-            raise InputError(f"ski {ski.ski_id!r} has no beam model: use --ski-model rigid")
-        return rigid, "rigid (no beam model)"
+            raise InputError(why)
+        return rigid, f"rigid ({why})"
     model = prepare_flexible(
-        ski.beam, ski.outline.width_m, width_positions_m=ski.outline.positions_m
+        beam, record.outline.width_m, width_positions_m=record.outline.positions_m
     )
     flex = solve_flexible(
         model,
@@ -142,24 +142,20 @@ def _flexible_choice(args: argparse.Namespace, si: dict, rigid):
     )
     if args.ski_model == "flexible":
         return flex, "flexible"
+    if not flex.converged:
+        return rigid, f"rigid (the flexible solve did not converge: {flex.message})"
+    use_flexible, reason = service.auto_uses_flexible(service.rigid_minus_flexible(rigid, flex))
+    return (flex, f"flexible ({reason})") if use_flexible else (rigid, f"rigid ({reason})")
 
-    def rear(r):
-        p = np.nan_to_num(r.pressure_pa)
-        return float(p[r.positions_m < r.load_position_m].sum() / max(p.sum(), 1e-300))
 
-    d_area = rigid.apparent_contact_area_m2 / flex.apparent_contact_area_m2 - 1.0
-    d_rear = rear(rigid) - rear(flex)
-    if flex.converged and max(abs(d_area), abs(d_rear)) > 0.02:
-        return flex, f"flexible (rigid differs by {d_area:+.1%} in area, {d_rear:+.3f} rear share)"
-    return rigid, "rigid (within 2 % of flexible)"
+def _ski_path(name: str) -> Path:
+    path = Path(name)
+    return path if path.suffix else SKI_DIR / f"{name}.h5"
 
 
 def _gap_map(args: argparse.Namespace, si: dict) -> GapMap:
     if args.ski:
-        path = Path(args.ski)
-        if not path.suffix:
-            path = SKI_DIR / f"{args.ski}.h5"
-        ski = read_ski(path)
+        ski = read_ski(_ski_path(args.ski))
         x, gap = loaded_profile(ski, si["load_n"], si["load_position_m"])
         return extrude_profile(
             x, gap, ski.outline.width_m, width_positions_m=ski.outline.positions_m
