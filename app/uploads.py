@@ -34,7 +34,7 @@ from app import service
 from app.jobs import JobContext
 from app.settings import Settings
 from app.storage.catalogue import CatalogueDB, ItemRow
-from app.storage.common import atomic_path, sha256_file
+from app.storage.common import atomic_path, provenance, sha256_file
 from solvers.errors import DataFileError, InputError, SkisnowError
 
 log = logging.getLogger(__name__)
@@ -661,7 +661,8 @@ def _identify(data, item) -> tuple[dict, str]:
         ident, check = identify_beam_checked(data.positions_m, f, xf, y)
     except SkisnowError as exc:
         reason = f"beam not identified: {exc}"
-        return {"attrs": {"ok": False, "reason": reason}}, reason + " (rigid model only)"
+        failed = {"attrs": {"ok": False, "reason": reason, **provenance({"item": item.id})}}
+        return failed, reason + " (rigid model only)"
     params = {"item": item.id, "profiles": note, **check}
     if not ident.ok:
         return (
