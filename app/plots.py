@@ -89,6 +89,11 @@ def pressure_svg(results: Sequence[dict]) -> str:
         ax.plot(
             x, _array(d["pressure_kpa"]), color=colour, lw=1.4, label=_label(r, with_grind=False)
         )
+        if "pressure_band_kpa" in d:
+            lo, hi = (_array(v) for v in d["pressure_band_kpa"])
+            ax.fill_between(
+                x, lo, hi, color=colour, alpha=0.25, lw=0, label="90 % band (camber model)"
+            )
         for z in r["apparent"]["zones"]:
             ax.axvspan(z["start_mm"], z["end_mm"], color=colour, alpha=0.12, lw=0)
             ax.annotate(
@@ -189,8 +194,56 @@ def reciprocal_svg(results: Sequence[dict]) -> str:
     )
 
 
+#: the quantities of the error-band chart: (section, key, band key, label, unit)
+BAND_QUANTITIES = (
+    ("apparent", "contact_area_cm2", "apparent_contact_area", "apparent area", "cm²"),
+    ("metrics", "total_real_contact_area_mm2", "total_real_contact_area", "real area", "mm²"),
+    (
+        "metrics",
+        "average_real_contact_pressure_mpa",
+        "average_real_contact_pressure",
+        "real pressure",
+        "MPa",
+    ),
+    ("metrics", "min_average_separation_um", "min_average_separation", "min. separation", "µm"),
+    (
+        "metrics",
+        "total_reciprocal_separation_m",
+        "total_reciprocal_separation",
+        "reciprocal sep.",
+        "m",
+    ),
+)
+
+
+def band_svg(results: Sequence[dict]) -> str:
+    """Every case's apparent area and four metrics with their 90 % error bands, one panel per
+    quantity (a missing band: no whisker and an open marker)."""
+    fig = Figure(figsize=(7.2, 1.2 + 0.28 * max(len(results), 1) * 1.0 + 1.2), layout="constrained")
+    axes = fig.subplots(1, len(BAND_QUANTITIES), sharey=True)
+    fig.suptitle("The five answers with their 90 % error bands", fontsize=10)
+    labels = [_label(r) for r in results]
+    y = np.arange(len(results))
+    for ax, (section, key, bkey, name, unit) in zip(axes, BAND_QUANTITIES, strict=True):
+        for i, r in enumerate(results):
+            v = r[section][key]
+            w = r.get("band", {}).get("relative_half_width", {}).get(bkey)
+            colour = _COLOURS[i % len(_COLOURS)]
+            if w is None:
+                ax.plot([v], [i], "o", mfc="none", color=colour)
+            else:
+                ax.errorbar([v], [i], xerr=[[v * w], [v * w]], fmt="o", color=colour, capsize=3)
+        ax.set_title(f"{name} [{unit}]", fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.grid(True, alpha=0.3)
+    axes[0].set_yticks(y, labels, fontsize=7)
+    axes[0].invert_yaxis()
+    return _svg(fig)
+
+
 #: (key, caption, function) of the plots on the results page, in page order
 PLOTS = (
+    ("band", "The answers with their 90 % error bands", band_svg),
     ("pressure", "Apparent pressure P(X) with the contact zones shaded", pressure_svg),
     ("clearance", "Loaded camber clearance H(X) with 0.1 and 0.2 mm wax layers", clearance_svg),
     ("real_area", "Real contact area fraction a_r(X)", real_area_svg),

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from app import units
+from app.band import answer_band, band_json, min_separation_unresolved, touches_profile_end
 from app.presets import DEFAULT_PRESET, Preset, get_preset
 from app.storage.common import code_version, sha256_file
 from app.storage.skis import (
@@ -287,22 +288,18 @@ def result_warnings(inp: ContactInputs, gmap, macro, ms) -> list[dict]:
                 "without bound; very loose snow is outside what the method was made for",
             }
         )
-    rows = np.flatnonzero(np.any(np.isfinite(gmap.gap_m), axis=1))
-    if rows.size and macro.zones:
-        dx = gmap.pixel_size_m[0]
+    if touches_profile_end(gmap, macro):
+        rows = np.flatnonzero(np.any(np.isfinite(gmap.gap_m), axis=1))
         first, last = gmap.positions_m[rows[0]], gmap.positions_m[rows[-1]]
-        ends = [
-            z for z in macro.zones if z.start_m <= first + 1.5 * dx or z.end_m >= last - 1.5 * dx
-        ]
-        if ends:
-            out.append(
-                {
-                    "code": "contact_at_ski_end",
-                    "detail": "contact reaches the end of the measured profile "
-                    f"({first * 1e3:.0f} … {last * 1e3:.0f} mm): the tip or tail shape beyond "
-                    "the measurement is not modelled; try a stiffer snow or a lighter load",
-                }
-            )
+        out.append(
+            {
+                "code": "contact_at_ski_end",
+                "detail": "contact reaches the end of the measured profile "
+                f"({first * 1e3:.0f} … {last * 1e3:.0f} mm): the tip or tail shape beyond "
+                "the measurement is not modelled, and the minimum average separation has no "
+                "grid-converged value there (no band); try a stiffer snow or a lighter load",
+            }
+        )
     share = float(ms.diagnostics.get("load_share_below_table_range", 0.0))
     if share > BELOW_TABLE_WARN:
         out.append(
@@ -375,8 +372,26 @@ def contact(
     t4 = time.perf_counter()
     macro, ms, model_info = _choose_ski_model(inp, ski, preset, macro, ms, grind, e_eff)
     t5 = time.perf_counter()
+    band = answer_band(
+        record=ski.record,
+        positions_m=x,
+        gap_m=gap,
+        preset=preset,
+        macro=macro,
+        ms=ms,
+        table=grind.table,
+        porosity=inp.porosity,
+        e_eff=e_eff,
+        ski_model_used=model_info["used"],
+        beam_is_design=ski.record.beam is not None,
+        rigid_minus_flexible=model_info.get("rigid_minus_flexible")
+        if model_info["requested"] == "auto"
+        else None,
+        min_separation_unresolved=min_separation_unresolved(gmap, macro, ms),
+    )
+    t6 = time.perf_counter()
     rows = np.isfinite(ms.average_separation_m)
-    return {
+    answer = {
         "inputs": {
             "ski": inp.ski,
             "grind": inp.grind,
@@ -456,9 +471,19 @@ def contact(
             "macro": (t3 - t2) * 1e3,
             "multiscale": (t4 - t3) * 1e3,
             "ski_model": (t5 - t4) * 1e3,
-            "total": (time.perf_counter() - t0) * 1e3,
+            "band": (t6 - t5) * 1e3,
         },
     }
+    answer["band"], band_warnings = band_json(band, answer)
+    answer["warnings"] += band_warnings
+    if band.pressure_line_band_pa is not None:
+        lo, hi = band.pressure_line_band_pa
+        answer["distributions"]["pressure_band_kpa"] = [
+            _finite_list(lo[rows], 1e-3),
+            _finite_list(hi[rows], 1e-3),
+        ]
+    answer["timing_ms"]["total"] = (time.perf_counter() - t0) * 1e3
+    return answer
 
 
 def rigid_minus_flexible(rigid, flex, ms_rigid=None, ms_flex=None) -> dict[str, float]:

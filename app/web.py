@@ -121,6 +121,11 @@ CSV_COLUMNS = (
     "total_reciprocal_separation_m",
     "apparent_contact_area_cm2",
     "mean_apparent_pressure_kpa",
+    "apparent_contact_area_band90_rel",
+    "total_real_contact_area_band90_rel",
+    "average_real_contact_pressure_band90_rel",
+    "min_average_separation_band90_rel",
+    "total_reciprocal_separation_band90_rel",
     "rear_zone_load_share",
     "mid_zone_load_share",
     "front_zone_load_share",
@@ -409,9 +414,10 @@ def _preset_field(q: Query) -> str:
     return (
         '<label class="field" for="preset"><span>Accuracy preset</span>'
         f'<select id="preset" name="preset">{options}</select>'
-        '<span class="hint">measured against a converged macro grid: default within 2.2 %; '
-        "fine 0.8 % at 8.8× the time; fast 11.6 %; the texture tables add their own pixel "
-        "error (docs/benchmarks.md)</span></label>"
+        '<span class="hint">the macro grid\'s share of the error band, measured against a '
+        "converged grid (90 % of cases): default 2.1 % in apparent area, fine 0.8 % at about "
+        "9× the time, fast 10.8 %; every answer shows its own band (docs/benchmarks.md)"
+        "</span></label>"
     )
 
 
@@ -511,19 +517,66 @@ the default ski model, docs/benchmarks.md).</span>
     return _page("skisnow — contact form", body, status)
 
 
+#: the band's name of each metric card
+BAND_KEYS = {
+    "total_real_contact_area_mm2": "total_real_contact_area",
+    "average_real_contact_pressure_mpa": "average_real_contact_pressure",
+    "min_average_separation_um": "min_average_separation",
+    "total_reciprocal_separation_m": "total_reciprocal_separation",
+}
+
+
+def _band_text(w: float | None) -> str:
+    """A relative 90 % half-width as the technician reads it."""
+    if w is None:
+        return "(no band: not grid-converged)"
+    return f"± {100 * w:.1f} % (90 %)"
+
+
+def _interval(band: list | None, value: float) -> str:
+    if not band or band[0] is None:
+        return f"{value:.4g}"
+    return f"{band[0]:.4g} … {band[1]:.4g}"
+
+
+def _band_note(r: dict) -> str:
+    """What the band holds and what it leaves out, in one folded paragraph."""
+    b = r.get("band")
+    if not b:
+        return ""
+    parts = "".join(
+        f"<li>{escape(src.replace('_', ' '))}: "
+        + ", ".join(f"{escape(q.replace('_', ' '))} ±{100 * w:.1f} %" for q, w in ws.items() if w)
+        + "</li>"
+        for src, ws in b["components"].items()
+    )
+    missing = "".join(f"<li>{escape(t)}</li>" for t in b["not_covered"])
+    cm = b["camber_model"]
+    return (
+        '<details class="band"><summary>How sure is this? (90 % error band)</summary>'
+        f"<p>Sources, combined in quadrature:</p><ul>{parts}</ul>"
+        f"<p>Camber model: {escape(cm['source'])}.</p>"
+        f"<p>Not in the band:</p><ul>{missing}</ul></details>"
+    )
+
+
 def _metric_cards(results: list[dict]) -> str:
     cards = []
     for r in results:
         inp, m, prov = r["inputs"], r["metrics"], r["provenance"]
+        rel = r.get("band", {}).get("relative_half_width", {})
         metrics = "".join(
             f'<div class="metric" data-metric="{key}"><span class="name">{label}</span>'
-            f'<span class="value">{_fmt(m[key], spec)}</span><span class="unit">{unit}</span></div>'
+            f'<span class="value">{_fmt(m[key], spec)}</span><span class="unit">{unit}</span>'
+            f'<span class="band">{_band_text(rel.get(BAND_KEYS[key]))}</span></div>'
             for key, label, unit, spec in METRICS
         )
         zones = "".join(
             f'<tr><td class="text">{escape(z["name"])}</td>'
             f'<td class="nowrap">{z["start_mm"]:.0f} … {z["end_mm"]:.0f}</td>'
-            f"<td>{100 * z['load_share']:.1f}</td><td>{z['apparent_area_cm2']:.4g}</td>"
+            f"<td>{100 * z['load_share']:.1f}</td>"
+            f"<td>{_interval(z.get('load_band_90_n'), z['load_n'])}</td>"
+            f"<td>{z['apparent_area_cm2']:.4g}</td>"
             f"<td>{z['real_area_mm2']:.4g}</td></tr>"
             for z in r["apparent"]["zones"]
         )
@@ -537,10 +590,13 @@ def _metric_cards(results: list[dict]) -> str:
         cards.append(
             f"""<section class="card"><h3>{escape(inp["ski"])} × {escape(inp["grind"])}</h3>
 {warn}<div class="metrics">{metrics}</div>
-<p class="summary">Apparent contact {a["contact_area_cm2"]:.4g} cm² at a mean apparent pressure
-of {a["mean_pressure_kpa"]:.4g} kPa; computed in {r["timing_ms"]["total"]:.0f} ms.</p>
+<p class="summary">Apparent contact {a["contact_area_cm2"]:.4g} cm²
+{_band_text(rel.get("apparent_contact_area"))} at a mean apparent pressure of
+{a["mean_pressure_kpa"]:.4g} kPa; computed in {r["timing_ms"]["total"]:.0f} ms.</p>
+{_band_note(r)}
 <div class="table-wrap"><table class="zones"><tr><th class="text">contact zone</th>
-<th>from … to X [mm]</th><th>load share [%]</th><th>apparent area [cm²]</th>
+<th>from … to X [mm]</th><th>load share [%]</th><th>zone load, 90 % band [N]</th>
+<th>apparent area [cm²]</th>
 <th>real area [mm²]</th></tr>{zones}</table></div>
 <details><summary>Provenance</summary><dl>
 <dt>texture table</dt><dd>{escape(table["file"])} · sha256 {table["sha256"][:12]}</dd>
@@ -643,6 +699,10 @@ def render_csv(out: Outcome) -> str:
             **m,
             "apparent_contact_area_cm2": a["contact_area_cm2"],
             "mean_apparent_pressure_kpa": a["mean_pressure_kpa"],
+            **{
+                f"{q}_band90_rel": w
+                for q, w in r.get("band", {}).get("relative_half_width", {}).items()
+            },
             "rear_zone_load_share": share["rear"],
             "mid_zone_load_share": share["mid"],
             "front_zone_load_share": share["front"],

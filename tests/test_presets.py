@@ -86,7 +86,7 @@ def test_provenance_reports_preset_and_pixel_sizes(client, name):
     width_mm = max(client.get("/v1/skis").json()["skis"][0]["width_mm"])
     assert prov["macro_pixel_size_mm"][1] == pytest.approx(width_mm / p.pixels_across)
     assert prov["texture_pixel_size_um"] == pytest.approx(1.0)  # the fixture table: 1 µm
-    assert prov["max_rel_error"] == p.max_rel_error
+    assert prov["grid_band_90"] == p.grid_band
 
 
 def test_no_preset_means_default(client):

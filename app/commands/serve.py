@@ -125,16 +125,52 @@ def run_solve(args: argparse.Namespace) -> int:
         f"{args.ski} × {args.grind}: {args.load_kg:g} kg at {args.load_position_mm:g} mm, "
         f"E_snow {args.snow_modulus_mpa:g} MPa, porosity {args.porosity:g}"
     )
-    print(f"  total real contact area          {m['total_real_contact_area_mm2']:10.4g} mm²")
-    print(f"  average real contact pressure    {m['average_real_contact_pressure_mpa']:10.4g} MPa")
-    print(f"  min. average separation          {m['min_average_separation_um']:10.4g} µm")
-    print(f"  total reciprocal separation      {m['total_reciprocal_separation_m']:10.4g} m")
-    print(f"  apparent contact area            {a['contact_area_cm2']:10.4g} cm²")
-    print(f"  mean apparent pressure           {a['mean_pressure_kpa']:10.4g} kPa")
+    rel = out.get("band", {}).get("relative_half_width", {})
+
+    def pm(q: str) -> str:
+        w = rel.get(q)
+        return "  (no band: not grid-converged)" if w is None else f"  ± {100 * w:4.1f} %"
+
+    print("  90 % error band after each value (sources: --json, band)")
+    rows = (
+        (
+            "total real contact area",
+            m["total_real_contact_area_mm2"],
+            "mm² ",
+            "total_real_contact_area",
+        ),
+        (
+            "average real contact pressure",
+            m["average_real_contact_pressure_mpa"],
+            "MPa ",
+            "average_real_contact_pressure",
+        ),
+        (
+            "min. average separation",
+            m["min_average_separation_um"],
+            "µm  ",
+            "min_average_separation",
+        ),
+        (
+            "total reciprocal separation",
+            m["total_reciprocal_separation_m"],
+            "m   ",
+            "total_reciprocal_separation",
+        ),
+        ("apparent contact area", a["contact_area_cm2"], "cm² ", "apparent_contact_area"),
+        ("mean apparent pressure", a["mean_pressure_kpa"], "kPa ", "apparent_contact_area"),
+    )
+    for label, value, unit, q in rows:
+        print(f"  {label:32s} {value:10.4g} {unit}{pm(q)}")
     for z in a["zones"]:
         print(
             f"  zone {z['name']:5s} {z['start_mm']:7.0f} … {z['end_mm']:5.0f} mm  "
             f"load share {z['load_share']:.1%}  real area {z['real_area_mm2']:.4g} mm²"
+            + (
+                f"  load {z['load_band_90_n'][0]:.4g} … {z['load_band_90_n'][1]:.4g} N (90 %)"
+                if z.get("load_band_90_n") and z["load_band_90_n"][0] is not None
+                else ""
+            )
         )
     sm = out["provenance"]["ski_model"]
     print(f"  ski model        {sm['used']} ({sm['reason']})")

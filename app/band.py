@@ -1,0 +1,572 @@
+"""The 90 % error band of one contact answer (issue #12 point 4, docs/limits.md "Error band").
+
+Three measured error sources, each a relative 90 % half-width per reported quantity, combined
+in quadrature (:func:`solvers.band.combine`):
+
+``camber_model``
+    The loaded profile H*(X) of a ski's camber network is uncertain by its own held-out error
+    (``metric_test_rmse_band_m`` minus the device noise, in quadrature). The answer is solved
+    again with :data:`PROFILE_SAMPLES` smooth perturbations of that size and correlation length
+    :data:`PROFILE_CORRELATION_M`, and the spread of every quantity about the nominal answer
+    gives its width. A design beam (the demo skis' own beams) is taken as exact.
+``macro_grid``
+    The preset's grid error, measured by ``skisnow bench accuracy`` (:attr:`Preset.grid_band`).
+``table_interpolation``
+    The texture table's interpolation error between its own nodes, estimated by leaving nodes
+    out (:func:`solvers.band.table_interpolation_error`), weighted by where the answer loads the
+    table.
+``ski_model``
+    When ``auto`` answers with the rigid shape, the measured difference to the bending ski.
+
+Not covered (listed in every answer): the texture table's pixel-size error (the shipped tables
+carry no estimate; ``skisnow bench accuracy`` measures +2–3 % (grind-1) and +8–21 % (grind-2) in
+real contact area against the zero-pixel limit, docs/benchmarks.md), and the physics of the
+method itself (elastic half-spaces, no friction, no snow plasticity; docs/limits.md).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from app.presets import Preset
+from solvers.band import (
+    Z90,
+    combine,
+    model_error_sigma,
+    position_error_sigma,
+    profile_perturbations,
+    table_interpolation_error,
+)
+from solvers.errors import SkisnowError
+from solvers.identify import estimate_noise
+from solvers.lookup import MicroTable
+from solvers.macro import extrude_profile, solve_macro
+from solvers.multiscale import multiscale
+
+__all__ = [
+    "BAND_SEED",
+    "PROFILE_CORRELATION_M",
+    "PROFILE_SAMPLES",
+    "QUANTITIES",
+    "WIDE_BAND",
+    "Band",
+    "answer_band",
+    "camber_sigma_m",
+]
+
+#: reported quantities with a band (relative half-widths keyed by these names)
+QUANTITIES = (
+    "apparent_contact_area",
+    "total_real_contact_area",
+    "average_real_contact_pressure",
+    "min_average_separation",
+    "total_reciprocal_separation",
+)
+#: perturbed solves per answer (antithetic pairs); 8 recover the spread to ~25 % (1/√(2·8))
+PROFILE_SAMPLES = 8
+#: correlation length of the camber model's error [m]: the network's actual error against the
+#: beam truth on the demo skis decorrelates over 20–80 mm (autocorrelation 0.49 at 20 mm and
+#: 0.31 at 80 mm for ski-a, 0.13 at 20 mm for ski-b)
+PROFILE_CORRELATION_M = 0.03
+#: the perturbations' seed: the same request always gets the same band
+BAND_SEED = 12
+#: the band of the loaded profile where the camber model is judged (as in training) [m]
+CONTACT_BAND_M = 2e-4
+#: an answer whose band is wider than this (relative half-width) carries a warning
+WIDE_BAND = 0.10
+
+
+@dataclass
+class Band:
+    """Relative 90 % half-widths per quantity and source, and the sampled distributions."""
+
+    widths: dict[str, float]
+    components: dict[str, dict[str, float]]
+    zone_load_widths: list[float]
+    pressure_line_band_pa: tuple[np.ndarray, np.ndarray] | None
+    samples: int
+    camber_sigma_m: float | None
+    camber_source: str
+    not_covered: list[str]
+
+
+#: moving window of the camber model's error along the ski [m] (:func:`camber_sigma_m`)
+SIGMA_WINDOW_M = 0.1
+_SIGMA_CACHE: dict[int, tuple[object, np.ndarray | float | None, str]] = {}
+
+
+def camber_sigma_m(record, positions_m: np.ndarray) -> tuple[np.ndarray | float | None, str]:
+    """Standard deviation [m] of the ski's loaded-profile model error at ``positions_m`` and
+    where it comes from; ``(0, …)`` for a ski answered by its design beam, ``(None, …)`` when
+    unknown.
+
+    For a camber network: its held-out (test split) profiles against the measured ones, inside
+    the contact band H < 0.2 mm, as a moving RMS along the ski with the device noise removed
+    (:func:`solvers.band.position_error_sigma`); the network's error is twice as large near the
+    tip and tail as behind the binding, and light loads touch there."""
+    net = record.network
+    if net is None:
+        if record.beam is not None:
+            return 0.0, "design beam stored with the ski, taken as exact"
+        return None, "the camber model's error is not known for this ski"
+    hit = _SIGMA_CACHE.get(id(record))
+    if hit is None or hit[0] is not record:
+        hit = (record, *_network_sigma(record))
+        _SIGMA_CACHE[id(record)] = hit
+    sigma_nodes, source = hit[1], hit[2]
+    if sigma_nodes is None:
+        return None, source
+    xs, ss = sigma_nodes
+    return np.interp(np.asarray(positions_m, dtype=float), xs, ss), source
+
+
+def _network_sigma(record):
+    from solvers import camber
+
+    net, meas = record.network, record.measurements
+    f = np.asarray(net.get("split_test_loads_n", np.empty(0)), dtype=float)
+    xf = np.asarray(net.get("split_test_load_positions_m", np.empty(0)), dtype=float)
+    if f.size == 0:
+        return None, "the camber network stores no held-out cases"
+    mf = np.asarray(meas.loads_n, dtype=float)
+    mx = np.asarray(meas.load_positions_m, dtype=float)
+    profiles = np.asarray(meas.profiles_m, dtype=float)
+    x = np.asarray(meas.positions_m, dtype=float)
+    pred = camber.predict_profiles(net, f, xf)
+    residuals = np.full((f.size, x.size), np.nan)
+    for k in range(f.size):
+        rows = np.flatnonzero(
+            np.isclose(mf, f[k], rtol=1e-9, atol=1e-9) & np.isclose(mx, xf[k], atol=1e-9)
+        )
+        if rows.size == 0:
+            continue
+        measured = profiles[rows].mean(axis=0)
+        model = np.interp(x, pred.positions_m, pred.gaps_m[k])
+        residuals[k] = np.where(measured < CONTACT_BAND_M, model - measured, np.nan)
+    noise = float(estimate_noise(profiles))
+    if not np.isfinite(residuals).any():
+        return None, "the camber network's held-out cases are not among the measurements"
+    overall = model_error_sigma(float(np.sqrt(np.nanmean(residuals**2))), noise)
+    sigma = position_error_sigma(x, residuals, noise, SIGMA_WINDOW_M, floor_m=overall / 2)
+    return (x, sigma), (
+        f"camber network: held-out profiles against the measured ones where H < "
+        f"{CONTACT_BAND_M * 1e3:.1f} mm, device noise {noise * 1e6:.2f} µm removed → model error "
+        f"{overall * 1e6:.2f} µm RMS ({np.min(sigma) * 1e6:.2f}–{np.max(sigma) * 1e6:.2f} µm "
+        "along the ski)"
+    )
+
+
+def touches_profile_end(gap_map, macro) -> bool:
+    """Whether a contact zone reaches the first or last row of the ski's footprint (the end of
+    the measured profile). There the pressure is singular at the cut-off edge, so the minimum
+    average separation keeps falling as the grid is refined: it has no grid-converged value
+    (at the papers' light-load cases 4.5 → 3.9 µm from 4 mm to 0.5 mm pixels, ski-a)."""
+    rows = np.flatnonzero(np.any(np.isfinite(gap_map.gap_m), axis=1))
+    if not rows.size or not macro.zones:
+        return False
+    dx = gap_map.pixel_size_m[0]
+    first, last = gap_map.positions_m[rows[0]], gap_map.positions_m[rows[-1]]
+    return any(z.start_m <= first + 1.5 * dx or z.end_m >= last - 1.5 * dx for z in macro.zones)
+
+
+#: a contact zone shorter than this many pixels along the ski does not resolve its peak
+#: pressure, so the minimum average separation inside it is not grid-converged
+MIN_SEPARATION_ZONE_PIXELS = 10
+
+
+def min_separation_unresolved(gap_map, macro, ms) -> str | None:
+    """Why the answer's minimum average separation has no grid-converged value, or ``None``.
+
+    It follows the peak pressure of the row where it sits. A contact zone shorter than
+    :data:`MIN_SEPARATION_ZONE_PIXELS` pixels does not resolve its peak, and as the grid is
+    refined the minimum falls there or moves there from another zone (short tip and tail
+    contacts at light loads: ski-a at 13 kg falls 4.5 → 4.1 → 3.8 → 3.4 → 3.3 µm from 8 to
+    0.5 mm pixels). A zone reaching the end of the measured profile has a singular pressure at
+    the cut-off."""
+    if touches_profile_end(gap_map, macro):
+        return "a contact zone reaches the end of the measured profile"
+    dx = gap_map.pixel_size_m[0]
+    short = [z for z in macro.zones if z.end_m - z.start_m < MIN_SEPARATION_ZONE_PIXELS * dx]
+    if short:
+        z = min(short, key=lambda z: z.end_m - z.start_m)
+        length = z.end_m - z.start_m
+        return (
+            f"a contact zone at {0.5e3 * (z.start_m + z.end_m):.0f} mm is {length * 1e3:.0f} mm "
+            f"long ({length / dx:.0f} pixels of {dx * 1e3:g} mm), too short to resolve its peak "
+            "pressure, and the minimum moves there as the grid is refined"
+        )
+    return None
+
+
+def _quantities(macro, ms) -> dict[str, float]:
+    return {
+        "apparent_contact_area": ms.apparent_contact_area_m2,
+        "total_real_contact_area": ms.total_real_contact_area_m2,
+        "average_real_contact_pressure": ms.average_real_contact_pressure_pa,
+        "min_average_separation": ms.min_average_separation_m,
+        "total_reciprocal_separation": ms.total_reciprocal_separation_m,
+    }
+
+
+def _zone_loads(macro, zones) -> np.ndarray:
+    """Load [N] of ``macro`` inside each of the nominal ``zones``: every loaded row belongs to
+    the nearest zone (a perturbed answer may split or merge zones)."""
+    if not zones:
+        return np.zeros(0)
+    x = macro.positions_m
+    row_load = np.nansum(np.nan_to_num(macro.pressure_pa), axis=1) * float(
+        np.prod(macro.pixel_size_m)
+    )
+    starts = np.array([z.start_m for z in zones])
+    ends = np.array([z.end_m for z in zones])
+    dist = np.maximum(starts[None, :] - x[:, None], 0) + np.maximum(x[:, None] - ends[None, :], 0)
+    owner = np.argmin(dist, axis=1)
+    return np.bincount(owner, weights=row_load, minlength=len(zones))
+
+
+def _rel_half_width(nominal: float, values: np.ndarray) -> float:
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size < 2 or not math.isfinite(nominal) or nominal == 0:
+        return float("nan")
+    return float(Z90 * np.sqrt(np.mean((v - nominal) ** 2)) / abs(nominal))
+
+
+def coarse_grid(preset: Preset) -> tuple[float, int]:
+    """The grid twice as coarse as ``preset`` in both directions: (pixel along [m], pixels
+    across); the perturbed solves and the per-answer grid estimate run on it."""
+    return 2 * preset.pixel_along_m, max(preset.pixels_across // 2, 2)
+
+
+@dataclass
+class _Sampled:
+    widths: dict[str, float]  # camber model, relative 90 % half-widths
+    zone_widths: list[float]
+    line_half_width_pa: np.ndarray | None  # on the nominal answer's positions
+    grid: dict[str, float]  # per-answer grid estimate |q − q_coarse| / |q|
+    zone_grid: list[float]
+    failed: int
+
+
+def _sample(
+    positions_m,
+    gap_m,
+    outline,
+    preset: Preset,
+    macro,
+    ms,
+    table: MicroTable,
+    porosity: float,
+    e_eff: float,
+    sigma_m: float | np.ndarray,
+    samples: int,
+    seed: int,
+) -> _Sampled | None:
+    """Solve on the coarse grid (:func:`coarse_grid`) the nominal profile and ``samples``
+    perturbed ones. The coarse nominal against the answer gives the grid estimate (first-order
+    convergence: the error of the answer's grid is the difference to a grid twice as coarse);
+    the perturbed ones against the coarse nominal give the camber model's spread."""
+    dx, ny = coarse_grid(preset)
+
+    def solve(g, initial=None):
+        gm = extrude_profile(
+            positions_m,
+            g,
+            outline.width_m,
+            width_positions_m=outline.positions_m,
+            pixel_along_m=dx,
+            pixels_across=ny,
+        )
+        m = solve_macro(gm, macro.load_n, macro.load_position_m, e_eff, initial_pressure_pa=initial)
+        if not m.converged:
+            return None
+        return m, multiscale(m, table, porosity, e_eff)
+
+    try:
+        base = solve(gap_m)
+    except SkisnowError:
+        base = None
+    if base is None:
+        return None
+    m0, s0 = base
+    q_nom, q0 = _quantities(macro, ms), _quantities(m0, s0)
+    z_nom, z0 = _zone_loads(macro, ms.zones), _zone_loads(m0, ms.zones)
+    grid = {k: abs(q0[k] / q_nom[k] - 1) if q_nom[k] else float("nan") for k in q_nom}
+    zone_grid = [abs(a / b - 1) if b else float("nan") for a, b in zip(z0, z_nom, strict=True)]
+    qs: dict[str, list[float]] = {k: [] for k in q_nom}
+    zs, lines = [], []
+    failed = 0
+    deltas = (
+        profile_perturbations(positions_m, sigma_m, PROFILE_CORRELATION_M, samples, seed)
+        if np.any(np.asarray(sigma_m) > 0)
+        else np.zeros((0, np.size(positions_m)))
+    )
+    for d in deltas:
+        g = gap_m + d
+        g = g - min(float(np.nanmin(g)), 0.0)  # a rigid approach absorbs a constant
+        try:
+            r = solve(g, m0.pressure_pa)
+        except SkisnowError:
+            r = None
+        if r is None:
+            failed += 1
+            continue
+        m, s = r
+        for k, v in _quantities(m, s).items():
+            qs[k].append(v)
+        zs.append(_zone_loads(m, ms.zones))
+        lines.append(np.nan_to_num(m.pressure_line_pa))
+    widths = {k: _rel_half_width(q0[k], np.array(v)) for k, v in qs.items()}
+    zone_w = [
+        _rel_half_width(z0[i], np.array([z[i] for z in zs])) if zs else float("nan")
+        for i in range(z0.size)
+    ]
+    line = None
+    if len(lines) >= 2:
+        half = Z90 * np.sqrt(
+            np.mean((np.array(lines) - np.nan_to_num(m0.pressure_line_pa)) ** 2, 0)
+        )
+        line = np.interp(macro.positions_m, m0.positions_m, half)
+    return _Sampled(widths, zone_w, line, grid, zone_grid, failed)
+
+
+_TABLE_ERRORS: dict[int, tuple[MicroTable, dict[str, np.ndarray]]] = {}
+
+
+def _table_errors(table: MicroTable) -> dict[str, np.ndarray]:
+    """Interpolation error estimate per column at the table's partial-contact nodes (computed
+    once per table object; the catalogue keeps its tables for the life of the process)."""
+    hit = _TABLE_ERRORS.get(id(table))
+    if hit is not None and hit[0] is table:
+        return hit[1]
+    partial = ~np.asarray(table.full_contact, dtype=bool)
+    r = np.asarray(table.pressure_ratio, dtype=float)[partial]
+    out = {
+        c: np.nan_to_num(table_interpolation_error(r, np.asarray(getattr(table, c))[partial]))
+        for c in ("real_contact_area_fraction", "mean_gap_m", "mean_reciprocal_gap_per_m")
+    }
+    _TABLE_ERRORS[id(table)] = (table, out)
+    return out
+
+
+def _table_component(table: MicroTable, macro, porosity: float, e_eff: float) -> dict[str, float]:
+    """Interpolation error of the table columns where this answer loads them: the error of
+    each column at each loaded pixel's nominal pressure ratio, weighted by the pixel's share of
+    the quantity (real area for a_r, load for the gaps)."""
+    partial = ~np.asarray(table.full_contact, dtype=bool)
+    r_nodes = np.asarray(table.pressure_ratio, dtype=float)[partial]
+    if r_nodes.size < 4:
+        return {}
+    p = np.nan_to_num(macro.pressure_pa).ravel()
+    loaded = p > 0
+    if not loaded.any():
+        return {}
+    ratio = p[loaded] * (1 - porosity) / e_eff
+    lr, lrn = np.log(ratio), np.log(r_nodes)
+
+    errors = _table_errors(table)
+
+    def err(column: str) -> np.ndarray:
+        return np.interp(lr, lrn, errors[column])
+
+    ar = np.interp(lr, lrn, np.asarray(table.real_contact_area_fraction)[partial])
+    w_area = ar / ar.sum() if ar.sum() > 0 else np.full(ar.size, 1 / ar.size)
+    w_load = p[loaded] / p[loaded].sum()
+    e_ar = float(np.sum(w_area * err("real_contact_area_fraction")))
+    e_gap = float(np.sum(w_load * err("mean_gap_m")))
+    e_rec = float(np.sum(w_load * err("mean_reciprocal_gap_per_m")))
+    return {
+        "total_real_contact_area": e_ar,  # the leave-one-out estimate is taken as the bound
+        "average_real_contact_pressure": e_ar,
+        "min_average_separation": e_gap,
+        "total_reciprocal_separation": e_rec,
+    }
+
+
+def answer_band(
+    *,
+    record,
+    positions_m: np.ndarray,
+    gap_m: np.ndarray,
+    preset: Preset,
+    macro,
+    ms,
+    table: MicroTable,
+    porosity: float,
+    e_eff: float,
+    ski_model_used: str,
+    beam_is_design: bool,
+    rigid_minus_flexible: dict[str, float] | None = None,
+    min_separation_unresolved: str | None = None,
+    samples: int = PROFILE_SAMPLES,
+    seed: int = BAND_SEED,
+) -> Band:
+    """The band of one answer (``macro``/``ms`` are the answer's own solves, ``positions_m``/
+    ``gap_m`` the rigid model's loaded profile behind them). ``min_separation_unresolved``: why
+    the minimum average separation has no grid-converged value
+    (:func:`min_separation_unresolved`); it then gets no band (``nan``)."""
+    components: dict[str, dict[str, float]] = {}
+    not_covered = [
+        "texture pixel size of the table (no estimate stored; skisnow bench accuracy measures "
+        "+2–3 % (grind-1) and +8–21 % (grind-2) in real contact area, docs/benchmarks.md)",
+        "the method's physics: elastic half-spaces, no friction, no snow plasticity "
+        "(docs/limits.md)",
+    ]
+    rigid = ski_model_used == "rigid"
+    sigma, source = None, ""
+    if rigid:
+        sigma, source = camber_sigma_m(record, positions_m)
+        if sigma is None:
+            not_covered.insert(0, "the camber model (" + source + ")")
+    elif beam_is_design:
+        sigma, source = 0.0, "design beam stored with the ski, taken as exact"
+    else:
+        source = "identified beam: its uncertainty is not propagated yet"
+        not_covered.insert(0, "the identified beam's uncertainty (EI(X), c(X))")
+    sampled = None
+    if rigid:
+        sampled = _sample(
+            positions_m,
+            gap_m,
+            record.outline,
+            preset,
+            macro,
+            ms,
+            table,
+            porosity,
+            e_eff,
+            0.0 if sigma is None else sigma,
+            samples,
+            seed,
+        )
+    has_sigma = sigma is not None and bool(np.any(np.asarray(sigma) > 0))
+    if sampled is not None and has_sigma:
+        components["camber_model"] = sampled.widths
+    # macro grid: the benchmark's 90th percentile, or this answer's own estimate where larger
+    grid = dict(preset.grid_band)
+    if sampled is not None:
+        grid = {
+            k: max(v, sampled.grid.get(k, 0.0)) if math.isfinite(sampled.grid.get(k, 0.0)) else v
+            for k, v in grid.items()
+        }
+    components["macro_grid"] = grid
+    components["table_interpolation"] = _table_component(table, macro, porosity, e_eff)
+    if rigid and rigid_minus_flexible:
+        components["ski_model"] = {
+            k: abs(v) for k, v in rigid_minus_flexible.items() if k in QUANTITIES
+        }
+    widths = combine(components)
+    if min_separation_unresolved:
+        widths["min_average_separation"] = float("nan")
+        not_covered.insert(
+            0,
+            "the minimum average separation has no grid-converged value here ("
+            + min_separation_unresolved
+            + "); it falls further with every finer grid, so no band can be given",
+        )
+    # zone loads: the camber spread per zone, the grid (the benchmark's apparent-area width or
+    # this answer's own estimate), the ski-model difference in rear load share (absolute,
+    # relative to the zone's share)
+    zone_widths = []
+    for i, z in enumerate(ms.zones):
+        g = preset.grid_band.get("apparent_contact_area", 0.0)
+        parts = []
+        if sampled is not None:
+            if math.isfinite(sampled.zone_grid[i]):
+                g = max(g, sampled.zone_grid[i])
+            if has_sigma and math.isfinite(sampled.zone_widths[i]):
+                parts.append(sampled.zone_widths[i])
+        parts.append(g)
+        if "ski_model" in components and z.load_share > 0:
+            parts.append(abs(rigid_minus_flexible.get("rear_load_share", 0.0)) / z.load_share)
+        zone_widths.append(math.sqrt(sum(p * p for p in parts)))
+    line_band = None
+    if sampled is not None and sampled.line_half_width_pa is not None:
+        nom = np.nan_to_num(macro.pressure_line_pa)
+        line_band = (
+            np.maximum(nom - sampled.line_half_width_pa, 0.0),
+            nom + sampled.line_half_width_pa,
+        )
+    return Band(
+        widths=widths,
+        components=components,
+        zone_load_widths=zone_widths,
+        pressure_line_band_pa=line_band,
+        samples=(samples - sampled.failed) if (sampled is not None and has_sigma) else 0,
+        camber_sigma_m=None if sigma is None else float(np.sqrt(np.mean(np.square(sigma)))),
+        camber_source=source,
+        not_covered=not_covered,
+    )
+
+
+#: JSON keys of the answer's values, per quantity: (section, key)
+ANSWER_KEYS = {
+    "apparent_contact_area": ("apparent", "contact_area_cm2"),
+    "total_real_contact_area": ("metrics", "total_real_contact_area_mm2"),
+    "average_real_contact_pressure": ("metrics", "average_real_contact_pressure_mpa"),
+    "min_average_separation": ("metrics", "min_average_separation_um"),
+    "total_reciprocal_separation": ("metrics", "total_reciprocal_separation_m"),
+}
+
+
+def _round(v: float, digits: int = 4) -> float | None:
+    return float(f"{v:.{digits}g}") if v is not None and math.isfinite(v) else None
+
+
+def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
+    """The ``band`` section of an answer (intervals in the answer's units), and the warnings it
+    raises. Adds ``load_band_90_n`` to each zone of ``answer["apparent"]["zones"]``."""
+    intervals, rel = {}, {}
+    for q, (section, key) in ANSWER_KEYS.items():
+        w = band.widths.get(q, float("nan"))
+        v = answer[section][key]
+        rel[q] = _round(w)
+        intervals[key] = (
+            [_round(v * (1 - w), 6), _round(v * (1 + w), 6)] if math.isfinite(w) else None
+        )
+    # the mean apparent pressure is F / A: the apparent area's relative band
+    w_a = band.widths.get("apparent_contact_area", float("nan"))
+    v = answer["apparent"]["mean_pressure_kpa"]
+    intervals["mean_pressure_kpa"] = [_round(v / (1 + w_a), 6), _round(v / max(1 - w_a, 1e-9), 6)]
+    for z, w in zip(answer["apparent"]["zones"], band.zone_load_widths, strict=False):
+        z["load_band_90_n"] = [_round(z["load_n"] * (1 - w), 6), _round(z["load_n"] * (1 + w), 6)]
+    warnings = []
+    wide = {q: w for q, w in band.widths.items() if w > WIDE_BAND}
+    if wide:
+        worst = max(wide, key=wide.get)
+        warnings.append(
+            {
+                "code": "wide_error_band",
+                "detail": f"the 90 % error band is wider than ±{WIDE_BAND:.0%} for "
+                f"{', '.join(sorted(wide))} (largest: {worst} ±{wide[worst]:.1%}); see "
+                "band.components for the sources",
+            }
+        )
+    out = {
+        "level": 0.9,
+        "relative_half_width": rel,
+        "intervals": intervals,
+        "zone_load_relative_half_width": [_round(w) for w in band.zone_load_widths],
+        "components": {
+            src: {q: _round(w) for q, w in ws.items()} for src, ws in band.components.items()
+        },
+        "camber_model": {
+            "error_sd_um": _round(band.camber_sigma_m * 1e6)
+            if band.camber_sigma_m is not None
+            else None,
+            "source": band.camber_source,
+            "perturbed_solves": band.samples,
+            "correlation_length_mm": PROFILE_CORRELATION_M * 1e3,
+            "seed": BAND_SEED,
+        },
+        "not_covered": band.not_covered,
+        "method": "relative 90 % half-widths per source combined in quadrature: camber model "
+        "(the answer solved again with perturbed loaded profiles), macro grid (measured by "
+        "skisnow bench accuracy), table interpolation (leave-one-out on the table's nodes), "
+        "and, when auto answers with the rigid shape, its measured difference to the bending "
+        "ski (docs/limits.md, Error band)",
+    }
+    return out, warnings
