@@ -71,6 +71,9 @@ PROFILE_SAMPLES = 8
 #: beam truth on the demo skis decorrelates over 20–80 mm (autocorrelation 0.49 at 20 mm and
 #: 0.31 at 80 mm for ski-a, 0.13 at 20 mm for ski-b)
 PROFILE_CORRELATION_M = 0.03
+#: solver tolerance of the perturbed solves: their quantities move by ≤ 2e-6 (relative) against
+#: the default 1e-8, and they cost about 25 % less
+SAMPLE_TOL = 1e-6
 #: the perturbations' seed: the same request always gets the same band
 BAND_SEED = 12
 #: the band of the loaded profile where the camber model is judged (as in training) [m]
@@ -280,7 +283,14 @@ def _sample(
             pixel_along_m=dx,
             pixels_across=ny,
         )
-        m = solve_macro(gm, macro.load_n, macro.load_position_m, e_eff, initial_pressure_pa=initial)
+        m = solve_macro(
+            gm,
+            macro.load_n,
+            macro.load_position_m,
+            e_eff,
+            tol=SAMPLE_TOL,
+            initial_pressure_pa=initial,
+        )
         if not m.converged:
             return None
         return m, multiscale(m, table, porosity, e_eff)

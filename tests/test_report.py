@@ -51,6 +51,7 @@ def test_writes_markdown_figures_and_json(written):
     figures = sorted(p.name for p in fig_dir.glob("*.svg"))
     assert figures == sorted(
         [
+            "band.svg",
             "pressure.svg",
             "clearance.svg",
             "real-area.svg",
