@@ -131,3 +131,16 @@ def test_macro_command_ski_model(capsys, tmp_path):
     capsys.readouterr()
     assert main([*bare, "--ski-model", "flexible"]) == 2
     assert "needs --ski" in capsys.readouterr().err
+
+
+def test_macro_command_speaks_the_users_units_outside_the_camber_range(capsys):
+    """A 1 g load is refused in kg (it was ``loads_n = 0.00982 N`` from the network)."""
+    from app.cli import main
+
+    base = ["macro", "--ski", "ski-a", "--load-position-mm", "-160", "--snow-modulus-mpa", "200"]
+    assert main([*base, "--load-kg", "0.001"]) == 2
+    err = capsys.readouterr().err
+    assert "--load-kg 0.001" in err and "kg" in err and " N " not in err
+    pos = ["macro", "--ski", "ski-a", "--load-kg", "40", "--snow-modulus-mpa", "200"]
+    assert main([*pos, "--load-position-mm", "-400"]) == 2
+    assert "--load-position-mm -400" in capsys.readouterr().err

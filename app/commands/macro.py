@@ -15,7 +15,7 @@ import numpy as np
 from app.storage.skis import read_camber_csv, read_ski
 from solvers.beam import G_STANDARD, solve_beam_contact
 from solvers.elastic import effective_modulus
-from solvers.errors import DataFileError, InputError
+from solvers.errors import DataFileError, InputError, OutOfRangeError
 from solvers.macro import (
     DEFAULT_PIXEL_ACROSS,
     DEFAULT_PIXEL_ALONG_M,
@@ -148,6 +148,33 @@ def _flexible_choice(args: argparse.Namespace, si: dict, rigid):
     return (flex, f"flexible ({reason})") if use_flexible else (rigid, f"rigid ({reason})")
 
 
+def _check_covered(args: argparse.Namespace, ski) -> None:
+    """Refuse, in the user's units (kg, mm), a load or position outside the range the ski's
+    camber network was trained on (the network itself would name it in N and m)."""
+    a = (ski.network or {}).get("attrs", {})
+    lo, hi = a.get("load_min_n"), a.get("load_max_n")
+    if (
+        lo is not None
+        and hi is not None
+        and not (lo * (1 - 1e-9) <= args.load_kg * G_STANDARD <= hi * (1 + 1e-9))
+    ):
+        raise OutOfRangeError(
+            f"--load-kg {args.load_kg:g} is outside the range the ski {ski.ski_id!r} covers "
+            f"({lo / G_STANDARD:.4g} … {hi / G_STANDARD:.4g} kg): its camber model is not "
+            "extrapolated"
+        )
+    lo, hi = a.get("load_position_min_m"), a.get("load_position_max_m")
+    if (
+        lo is not None
+        and hi is not None
+        and not (lo - 1e-12 <= args.load_position_mm * 1e-3 <= hi + 1e-12)
+    ):
+        raise OutOfRangeError(
+            f"--load-position-mm {args.load_position_mm:g} is outside the range the ski "
+            f"{ski.ski_id!r} covers ({lo * 1e3:g} … {hi * 1e3:g} mm)"
+        )
+
+
 def _ski_path(name: str) -> Path:
     path = Path(name)
     return path if path.suffix else SKI_DIR / f"{name}.h5"
@@ -156,6 +183,7 @@ def _ski_path(name: str) -> Path:
 def _gap_map(args: argparse.Namespace, si: dict) -> GapMap:
     if args.ski:
         ski = read_ski(_ski_path(args.ski))
+        _check_covered(args, ski)
         x, gap = loaded_profile(ski, si["load_n"], si["load_position_m"])
         return extrude_profile(
             x, gap, ski.outline.width_m, width_positions_m=ski.outline.positions_m
