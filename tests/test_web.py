@@ -82,8 +82,10 @@ def test_results_page_has_metrics_plots_and_provenance(results_page, catalogue):
         assert label in html and f"[{unit}]" in html
     assert html.count('data-metric="total_real_contact_area_mm2"') == 2  # one card per case
     assert "ski-a × tiny-grind" in html and "ski-b × tiny-grind" in html
-    # five inline SVG plots with units on the axes
-    assert html.count("<svg") == 5
+    # six inline SVG plots with units on the axes: the answers with their error bands, then
+    # the five distributions
+    assert html.count("<svg") == 6
+    assert "error bands" in html and "± " in html
     assert "<?xml" not in html
     for axis in ("[kPa]", "[mm]", "[µm]", "[1/m]", "[%]"):
         assert axis in html

@@ -20,12 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
-from app.storage.common import atomic_path, provenance
+from app.storage.common import atomic_path, provenance, tables_dir
 from app.storage.skis import CamberData, mean_profiles, read_camber_csv, read_ski
 from solvers.errors import InputError
 from solvers.identify import identify_beam_checked, predict_gaps
 
-SKI_DIR = Path(__file__).resolve().parents[2] / "tables" / "skis"
+SKI_DIR = tables_dir() / "skis"
 #: where held-out profiles are compared with a design beam: near contact [m]
 NEAR_CONTACT_M = 2e-4
 

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from app.storage.common import tables_dir
 from app.storage.skis import read_camber_csv, read_ski
 from solvers.beam import G_STANDARD, solve_beam_contact
 from solvers.elastic import effective_modulus
@@ -28,7 +29,7 @@ from solvers.macro import (
 
 __all__ = ["bench_macro", "loaded_profile", "register", "run"]
 
-SKI_DIR = Path(__file__).resolve().parents[2] / "tables" / "skis"
+SKI_DIR = tables_dir() / "skis"
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

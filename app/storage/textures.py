@@ -27,7 +27,7 @@ import numpy as np
 from solvers.errors import DataFileError, InputError
 from solvers.texture import Texture, iso25178_parameters, level_heights
 
-from .common import atomic_path, provenance, sha256_file
+from .common import atomic_path, provenance, sha256_file, tables_dir
 
 __all__ = [
     "HEIGHT_UNITS",
@@ -44,7 +44,7 @@ __all__ = [
 SCHEMA = "skisnow.texture/1"
 
 #: Directory of the shipped (synthetic) textures
-SHIPPED_TEXTURES_DIR = Path(__file__).resolve().parents[2] / "tables" / "textures"
+SHIPPED_TEXTURES_DIR = tables_dir() / "textures"
 
 #: Accepted height units of raw maps and their factor to metres
 HEIGHT_UNITS: dict[str, float] = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "nm": 1e-9}
