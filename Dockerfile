@@ -1,4 +1,6 @@
-# skisnow service image: multi-stage, slim, non-root, tables baked in.
+# skisnow service image: multi-stage, slim, non-root, tables baked in (inside the installed
+# package: pyproject.toml ships tables/ as package data, found without SKISNOW_TABLES_DIR; set
+# it to serve other tables, e.g. a mounted volume).
 # Build: docker build -t skisnow .    Run: docker run -p 8000:8000 skisnow
 FROM python:3.11-slim AS build
 WORKDIR /src
@@ -6,6 +8,7 @@ ENV PIP_NO_CACHE_DIR=1 PIP_DISABLE_PIP_VERSION_CHECK=1
 COPY pyproject.toml README.md ./
 COPY app ./app
 COPY solvers ./solvers
+COPY tables ./tables
 RUN python -m venv /opt/venv \
     && /opt/venv/bin/pip install --upgrade pip \
     && /opt/venv/bin/pip install .
@@ -18,7 +21,6 @@ ENV PATH=/opt/venv/bin:$PATH \
     SKISNOW_PORT=8000 \
     SKISNOW_WORKERS=2 \
     SKISNOW_THREADS_PER_WORKER=1 \
-    SKISNOW_TABLES_DIR=/srv/skisnow/tables \
     SKISNOW_DATA_DIR=/srv/skisnow/data \
     OMP_NUM_THREADS=1 \
     OPENBLAS_NUM_THREADS=1 \
@@ -29,7 +31,6 @@ ENV PATH=/opt/venv/bin:$PATH \
 RUN useradd --system --uid 10001 --home-dir /srv/skisnow skisnow \
     && mkdir -p /srv/skisnow/data && chown skisnow:skisnow /srv/skisnow/data
 COPY --from=build /opt/venv /opt/venv
-COPY --chown=skisnow:skisnow tables /srv/skisnow/tables
 USER skisnow
 WORKDIR /srv/skisnow
 EXPOSE 8000

@@ -21,14 +21,15 @@ from pathlib import Path
 import numpy as np
 import scipy.fft
 
-from app.storage.common import REPO_ROOT, atomic_path, provenance
+from app.storage.common import atomic_path, provenance
+from app.storage.common import docs_dir as _docs_dir
 from solvers.elastic import FFTBackend, PeriodicHalfSpace, resolve_backend
 from solvers.micro import solve_micro
 from solvers.texture import self_affine_surface
 
 log = logging.getLogger(__name__)
 
-DOCS = REPO_ROOT / "docs"
+DOCS = _docs_dir()
 E_STAR_PA = 200e6  # Johnson's composite modulus of the benchmark [Pa]; E' = 2 E*
 PIXEL_M = 1e-6
 SQ_M = 2e-6

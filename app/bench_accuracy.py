@@ -37,14 +37,14 @@ import numpy as np
 from tqdm import tqdm
 
 from app.presets import DEFAULT_PRESET, PRESETS, Preset
-from app.storage.common import REPO_ROOT, provenance
+from app.storage.common import provenance, tables_dir
 from solvers.beam import G_STANDARD, BeamFlexibility, solve_beam_contact
 from solvers.elastic import PeriodicHalfSpace, effective_modulus
 from solvers.lookup import POINT_FIELDS, MicroTable
 from solvers.micro import solve_micro
 from solvers.texture import GrindParameters, linear_grind
 
-TABLES = REPO_ROOT / "tables"
+TABLES = tables_dir()
 log = logging.getLogger(__name__)
 
 #: metrics of one micro solve (MicroResult attribute, label with unit)

@@ -31,7 +31,7 @@ from matplotlib.figure import Figure
 
 from app import plots, units
 from app.service import Catalogue, ContactInputs, contact, load_catalogue
-from app.storage.common import REPO_ROOT, atomic_path, provenance
+from app.storage.common import atomic_path, docs_dir, provenance
 from solvers import lookup
 from solvers.elastic import effective_modulus
 from solvers.errors import InputError, NotConvergedError, OutOfRangeError, SkisnowError
@@ -1111,9 +1111,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         f"porosity {DOC_POROSITY:g}) and write OUT_DIR/{MD_NAME} with figures in "
         f"OUT_DIR/{FIG_DIR}/.",
     )
-    pc.add_argument(
-        "--out-dir", type=Path, default=REPO_ROOT / "docs", help="output folder (default docs)"
-    )
+    pc.add_argument("--out-dir", type=Path, default=docs_dir(), help="output folder (default docs)")
     pc.add_argument(
         "--tables-dir",
         type=Path,

@@ -8,7 +8,7 @@ from pathlib import Path
 from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-from app.storage.common import REPO_ROOT
+from app.storage.common import tables_dir as default_tables_dir
 
 
 class Settings(BaseSettings):
@@ -20,7 +20,11 @@ class Settings(BaseSettings):
     port: int = Field(8000, ge=1, le=65535, description="TCP port")
     workers: int = Field(1, ge=1, le=64, description="uvicorn worker processes")
     threads_per_worker: int = Field(1, ge=1, le=64, description="FFT/numba threads per worker")
-    tables_dir: Path = Field(REPO_ROOT / "tables", description="texture tables and ski files")
+    tables_dir: Path = Field(
+        default_factory=default_tables_dir,
+        description="texture tables and ski files (default: the clone's tables/ in a source "
+        "checkout, else the copy installed with the package; app.storage.common.tables_dir)",
+    )
     max_body_bytes: int = Field(64 * 1024, ge=1024, description="largest accepted request body")
     max_compare_cells: int = Field(16, ge=1, le=256, description="largest ski × grind matrix")
     max_load_kg: float = Field(150.0, gt=0, description="largest equivalent load [kg]")

@@ -972,9 +972,9 @@ def _resolve_ski_path(name: str) -> Path:
     p = Path(name)
     if p.suffix in (".h5", ".hdf5") or p.exists():
         return p
-    from app.storage.common import REPO_ROOT
+    from app.storage.common import tables_dir
 
-    return REPO_ROOT / "tables" / "skis" / f"{name}.h5"
+    return tables_dir() / "skis" / f"{name}.h5"
 
 
 def camber_training_arrays(data) -> tuple[str, np.ndarray, np.ndarray, np.ndarray, np.ndarray, str]:

@@ -16,9 +16,76 @@ from pathlib import Path
 
 from solvers import __version__
 
-__all__ = ["atomic_path", "code_version", "git_commit", "provenance", "sha256_file"]
+__all__ = [
+    "TABLES_DIR_ENV",
+    "atomic_path",
+    "code_version",
+    "docs_dir",
+    "git_commit",
+    "is_source_checkout",
+    "provenance",
+    "sha256_file",
+    "tables_dir",
+]
 
+#: the folder above ``app/``: the clone in a source checkout or editable install, the
+#: ``site-packages`` folder in a wheel install (then it has no ``pyproject.toml``)
 REPO_ROOT = Path(__file__).resolve().parents[2]
+
+#: environment variable that overrides where the texture tables and demo skis are read from
+TABLES_DIR_ENV = "SKISNOW_TABLES_DIR"
+
+#: import name of the shipped ``tables/`` folder inside the wheel (pyproject.toml package-dir)
+TABLES_PACKAGE = "skisnow.tables"
+
+
+def is_source_checkout() -> bool:
+    """Whether the code runs from the clone (source tree or editable install), not a wheel."""
+    return (REPO_ROOT / "pyproject.toml").is_file()
+
+
+def _packaged_tables_dir() -> Path | None:
+    """The ``tables/`` folder installed as package data ``skisnow.tables`` (None if absent)."""
+    import importlib.util
+
+    try:
+        spec = importlib.util.find_spec(TABLES_PACKAGE)
+    except (ImportError, ValueError):
+        return None
+    # a namespace package (no __init__.py): its folders, first on sys.path first
+    for location in (spec.submodule_search_locations or []) if spec else []:
+        if (Path(location) / "manifest.json").is_file():
+            return Path(location)
+    return None
+
+
+def tables_dir() -> Path:
+    """Folder of the texture tables (``manifest.json``, ``*.h5``) and demo skis (``skis/``).
+
+    Looked up in this order:
+
+    1. ``$SKISNOW_TABLES_DIR`` when set (the Docker image, a shared table folder);
+    2. the clone's top-level ``tables/`` when running from a source checkout or editable
+       install (``REPO_ROOT/pyproject.toml`` exists);
+    3. the copy installed with the package (``skisnow/tables`` in ``site-packages``: wheel,
+       ``pip install .``, pipx).
+
+    Never raises: a folder without ``manifest.json`` is reported by the reader
+    (:func:`app.storage.tables.read_manifest`), which names ``SKISNOW_TABLES_DIR``.
+    """
+    env = os.environ.get(TABLES_DIR_ENV)
+    if env:
+        return Path(env).expanduser()
+    checkout = REPO_ROOT / "tables"
+    if is_source_checkout() and checkout.is_dir():
+        return checkout
+    return _packaged_tables_dir() or checkout
+
+
+def docs_dir() -> Path:
+    """Where ``skisnow bench`` and ``skisnow report`` write: the clone's ``docs/`` in a source
+    checkout, else ``./docs`` in the current directory (never into ``site-packages``)."""
+    return REPO_ROOT / "docs" if is_source_checkout() else Path.cwd() / "docs"
 
 
 def sha256_file(path: str | os.PathLike) -> str:
@@ -31,7 +98,13 @@ def sha256_file(path: str | os.PathLike) -> str:
 
 
 def git_commit() -> str:
-    """Commit of the source tree ("unknown" outside a git checkout; "+dirty" if modified)."""
+    """Commit of the source tree ("unknown" outside a git checkout; "+dirty" if modified).
+
+    An installed wheel is "unknown" too: its ``site-packages`` may sit inside someone else's
+    git repository (a project's ``.venv``), whose commit is not ours.
+    """
+    if not is_source_checkout():
+        return "unknown"
     try:
         out = subprocess.run(
             ["git", "-C", str(REPO_ROOT), "rev-parse", "HEAD"],
@@ -110,8 +183,12 @@ def atomic_path(final: str | os.PathLike) -> Iterator[Path]:
         raise
 
 
-def read_json_manifest(path: str | os.PathLike, schema: str, what: str = "manifest") -> dict:
+def read_json_manifest(
+    path: str | os.PathLike, schema: str, what: str = "manifest", hint: str = ""
+) -> dict:
     """Read a JSON manifest ``{"schema": schema, "files": {...}}``.
+
+    ``hint`` is appended to the message when the file does not exist (what to set instead).
 
     Raises
     ------
@@ -124,7 +201,7 @@ def read_json_manifest(path: str | os.PathLike, schema: str, what: str = "manife
     try:
         data = json.loads(path.read_text())
     except FileNotFoundError as exc:
-        raise DataFileError(f"{what} not found: {path}") from exc
+        raise DataFileError(f"{what} not found: {path}{hint}") from exc
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise DataFileError(f"{path}: unreadable {what} ({exc})") from exc
     if not isinstance(data, dict) or data.get("schema") != schema:

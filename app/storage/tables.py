@@ -324,7 +324,11 @@ def write_manifest(directory: str | os.PathLike) -> Path:
 
 def read_manifest(directory: str | os.PathLike) -> dict:
     """Read ``manifest.json`` of a table directory (DataFileError if missing or invalid)."""
-    return read_json_manifest(Path(directory) / MANIFEST_NAME, MANIFEST_SCHEMA)
+    return read_json_manifest(
+        Path(directory) / MANIFEST_NAME,
+        MANIFEST_SCHEMA,
+        hint=" (set SKISNOW_TABLES_DIR or --tables-dir to the folder of the texture tables)",
+    )
 
 
 def verify_manifest(directory: str | os.PathLike) -> list[str]:
