@@ -594,6 +594,9 @@ def bench_flexible(repeats: int = 7, skis: tuple[str, ...] = ("ski-a", "ski-b"))
         for mode in ("rigid", "auto"):
             inp = service.ContactInputs(name, grind, 40.0, -160.0, 200.0, 0.5, ski_model=mode)
             req[mode], _ = median_of(lambda inp=inp: service.contact(cat, inp))
+            req[mode + "_no_band"], _ = median_of(
+                lambda inp=inp: service.contact(cat, inp, error_band=False)
+            )
         out[name] = {
             "beam_profile_s": t_prof,
             "rigid_solve_s": t_rigid,
@@ -604,6 +607,8 @@ def bench_flexible(repeats: int = 7, skis: tuple[str, ...] = ("ski-a", "ski-b"))
             "flexible_area_cm2": flex.apparent_contact_area_m2 * 1e4,
             "contact_rigid_s": req["rigid"],
             "contact_auto_s": req["auto"],
+            "contact_rigid_no_band_s": req["rigid_no_band"],
+            "contact_auto_no_band_s": req["auto_no_band"],
             "grind": grind,
         }
     return out
@@ -619,19 +624,24 @@ def _flexible_md(d: dict) -> list[str]:
         "the cached flexibility (target ≤ 10 ms). Flexible solve: beam and snow as one "
         "complementarity problem (target ≤ 2 × rigid and ≤ 40 ms), cold and warm-started from "
         "the rigid pressure (as the service does). Request: one `service.contact` computation "
-        "(profile, macro, multiscale; auto also solves the flexible ski).",
+        "(profile, macro, multiscale; auto also solves the flexible ski), with its 90 % error "
+        "band and without it (the band re-solves a rigid answer 9 times on a grid twice as "
+        "coarse; docs/limits.md, Error band).",
         "",
         "| ski | beam profile [ms] | rigid solve [ms] | flexible cold [ms] | flexible warm "
-        "[ms] | warm / rigid | request rigid [ms] | request auto [ms] | area rigid → flexible "
-        "[cm²] |",
+        "[ms] | warm / rigid | request rigid [ms] (no band) | request auto [ms] (no band) | "
+        "area rigid → flexible [cm²] |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for name, r in d.items():
+        nb_rigid = 1e3 * r.get("contact_rigid_no_band_s", float("nan"))
+        nb_auto = 1e3 * r.get("contact_auto_no_band_s", float("nan"))
         lines.append(
             f"| {name} | {1e3 * r['beam_profile_s']:.2f} | {1e3 * r['rigid_solve_s']:.1f} | "
             f"{1e3 * r['flexible_cold_s']:.1f} | {1e3 * r['flexible_warm_s']:.1f} | "
             f"{r['flexible_warm_s'] / r['rigid_solve_s']:.1f} | "
-            f"{1e3 * r['contact_rigid_s']:.1f} | {1e3 * r['contact_auto_s']:.1f} | "
+            f"{1e3 * r['contact_rigid_s']:.1f} ({nb_rigid:.1f}) | "
+            f"{1e3 * r['contact_auto_s']:.1f} ({nb_auto:.1f}) | "
             f"{r['rigid_area_cm2']:.2f} → {r['flexible_area_cm2']:.2f} |"
         )
     lines.append("")

@@ -314,12 +314,18 @@ def result_warnings(inp: ContactInputs, gmap, macro, ms) -> list[dict]:
 
 
 def contact(
-    cat: Catalogue, inp: ContactInputs, *, presets: dict[str, Preset] | None = None
+    cat: Catalogue,
+    inp: ContactInputs,
+    *,
+    presets: dict[str, Preset] | None = None,
+    error_band: bool = True,
 ) -> dict:
     """Compute one ski × grind case; returns the JSON-ready answer of ``POST /v1/contact``.
 
     ``inp.preset`` names the discretisation settings (:mod:`app.presets`); ``presets`` replaces
     the table of named presets (the accuracy benchmark passes candidate settings this way).
+    ``error_band=False`` leaves the band out (benchmarks measure its cost this way; every
+    answer of the API and the web form has one).
 
     Raises
     ------
@@ -372,23 +378,25 @@ def contact(
     t4 = time.perf_counter()
     macro, ms, model_info = _choose_ski_model(inp, ski, preset, macro, ms, grind, e_eff)
     t5 = time.perf_counter()
-    band = answer_band(
-        record=ski.record,
-        positions_m=x,
-        gap_m=gap,
-        preset=preset,
-        macro=macro,
-        ms=ms,
-        table=grind.table,
-        porosity=inp.porosity,
-        e_eff=e_eff,
-        ski_model_used=model_info["used"],
-        beam_is_design=ski.record.beam is not None,
-        rigid_minus_flexible=model_info.get("rigid_minus_flexible")
-        if model_info["requested"] == "auto"
-        else None,
-        min_separation_unresolved=min_separation_unresolved(gmap, macro, ms),
-    )
+    band = None
+    if error_band:
+        band = answer_band(
+            record=ski.record,
+            positions_m=x,
+            gap_m=gap,
+            preset=preset,
+            macro=macro,
+            ms=ms,
+            table=grind.table,
+            porosity=inp.porosity,
+            e_eff=e_eff,
+            ski_model_used=model_info["used"],
+            beam_is_design=ski.record.beam is not None,
+            rigid_minus_flexible=model_info.get("rigid_minus_flexible")
+            if model_info["requested"] == "auto"
+            else None,
+            min_separation_unresolved=min_separation_unresolved(gmap, macro, ms),
+        )
     t6 = time.perf_counter()
     rows = np.isfinite(ms.average_separation_m)
     answer = {
@@ -474,6 +482,9 @@ def contact(
             "band": (t6 - t5) * 1e3,
         },
     }
+    if band is None:
+        answer["timing_ms"]["total"] = (time.perf_counter() - t0) * 1e3
+        return answer
     answer["band"], band_warnings = band_json(band, answer)
     answer["warnings"] += band_warnings
     if band.pressure_line_band_pa is not None:
