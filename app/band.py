@@ -274,7 +274,7 @@ def _sample(
     the perturbed ones against the coarse nominal give the camber model's spread."""
     dx, ny = coarse_grid(preset)
 
-    def solve(g, initial=None):
+    def solve(g, near=None):
         gm = extrude_profile(
             positions_m,
             g,
@@ -289,7 +289,9 @@ def _sample(
             macro.load_position_m,
             e_eff,
             tol=SAMPLE_TOL,
-            initial_pressure_pa=initial,
+            initial_pressure_pa=None if near is None else near.pressure_pa,
+            initial_rigid_body=None if near is None else (near.approach_m, near.tilt_rad),
+            window_gap_m=None if near is None else near.window_gap_m,
         )
         if not m.converged:
             return None
@@ -318,7 +320,7 @@ def _sample(
         g = gap_m + d
         g = g - min(float(np.nanmin(g)), 0.0)  # a rigid approach absorbs a constant
         try:
-            r = solve(g, m0.pressure_pa)
+            r = solve(g, m0)
         except SkisnowError:
             r = None
         if r is None:

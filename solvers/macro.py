@@ -755,6 +755,7 @@ def solve_macro(
     max_iterations: int = 3000,
     window_gap_m: float | None = None,
     initial_pressure_pa: np.ndarray | None = None,
+    initial_rigid_body: tuple[float, float] | None = None,
 ) -> MacroResult:
     """Press the rigid loaded running surface into the snow half-space.
 
@@ -780,6 +781,12 @@ def solve_macro(
         displacement scale. Raised automatically until the window check passes.
     initial_pressure_pa : ndarray (nx, ny), optional
         Warm start [Pa].
+    initial_rigid_body : (float, float), optional
+        Approach δ0 [m] and tilt θ0 [rad] of a nearby solution (for example the same ski with
+        a slightly different profile): with it, the coarse line problem that places the window
+        is skipped and the window is ``H* − δ0 − θ0 (X − x_F) ≤ window_gap_m`` (give
+        ``window_gap_m`` too, e.g. the nearby solution's). The window check still holds: the
+        window grows until it passes, so the answer is the same, only cheaper.
 
     Returns
     -------
@@ -841,8 +848,16 @@ def solve_macro(
                 f"initial_pressure_pa has shape {p_warm.shape}, expected the gap map's {h.shape}"
             )
         p_warm = np.where(inside & np.isfinite(p_warm), p_warm, 0.0)
-    guess = _coarse_guess(h, inside, x, dx, width, f, xf, e_eff, tilt)
-    if guess is None:  # short grid: start from a generous window on H* alone
+    if initial_rigid_body is not None:
+        delta0, theta0 = (float(v) for v in initial_rigid_body)
+        if not (np.isfinite(delta0) and np.isfinite(theta0)):
+            raise InputError(f"initial_rigid_body must be finite, got {initial_rigid_body!r}")
+        guess = None
+    else:
+        guess = _coarse_guess(h, inside, x, dx, width, f, xf, e_eff, tilt)
+    if initial_rigid_body is not None:
+        margin = float(window_gap_m) if window_gap_m is not None else 50.0 * f / (e_eff * width)
+    elif guess is None:  # short grid: start from a generous window on H* alone
         delta0, theta0 = float(np.nanmin(h)), 0.0
         margin = float(window_gap_m) if window_gap_m is not None else 50.0 * f / (e_eff * width)
     else:

@@ -200,3 +200,45 @@ def test_zero_load_and_bad_inputs():
         solve_macro(gm, 100.0, 3.0, E_EFF)
     with pytest.raises(InputError, match="gap_m"):
         GapMap(np.full((4, 2), -1.0), np.arange(4) * 1e-3, (1e-3, 1e-3))
+
+
+def test_a_nearby_rigid_body_start_gives_the_same_answer():
+    """``initial_rigid_body`` skips the coarse line problem; the window check keeps the answer
+    the same for a nearby profile (the error band's perturbed solves) and for a far one."""
+    x = np.linspace(-0.9, 0.9, 451)
+    base = 2e-4 * (x / 0.9) ** 2 + 2e-5 * np.sin(7 * x)
+    base -= base.min()
+    gm = extrude_profile(x, base, 0.044, pixel_along_m=4e-3, pixels_across=8)
+    load, xf, e = 300.0, -0.1, 3e8
+    ref = solve_macro(gm, load, xf, e)
+    for bump in (1e-6 * np.cos(20 * x), 3e-5 * x):  # nearby, then a tilt that moves the zone
+        g2 = extrude_profile(
+            x,
+            base + bump - min(0.0, float(np.min(base + bump))),
+            0.044,
+            pixel_along_m=4e-3,
+            pixels_across=8,
+        )
+        plain = solve_macro(g2, load, xf, e)
+        near = solve_macro(
+            g2,
+            load,
+            xf,
+            e,
+            initial_pressure_pa=ref.pressure_pa,
+            initial_rigid_body=(ref.approach_m, ref.tilt_rad),
+            window_gap_m=ref.window_gap_m,
+        )
+        assert near.converged and plain.converged
+        assert near.apparent_contact_area_m2 == pytest.approx(
+            plain.apparent_contact_area_m2, rel=1e-6
+        )
+        np.testing.assert_allclose(
+            np.nan_to_num(near.pressure_pa),
+            np.nan_to_num(plain.pressure_pa),
+            rtol=0,
+            atol=1e-4 * np.nanmax(plain.pressure_pa),
+        )
+        assert near.approach_m == pytest.approx(plain.approach_m, rel=1e-5, abs=1e-10)
+    with pytest.raises(InputError):
+        solve_macro(gm, load, xf, e, initial_rigid_body=(float("nan"), 0.0))
