@@ -431,11 +431,13 @@ def solve_micro(
     if p_nom >= p_fc:
         p = p_nom + fluct
         p = np.maximum(p, 0.0)
-        delta = float(h0.mean() + p_nom * 0.0)
+        # the partial-contact convention (periodic u of zero mean): h0 + u − δ = 0 everywhere,
+        # so δ = mean(h0); continuous with the partial-contact δ as P → p_fc
+        delta = float(h0.mean())
         return finish(
             p,
             np.zeros_like(h),
-            delta + float(h0.max() - h0.mean()),
+            delta,
             True,
             True,
             0,

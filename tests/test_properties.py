@@ -99,6 +99,9 @@ def _assert_micro_result_sound(res, h: np.ndarray, p_nom: float, e_eff: float) -
     if res.full_contact:
         assert p_nom >= full_contact_pressure(h, PIXEL_M, e_eff)[0]
         assert np.all(g == 0) and res.mean_gap_m == 0
+        u = PeriodicHalfSpace(h.shape, PIXEL_M, e_eff, workers=1).displacement(p)
+        closed = h.max() - h + u - res.rigid_approach_m  # h0 + u − δ = 0 everywhere
+        assert np.max(np.abs(closed)) <= 1e-9 * np.ptp(h)
         return
     assert res.residual < TOL
     # the returned gap agrees with an independent evaluation g = h0 + u(p) - δ
@@ -230,14 +233,10 @@ def test_micro_zero_load_and_far_beyond_full_contact(shape):
     assert abs(huge.pressure_pa.mean() - 1e8) <= 1e-10 * 1e8
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known failure MICRO-FC-APPROACH: the full-contact branch of solve_micro reports "
-    "rigid_approach_m = max(h0) while the partial-contact branch uses the zero-mean-"
-    "displacement convention (δ = mean over ω_c of h0 + u); δ jumps by max(h0) − mean(h0) "
-    "at p_fc, and h0 + u(p) − δ ≠ 0 in full contact",
-)
 def test_micro_rigid_approach_is_continuous_at_full_contact():
+    """Once MICRO-FC-APPROACH: the full-contact branch reported δ = max(h0), not the partial
+    branch's zero-mean-displacement δ; fixed, δ is continuous and h0 + u − δ = 0 in full
+    contact."""
     h = _surface(32, 32, 0.8, 1)
     e_eff = 1e8
     p_fc, _ = full_contact_pressure(h, PIXEL_M, e_eff)
@@ -245,6 +244,9 @@ def test_micro_rigid_approach_is_continuous_at_full_contact():
     above = solve_micro(h, PIXEL_M, 1.001 * p_fc, e_eff)
     assert not below.full_contact and above.full_contact
     assert above.rigid_approach_m == pytest.approx(below.rigid_approach_m, abs=0.01 * RMS_M)
+    hs = PeriodicHalfSpace(h.shape, PIXEL_M, e_eff, workers=1)
+    closed = h.max() - h + hs.displacement(above.pressure_pa) - above.rigid_approach_m
+    assert np.max(np.abs(closed)) <= 1e-9 * np.ptp(h)
 
 
 # --------------------------------------------------------------------------------- macro
