@@ -25,6 +25,7 @@ heartbeat), so two processes never run the same job.
 from __future__ import annotations
 
 import datetime as _dt
+import time
 import uuid
 from dataclasses import dataclass
 from pathlib import Path
@@ -151,6 +152,24 @@ def _job(row) -> JobRow:
     return JobRow(**d)
 
 
+def _create_schema(engine, attempts: int = 5) -> None:
+    """Create the tables if missing, safe when several processes start at once on an empty
+    database (the uvicorn workers of a first ``docker run``): ``create_all`` checks and then
+    creates, so a process that loses the race sees "already exists"; it checks again, and
+    finds the winner's tables."""
+    for attempt in range(attempts):
+        try:
+            _meta.create_all(engine)
+            return
+        except (sa.exc.OperationalError, sa.exc.ProgrammingError, sa.exc.IntegrityError) as exc:
+            text = str(exc).lower()
+            if "already exists" not in text and "duplicate" not in text:
+                raise
+            if attempt == attempts - 1:
+                raise
+            time.sleep(0.05 * (attempt + 1))
+
+
 class CatalogueDB:
     """Items and jobs in one database (thread-safe: one short transaction per call).
 
@@ -179,7 +198,7 @@ class CatalogueDB:
                 cur.execute("PRAGMA foreign_keys=ON")
                 cur.close()
 
-        _meta.create_all(self.engine)
+        _create_schema(self.engine)
 
     def close(self) -> None:
         self.engine.dispose()

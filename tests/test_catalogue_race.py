@@ -1,0 +1,37 @@
+"""Several service processes starting at once on an empty catalogue (every first ``docker run``
+with two uvicorn workers) must all come up: issue #15, "startup race"."""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+
+import pytest
+
+PROCESSES = 6
+ROUNDS = 8  # before the fix, 9 of 15 rounds had a process fail with "table items already exists"
+
+
+def _open(url: str, barrier, queue) -> None:
+    from app.storage.catalogue import CatalogueDB
+
+    barrier.wait()
+    try:
+        CatalogueDB(url).close()
+        queue.put("ok")
+    except Exception as exc:  # reported to the parent, which fails the test with it
+        queue.put(f"{type(exc).__name__}: {exc}"[:300])
+
+
+@pytest.mark.skipif("fork" not in mp.get_all_start_methods(), reason="needs fork")
+def test_processes_creating_the_catalogue_at_once_all_succeed(tmp_path):
+    ctx = mp.get_context("fork")
+    for r in range(ROUNDS):
+        url = f"sqlite:///{tmp_path / f'round{r}' / 'catalogue.db'}"
+        barrier, queue = ctx.Barrier(PROCESSES), ctx.Queue()
+        procs = [ctx.Process(target=_open, args=(url, barrier, queue)) for _ in range(PROCESSES)]
+        for p in procs:
+            p.start()
+        for p in procs:
+            p.join(timeout=60)
+        results = [queue.get(timeout=10) for _ in procs]
+        assert results == ["ok"] * PROCESSES, (r, [x for x in results if x != "ok"])
