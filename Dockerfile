@@ -35,7 +35,7 @@ USER skisnow
 WORKDIR /srv/skisnow
 EXPOSE 8000
 HEALTHCHECK --interval=30s --timeout=3s --start-period=20s --retries=3 \
-    CMD python -c "import urllib.request,sys; sys.exit(0 if urllib.request.urlopen('http://127.0.0.1:8000/healthz', timeout=2).status == 200 else 1)"
+    CMD python -c "import os,sys,urllib.request; port = os.environ.get('SKISNOW_PORT', '8000'); sys.exit(0 if urllib.request.urlopen(f'http://127.0.0.1:{port}/healthz', timeout=2).status == 200 else 1)"
 # uploaded skis/grinds and the catalogue database: mount a volume here to keep them
 VOLUME /srv/skisnow/data
 CMD ["skisnow", "serve"]

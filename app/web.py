@@ -300,7 +300,10 @@ def compute(cat: service.Catalogue, q: Query, cache: _ResultCache) -> Outcome:
     t0 = time.perf_counter()
     results, failures = [], []
     for inp in q.combinations():
-        key = astuple(inp)
+        # keyed on content, not names: a renamed, deleted or re-uploaded item is never served
+        # an earlier item's answer
+        ski, grind = cat.skis.get(inp.ski), cat.grinds.get(inp.grind)
+        key = (astuple(inp), ski and ski.sha256, grind and grind.sha256)
         answer = cache.get(key)
         if answer is None:
             try:

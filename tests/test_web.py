@@ -480,3 +480,28 @@ def test_accuracy_preset_is_chosen_in_the_form(client):
     bad = client.get("/results", params=_q(preset="turbo"))
     assert bad.status_code == 422
     assert "unknown accuracy preset" in bad.text and "Traceback" not in bad.text
+
+
+def test_result_cache_is_keyed_on_content_not_names(catalogue):
+    """A ski replaced under the same name (deleted and re-uploaded) is not served the old
+    ski's cached answer (issue #15: the cache was keyed by names only)."""
+    from dataclasses import replace
+
+    from app import service
+
+    cat = replace(catalogue, skis=dict(catalogue.skis))
+    cache = web._ResultCache()
+    inp = service.ContactInputs("ski-a", "tiny-grind", 40, -160, 200, 0.5, ski_model="rigid")
+
+    class Q:
+        def combinations(self):
+            return [inp]
+
+    first = web.compute(cat, Q(), cache).results[0]
+    again = web.compute(cat, Q(), cache).results[0]
+    assert again is first  # served from the cache
+    b = cat.skis["ski-b"]
+    cat.skis["ski-a"] = service.Ski("ski-a", b.path, b.sha256, b.record)  # re-uploaded
+    other = web.compute(cat, Q(), cache).results[0]
+    assert other is not first
+    assert other["apparent"]["contact_area_cm2"] != first["apparent"]["contact_area_cm2"]
