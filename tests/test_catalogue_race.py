@@ -35,3 +35,17 @@ def test_processes_creating_the_catalogue_at_once_all_succeed(tmp_path):
             p.join(timeout=60)
         results = [queue.get(timeout=10) for _ in procs]
         assert results == ["ok"] * PROCESSES, (r, [x for x in results if x != "ok"])
+
+
+def test_serve_refuses_an_unwritable_data_dir_naming_the_setting(tmp_path, monkeypatch, capsys):
+    """A data folder the service cannot write (a bind mount owned by another uid in Docker)
+    stops ``skisnow serve`` before it binds, with exit code 2 and the setting named (it used to
+    exit 0 from inside a worker with ``unable to open database file``)."""
+    from app.cli import main
+
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a folder")
+    monkeypatch.setenv("SKISNOW_DATA_DIR", str(blocker / "data"))  # cannot be created
+    assert main(["serve", "--port", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "SKISNOW_DATA_DIR" in err and "not writable" in err and "Traceback" not in err

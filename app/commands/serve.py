@@ -5,8 +5,10 @@ from __future__ import annotations
 import argparse
 import json
 import os
+from pathlib import Path
 
 from app.presets import DEFAULT_PRESET, PRESETS
+from solvers.errors import DataFileError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -49,6 +51,24 @@ def register(sub: argparse._SubParsersAction) -> None:
     v.set_defaults(func=run_solve)
 
 
+def _check_data_dir(data_dir: Path) -> None:
+    """Refuse to start, naming the setting and the user, when the data directory (uploads, the
+    SQLite catalogue) cannot be created or written, e.g. a bind mount owned by another uid."""
+    try:
+        data_dir.mkdir(parents=True, exist_ok=True)
+        probe = data_dir / f".write-test-{os.getpid()}"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        uid = os.getuid() if hasattr(os, "getuid") else "?"
+        raise DataFileError(
+            f"the data directory {data_dir} is not writable by this process (uid {uid}): "
+            f"{exc.strerror or exc}. Set SKISNOW_DATA_DIR to a writable folder, or give the "
+            "folder to this user (Docker: the image runs as uid 10001; chown the mounted folder "
+            "or use a named volume)"
+        ) from None
+
+
 def run_serve(args: argparse.Namespace) -> int:
     from app.settings import Settings
 
@@ -72,6 +92,12 @@ def run_serve(args: argparse.Namespace) -> int:
     from app.service import load_catalogue
 
     load_catalogue(settings.tables_dir)
+    _check_data_dir(Path(settings.data_dir))
+    # the catalogue's schema is created here, once, before the workers start (they would race
+    # on an empty database)
+    from app.storage.catalogue import CatalogueDB
+
+    CatalogueDB(settings.catalogue_url).close()
     for key, value in overrides.items():
         os.environ[f"SKISNOW_{key.upper()}"] = str(value)
     uvicorn.run(
