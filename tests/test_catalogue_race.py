@@ -49,3 +49,23 @@ def test_serve_refuses_an_unwritable_data_dir_naming_the_setting(tmp_path, monke
     assert main(["serve", "--port", "1"]) == 2
     err = capsys.readouterr().err
     assert "SKISNOW_DATA_DIR" in err and "not writable" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    ("host", "tokens", "warned"),
+    [
+        ("127.0.0.1", {}, False),
+        ("::1", {}, False),
+        ("localhost", {}, False),
+        ("0.0.0.0", {}, True),
+        ("192.168.1.5", {}, True),
+        ("0.0.0.0", {"secret": "team-a"}, False),
+    ],
+)
+def test_open_writes_on_a_public_address_are_warned_at_start_up(host, tokens, warned):
+    from app.commands.serve import open_writes_warning
+
+    text = open_writes_warning(host, tokens)
+    assert (text is not None) == warned
+    if warned:
+        assert host in text and "SKISNOW_TEAM_TOKENS" in text

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 from pathlib import Path
 
 from app.presets import DEFAULT_PRESET, PRESETS
@@ -69,6 +70,26 @@ def _check_data_dir(data_dir: Path) -> None:
         ) from None
 
 
+def open_writes_warning(host: str, team_tokens: dict) -> str | None:
+    """The start-up warning when anyone who reaches the port may upload, rename, delete and
+    queue jobs: no team tokens, on an address other than loopback."""
+    import ipaddress
+
+    if team_tokens:
+        return None
+    try:
+        loopback = ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        loopback = host == "localhost"
+    if loopback:
+        return None
+    return (
+        f"listening on {host} with no team tokens (SKISNOW_TEAM_TOKENS): anyone who reaches "
+        "this port can upload, rename and delete skis and grinds and queue table builds; set "
+        "team tokens or bind to 127.0.0.1 behind an authenticating proxy"
+    )
+
+
 def run_serve(args: argparse.Namespace) -> int:
     from app.settings import Settings
 
@@ -100,6 +121,9 @@ def run_serve(args: argparse.Namespace) -> int:
     CatalogueDB(settings.catalogue_url).close()
     for key, value in overrides.items():
         os.environ[f"SKISNOW_{key.upper()}"] = str(value)
+    warning = open_writes_warning(settings.host, settings.team_tokens)
+    if warning:
+        print(f"skisnow serve: WARNING: {warning}", file=sys.stderr)
     uvicorn.run(
         "app.main:app",
         host=settings.host,
