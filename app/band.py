@@ -254,24 +254,28 @@ class _Sampled:
     failed: int
 
 
-def _sample(
-    positions_m,
-    gap_m,
-    outline,
-    preset: Preset,
-    macro,
-    ms,
-    table: MicroTable,
-    porosity: float,
-    e_eff: float,
-    sigma_m: float | np.ndarray,
-    samples: int,
-    seed: int,
-) -> _Sampled | None:
+@dataclass(frozen=True)
+class _Case:
+    """One answer: the rigid loaded profile behind it, its grid, solves and texture."""
+
+    positions_m: np.ndarray
+    gap_m: np.ndarray
+    outline: object
+    preset: Preset
+    macro: object
+    ms: object
+    table: MicroTable
+    porosity: float
+    e_eff: float
+
+
+def _sample(case: _Case, sigma_m: float | np.ndarray, samples: int, seed: int) -> _Sampled | None:
     """Solve on the coarse grid (:func:`coarse_grid`) the nominal profile and ``samples``
     perturbed ones. The coarse nominal against the answer gives the grid estimate (first-order
     convergence: the error of the answer's grid is the difference to a grid twice as coarse);
     the perturbed ones against the coarse nominal give the camber model's spread."""
+    positions_m, gap_m, outline, preset = case.positions_m, case.gap_m, case.outline, case.preset
+    macro, ms, table, porosity, e_eff = case.macro, case.ms, case.table, case.porosity, case.e_eff
     dx, ny = coarse_grid(preset)
 
     def solve(g, near=None):
@@ -440,20 +444,8 @@ def answer_band(
         not_covered.insert(0, "the identified beam's uncertainty (EI(X), c(X))")
     sampled = None
     if rigid:
-        sampled = _sample(
-            positions_m,
-            gap_m,
-            record.outline,
-            preset,
-            macro,
-            ms,
-            table,
-            porosity,
-            e_eff,
-            0.0 if sigma is None else sigma,
-            samples,
-            seed,
-        )
+        case = _Case(positions_m, gap_m, record.outline, preset, macro, ms, table, porosity, e_eff)
+        sampled = _sample(case, 0.0 if sigma is None else sigma, samples, seed)
     has_sigma = sigma is not None and bool(np.any(np.asarray(sigma) > 0))
     if sampled is not None and has_sigma:
         components["camber_model"] = sampled.widths

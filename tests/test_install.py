@@ -35,21 +35,10 @@ REPO = Path(__file__).resolve().parents[1]
 #: build/ or egg-info into the clone
 SOURCE_ITEMS = ["pyproject.toml", "README.md", "app", "solvers", "tables"]
 
-SOLVE_ARGS = [
-    "solve",
-    "--ski",
-    "ski-a",
-    "--grind",
-    "grind-1",
-    "--load-kg",
-    "40",
-    "--load-position-mm",
-    "-160",
-    "--snow-modulus-mpa",
-    "200",
-    "--porosity",
-    "0.5",
-]
+SOLVE_ARGS = (
+    "solve --ski ski-a --grind grind-1 --load-kg 40 --load-position-mm -160 "
+    "--snow-modulus-mpa 200 --porosity 0.5"
+).split()
 
 
 # ---------------------------------------------------------------------------------------------
