@@ -184,6 +184,8 @@ def solve_beam_contact(
     *,
     flexibility: BeamFlexibility | None = None,
     max_iterations: int = 200,
+    initial_contacts: np.ndarray | None = None,
+    contact_compliance_m_per_n: float = 0.0,
 ) -> BeamResult:
     """Press a beam ski with a point load onto a rigid flat (unilateral contact, exact).
 
@@ -204,6 +206,16 @@ def solve_beam_contact(
         Precomputed flexibility of ``ski`` (saves ~0.1 s per call in loops).
     max_iterations : int
         Active-set updates before giving up (``converged=False``).
+    initial_contacts : ndarray of int, optional
+        Node indices to start the active set from (a warm start, e.g. the contacts of a nearby
+        solve); used only when their reactions come out positive, else the default start. The
+        contact problem has one solution, so the answer does not depend on the start.
+    contact_compliance_m_per_n : float
+        Compliance s ≥ 0 of each node's contact with the flat [m/N]: a touching node sinks by
+        ``s·r`` (a stiff elastic foundation; 0 is the rigid flat of the device). The beam
+        identification's continuation uses it to smooth the contact set's dependence on the
+        camber (:mod:`solvers.beam_fit`); ``displacement_m`` then carries the sinking, and
+        ``gap_m`` is 0 on the contact set.
 
     Returns
     -------
@@ -256,6 +268,8 @@ def solve_beam_contact(
         m = idx.size
         kkt = np.zeros((m + 2, m + 2))
         kkt[:m, :m] = g_mat[np.ix_(idx, idx)]
+        if contact_compliance_m_per_n > 0.0:
+            kkt[np.arange(m), np.arange(m)] += contact_compliance_m_per_n
         kkt[:m, m] = 1.0
         kkt[:m, m + 1] = xs[idx]
         kkt[m, :m] = 1.0
@@ -272,6 +286,13 @@ def solve_beam_contact(
     # penetrating run, step back along the segment when a reaction would turn negative.
     idx = np.array([g_idx[rear][np.argmin(c[rear])], g_idx[front][np.argmin(c[front])]], dtype=int)
     r_idx, a_rigid, b_rigid = solve_set(idx)
+    if initial_contacts is not None:
+        warm = np.unique(np.asarray(initial_contacts, dtype=int))
+        warm = warm[(warm >= 0) & (warm < n)]
+        if warm.size >= 2 and rear[warm].any() and front[warm].any():
+            r_w, a_w, b_w = solve_set(warm)
+            if np.all(r_w > 0):
+                idx, r_idx, a_rigid, b_rigid = warm, r_w, a_w, b_w
     converged = False
     it = 0
     z = c.copy()
@@ -305,7 +326,9 @@ def solve_beam_contact(
                 break
             ro = r_old[cand]
             neg = r_c <= 0
-            ratios = ro[neg] / (ro[neg] - r_c[neg])
+            den = ro[neg] - r_c[neg]
+            # a node entering with a zero reaction (0/0) cannot step: ratio 0
+            ratios = np.divide(ro[neg], den, out=np.zeros_like(den), where=den > 0)
             block = cand[np.flatnonzero(neg)[np.argmin(ratios)]]
             if block == j and ratios.min() == 0.0:
                 stalled = True
@@ -324,7 +347,7 @@ def solve_beam_contact(
     active[idx] = True
     active |= np.abs(z) <= tol_gap
     # rigid + elastic displacement from the unloaded shape
-    u = z - c
+    u = a_rigid + b_rigid * xs + g_mat[:, idx] @ r_idx + g_load
     gap = np.where(active, 0.0, np.maximum(z, 0.0))
     force_res = abs(float(r.sum()) - load_n) / load_n
     moment_res = abs(float(np.sum(r * xs))) / (load_n * length)

@@ -1,0 +1,560 @@
+"""Forward-model fit of a ski's beam to its camber cases (method.md §4c, the Gauss–Newton polish).
+
+The start (:mod:`solvers.identify`, variable projection with free reactions at contact points
+read from the data) fits the measured cases at the device noise but leaves two freedoms that
+spoil predictions of cases it has not seen (docs/camber-identification.md): per-case redundant
+reactions at candidate contacts, and a camber c(X) fitted node by node, whose per-node noise
+(σ/√K) pins the beam's slope wrongly wherever a short contact holds it. This module removes
+both:
+
+- **The exact device model.** Every case is predicted by the unilateral contact solve of
+  :func:`solvers.beam.solve_beam_contact`: its contacts and reactions follow from EI and c, so
+  no case has freedom of its own. For a fixed contact set the solve is linear (a KKT system in
+  the reactions and the rigid motion), and its derivatives follow by implicit differentiation:
+  ``∂H/∂θ = (I − B K⁻¹ S) ∂d/∂θ`` with ``d`` the gap before the contact correction, ``B`` the
+  columns [G_{:,A}, 1, X − x_F], ``K`` the KKT matrix and ``S`` the selection of the contact
+  rows. The contact sets are re-solved at every trial point (Levenberg–Marquardt).
+- **A smooth camber with the kinks the data show.** c(X) is a cubic B-spline with knots
+  ``camber_spacing_m`` apart, plus a triple knot (a slope kink) wherever the mean measured
+  profile has a significant slope jump (:func:`detect_camber_kinks`). The loaded gap is
+  ``c + u + line`` with u twice continuously differentiable, so a kink of the mean profile is
+  a kink of c; a shovel that starts with a kink (the demo skis) keeps it, a smooth base stays
+  smooth.
+- 1/EI = Σ exp(γ_m) φ_m(X) on hat functions (positive by construction), with the same smoothness
+  prior on the second differences of γ as the start.
+
+The result carries the Gauss–Newton covariance of all parameters, from which the bands on EI(X)
+and c(X) and the draws of plausible beams follow.
+
+Units: SI throughout (m, N, N·m²).
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg
+import scipy.sparse
+from scipy.interpolate import BSpline
+
+from .beam import BeamFlexibility, BeamSki, solve_beam_contact
+from .errors import InputError
+
+__all__ = [
+    "DEFAULT_CAMBER_SPACING_M",
+    "ForwardFit",
+    "camber_basis",
+    "detect_camber_kinks",
+    "fit_forward",
+]
+
+#: knot spacing of the camber's cubic B-spline [m]: on the demo skis' true cambers (with their
+#: kinks as knots) 10 mm leaves ≤ 0.05 µm in c and ≤ 0.07 µm RMS in predicted profiles near
+#: contact; 20 mm leaves 0.3 µm (docs/camber-identification.md)
+DEFAULT_CAMBER_SPACING_M = 0.010
+#: the continuation's first stage: beam-on-foundation length of the softened flat [m]
+DEFAULT_FOUNDATION_LENGTH_M = 0.010
+#: the first stage only brings the fit near: it stops at this relative decrease [-] or after
+#: STAGE_STEPS steps (its softened contact cannot fit rigid-flat data to the noise)
+STAGE_RTOL = 1e-3
+STAGE_STEPS = 12
+#: half-width of the window in which a slope kink of the mean profile is tested [m]
+KINK_WINDOW_M = 0.015
+#: a slope jump is a kink when it exceeds this many standard errors (2000 nodes tested: a
+#: Gaussian false alarm at 6 σ has probability ~4e-6 per ski)
+KINK_THRESHOLD = 6.0
+
+
+def detect_camber_kinks(
+    positions_m: np.ndarray,
+    profiles_m: np.ndarray,
+    noise_m: float,
+    *,
+    window_m: float = KINK_WINDOW_M,
+    threshold: float = KINK_THRESHOLD,
+) -> np.ndarray:
+    """Positions [m] where the camber has a slope kink, read from the measured profiles.
+
+    Every measured gap is ``c + u_k + a_k + b_k X`` with u_k twice continuously differentiable
+    (M/EI is continuous), so the mean profile ȳ over all cases is c plus a smooth function and
+    its kinks are c's. At every node X_j a local model ``α + β s + γ s² + ε s₊² + δ s₊``
+    (s = X − X_j, over ±``window_m``) is fitted to ȳ; δ is the slope jump and ε absorbs a jump
+    in curvature (which a cubic spline follows without a kink). A node is a kink where
+    |δ| > ``threshold`` × its standard error (noise σ/√K) and |δ| is largest within the window.
+
+    Parameters
+    ----------
+    positions_m : ndarray (N,)
+        Uniform measurement nodes X [m].
+    profiles_m : ndarray (K, N)
+        Measured gaps [m].
+    noise_m : float
+        Device noise σ [m].
+    window_m : float
+        Half-width of the local fit [m].
+    threshold : float
+        Significance of a kink in standard errors [-].
+
+    Returns
+    -------
+    ndarray
+        Kink positions [m], increasing (possibly empty).
+    """
+    x = np.asarray(positions_m, dtype=float)
+    y = np.asarray(profiles_m, dtype=float)
+    dx = float(x[1] - x[0])
+    half = max(3, round(window_m / dx))
+    if x.size < 2 * half + 1:
+        return np.zeros(0)
+    s = np.arange(-half, half + 1) * dx
+    sp = np.maximum(s, 0.0)
+    design = np.stack([np.ones_like(s), s, s * s, sp * sp, sp], axis=1)
+    pinv = np.linalg.pinv(design)
+    filt = pinv[4]  # δ̂ = filt · ȳ[window]
+    mean = y.mean(axis=0)
+    windows = np.lib.stride_tricks.sliding_window_view(mean, 2 * half + 1)
+    delta = windows @ filt
+    se = noise_m / np.sqrt(y.shape[0]) * float(np.linalg.norm(filt))
+    score = np.abs(delta) / max(se, 1e-300)
+    centre = np.arange(half, x.size - half)
+    out: list[float] = []
+    for i in np.argsort(-score):
+        if score[i] < threshold:
+            break
+        lo, hi = max(i - half, 0), min(i + half + 1, score.size)
+        if score[i] < score[lo:hi].max():
+            continue
+        xi = float(x[centre[i]]) + _kink_offset(windows[i], s)
+        if all(abs(xi - k) > window_m for k in out):
+            out.append(xi)
+    return np.sort(np.asarray(out, dtype=float))
+
+
+def _kink_offset(window: np.ndarray, s: np.ndarray) -> float:
+    """Where, within ±2 nodes of the window's centre, a kink explains the window best [m]: the
+    least-squares position τ of the local model ``α + β s + γ s² + ε (s−τ)₊² + δ (s−τ)₊``
+    (tenths of a node; the score peaks one node off about half the time)."""
+    dx = float(s[1] - s[0])
+    best, best_rss = 0.0, np.inf
+    for tau in np.linspace(-2.0 * dx, 2.0 * dx, 41):
+        sp = np.maximum(s - tau, 0.0)
+        design = np.stack([np.ones_like(s), s, s * s, sp * sp, sp], axis=1)
+        coef = np.linalg.lstsq(design, window, rcond=None)[0]
+        rss = float(np.sum((design @ coef - window) ** 2))
+        if rss < best_rss:
+            best, best_rss = float(tau), rss
+    return best
+
+
+def camber_basis(
+    positions_m: np.ndarray, spacing_m: float, kinks_m: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Cubic B-spline basis of the camber on the nodes: (N, n) design matrix and knot vector.
+
+    Knots are uniform ``spacing_m`` apart; each kink gets a triple knot (the spline stays
+    continuous and its slope may jump there), and uniform knots closer than 0.3 × spacing to a
+    kink are dropped.
+    """
+    x = np.asarray(positions_m, dtype=float)
+    if not (np.isfinite(spacing_m) and spacing_m > 0):
+        raise InputError(f"camber_spacing_m must be finite and > 0, got {spacing_m!r}")
+    n = max(round((x[-1] - x[0]) / spacing_m), 1)
+    inner = list(np.linspace(x[0], x[-1], n + 1)[1:-1])
+    kinks = [] if kinks_m is None else [float(k) for k in kinks_m if x[0] < k < x[-1]]
+    for k in kinks:
+        inner = [t for t in inner if abs(t - k) > 0.3 * spacing_m]
+    knots = np.r_[[x[0]] * 4, sorted(inner + 3 * kinks), [x[-1]] * 4]
+    mat = BSpline.design_matrix(x, knots, 3).toarray()
+    return mat, knots
+
+
+def hats(x: np.ndarray, knots: np.ndarray) -> np.ndarray:
+    """(N, m) piecewise-linear hat functions on ``knots`` evaluated at ``x`` (constant beyond)."""
+    eye = np.eye(knots.size)
+    return np.stack([np.interp(x, knots, eye[m]) for m in range(knots.size)], axis=1)
+
+
+def double_integral(kappa: np.ndarray, dx: float) -> np.ndarray:
+    """∫∫ κ from the first node along the last axis (zero value and slope there); κ piecewise
+    linear between nodes, integrated exactly (the rule of :class:`solvers.beam.BeamFlexibility`).
+    ``dx`` node spacing [m] (a float, or the (N−1,) spacings)."""
+    k0, k1 = kappa[..., :-1], kappa[..., 1:]
+    slope = np.zeros_like(kappa)
+    np.cumsum(0.5 * dx * (k0 + k1), axis=-1, out=slope[..., 1:])
+    w = np.zeros_like(kappa)
+    np.cumsum(dx * slope[..., :-1] + dx * dx * (2.0 * k0 + k1) / 6.0, axis=-1, out=w[..., 1:])
+    return w
+
+
+def camber_on_flat(x: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """c minus the supporting line of its lower convex hull that spans the middle of the ski:
+    ≥ 0, zero at two nodes (the unloaded ski resting on the flat). Only c's shape matters to the
+    contact model; the line is a convention."""
+    hull: list[int] = []
+    for i in range(x.size):
+        while len(hull) >= 2:
+            i0, i1 = hull[-2], hull[-1]
+            cross = (x[i1] - x[i0]) * (c[i] - c[i0]) - (c[i1] - c[i0]) * (x[i] - x[i0])
+            if cross <= 0:
+                hull.pop()
+            else:
+                break
+        hull.append(i)
+    mid = 0.5 * (x[0] + x[-1])
+    for i0, i1 in itertools.pairwise(hull):
+        if x[i0] <= mid <= x[i1]:
+            break
+    slope = (c[i1] - c[i0]) / (x[i1] - x[i0])
+    return np.maximum(c - (c[i0] + slope * (x - x[i0])), 0.0)
+
+
+def _continuation(start: BeamSki, foundation_length_m: float) -> list[float]:
+    """Contact compliances [m/N] of the continuation's stages: a Winkler foundation of
+    modulus k = 4 EI / ℓ⁴ [N/m²] (EI the start's median), lumped per node (k·dx), then 0."""
+    if not foundation_length_m > 0:
+        return [0.0]
+    ei = float(np.median(start.bending_stiffness_nm2))
+    k_node = 4.0 * ei / foundation_length_m**4 * start.spacing_m
+    return [1.0 / k_node, 0.0]
+
+
+@dataclass
+class ForwardFit:
+    """Result of :func:`fit_forward`.
+
+    Attributes
+    ----------
+    beam : BeamSki
+        Fitted beam (camber shifted to rest on the flat).
+    camber_coefficients : ndarray (n_c,)
+        B-spline coefficients of c [m] (before the shift to the flat).
+    camber_knots_m : ndarray
+        Knot vector of c's cubic B-spline [m].
+    kinks_m : ndarray
+        Slope kinks of c (triple knots) [m].
+    stiffness_knots_m : ndarray (m,)
+        Hat-function knots of 1/EI [m].
+    log_compliance : ndarray (m,)
+        γ: log of 1/EI at the knots [log(1/(N·m²))].
+    covariance : ndarray (n_c + m, n_c + m)
+        Gauss–Newton covariance of (camber coefficients, γ), σ̂² H⁻¹, the camber's line gauge
+        removed [m², -].
+    misfit_m : float
+        RMS residual over all cases and nodes [m].
+    case_misfit_m : ndarray (K,)
+        RMS residual per case [m].
+    converged : bool
+        The objective stopped decreasing by more than ``rtol`` (relative), every contact solve
+        converged, within ``max_steps``.
+    iterations : int
+        Accepted Gauss–Newton steps.
+    message : str
+        What stopped the iteration.
+    solve_time_s : float
+        Wall time [s].
+    history_m : list of float
+        Misfit after each accepted step [m].
+    """
+
+    beam: BeamSki
+    camber_coefficients: np.ndarray
+    camber_knots_m: np.ndarray
+    kinks_m: np.ndarray
+    stiffness_knots_m: np.ndarray
+    log_compliance: np.ndarray
+    covariance: np.ndarray
+    misfit_m: float
+    case_misfit_m: np.ndarray
+    converged: bool
+    iterations: int
+    message: str
+    solve_time_s: float = 0.0
+    history_m: list = field(default_factory=list)
+
+
+class _Model:
+    """Data, bases and the evaluation of residuals and Gauss–Newton normal equations."""
+
+    def __init__(self, x, loads, xfs, y, noise, camber_mat, stiff_knots, smoothing):
+        self.x, self.loads, self.xfs, self.y = x, loads, xfs, y
+        self.noise = noise
+        self.dx = float(x[1] - x[0])
+        self.bc = camber_mat
+        self.bc_sparse = scipy.sparse.csr_matrix(camber_mat)
+        self.bc_sparse_t = scipy.sparse.csr_matrix(self.bc_sparse.T)
+        self.bc_gram = (self.bc_sparse_t @ self.bc_sparse).toarray()
+        self.phi = hats(x, stiff_knots)
+        self.phi_t = np.ascontiguousarray(self.phi.T)
+        m = stiff_knots.size
+        d2 = np.zeros((max(m - 2, 0), m))
+        for i in range(m - 2):
+            d2[i, i : i + 3] = (1.0, -2.0, 1.0)
+        self.reg = smoothing * d2
+        self.nc = camber_mat.shape[1]
+        #: contact compliance of the flat [m/N] (0: rigid; > 0 in the continuation's first stage)
+        self.compliance = 0.0
+        #: each case's contact nodes at the last evaluation (warm starts of the contact solves)
+        self.contacts: list[np.ndarray | None] = [None] * loads.size
+        self.nq = m
+        # the camber's rigid-line directions in coefficient space: gaps do not see them
+        line = np.linalg.lstsq(camber_mat, np.stack([np.ones_like(x), x - x.mean()], 1), rcond=None)
+        self.line_c, _ = np.linalg.qr(line[0])
+
+    def beam(self, theta: np.ndarray) -> BeamSki:
+        cc, gamma = theta[: self.nc], theta[self.nc :]
+        q = self.phi @ np.exp(gamma)
+        return BeamSki(self.x, 1.0 / q, camber_on_flat(self.x, self.bc @ cc))
+
+    def objective(self, ssr: float, theta: np.ndarray) -> float:
+        rg = self.reg @ theta[self.nc :]
+        return ssr / self.noise**2 + float(rg @ rg)
+
+    def evaluate(self, theta: np.ndarray, jacobian: bool):
+        """Residual sum of squares, per-case sums, and (optionally) JᵀJ and Jᵀρ [m², m²/θ]."""
+        x, n = self.x, self.x.size
+        beam = self.beam(theta)
+        flex = BeamFlexibility(beam)
+        beta = np.exp(theta[self.nc :])
+        p = self.nc + self.nq
+        jtj = np.zeros((p, p))
+        jtr = np.zeros(p)
+        per = np.zeros(self.loads.size)
+        all_converged = True
+        sl_c, sl_q = slice(0, self.nc), slice(self.nc, p)
+        if jacobian:
+            jtj[sl_c, sl_c] = self.loads.size * self.bc_gram
+        for k, (load, xf) in enumerate(zip(self.loads, self.xfs, strict=True)):
+            res = solve_beam_contact(
+                beam,
+                load,
+                xf,
+                flexibility=flex,
+                initial_contacts=self.contacts[k],
+                contact_compliance_m_per_n=self.compliance,
+            )
+            self.contacts[k] = np.flatnonzero(res.reaction_n > 0)
+            all_converged &= bool(res.converged)
+            gap = res.gap_m if self.compliance == 0.0 else beam.unloaded_gap_m + res.displacement_m
+            rho = gap - self.y[k]
+            per[k] = float(rho @ rho)
+            if not jacobian:
+                continue
+            act = np.flatnonzero(res.reaction_n > 0)
+            r = res.reaction_n[act]
+            xs = x - xf
+            s = (xf - x[0]) / self.dx
+            i0 = min(int(np.floor(s)), n - 2)
+            t = s - i0
+            mom = np.maximum(x[None, :] - x[act][:, None], 0.0).T @ r - load * (
+                (1.0 - t) * np.maximum(x - x[i0], 0.0) + t * np.maximum(x - x[i0 + 1], 0.0)
+            )
+            # ∂d/∂γ_m: deflection of this case's moment with 1/EI = β_m φ_m
+            ut = double_integral(mom[None, :] * self.phi_t, self.dx) * beta[:, None]  # (nq, N)
+            m_act = act.size
+            bm = np.empty((n, m_act + 2))
+            bm[:, :m_act] = flex.matrix[:, act]
+            bm[:, m_act] = 1.0
+            bm[:, m_act + 1] = xs
+            kkt = np.zeros((m_act + 2, m_act + 2))
+            kkt[:m_act, :m_act] = flex.matrix[np.ix_(act, act)]
+            kkt[np.arange(m_act), np.arange(m_act)] += self.compliance
+            kkt[:m_act, m_act] = 1.0
+            kkt[:m_act, m_act + 1] = xs[act]
+            kkt[m_act, :m_act] = 1.0
+            kkt[m_act + 1, :m_act] = xs[act]
+            sd = np.zeros((m_act + 2, p))
+            sd[:m_act, sl_c] = self.bc[act]
+            sd[:m_act, sl_q] = ut[:, act].T
+            w = np.linalg.lstsq(kkt, sd, rcond=None)[0] if m_act else np.zeros((2, p))
+            # J = D − Bm W with D = [Bc, U]
+            jtj[sl_c, sl_q] += self.bc_sparse_t @ ut.T  # Bcᵀ U (nc, nq)
+            jtj[sl_q, sl_q] += ut @ ut.T
+            dtb = np.empty((p, m_act + 2))
+            dtb[sl_c] = self.bc_sparse_t @ bm
+            dtb[sl_q] = ut @ bm
+            cross = dtb @ w
+            jtj -= cross + cross.T
+            jtj += w.T @ ((bm.T @ bm) @ w)
+            jtr[sl_c] += self.bc_sparse_t @ rho
+            jtr[sl_q] += ut @ rho
+            jtr -= w.T @ (bm.T @ rho)
+        if jacobian:
+            jtj[sl_q, sl_c] = jtj[sl_c, sl_q].T
+        return float(per.sum()), per, jtj, jtr, all_converged
+
+
+def fit_forward(
+    positions_m: np.ndarray,
+    loads_n: np.ndarray,
+    load_positions_m: np.ndarray,
+    profiles_m: np.ndarray,
+    start: BeamSki,
+    *,
+    noise_m: float,
+    stiffness_knots_m: np.ndarray,
+    smoothing: float,
+    camber_spacing_m: float = DEFAULT_CAMBER_SPACING_M,
+    kinks_m: np.ndarray | None = None,
+    max_steps: int = 40,
+    rtol: float = 1e-5,
+    foundation_length_m: float = DEFAULT_FOUNDATION_LENGTH_M,
+    callback=None,
+) -> ForwardFit:
+    """Levenberg–Marquardt fit of (c, EI) through the exact device model, from ``start``.
+
+    Parameters
+    ----------
+    positions_m : ndarray (N,)
+        Uniform measurement nodes X [m].
+    loads_n, load_positions_m : ndarray (K,)
+        F_k [N] and x_k [m] of each case.
+    profiles_m : ndarray (K, N)
+        Measured gaps [m].
+    start : BeamSki
+        Starting beam on the same nodes (the variable-projection start).
+    noise_m : float
+        Device noise σ [m] (the scale of the prior on γ).
+    stiffness_knots_m : ndarray (m,)
+        Hat-function knots of 1/EI [m].
+    smoothing : float
+        Weight of the second differences of γ in units of the noise [-].
+    camber_spacing_m : float
+        Knot spacing of c's cubic B-spline [m].
+    kinks_m : ndarray, optional
+        Slope kinks of c [m]; default: :func:`detect_camber_kinks` on the data.
+    max_steps : int
+        Accepted steps at most.
+    rtol : float
+        Stop when the objective falls by less than this (relative) in a step.
+    foundation_length_m : float
+        Continuation: the first stage fits with the flat as an elastic foundation whose
+        beam-on-foundation length (4 EI / k)^¼ is this [m] (mid-ski EI of the start); the second
+        stage with the rigid flat. 0 skips the first stage.
+    callback : callable, optional
+        ``callback(step, misfit_m)`` after each accepted step (progress; silent by default).
+
+    Returns
+    -------
+    ForwardFit
+    """
+    t0 = time.perf_counter()
+    x = np.asarray(positions_m, dtype=float)
+    loads = np.asarray(loads_n, dtype=float)
+    xfs = np.asarray(load_positions_m, dtype=float)
+    y = np.asarray(profiles_m, dtype=float)
+    if start.positions_m.shape != x.shape:
+        raise InputError("start beam must be on the measurement nodes")
+    kinks = detect_camber_kinks(x, y, noise_m) if kinks_m is None else np.asarray(kinks_m, float)
+    bc, knots_c = camber_basis(x, camber_spacing_m, kinks)
+    knots_q = np.asarray(stiffness_knots_m, dtype=float)
+    model = _Model(x, loads, xfs, y, noise_m, bc, knots_q, smoothing)
+    cc0 = np.linalg.lstsq(bc, start.unloaded_gap_m, rcond=None)[0]
+    g0 = np.log(1.0 / np.interp(knots_q, x, start.bending_stiffness_nm2))
+    theta = np.concatenate([cc0, g0])
+    nc = model.nc
+    s2 = noise_m**2
+    gauge = model.line_c @ model.line_c.T / s2
+
+    def normal(jtj, jtr, theta):
+        h = jtj / s2
+        g = jtr / s2
+        h[nc:, nc:] += model.reg.T @ model.reg
+        g[nc:] += model.reg.T @ (model.reg @ theta[nc:])
+        h[:nc, :nc] += gauge
+        return h, g
+
+    history: list[float] = []
+    total = [0]
+
+    def levenberg_marquardt(theta: np.ndarray, steps_left: int, rtol: float):
+        """Damped Gauss–Newton steps from ``theta`` until the objective stalls."""
+        ssr, _, jtj, jtr, _ = model.evaluate(theta, jacobian=True)
+        cur = model.objective(ssr, theta)
+        h, g = normal(jtj, jtr, theta)
+        lam = 1e-3
+        steps = 0
+        message = f"max_steps {max_steps} reached"
+        converged = False
+        while steps < steps_left:
+            # Jacobi scaling: c's coefficients [m] and γ [-] differ by ~1e6 in the normal matrix
+            scale = 1.0 / np.sqrt(np.maximum(np.diag(h), 1e-300))
+            hs = h * scale[:, None] * scale[None, :]
+            gs = g * scale
+            while True:
+                damped = hs + lam * np.eye(hs.shape[0])
+                try:
+                    step = -scale * scipy.linalg.solve(
+                        damped, gs, assume_a="pos", check_finite=False
+                    )
+                except (np.linalg.LinAlgError, ValueError):
+                    step = -scale * np.linalg.lstsq(damped, gs, rcond=None)[0]
+                step[nc:] = np.clip(step[nc:], -1.0, 1.0)
+                trial = theta + step
+                ssr_t, *_ = model.evaluate(trial, jacobian=False)
+                new = model.objective(ssr_t, trial)
+                if new <= cur or lam > 1e8:
+                    break
+                lam *= 10.0
+            if new > cur:
+                message = "no step lowers the misfit (converged to a local minimum)"
+                converged = True
+                break
+            improvement = (cur - new) / max(cur, 1e-300)
+            theta, cur, ssr = trial, new, ssr_t
+            steps += 1
+            total[0] += 1
+            lam = max(lam / 10.0, 1e-9)
+            history.append(float(np.sqrt(ssr / y.size)))
+            if callback is not None:
+                callback(total[0], history[-1])
+            if improvement < rtol:
+                message = f"converged: objective fell by {improvement:.1e} (< rtol {rtol:g})"
+                converged = True
+                break
+            ssr, _, jtj, jtr, _ = model.evaluate(theta, jacobian=True)
+            h, g = normal(jtj, jtr, theta)
+        return theta, converged, message
+
+    # continuation: the flat first as a stiff elastic foundation (contacts spread over a few
+    # nodes, so the gaps depend smoothly on c's local slope), then rigid
+    messages = []
+    stages = _continuation(start, foundation_length_m)
+    for i, compliance in enumerate(stages):
+        model.compliance = compliance
+        last = i == len(stages) - 1
+        budget = max_steps - total[0] if last else min(STAGE_STEPS, max_steps // 2)
+        theta, converged, message = levenberg_marquardt(
+            theta, budget, rtol if last else STAGE_RTOL
+        )
+        messages.append(message)
+    message = messages[-1]
+    steps = total[0]
+    # covariance at the final point (scaled by the misfit over the noise)
+    ssr, per, jtj, jtr, ok = model.evaluate(theta, jacobian=True)
+    h, _ = normal(jtj, jtr, theta)
+    misfit = float(np.sqrt(ssr / y.size))
+    sigma_ratio = misfit / noise_m
+    cov = np.linalg.pinv(h, hermitian=True) * sigma_ratio**2
+    # remove the line gauge from c's block (a line does not change any gap)
+    proj = np.eye(theta.size)
+    proj[:nc, :nc] -= model.line_c @ model.line_c.T
+    cov = proj @ cov @ proj.T
+    return ForwardFit(
+        beam=model.beam(theta),
+        camber_coefficients=theta[:nc].copy(),
+        camber_knots_m=knots_c,
+        kinks_m=kinks,
+        stiffness_knots_m=knots_q,
+        log_compliance=theta[nc:].copy(),
+        covariance=0.5 * (cov + cov.T),
+        misfit_m=misfit,
+        case_misfit_m=np.sqrt(per / x.size),
+        converged=converged and ok,
+        iterations=steps,
+        message=message if ok else message + "; a contact solve did not converge",
+        solve_time_s=time.perf_counter() - t0,
+        history_m=history,
+    )

@@ -1,0 +1,75 @@
+"""Forward-model beam fit (solvers.beam_fit): kink detection, the camber basis, and the
+implicit-differentiation gradient of the exact device model against finite differences."""
+
+import numpy as np
+import pytest
+
+from solvers import beam_fit
+from solvers.beam import BeamSki, ClassicSkiDesign, measure_camber
+
+LOADS_N = np.linspace(10, 90, 7) * 9.82
+POSITIONS_M = np.linspace(-0.30, 0.10, 6)
+DESIGN = ClassicSkiDesign(
+    camber_height_m=0.0025,
+    pocket_m=(-0.30, 0.35),
+    pocket_height_m=6e-4,
+    stiffness_nm2=2200.0,
+    end_stiffness_ratio=0.2,
+)
+
+
+def test_kinks_found_where_the_design_has_them():
+    """The design's camber has slope kinks where the shovels start (tail and tip contact
+    points); 42 cases with 3 µm noise place them within one node."""
+    ski = DESIGN.build(1e-3)
+    _, _, y = measure_camber(ski, LOADS_N, POSITIONS_M, noise_m=3e-6, rng=4)
+    kinks = beam_fit.detect_camber_kinks(ski.positions_m, y, 3e-6)
+    assert kinks.size == 2
+    np.testing.assert_allclose(kinks, [DESIGN.tail_contact_m, DESIGN.tip_contact_m], atol=1e-3)
+
+
+def test_no_kink_on_a_smooth_camber():
+    """A smooth camber (no kink anywhere) measured with noise: nothing is detected."""
+    x = np.linspace(-0.97, 1.03, 2001)
+    c = 1.5e-3 * np.cos(np.pi * x / 2.2) ** 2 + 2e-3 * ((x - 0.03) / 1.0) ** 4
+    ski = BeamSki(x, np.full(x.size, 1500.0), c - c.min())
+    _, _, y = measure_camber(ski, LOADS_N, POSITIONS_M, noise_m=3e-6, rng=5)
+    assert beam_fit.detect_camber_kinks(x, y, 3e-6).size == 0
+
+
+def test_camber_basis_holds_a_kinked_quadratic():
+    """With the kink as a triple knot, a piecewise quadratic with a slope jump there is in the
+    basis (least-squares residual at rounding); without it, it is not."""
+    x = np.linspace(-1.0, 1.0, 801)
+    f = 1e-3 * (np.abs(x - 0.2137) + 3.0 * x**2)
+    with_kink, _ = beam_fit.camber_basis(x, 0.05, np.array([0.2137]))
+    coef = np.linalg.lstsq(with_kink, f, rcond=None)[0]
+    assert np.abs(with_kink @ coef - f).max() < 1e-12
+    without, _ = beam_fit.camber_basis(x, 0.05, None)
+    coef = np.linalg.lstsq(without, f, rcond=None)[0]
+    assert np.abs(without @ coef - f).max() > 1e-6
+
+
+def test_gradient_matches_finite_differences():
+    """Jᵀρ of the implicit differentiation (contact sets fixed) equals ½ ∇ of the residual sum
+    of squares by central differences, for camber coefficients and log-compliances alike."""
+    ski = DESIGN.build(4e-3)
+    x = ski.positions_m
+    f, xf, y = measure_camber(ski, LOADS_N[::3], POSITIONS_M[::2], noise_m=3e-6, rng=6)
+    bc, _ = beam_fit.camber_basis(x, 0.02, np.array([DESIGN.tail_contact_m, DESIGN.tip_contact_m]))
+    knots = np.linspace(x[0], x[-1], 21)
+    model = beam_fit._Model(x, f, xf, y, 3e-6, bc, knots, 10.0)
+    cc = np.linalg.lstsq(bc, ski.unloaded_gap_m, rcond=None)[0]
+    gamma = np.log(1.0 / np.interp(knots, x, ski.bending_stiffness_nm2))
+    theta = np.concatenate([cc, gamma + 0.05 * np.sin(np.arange(knots.size))])
+    _, _, _, jtr, ok = model.evaluate(theta, jacobian=True)
+    assert ok
+    rng = np.random.default_rng(0)
+    picks = list(rng.choice(bc.shape[1], 6, replace=False)) + [bc.shape[1] + i for i in (3, 10, 16)]
+    for i in picks:
+        h = 1e-9 if i < bc.shape[1] else 1e-5  # [m] for c's coefficients, [-] for γ
+        up, down = theta.copy(), theta.copy()
+        up[i] += h
+        down[i] -= h
+        fd = (model.evaluate(up, False)[0] - model.evaluate(down, False)[0]) / (2 * h)
+        assert 0.5 * fd == pytest.approx(jtr[i], rel=2e-3, abs=1e-6 * np.abs(jtr).max())
