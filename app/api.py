@@ -17,6 +17,7 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from app import api_catalogue, service, web
+from app.profiles import profile_model
 from app.schemas import CompareBody, ContactBody
 from app.settings import Settings
 from solvers.errors import InputError, NotConvergedError, OutOfRangeError, SkisnowError
@@ -185,7 +186,7 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
                     "length_mm": o.length_m * 1e3,
                     "width_mm": [float(w) * 1e3 for w in o.width_m],
                     "load_position_range_mm": [lo * 1e3, hi * 1e3],
-                    "profile_model": "network" if net is not None else "beam",
+                    "profile_model": profile_model(s.record).source,
                     "network_metrics": (net or {}).get("attrs", {}).get("metrics_json"),
                     "description": s.record.metadata.get("description"),
                     "file": s.path.name,

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.presets import Preset
+from app.storage.skis import identified_beam
 from solvers.band import (
     Z90,
     combine,
@@ -106,10 +107,26 @@ def camber_sigma_m(record, positions_m: np.ndarray) -> tuple[np.ndarray | float 
     where it comes from; ``(0, …)`` for a ski answered by its design beam, ``(None, …)`` when
     unknown.
 
+    For an identified beam (the profile model of :mod:`app.profiles` when its identification
+    passed): the stored ``profile_sd_m``, the spread of the loaded profile over beams drawn
+    from the identification's covariance (:func:`solvers.identify.profile_sigma`).
+
     For a camber network: its held-out (test split) profiles against the measured ones, inside
     the contact band H < 0.2 mm, as a moving RMS along the ski with the device noise removed
     (:func:`solvers.band.position_error_sigma`); the network's error is twice as large near the
     tip and tail as behind the binding, and light loads touch there."""
+    ident = record.identified
+    if identified_beam(ident) is not None:
+        sd = ident.get("profile_sd_m")
+        if sd is None:
+            return None, "the identified beam stores no profile spread"
+        x = np.asarray(ident["positions_m"], dtype=float)
+        sd = np.asarray(sd, dtype=float)
+        return np.interp(np.asarray(positions_m, dtype=float), x, sd), (
+            "identified beam: spread of the loaded profile over plausible beams drawn from the "
+            f"fit's covariance where H < {CONTACT_BAND_M * 1e3:.1f} mm "
+            f"({np.min(sd) * 1e6:.2f}–{np.max(sd) * 1e6:.2f} µm along the ski)"
+        )
     net = record.network
     if net is None:
         if record.beam is not None:

@@ -30,6 +30,7 @@ from matplotlib import rc_context
 from matplotlib.figure import Figure
 
 from app import plots, units
+from app.profiles import profile_model
 from app.service import Catalogue, ContactInputs, contact, load_catalogue
 from app.storage.common import atomic_path, docs_dir, provenance
 from solvers import lookup
@@ -223,7 +224,7 @@ def _file_info(cat: Catalogue) -> tuple[dict, dict]:
         s: {
             "file": cat.ski(s).path.name,
             "sha256": cat.ski(s).sha256,
-            "profile_model": "network" if cat.ski(s).record.network is not None else "beam",
+            "profile_model": profile_model(cat.ski(s).record).source,
         }
         for s in SKIS
     }

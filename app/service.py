@@ -17,6 +17,7 @@ import numpy as np
 from app import units
 from app.band import answer_band, band_json, min_separation_unresolved, touches_profile_end
 from app.presets import DEFAULT_PRESET, Preset, get_preset
+from app.profiles import profile_model
 from app.storage.common import code_version, sha256_file
 from app.storage.skis import (
     SKI_MANIFEST,
@@ -74,41 +75,47 @@ class Ski:
     record: SkiRecord
     _flexible: dict = field(default_factory=dict, repr=False)
 
-    def beam(self) -> tuple[BeamSki | None, str, bool]:
-        """The ski's beam model, where it comes from, and whether ``auto`` may use it; or
-        (None, why there is none, False).
+    def beam(self) -> tuple[BeamSki | None, str]:
+        """The ski's beam model and where it comes from; or (None, why there is none).
 
-        A design beam stored with the ski (the demo skis) is used by ``auto``. A beam identified
-        from camber measurements (uploaded skis, method.md §4c) answers ``flexible`` when asked
-        for, with a warning; ``auto`` does not use it yet, because identification does not yet
-        recover EI(X) reliably (docs/camber-identification.md).
+        A beam identified from the ski's camber measurements (method.md §4c) that passed the
+        held-out check comes first: the demo skis and uploaded skis alike. A design beam stored
+        with the ski (the demo skis' truth) is the fallback.
         """
-        if self.record.beam is not None:
-            return (
-                self.record.beam,
-                "design beam stored with the ski (demo ski: its own beam)",
-                True,
-            )
         ident = self.record.identified
         beam = identified_beam(ident)
         if beam is not None:
             a = ident["attrs"]
+            held = float(a.get("held_out_rms_m", float("nan")))
+            held_txt = (
+                f", {a.get('held_out_cases', 0)} held-out cases {held * 1e6:.2f} µm RMS"
+                if math.isfinite(held)
+                else ""
+            )
             return (
                 beam,
-                f"identified from the camber data (misfit {a['misfit_m'] * 1e6:.2f} µm, device "
-                f"noise {a['noise_m'] * 1e6:.2f} µm); EI(X) from camber data is not yet validated "
-                "(docs/camber-identification.md)",
-                False,
+                f"identified from the camber data (misfit {a['misfit_m'] * 1e6:.2f} µm against "
+                f"device noise {a['noise_m'] * 1e6:.2f} µm{held_txt})",
+            )
+        if self.record.beam is not None:
+            return (
+                self.record.beam,
+                "design beam stored with the ski (demo ski: its own beam)",
             )
         why = (ident or {}).get("attrs", {}).get("reason") or "no identification was run"
-        return None, (f"ski {self.name!r} has no beam model ({why}); use ski_model 'rigid'"), False
+        return None, f"ski {self.name!r} has no beam model ({why}); use ski_model 'rigid'"
+
+    @property
+    def beam_is_design(self) -> bool:
+        """The beam :meth:`beam` answers with is the design beam stored with the ski."""
+        return identified_beam(self.record.identified) is None and self.record.beam is not None
 
     def flexible_model(self, pixel_along_m: float, pixels_across: int) -> FlexibleModel:
         """The prepared flexible model on a preset's grid (built once per worker)."""
         key = (float(pixel_along_m), int(pixels_across))
         model = self._flexible.get(key)
         if model is None:
-            beam, why, _ = self.beam()
+            beam, why = self.beam()
             if beam is None:
                 raise ModelUnavailableError(why)
             outline = self.record.outline
@@ -235,9 +242,8 @@ def _finite_list(a: np.ndarray, scale: float = 1.0, digits: int = 6) -> list[flo
 
 
 def loaded_profile(ski: Ski, load_n: float, load_position_m: float):
-    from app.commands.macro import loaded_profile as _profile
-
-    return _profile(ski.record, load_n, load_position_m)
+    """Positions [m] and loaded gap [m] of the ski on the rigid flat (:mod:`app.profiles`)."""
+    return profile_model(ski.record)(load_n, load_position_m)
 
 
 def warm_up(cat: Catalogue) -> float:
@@ -391,7 +397,7 @@ def contact(
             porosity=inp.porosity,
             e_eff=e_eff,
             ski_model_used=model_info["used"],
-            beam_is_design=ski.record.beam is not None,
+            beam_is_design=ski.beam_is_design,
             rigid_minus_flexible=model_info.get("rigid_minus_flexible")
             if model_info["requested"] == "auto"
             else None,
@@ -461,7 +467,7 @@ def contact(
             "ski": {
                 "file": ski.path.name,
                 "sha256": ski.sha256,
-                "profile_model": "network" if ski.record.network is not None else "beam",
+                "profile_model": profile_model(ski.record).source,
             },
             "ski_model": model_info,
             "macro": {
@@ -551,15 +557,13 @@ def _choose_ski_model(inp: ContactInputs, ski: Ski, preset: Preset, rigid, ms_ri
     if inp.ski_model == "rigid":
         info.update(used="rigid", reason="requested")
         return rigid, ms_rigid, info
-    beam, why, validated = ski.beam()
-    if beam is None or (inp.ski_model == "auto" and not validated):
+    beam, why = ski.beam()
+    if beam is None:
         if inp.ski_model == "flexible":
             raise ModelUnavailableError(why)
         info.update(used="rigid", reason=why)
         info["warnings"].append({"code": "flexible_unavailable", "detail": why})
         return rigid, ms_rigid, info
-    if not validated:
-        info["warnings"].append({"code": "identified_beam", "detail": why})
     try:
         model = ski.flexible_model(preset.pixel_along_m, preset.pixels_across)
         flex = solve_flexible(
@@ -606,8 +610,8 @@ def beam_report(ski: Ski, points: int = 41) -> dict:
     """The ski's beam for ``GET /v1/skis/{name}``: where it comes from, EI(X) and c(X) sampled
     along the ski (with the identification's 90 % band on EI and 1-σ band on c), and the misfit
     per measured case. Technician units: mm, N·m², µm."""
-    beam, source, validated = ski.beam()
-    out: dict = {"available": beam is not None, "source": source, "used_by_auto": validated}
+    beam, source = ski.beam()
+    out: dict = {"available": beam is not None, "source": source, "used_by_auto": beam is not None}
     ident = ski.record.identified
     if ident:
         a = ident.get("attrs", {})

@@ -44,7 +44,6 @@ import logging
 import math
 import os
 import shutil
-import tempfile
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -52,6 +51,7 @@ from pathlib import Path
 
 import numpy as np
 
+from app.storage.skis import replace_ski_group
 from solvers import camber
 from solvers.errors import DataFileError, InputError
 
@@ -874,33 +874,7 @@ def write_network_to_ski(path: str | os.PathLike, network: Mapping[str, object])
     untouched. Same group layout as :func:`app.storage.skis.write_ski`: arrays as datasets,
     ``network["attrs"]`` as attributes.
     """
-    import h5py
-
-    path = Path(path)
-    if not path.is_file():
-        raise DataFileError(f"ski file not found: {path}")
-    net = camber.network_to_dict(network)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-    os.close(fd)
-    tmp_path = Path(tmp)
-    try:
-        shutil.copyfile(path, tmp_path)
-        with h5py.File(tmp_path, "r+") as fh:
-            if "network" in fh:
-                del fh["network"]
-            grp = fh.create_group("network")
-            for key, value in net.items():
-                if key != "attrs":
-                    grp.create_dataset(key, data=value)
-            for key, value in net["attrs"].items():
-                grp.attrs[key] = value
-        with open(tmp_path, "rb+") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp_path, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            tmp_path.unlink()
-        raise
+    replace_ski_group(path, "network", camber.network_to_dict(network))
 
 
 def read_network_from_ski(path: str | os.PathLike) -> dict:

@@ -653,7 +653,8 @@ def _identify(data, item) -> tuple[dict, str]:
     """Identify the beam of an uploaded ski (method.md §4c): the stored ``identified`` group and
     one sentence for the job result. A failure is recorded, never raised: the ski still works
     with the rigid model and its network."""
-    from app.storage.skis import identified_to_dict, mean_profiles
+    from app.profiles import identification_group
+    from app.storage.skis import mean_profiles
     from solvers.identify import identify_beam_checked
 
     try:
@@ -663,13 +664,10 @@ def _identify(data, item) -> tuple[dict, str]:
         reason = f"beam not identified: {exc}"
         failed = {"attrs": {"ok": False, "reason": reason, **provenance({"item": item.id})}}
         return failed, reason + " (rigid model only)"
-    params = {"item": item.id, "profiles": note, **check}
+    group = identification_group(ident, check, note, f, xf, {"item": item.id})
     if not ident.ok:
-        return (
-            identified_to_dict(ident, params),
-            f"beam not identified: {ident.reason} (rigid model only)",
-        )
-    return identified_to_dict(ident, params), (
+        return group, f"beam not identified: {ident.reason} (rigid model only)"
+    return group, (
         f"beam identified: misfit {ident.misfit_m * 1e6:.2f} µm against device noise "
         f"{ident.noise_m * 1e6:.2f} µm over {f.size - check['held_out_cases']} cases, "
         f"{(check['held_out_rms_m'] or 0.0) * 1e6:.2f} µm on {check['held_out_cases']} held-out "

@@ -20,8 +20,17 @@ from pathlib import Path
 
 import numpy as np
 
+from app.profiles import identification_group
 from app.storage.common import atomic_path, provenance, tables_dir
-from app.storage.skis import CamberData, mean_profiles, read_camber_csv, read_ski
+from app.storage.skis import (
+    SKI_MANIFEST,
+    CamberData,
+    mean_profiles,
+    read_camber_csv,
+    read_ski,
+    replace_ski_group,
+    write_ski_manifest,
+)
 from solvers.errors import InputError
 from solvers.identify import identify_beam_checked, predict_gaps
 
@@ -44,18 +53,30 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--seed", type=int, default=0, help="seed of the held-out draw")
     p.add_argument("--out", type=Path, help="write the report as JSON here")
+    p.add_argument(
+        "--store",
+        action="store_true",
+        help="with --ski: store the identification (with its held-out check and the loaded "
+        "profile's spread) in the ski file; a passed identification becomes the ski's profile "
+        "model and beam (docs/camber-identification.md)",
+    )
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.set_defaults(func=run)
 
 
-def identify_report(data: CamberData, design_beam, holdout: float, seed: int) -> dict:
-    """Identify on the kept cases and measure on the held-out ones; a JSON-ready report."""
+def identify_report(
+    data: CamberData, design_beam, holdout: float, seed: int, *, keep: dict | None = None
+) -> dict:
+    """Identify on the kept cases and measure on the held-out ones; a JSON-ready report.
+    ``keep``: a dict that receives the identification and its check (for ``--store``)."""
     if not (0.0 <= holdout < 0.9):
         raise InputError(f"--holdout must be in [0, 0.9), got {holdout}")
     f, xf, y, sides_note = mean_profiles(data)
     t0 = time.perf_counter()
     ident, check = identify_beam_checked(data.positions_m, f, xf, y, holdout=holdout, seed=seed)
     elapsed = time.perf_counter() - t0
+    if keep is not None:
+        keep.update(ident=ident, check=check, sides=sides_note, loads_n=f, positions_m=xf)
     held = np.zeros(f.size, dtype=bool)
     held[check["held_out_index"]] = True
     x = data.positions_m
@@ -75,6 +96,9 @@ def identify_report(data: CamberData, design_beam, holdout: float, seed: int) ->
         "iterations": ident.iterations,
         "contact_passes": ident.contact_passes,
         "time_s": elapsed,
+        "start_time_s": ident.extra.get("start_time_s"),
+        "forward_time_s": ident.extra.get("forward_time_s"),
+        "kinks_mm": [k * 1e3 for k in ident.extra.get("kinks_m", [])],
         "stiffness": [
             {
                 "position_mm": float(x[i] * 1e3),
@@ -105,7 +129,13 @@ def run(args: argparse.Namespace) -> int:
         data, design = record.measurements, record.beam
     else:
         data, design = read_camber_csv(args.csv), None
-    rep = identify_report(data, design, args.holdout, args.seed)
+    if args.store and not args.ski:
+        raise InputError("--store needs --ski (a stored ski file)")
+    keep: dict = {}
+    rep = identify_report(data, design, args.holdout, args.seed, keep=keep)
+    if args.store:
+        store_identification(path, record, keep, vars_of(args))
+        rep["stored_in"] = str(path)
     if args.out:
         with atomic_path(args.out) as tmp:
             Path(tmp).write_text(
@@ -136,6 +166,18 @@ def run(args: argparse.Namespace) -> int:
         print(f"    {s['position_mm']:7.0f} mm  {s['ei_nm2']:8.1f}  [{lo:8.1f} … {hi:8.1f}]")
     print(f"  time {rep['time_s']:.1f} s, {rep['iterations']} Gauss–Newton steps")
     return 0 if rep["identified"] else 1
+
+
+def store_identification(path: Path, record, keep: dict, params: dict) -> None:
+    """Write the identification into the ski file at ``path`` (atomic; the folder's manifest,
+    when there is one, gets the new sha256)."""
+    group = identification_group(
+        keep["ident"], keep["check"], keep["sides"], keep["loads_n"], keep["positions_m"], params
+    )
+    replace_ski_group(path, "identified", group)
+    record.identified = group
+    if (path.parent / SKI_MANIFEST).is_file():
+        write_ski_manifest(path.parent)
 
 
 def vars_of(args: argparse.Namespace) -> dict:

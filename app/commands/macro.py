@@ -12,9 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
+from app.profiles import profile_model
 from app.storage.common import tables_dir
 from app.storage.skis import read_camber_csv, read_ski
-from solvers.beam import G_STANDARD, solve_beam_contact
+from solvers.beam import G_STANDARD
 from solvers.elastic import effective_modulus
 from solvers.errors import DataFileError, InputError, OutOfRangeError
 from solvers.macro import (
@@ -96,27 +97,14 @@ def _si_inputs(args: argparse.Namespace) -> dict:
 
 
 def loaded_profile(ski, load_n: float, load_position_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """Loaded camber H*(X) of a stored ski: its network if available, else its beam model.
+    """Loaded camber H*(X) of a stored ski record from its profile model (:mod:`app.profiles`:
+    identified beam, else camber network, else design beam).
 
     Returns
     -------
     positions_m, gap_m : ndarray
     """
-    if ski.network is not None:
-        try:
-            from solvers import camber
-        except ImportError:
-            camber = None
-        if camber is not None and hasattr(camber, "predict_profile"):
-            return camber.predict_profile(ski.network, load_n, load_position_m)
-    if ski.beam is None:
-        raise DataFileError(
-            f"ski {ski.ski_id!r} has neither a usable camber network nor a beam model"
-        )
-    res = solve_beam_contact(ski.beam, load_n, load_position_m)
-    if not res.converged:
-        raise InputError(f"beam model did not converge: {res.message}")
-    return res.positions_m, res.gap_m
+    return profile_model(ski)(load_n, load_position_m)
 
 
 def _flexible_choice(args: argparse.Namespace, si: dict, rigid):
@@ -126,8 +114,8 @@ def _flexible_choice(args: argparse.Namespace, si: dict, rigid):
     from solvers.flexible import prepare_flexible, solve_flexible
 
     record = read_ski(_ski_path(args.ski))
-    beam, why, validated = service.Ski(record.ski_id, _ski_path(args.ski), "", record).beam()
-    if beam is None or (args.ski_model == "auto" and not validated):
+    beam, why = service.Ski(record.ski_id, _ski_path(args.ski), "", record).beam()
+    if beam is None:
         if args.ski_model == "flexible":
             raise InputError(why)
         return rigid, f"rigid ({why})"

@@ -23,6 +23,7 @@ import csv
 import io
 import json
 import os
+import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -43,6 +44,7 @@ __all__ = [
     "SkiRecord",
     "read_camber_csv",
     "read_ski",
+    "replace_ski_group",
     "write_camber_csv",
     "write_ski",
 ]
@@ -120,6 +122,8 @@ class SkiRecord:
     beam_design: dict | None = None
     network: dict | None = None
     identified: dict | None = None
+    #: per-process objects built from this record (the profile model, :mod:`app.profiles`)
+    cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def ski_id(self) -> str:
@@ -417,9 +421,30 @@ def write_ski_manifest(ski_dir: str | os.PathLike) -> Path:
     return out
 
 
-def identified_to_dict(ident, parameters: dict | None = None) -> dict:
+def replace_ski_group(path: str | os.PathLike, name: str, content: dict) -> None:
+    """Store ``content`` as group ``name`` of an existing ski file, atomically: the file is
+    copied beside itself, the group replaced in the copy (layout of :func:`write_ski`: arrays
+    as datasets, ``content["attrs"]`` as attributes, nested dicts as subgroups), and the copy
+    renamed onto the original only on success; the rest of the file (measurements, the ski's
+    provenance) is untouched."""
+    path = Path(path)
+    if not path.is_file():
+        raise DataFileError(f"ski file not found: {path}")
+    with atomic_path(path) as tmp:
+        shutil.copyfile(path, tmp)
+        with h5py.File(tmp, "r+") as fh:
+            if name in fh:
+                del fh[name]
+            _write_dict(fh.create_group(name), content)
+
+
+def identified_to_dict(
+    ident, parameters: dict | None = None, profile_sd_m: np.ndarray | None = None
+) -> dict:
     """An :class:`solvers.identify.IdentifiedBeam` as the ``identified`` group of a ski file:
-    the beam, its bands and diagnostics (SI, units in the names) and provenance attributes."""
+    the beam, its bands and diagnostics (SI, units in the names), the camber's B-spline and the
+    fit's covariance (when the forward fit ran), the loaded profile's standard deviation along
+    the ski (``profile_sd_m``, the band's camber-model part), and provenance attributes."""
     b = ident.beam
     attrs = {
         "description": "beam identified from the camber measurements (solvers.identify)",
@@ -432,7 +457,7 @@ def identified_to_dict(ident, parameters: dict | None = None) -> dict:
         "solve_time_s": float(ident.solve_time_s),
         **provenance(parameters),
     }
-    return {
+    out = {
         "attrs": attrs,
         "positions_m": b.positions_m,
         "bending_stiffness_nm2": b.bending_stiffness_nm2,
@@ -444,6 +469,14 @@ def identified_to_dict(ident, parameters: dict | None = None) -> dict:
         "log_compliance": ident.log_compliance,
         "log_compliance_covariance": ident.log_compliance_covariance,
     }
+    if ident.camber_knots_m is not None:
+        out["camber_knots_m"] = ident.camber_knots_m
+        out["camber_coefficients_m"] = ident.camber_coefficients
+        out["parameter_covariance"] = ident.parameter_covariance
+        out["kinks_m"] = np.asarray(ident.extra.get("kinks_m", []), dtype=float)
+    if profile_sd_m is not None:
+        out["profile_sd_m"] = np.asarray(profile_sd_m, dtype=float)
+    return out
 
 
 def identified_beam(identified: dict | None) -> BeamSki | None:

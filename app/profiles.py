@@ -1,0 +1,119 @@
+"""The loaded camber profile H*(X) of a stored ski for any load (method.md §4 step 2).
+
+Three profile models, in the order a ski uses them (``source`` names the one that answers, as
+``provenance.ski.profile_model`` of every answer does):
+
+1. ``identified_beam``: the beam identified from the ski's own camber measurements
+   (:mod:`solvers.identify`, stored in the ski file's ``identified`` group, used when its
+   identification passed the held-out check), pressed on the rigid flat by the virtual device
+   (:func:`solvers.beam.solve_beam_contact`, flexibility cached per ski). Measured on the demo
+   skis: 0.07–0.2 µm RMS from the beam truth near contact on held-out loads, against 0.5–1.1 µm
+   for the camber network (docs/camber-identification.md).
+2. ``network``: the per-ski network of the papers (:mod:`solvers.camber`), for skis whose
+   beam could not be identified.
+3. ``design_beam``: a beam stored with the ski (demo skis), when nothing else is available.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from app.storage.skis import SkiRecord, identified_beam, identified_to_dict
+from solvers.beam import BeamFlexibility, BeamSki, solve_beam_contact
+from solvers.errors import DataFileError, NotConvergedError
+from solvers.identify import profile_sigma
+
+__all__ = ["PROFILE_SIGMA_CASES", "ProfileModel", "identification_group", "profile_model"]
+
+#: earlier solves kept per ski as warm starts of the contact solve
+WARM_START_CASES = 256
+#: cases (spread over the measured ones) and seed of the loaded profile's spread
+PROFILE_SIGMA_CASES = 40
+PROFILE_SIGMA_SEED = 0
+
+
+class ProfileModel:
+    """The profile model of one ski record (build once per process and ski).
+
+    Parameters
+    ----------
+    record : SkiRecord
+        The ski file's content.
+    """
+
+    def __init__(self, record: SkiRecord) -> None:
+        self.record = record
+        self.beam: BeamSki | None = identified_beam(record.identified)
+        self._flex: BeamFlexibility | None = None
+        self._contacts: dict[tuple[float, float], np.ndarray] = {}
+        if self.beam is not None:
+            self.source = "identified_beam"
+        elif record.network is not None:
+            self.source = "network"
+        elif record.beam is not None:
+            self.beam = record.beam
+            self.source = "design_beam"
+        else:
+            raise DataFileError(
+                f"ski {record.ski_id!r} has no profile model: no identified beam, no camber "
+                "network and no design beam"
+            )
+
+    def __call__(self, load_n: float, load_position_m: float) -> tuple[np.ndarray, np.ndarray]:
+        """Positions X [m] and loaded gap H*(X) [m] under F [N] at x_F [m] on the rigid flat."""
+        if self.beam is None:
+            from solvers import camber
+
+            return camber.predict_profile(self.record.network, load_n, load_position_m)
+        if self._flex is None:
+            self._flex = BeamFlexibility(self.beam)
+        res = solve_beam_contact(
+            self.beam,
+            load_n,
+            load_position_m,
+            flexibility=self._flex,
+            initial_contacts=self._nearest_contacts(load_n, load_position_m),
+        )
+        if not res.converged:
+            raise NotConvergedError(f"the ski's beam on the flat did not converge: {res.message}")
+        if len(self._contacts) < WARM_START_CASES:
+            self._contacts[(float(load_n), float(load_position_m))] = np.flatnonzero(
+                res.reaction_n > 0
+            )
+        return res.positions_m, res.gap_m
+
+    def _nearest_contacts(self, load_n: float, load_position_m: float) -> np.ndarray | None:
+        """Contact nodes of the nearest earlier solve (load relative, position in units of
+        0.1 m): a warm start that cuts the contact solve ~10× (the answer does not depend on
+        it, the contact problem has one solution)."""
+        if not self._contacts:
+            return None
+        keys = np.array(list(self._contacts))
+        d = np.hypot(np.log(keys[:, 0] / load_n), (keys[:, 1] - load_position_m) / 0.1)
+        return self._contacts[tuple(keys[int(np.argmin(d))])]
+
+
+def profile_model(record: SkiRecord) -> ProfileModel:
+    """The :class:`ProfileModel` of ``record``, built once and kept with the record."""
+    model = record.cache.get("profile_model")
+    if model is None:
+        model = ProfileModel(record)
+        record.cache["profile_model"] = model
+    return model
+
+
+def identification_group(ident, check: dict, sides: str, loads_n, positions_m, params: dict):
+    """The ``identified`` group of a ski file: the identification, its held-out check in the
+    provenance, and (when it passed) the loaded profile's spread along the ski over the
+    measured cases, the error band's camber-model part (:func:`solvers.identify.profile_sigma`;
+    at most PROFILE_SIGMA_CASES cases, spread over the measured ones)."""
+    sd = None
+    if ident.ok:
+        pick = np.unique(np.linspace(0, loads_n.size - 1, PROFILE_SIGMA_CASES).round().astype(int))
+        sd = profile_sigma(ident, loads_n[pick], positions_m[pick], rng=PROFILE_SIGMA_SEED)
+    out = identified_to_dict(ident, {**params, "profiles": sides, **check}, sd)
+    rms = check.get("held_out_rms_m")
+    out["attrs"]["held_out_rms_m"] = float("nan") if rms is None else float(rms)
+    out["attrs"]["held_out_cases"] = int(check.get("held_out_cases", 0))
+    out["held_out_index"] = np.asarray(check.get("held_out_index", []), dtype=int)
+    return out
