@@ -96,7 +96,7 @@ class ProfileModel:
 def profile_model(record: SkiRecord) -> ProfileModel:
     """The :class:`ProfileModel` of ``record``, built once and kept with the record."""
     model = record.cache.get("profile_model")
-    if model is None:
+    if model is None or model.record is not record:  # a dataclasses.replace copy shares cache
         model = ProfileModel(record)
         record.cache["profile_model"] = model
     return model

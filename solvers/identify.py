@@ -764,7 +764,7 @@ def identify_start(
 #: and its contact passes; the forward fit then uses every case. The start only has to land in
 #: the forward fit's basin
 START_CASES = 30
-START_PASSES = 3
+START_PASSES = 6
 #: the start's prior on the second differences of log(1/EI), over the forward fit's: its free
 #: reactions at candidate contacts leave EI undetermined where few cases bend the ski, and a
 #: wild start there traps the forward fit (ski-b: held-out 8.3 µm RMS at 1×, 0.18 µm at 10×)
@@ -785,7 +785,7 @@ def identify_beam(
     start_cases: int = START_CASES,
     start_smoothing: float | None = None,
     min_cases: int = 6,
-    max_steps: int = 40,
+    max_steps: int = 80,
     callback=None,
 ) -> IdentifiedBeam:
     """Identify EI(X) > 0 and c(X) so that the device model reproduces every measured case.

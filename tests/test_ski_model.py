@@ -73,7 +73,10 @@ def test_ski_without_beam(catalogue):
     ski = catalogue.ski("ski-a")
     cat = service.Catalogue(tables_dir=catalogue.tables_dir, grinds=catalogue.grinds)
     cat.skis["no-beam"] = service.Ski(
-        "no-beam", ski.path, ski.sha256, dataclasses.replace(ski.record, beam=None)
+        "no-beam",
+        ski.path,
+        ski.sha256,
+        dataclasses.replace(ski.record, beam=None, identified=None, cache={}),
     )
     app = create_app(Settings(), catalogue=cat)
     with TestClient(app, raise_server_exceptions=False) as c:
