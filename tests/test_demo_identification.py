@@ -10,15 +10,27 @@ The truth is the design beam the measurements were made from (stored with the de
 import numpy as np
 import pytest
 from conftest import REPO
+from fastapi.testclient import TestClient
 
 from app import service
+from app.api import create_app
 from app.profiles import profile_model
+from app.settings import Settings
 from app.storage.skis import identified_beam, read_ski
 from solvers.elastic import effective_modulus
 from solvers.identify import predict_gaps
 from solvers.macro import extrude_profile, solve_macro
 
 DEMO_SKIS = ("ski-a", "ski-b")
+
+
+@pytest.fixture(scope="module")
+def client(catalogue):
+    app = create_app(Settings(), catalogue=catalogue)
+    with TestClient(app, raise_server_exceptions=False) as c:
+        yield c
+
+
 NEAR_CONTACT_M = 2e-4
 
 
@@ -90,3 +102,23 @@ def test_held_out_apparent_area_within_3_percent_on_every_load(name):
     errors = np.abs(errors)
     worst = int(np.argmax(errors))
     assert errors.max() <= 0.03, f"{errors[worst]:.2%} at {f[worst]:.0f} N, {xf[worst]:.3f} m"
+
+
+def test_identified_beam_answers_heavier_loads_than_measured_but_not_lighter(client):
+    """The identified beam may answer up to 1.5 × the heaviest measured load (measured on the
+    demo skis: ≤ 0.33 µm and ≤ 3.4 % in area at 110–150 kg); lighter loads are refused in kg."""
+    body = {
+        "ski": "ski-a",
+        "grind": "tiny-grind",
+        "load_position_mm": -160,
+        "snow_modulus_mpa": 200,
+        "porosity": 0.5,
+        "ski_model": "rigid",
+    }
+    r = client.post("/v1/contact", json={**body, "load_kg": 120})
+    assert r.status_code == 200, r.text[:300]
+    assert r.json()["provenance"]["ski"]["profile_model"] == "identified_beam"
+    r = client.post("/v1/contact", json={**body, "load_kg": 140})
+    assert r.status_code == 422 and "10 … 135 kg" in r.json()["detail"]
+    r = client.post("/v1/contact", json={**body, "load_kg": 5})
+    assert r.status_code == 422 and "load_kg 5" in r.json()["detail"]

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from app import service
 from app.profiles import profile_model
 from app.storage.common import tables_dir
 from app.storage.skis import read_camber_csv, read_ski
@@ -110,7 +111,6 @@ def loaded_profile(ski, load_n: float, load_position_m: float) -> tuple[np.ndarr
 def _flexible_choice(args: argparse.Namespace, si: dict, rigid):
     """The flexible solve of a stored ski with a beam, and which model answers (the service's
     rule and beam sources; without a grind, auto compares apparent area and rear load share)."""
-    from app import service
     from solvers.flexible import prepare_flexible, solve_flexible
 
     record = read_ski(_ski_path(args.ski))
@@ -139,25 +139,17 @@ def _flexible_choice(args: argparse.Namespace, si: dict, rigid):
 
 def _check_covered(args: argparse.Namespace, ski) -> None:
     """Refuse, in the user's units (kg, mm), a load or position outside the range the ski's
-    camber network was trained on (the network itself would name it in N and m)."""
-    a = (ski.network or {}).get("attrs", {})
-    lo, hi = a.get("load_min_n"), a.get("load_max_n")
-    if (
-        lo is not None
-        and hi is not None
-        and not (lo * (1 - 1e-9) <= args.load_kg * G_STANDARD <= hi * (1 + 1e-9))
-    ):
+    profile model covers (the service's rule, :attr:`app.service.Ski.load_range_n`)."""
+    covered = service.Ski(ski.ski_id, Path(), "", ski)
+    lo, hi = covered.load_range_n
+    if not (lo * (1 - 1e-9) <= args.load_kg * G_STANDARD <= hi * (1 + 1e-9)):
         raise OutOfRangeError(
             f"--load-kg {args.load_kg:g} is outside the range the ski {ski.ski_id!r} covers "
             f"({lo / G_STANDARD:.4g} … {hi / G_STANDARD:.4g} kg): its camber model is not "
             "extrapolated"
         )
-    lo, hi = a.get("load_position_min_m"), a.get("load_position_max_m")
-    if (
-        lo is not None
-        and hi is not None
-        and not (lo - 1e-12 <= args.load_position_mm * 1e-3 <= hi + 1e-12)
-    ):
+    lo, hi = covered.position_range_m
+    if not (lo - 1e-12 <= args.load_position_mm * 1e-3 <= hi + 1e-12):
         raise OutOfRangeError(
             f"--load-position-mm {args.load_position_mm:g} is outside the range the ski "
             f"{ski.ski_id!r} covers ({lo * 1e3:g} … {hi * 1e3:g} mm)"
