@@ -39,6 +39,13 @@ from solvers.errors import InputError, NotConvergedError, OutOfRangeError, Skisn
 
 log = logging.getLogger(__name__)
 
+#: words for :attr:`app.profiles.ProfileModel.source` in the report
+PROFILE_MODEL_NAMES = {
+    "identified_beam": "identified-beam",
+    "network": "network",
+    "design_beam": "design-beam",
+}
+
 __all__ = [
     "PaperCase",
     "compute_paper_case",
@@ -681,7 +688,8 @@ def render_markdown(case: PaperCase, figures: Sequence[tuple[str, str]], fig_dir
     for s in SKIS:
         add(
             f"- **{s}**: a synthetic beam-model ski (loaded profile from its "
-            f"{case.skis[s]['profile_model']} model) calibrated to the published apparent "
+            f"{PROFILE_MODEL_NAMES.get(case.skis[s]['profile_model'], 'camber')} model) "
+            "calibrated to the published apparent "
             "contact at 40 kg, −160 mm, 200 MPa (method.md §4; the next section shows how close "
             "the shipped file comes); its camber is not the papers' ski's."
         )
@@ -995,7 +1003,7 @@ def render_markdown(case: PaperCase, figures: Sequence[tuple[str, str]], fig_dir
             [
                 f"ski {s}",
                 f"`{case.skis[s]['file']}` sha256 `{case.skis[s]['sha256']}` "
-                f"({case.skis[s]['profile_model']} profile)",
+                f"({PROFILE_MODEL_NAMES.get(case.skis[s]['profile_model'], 'camber')} profile)",
             ]
             for s in SKIS
         ],
