@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.presets import Preset
-from app.storage.skis import identified_beam
+from app.profiles import served_beam
 from solvers.band import (
     Z90,
     combine,
@@ -116,7 +116,7 @@ def camber_sigma_m(record, positions_m: np.ndarray) -> tuple[np.ndarray | float 
     (:func:`solvers.band.position_error_sigma`); the network's error is twice as large near the
     tip and tail as behind the binding, and light loads touch there."""
     ident = record.identified
-    if identified_beam(ident) is not None:
+    if served_beam(ident) is not None:
         sd = ident.get("profile_sd_m")
         if sd is None:
             return None, "the identified beam stores no profile spread"

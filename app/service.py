@@ -17,12 +17,11 @@ import numpy as np
 from app import units
 from app.band import answer_band, band_json, min_separation_unresolved, touches_profile_end
 from app.presets import DEFAULT_PRESET, Preset, get_preset
-from app.profiles import profile_model
+from app.profiles import profile_model, served_beam, served_beam_note
 from app.storage.common import code_version, sha256_file
 from app.storage.skis import (
     SKI_MANIFEST,
     SkiRecord,
-    identified_beam,
     read_ski,
     read_ski_manifest,
 )
@@ -85,7 +84,7 @@ class Ski:
         with the ski (the demo skis' truth) is the fallback.
         """
         ident = self.record.identified
-        beam = identified_beam(ident)
+        beam = served_beam(ident)
         if beam is not None:
             a = ident["attrs"]
             held = float(a.get("held_out_rms_m", float("nan")))
@@ -104,13 +103,17 @@ class Ski:
                 self.record.beam,
                 "design beam stored with the ski (demo ski: its own beam)",
             )
-        why = (ident or {}).get("attrs", {}).get("reason") or "no identification was run"
+        why = (
+            served_beam_note(ident)
+            or (ident or {}).get("attrs", {}).get("reason")
+            or "no identification was run"
+        )
         return None, f"ski {self.name!r} has no beam model ({why}); use ski_model 'rigid'"
 
     @property
     def beam_is_design(self) -> bool:
         """The beam :meth:`beam` answers with is the design beam stored with the ski."""
-        return identified_beam(self.record.identified) is None and self.record.beam is not None
+        return served_beam(self.record.identified) is None and self.record.beam is not None
 
     def flexible_model(self, pixel_along_m: float, pixels_across: int) -> FlexibleModel:
         """The prepared flexible model on a preset's grid (built once per worker)."""

@@ -653,7 +653,7 @@ def _identify(data, item) -> tuple[dict, str]:
     """Identify the beam of an uploaded ski (method.md §4c): the stored ``identified`` group and
     one sentence for the job result. A failure is recorded, never raised: the ski still works
     with the rigid model and its network."""
-    from app.profiles import identification_group
+    from app.profiles import identification_group, served_beam_note
     from app.storage.skis import mean_profiles
     from solvers.identify import identify_beam_checked
 
@@ -667,6 +667,8 @@ def _identify(data, item) -> tuple[dict, str]:
     group = identification_group(ident, check, note, f, xf, {"item": item.id})
     if not ident.ok:
         return group, f"beam not identified: {ident.reason} (rigid model only)"
+    if served_beam_note(group):
+        return group, f"beam identified but not used: {served_beam_note(group)}"
     return group, (
         f"beam identified: misfit {ident.misfit_m * 1e6:.2f} µm against device noise "
         f"{ident.noise_m * 1e6:.2f} µm over {f.size - check['held_out_cases']} cases, "

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from conftest import REPO
 
-from app.profiles import ProfileModel, profile_model
+from app.profiles import ProfileModel, profile_model, served_beam, served_beam_note
 from app.storage.skis import read_ski
 from solvers.beam import solve_beam_contact
 from solvers.errors import DataFileError
@@ -17,7 +17,12 @@ SKI = REPO / "tables" / "skis" / "ski-a.h5"
 
 def _identified_group(beam, ok=True):
     return {
-        "attrs": {"ok": ok, "reason": "" if ok else "misfit too large", "misfit_m": 3e-6},
+        "attrs": {
+            "ok": ok,
+            "reason": "" if ok else "misfit too large",
+            "misfit_m": 3.0e-6,
+            "noise_m": 3.0e-6,
+        },
         "positions_m": beam.positions_m,
         "bending_stiffness_nm2": beam.bending_stiffness_nm2 * 1.01,
         "unloaded_gap_m": beam.unloaded_gap_m,
@@ -56,3 +61,16 @@ def test_identified_beam_profile_is_the_exact_contact_solve_with_any_warm_start(
         cold = solve_beam_contact(beam, load_n, xf)
         np.testing.assert_allclose(gap, cold.gap_m, atol=1e-12)
         np.testing.assert_array_equal(x, cold.positions_m)
+
+
+def test_a_beam_fitted_above_the_noise_is_not_served():
+    """An identification that passed but whose forward fit stopped above the noise (a local
+    minimum) is not the profile model; the ski says why."""
+    rec = read_ski(SKI)
+    ident = _identified_group(rec.beam)
+    ident["attrs"]["misfit_m"] = 3.3e-6  # 1.10 × the noise
+    assert served_beam(ident) is None
+    assert "local minimum" in served_beam_note(ident)
+    assert ProfileModel(dataclasses.replace(rec, identified=ident, cache={})).source != (
+        "identified_beam"
+    )
