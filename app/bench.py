@@ -679,16 +679,15 @@ def _flexible_md(d: dict) -> list[str]:
         "### The bending ski (issue #12)",
         "",
         "Papers' case, default grid, same run. Profile: the ski's profile model as the service "
-        "calls it (identified beam: one device solve on the flat with the cached flexibility, "
-        "warm-started from the nearest earlier solve; cold: without the warm start; target "
-        "≤ 10 ms). Flexible solve: beam and snow as one "
-        "complementarity problem (target ≤ 2 × rigid and ≤ 40 ms), cold and warm-started from "
-        "the rigid pressure (as the service does). Request: one `service.contact` computation "
-        "(profile, macro, multiscale; auto also solves the flexible ski), with its 90 % error "
-        "band and without it (the band re-solves a rigid answer 9 times on a grid twice as "
-        "coarse; docs/limits.md, Error band).",
+        "calls it (identified beam: one device solve on the flat with the cached flexibility; "
+        "in brackets the same solve with a bare flexibility call; target ≤ 10 ms). Flexible "
+        "solve: beam and snow as one complementarity problem (target ≤ 2 × rigid and ≤ 40 ms), "
+        "cold and warm-started from the rigid pressure (as the service does). Request: one "
+        "`service.contact` computation (profile, macro, multiscale; auto also solves the "
+        "flexible ski), with its 90 % error band and without it (the band re-solves a rigid "
+        "answer 9 times on a grid twice as coarse; docs/limits.md, Error band).",
         "",
-        "| ski | profile model | profile [ms] (cold) | rigid solve [ms] | flexible cold [ms] | "
+        "| ski | profile model | profile [ms] (direct) | rigid solve [ms] | flexible cold [ms] | "
         "flexible warm [ms] | warm / rigid | request rigid [ms] (no band) | request auto [ms] "
         "(no band) | area rigid → flexible [cm²] |",
         "|---|---|---|---|---|---|---|---|---|---|",

@@ -513,8 +513,8 @@ snow density ρ</label></div>
 {_ski_model_field(q)}
 </details></fieldset>
 <button type="submit" id="submit" class="primary">Compute contact</button>
-<span class="hint">One ski × grind takes about 20–30 ms on the server (median 22 ms with
-the default ski model, docs/benchmarks.md).</span>
+<span class="hint">One ski × grind takes about 25–55 ms on the server with its error band
+(median 43 ms with the default ski model, docs/benchmarks.md).</span>
 </form>
 """
     return _page("skisnow — contact form", body, status)

@@ -47,9 +47,9 @@ def test_source_order():
         ProfileModel(nothing)
 
 
-def test_identified_beam_profile_is_the_exact_contact_solve_with_any_warm_start():
-    """Warm starts from earlier solves (nearest in load and position) never change the answer:
-    the contact problem has one solution."""
+def test_identified_beam_profile_is_the_exact_contact_solve():
+    """The profile model answers the device's contact solve of the identified beam, whatever
+    was solved before in the process (no history-dependent warm start)."""
     rec = read_ski(SKI)
     rec = dataclasses.replace(rec, identified=_identified_group(rec.beam), cache={})
     model = profile_model(rec)
