@@ -25,6 +25,7 @@ heartbeat), so two processes never run the same job.
 from __future__ import annotations
 
 import datetime as _dt
+import sqlite3
 import time
 import uuid
 from dataclasses import dataclass
@@ -155,15 +156,16 @@ def _job(row) -> JobRow:
 def _create_schema(engine, attempts: int = 5) -> None:
     """Create the tables if missing, safe when several processes start at once on an empty
     database (the uvicorn workers of a first ``docker run``): ``create_all`` checks and then
-    creates, so a process that loses the race sees "already exists"; it checks again, and
-    finds the winner's tables."""
+    creates, so a process that loses the race sees "already exists" (or, on SQLite, "database
+    is locked" while another process holds the schema lock); it checks again, and finds the
+    winner's tables."""
     for attempt in range(attempts):
         try:
             _meta.create_all(engine)
             return
         except (sa.exc.OperationalError, sa.exc.ProgrammingError, sa.exc.IntegrityError) as exc:
             text = str(exc).lower()
-            if "already exists" not in text and "duplicate" not in text:
+            if not any(t in text for t in ("already exists", "duplicate", "locked")):
                 raise
             if attempt == attempts - 1:
                 raise
@@ -194,7 +196,16 @@ class CatalogueDB:
             @sa.event.listens_for(self.engine, "connect")
             def _pragmas(dbapi_conn, _record):  # pragma: no cover - trivial
                 cur = dbapi_conn.cursor()
-                cur.execute("PRAGMA journal_mode=WAL")
+                # switching a new database to WAL takes an exclusive lock and does not wait on
+                # the busy timeout: processes starting at once retry it (it is a no-op once set)
+                for attempt in range(100):
+                    try:
+                        cur.execute("PRAGMA journal_mode=WAL")
+                        break
+                    except sqlite3.OperationalError as exc:
+                        if "locked" not in str(exc).lower() or attempt == 99:
+                            raise
+                        time.sleep(0.02 + 0.01 * (attempt % 5))
                 cur.execute("PRAGMA foreign_keys=ON")
                 cur.close()
 
