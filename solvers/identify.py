@@ -865,10 +865,8 @@ def identify_beam(
     noise = start.noise_m if noise_m is None else max(float(noise_m), 1e-9)
     if noise_m is None and sub.size < loads.size:
         noise = max(estimate_noise(y), 1e-9)
-    steps_done = [0]
 
     def progress(step: int, misfit: float) -> None:
-        steps_done[0] = step
         if callback is not None:
             callback(
                 min(0.2 + 0.8 * step / max_steps, 0.99),
