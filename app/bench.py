@@ -602,7 +602,7 @@ def bench_flexible(repeats: int = 7, skis: tuple[str, ...] = ("ski-a", "ski-b"))
     from app import service
     from app.commands.macro import SKI_DIR
     from app.profiles import profile_model
-    from solvers.beam import G_STANDARD, BeamFlexibility, solve_beam_contact
+    from solvers.beam import G_STANDARD
     from solvers.elastic import effective_modulus
     from solvers.flexible import prepare_flexible, solve_flexible
     from solvers.macro import extrude_profile, solve_macro
@@ -628,10 +628,6 @@ def bench_flexible(repeats: int = 7, skis: tuple[str, ...] = ("ski-a", "ski-b"))
         if beam is None:
             continue
         pm = profile_model(rec)
-        flex_beam = BeamFlexibility(beam)
-        t_cold_prof, _ = median_of(
-            lambda b=beam, fb=flex_beam: solve_beam_contact(b, load_n, xf, flexibility=fb)
-        )
         t_prof, (x_prof, gap_prof) = median_of(lambda pm=pm: pm(load_n, xf))
         gm = extrude_profile(
             x_prof, gap_prof, rec.outline.width_m, width_positions_m=rec.outline.positions_m
@@ -656,7 +652,6 @@ def bench_flexible(repeats: int = 7, skis: tuple[str, ...] = ("ski-a", "ski-b"))
         out[name] = {
             "profile_model": pm.source,
             "beam_profile_s": t_prof,
-            "beam_profile_cold_s": t_cold_prof,
             "rigid_solve_s": t_rigid,
             "flexible_cold_s": t_cold,
             "flexible_warm_s": t_warm,
@@ -680,14 +675,14 @@ def _flexible_md(d: dict) -> list[str]:
         "",
         "Papers' case, default grid, same run. Profile: the ski's profile model as the service "
         "calls it (identified beam: one device solve on the flat with the cached flexibility; "
-        "in brackets the same solve with a bare flexibility call; target ≤ 10 ms). Flexible "
+        "target ≤ 10 ms). Flexible "
         "solve: beam and snow as one complementarity problem (target ≤ 2 × rigid and ≤ 40 ms), "
         "cold and warm-started from the rigid pressure (as the service does). Request: one "
         "`service.contact` computation (profile, macro, multiscale; auto also solves the "
         "flexible ski), with its 90 % error band and without it (the band re-solves a rigid "
         "answer 9 times on a grid twice as coarse; docs/limits.md, Error band).",
         "",
-        "| ski | profile model | profile [ms] (direct) | rigid solve [ms] | flexible cold [ms] | "
+        "| ski | profile model | profile [ms] | rigid solve [ms] | flexible cold [ms] | "
         "flexible warm [ms] | warm / rigid | request rigid [ms] (no band) | request auto [ms] "
         "(no band) | area rigid → flexible [cm²] |",
         "|---|---|---|---|---|---|---|---|---|---|",
@@ -695,10 +690,9 @@ def _flexible_md(d: dict) -> list[str]:
     for name, r in d.items():
         nb_rigid = 1e3 * r.get("contact_rigid_no_band_s", float("nan"))
         nb_auto = 1e3 * r.get("contact_auto_no_band_s", float("nan"))
-        cold = 1e3 * r.get("beam_profile_cold_s", float("nan"))
         lines.append(
             f"| {name} | {r.get('profile_model', 'design_beam')} | "
-            f"{1e3 * r['beam_profile_s']:.2f} ({cold:.2f}) | {1e3 * r['rigid_solve_s']:.1f} | "
+            f"{1e3 * r['beam_profile_s']:.2f} | {1e3 * r['rigid_solve_s']:.1f} | "
             f"{1e3 * r['flexible_cold_s']:.1f} | {1e3 * r['flexible_warm_s']:.1f} | "
             f"{r['flexible_warm_s'] / r['rigid_solve_s']:.1f} | "
             f"{1e3 * r['contact_rigid_s']:.1f} ({nb_rigid:.1f}) | "

@@ -862,9 +862,7 @@ def identify_beam(
         return start
     if not np.isfinite(start.log_compliance).all():
         return start  # the start could not run (one load only, ...): its reason stands
-    noise = start.noise_m if noise_m is None else max(float(noise_m), 1e-9)
-    if noise_m is None and sub.size < loads.size:
-        noise = max(estimate_noise(y), 1e-9)
+    noise = max(float(noise_m) if noise_m is not None else estimate_noise(y), 1e-9)
 
     def progress(step: int, misfit: float) -> None:
         if callback is not None:
