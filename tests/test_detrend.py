@@ -243,9 +243,11 @@ def test_micro_defaults_and_records_the_detrend(periodic_map, capsys):
     assert none["real_contact_area_fraction"] == mean["real_contact_area_fraction"]
     assert none["mean_gap_um"] == pytest.approx(mean["mean_gap_um"], rel=1e-9)
     # a shipped (synthetic, periodic) grind keeps its stored heights, whose mean was removed
-    shipped = _micro(capsys, "grind-1", 100.0, "--snow-modulus-mpa", "200")
+    argv = ["micro", "grind-1", "--nominal-pressure-kpa", "100", "--snow-modulus-mpa", "200"]
+    assert main([*argv, "--json"]) == 0
+    shipped = json.loads(capsys.readouterr().out)
     assert shipped["detrend"] == "mean" and shipped["periodic"] == "none"
-    main(["micro", "grind-1", "--nominal-pressure-kpa", "100", "--snow-modulus-mpa", "20"])
+    assert main(argv) == 0
     assert "detrend mean" in capsys.readouterr().out
 
 
