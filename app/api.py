@@ -213,6 +213,8 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
                         float(t.pressure_ratio[-1]),
                     ],
                     "gap_floor_nm": t.gap_floor_m * 1e9,
+                    # what was removed from the heights (plane, mean, none); None: not recorded
+                    "detrend": t.attrs.get("texture_detrend"),
                     "file": g.path.name,
                     "sha256": g.sha256,
                     "code_version": t.attrs.get("code_version"),

@@ -247,8 +247,17 @@ def mount(app: FastAPI) -> None:
         height_unit: Annotated[str | None, Form(max_length=8)] = None,
         along_ski: Annotated[Literal["x", "y"], Form()] = "x",
         periodic: Annotated[Literal["mirror", "window", "none"], Form()] = "mirror",
+        detrend: Annotated[
+            Literal["plane", "mean", "none"] | None,
+            Form(
+                description=(
+                    "removed from the heights before the solve: plane (default), mean "
+                    "(default with periodic=none) or none; recorded in the item's metadata"
+                )
+            ),
+        ] = None,
     ) -> JSONResponse:
-        """Upload a grind's topography: levelled and checked at once (ISO 25178 parameters in
+        """Upload a grind's topography: detrended and checked at once (ISO 25178 parameters in
         the answer); its table is built by a background job (``job`` → ``GET /v1/jobs/{id}``)."""
         state = _state(request)
         settings = request.app.state.settings
@@ -273,6 +282,7 @@ def mount(app: FastAPI) -> None:
                 height_unit=height_unit,
                 along_ski=along_ski,
                 periodic=periodic,
+                detrend=detrend,
                 team=team,
             )
         state.runner.wake()

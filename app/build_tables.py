@@ -17,6 +17,12 @@ texture heights, pixel size, pressure grid, chunk size, solver settings, code ve
 solver source code: a killed job rerun skips the finished chunks and gives the same table, and
 a stale checkpoint is never reused. The table file appears (atomic rename) only once complete;
 then ``OUT/manifest.json`` is rewritten and the texture's checkpoints are removed.
+
+The texture is solved as periodic, as given. ``--detrend`` says what is removed from a height
+map file's heights first (:func:`solvers.texture.level_heights`: plane, mean or none; default
+plane for a raw or measured map, a stored texture as it is, synthetic ones with their mean
+removed). The choice is the table's ``/texture`` attribute ``detrend`` and its root attribute
+``texture_detrend``.
 """
 
 from __future__ import annotations
@@ -49,7 +55,7 @@ from solvers.lookup import (
     unloaded_statistics,
 )
 from solvers.micro import DEFAULT_GAP_FLOOR_M, full_contact_pressure
-from solvers.texture import Texture, iso25178_parameters
+from solvers.texture import DETREND_METHODS, Texture, iso25178_parameters
 
 from .storage.common import code_version
 from .storage.tables import read_checkpoint, write_checkpoint, write_manifest, write_table
@@ -216,6 +222,7 @@ def _assemble(job: _Job, settings: BuildSettings) -> tuple[MicroTable, dict]:
             "checkpoint_key": job.key,
             "solver_source_sha256": _solver_source_sha256(),
             "points_not_converged": int(np.count_nonzero(~arrays["converged"])),
+            "texture_detrend": job.texture.detrend,
         },
         **arrays,
     )
@@ -331,6 +338,7 @@ def build_tables(
             texture_attrs={
                 "source": job.texture.source,
                 "missing_fraction": float(job.texture.missing_fraction),
+                "detrend": job.texture.detrend,
             },
             diagnostics=diagnostics,
             parameters={**asdict(settings), "texture": name, "grid_points": ratio_grid.size},
@@ -406,14 +414,14 @@ def _run(client, jobs, pending, settings, progress, on_chunk_done) -> int:
 # ---------------------------------------------------------------------------- CLI
 
 
-def _load_textures(specs: Sequence[str]) -> list[Texture]:
+def _load_textures(specs: Sequence[str], detrend: str | None = None) -> list[Texture]:
     try:
         from app.storage.textures import load_texture
     except ModuleNotFoundError as exc:
         if exc.name != "app.storage.textures":
             raise
         raise InputError("texture loading is not available (app.storage.textures missing)") from exc
-    return [load_texture(spec) for spec in specs]
+    return [load_texture(spec, detrend=detrend) for spec in specs]
 
 
 def _command(args: argparse.Namespace) -> int:
@@ -426,7 +434,7 @@ def _command(args: argparse.Namespace) -> int:
         max_iterations=args.max_iterations,
         gap_floor_m=args.gap_floor_nm * 1e-9,
     )
-    textures = _load_textures(args.textures)
+    textures = _load_textures(args.textures, args.detrend)
     t0 = time.perf_counter()
     paths = build_tables(
         textures,
@@ -464,4 +472,14 @@ def register(subparsers) -> None:
         "--gap-floor-nm", type=float, default=d.gap_floor_m * 1e9, help="gap floor h_c [nm]"
     )
     p.add_argument("--keep-checkpoints", action="store_true", help="keep chunk checkpoints")
+    p.add_argument(
+        "--detrend",
+        choices=DETREND_METHODS,
+        default=None,
+        help=(
+            "what is removed from a height map file's heights: plane, mean (for a periodic "
+            "map) or none; default plane for raw/measured maps, a stored texture (.h5, "
+            "shipped grind) as it is (synthetic: mean); recorded in the table"
+        ),
+    )
     p.set_defaults(func=_command)

@@ -3,7 +3,7 @@
 Storage layout under the data directory (``Settings.data_dir``)::
 
     catalogue.db                 SQLite catalogue (default database URL)
-    uploads/<item id>.texture.h5 levelled texture of an uploaded grind (until its table is built)
+    uploads/<item id>.texture.h5 detrended texture of an uploaded grind (until its table is built)
     uploads/<item id>.csv        camber CSV of an uploaded ski (kept: the ski's raw data)
     work/<item id>/              a job's scratch space (table checkpoints; removed when done)
     grinds/<item id>.h5          finished texture table (schema skisnow.table/…)
@@ -176,27 +176,34 @@ def read_grind_upload(
     pixel_size_um: float | None,
     height_unit: str | None,
     along_ski: str = "x",
+    detrend: str | None = None,
 ):
-    """Check the content of an uploaded topography file and read it as a levelled texture.
+    """Check the content of an uploaded topography file and read it as a detrended texture.
 
     The bytes decide, not the name: a name that promises a format the bytes do not have
     (``.npy`` without the NumPy magic, ``.h5``/``.datx`` without HDF5's, ``.x3p`` without
     zip's) and content of no accepted format are refused (415). The grid size is checked from
-    the header before the heights are decoded. Reading, unit conversion and levelling are
+    the header before the heights are decoded. Reading, unit conversion and detrending are
     :func:`app.storage.topography.read_topography` (x3p, instrument formats, ``.npy``,
     ``.csv``, skisnow ``.h5``); without that module, ``.npy``/``.csv``/``.h5`` only.
+    ``detrend`` ("plane", "mean", "none"; ``None``: "plane" for a measured map, a skisnow
+    texture as stored) is what is removed from the heights, kept in the texture's
+    ``detrend``.
 
     Returns
     -------
     solvers.texture.Texture
-        Levelled texture in metres, axis 0 along the ski (named ``upload``).
+        Detrended texture in metres, axis 0 along the ski (named ``upload``).
 
     Raises
     ------
     UnsupportedContentError, InputError, DataFileError
     """
-    from app.storage.textures import read_heightmap, read_texture
+    from app.storage.textures import detrend_texture, read_heightmap, read_texture
+    from solvers.texture import check_detrend
 
+    if detrend is not None:
+        check_detrend(detrend)
     suffix = Path(filename).suffix.lower()
     with open(path, "rb") as fh:
         head = fh.read(4096)
@@ -223,6 +230,7 @@ def read_grind_upload(
             pixel_size_um=pixel_size_um,
             height_unit=height_unit,
             along_ski=along_ski,
+            detrend=detrend,
             max_pixels=settings.max_grid_points,
             min_side=settings.min_grid_side,
             max_file_bytes=settings.max_upload_bytes,
@@ -236,12 +244,13 @@ def read_grind_upload(
             ]
             if missing:
                 raise InputError(f"{' and '.join(missing)} must be given for a {suffix} height map")
-        if suffix == ".npy":
-            texture = read_heightmap(path, pixel_size_um=pixel_size_um, height_unit=height_unit)
-        elif suffix in (".csv", ".txt") and b"\x00" not in head:
-            texture = read_heightmap(path, pixel_size_um=pixel_size_um, height_unit=height_unit)
+        raw_detrend = "plane" if detrend is None else detrend
+        if suffix == ".npy" or (suffix in (".csv", ".txt") and b"\x00" not in head):
+            texture = read_heightmap(
+                path, pixel_size_um=pixel_size_um, height_unit=height_unit, detrend=raw_detrend
+            )
         elif suffix == ".h5":
-            texture = read_texture(path)
+            texture = detrend_texture(read_texture(path), detrend)
         else:
             raise UnsupportedContentError(
                 f"file {filename!r}: unsupported topography format; accepted: .npy, .csv, .h5 "
@@ -257,10 +266,10 @@ def read_grind_upload(
             f"pixel_size_um {px_um:g} is outside the plausible range "
             f"{PIXEL_UM_RANGE[0]:g}–{PIXEL_UM_RANGE[1]:g} µm of a texture measurement"
         )
-    sq = float(np.sqrt(np.mean(heights**2)))
+    sq = float(np.std(heights))  # about the mean: detrend "none" keeps an offset
     if not SQ_RANGE_M[0] <= sq <= SQ_RANGE_M[1]:
         raise InputError(
-            f"height_unit: the levelled heights have Sq = {sq:.3g} m, outside the plausible "
+            f"height_unit: the detrended heights have Sq = {sq:.3g} m, outside the plausible "
             f"range {SQ_RANGE_M[0]:g}–{SQ_RANGE_M[1]:g} m of a ski-base grind; wrong height unit?"
         )
     return replace(texture, name="upload")
@@ -280,11 +289,17 @@ def accept_grind(
     team: str | None,
     along_ski: str = "x",
     periodic: str = "mirror",
+    detrend: str | None = None,
 ) -> tuple[ItemRow, str, dict]:
-    """Validate and level an uploaded grind, store it, and queue its table build.
+    """Validate and detrend an uploaded grind, store it, and queue its table build.
 
     The table is built on ``solvers.texture.make_periodic(heights, periodic)``: ``mirror``
     (default for measured maps; a 2n0 × 2n1 grid), ``window`` or ``none`` (docs/topography.md).
+    ``detrend`` is what is removed from the heights first (``solvers.texture.level_heights``):
+    ``plane``, ``mean`` or ``none``; by default ``plane``, or ``mean`` when the map is declared
+    periodic (``periodic="none"``); a skisnow texture file is kept as stored unless it is
+    given. The choice is recorded in the item's metadata (``detrend``), the stored texture
+    and the table.
 
     Returns
     -------
@@ -297,6 +312,8 @@ def accept_grind(
     from solvers.texture import iso25178_parameters, make_periodic
 
     name = check_name(name)
+    if detrend is None and periodic == "none":  # declared periodic: no plane to remove
+        detrend = "mean"
     if db.item_by_name("grind", name) is not None:
         raise ConflictError(f"a grind named {name!r} already exists")
     texture = read_grind_upload(
@@ -306,6 +323,7 @@ def accept_grind(
         pixel_size_um=pixel_size_um,
         height_unit=height_unit,
         along_ski=along_ski,
+        detrend=detrend,
     )
     iso = iso25178_parameters(texture.heights_m, texture.pixel_size_m, periodic=False)
     solve_heights = make_periodic(texture.heights_m, periodic)
@@ -314,6 +332,7 @@ def accept_grind(
         "original_filename": Path(filename).name,
         "upload_sha256": sha256_file(upload_path),
         "grid": list(np.shape(texture.heights_m)),
+        "detrend": texture.detrend,
         "periodic": periodic,
         "solve_grid": list(solve_heights.shape),
         "pixel_size_um": texture.pixel_size_m * 1e6,
@@ -326,7 +345,9 @@ def accept_grind(
             texture,
             heights_m=solve_heights,
             name=f"g{item.id}",
-            source=f"upload {Path(filename).name}; periodic={periodic}",
+            source=(
+                f"upload {Path(filename).name}; detrend={texture.detrend}; periodic={periodic}"
+            ),
         )
         write_texture(
             stored,

@@ -820,6 +820,20 @@ GRIND_UPLOAD_FIELDS = (
         options=(("mirror", "mirror"), ("window", "window"), ("none", "none")),
         advanced=True,
     ),
+    UploadField(
+        "detrend",
+        "Detrending",
+        "select",
+        "removed from the heights before the solve; default: the least-squares plane, or the "
+        "mean when the tiling is none (a periodic map); recorded with the grind",
+        options=(
+            ("", "default (plane; mean if tiling is none)"),
+            ("plane", "plane"),
+            ("mean", "mean"),
+            ("none", "none"),
+        ),
+        advanced=True,
+    ),
 )
 
 #: the ski form: fields of ``POST /v1/skis`` (docs/uploads.md, the neutral CSV of docs/macro.md)

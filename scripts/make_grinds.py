@@ -131,6 +131,7 @@ def main(argv: list[str] | None = None) -> int:
             name,
             0.0,
             f"synthetic: solvers.texture.linear_grind, {DESCRIPTION[name]}",
+            detrend="mean",  # linear_grind removes the mean; a periodic map keeps its plane
         )
         path = args.out / f"{name}.h5"
         write_texture(

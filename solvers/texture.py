@@ -41,12 +41,15 @@ import numpy as np
 from .errors import InputError
 
 __all__ = [
+    "DETREND_METHODS",
     "GRIND_TARGETS",
     "GRIND_TOLERANCES",
     "PERIODISATION_METHODS",
     "GrindFit",
     "GrindParameters",
     "Texture",
+    "check_detrend",
+    "combined_detrend",
     "fit_linear_grind",
     "iso25178_parameters",
     "level_heights",
@@ -75,6 +78,11 @@ class Texture:
         Fraction of the points that were missing in the source and filled [-].
     source : str
         Where the heights came from (file path, "synthetic: ...").
+    detrend : str
+        What was removed from the source heights to give ``heights_m`` (one of
+        :data:`DETREND_METHODS`): ``"plane"`` the least-squares plane, ``"mean"`` the mean
+        height, ``"none"`` nothing (the heights as given; the default for a texture built
+        from an array in code).
     """
 
     heights_m: np.ndarray
@@ -82,6 +90,7 @@ class Texture:
     name: str
     missing_fraction: float = 0.0
     source: str = ""
+    detrend: str = "none"
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -143,15 +152,48 @@ def _plane_fit(h: np.ndarray, valid: np.ndarray) -> np.ndarray:
     return coef[0] + coef[1] * i + coef[2] * j
 
 
-def level_heights(
-    heights_m, pixel_size_m: float, *, max_missing_fraction: float = 0.5
-) -> tuple[np.ndarray, float]:
-    """Fill missing points and remove the least-squares mean plane.
+#: What :func:`level_heights` can remove from a height map before it is solved:
+#: ``"plane"`` the least-squares plane (tilt and mean; the default for measured, non-periodic
+#: maps), ``"mean"`` only the mean height (the default for maps declared periodic: a plane
+#: fit of a periodic map removes a tilt it does not have and puts a step at the wrap),
+#: ``"none"`` nothing. The micro solver is invariant to the mean height (the gap is measured
+#: from the highest point), so ``"mean"`` and ``"none"`` give the same contact.
+DETREND_METHODS = ("plane", "mean", "none")
 
-    Steps: (1) fit the mean plane to the valid (finite) points and subtract it; (2) give every
-    missing (NaN) point the levelled value of its nearest valid point (Euclidean distance on the
-    grid); (3) remove the least-squares plane of the filled map, so the result has zero mean and
-    no tilt over the full grid.
+
+def check_detrend(detrend) -> str:
+    """``detrend`` if it is one of :data:`DETREND_METHODS`, else :class:`InputError`."""
+    if not isinstance(detrend, str) or detrend not in DETREND_METHODS:
+        raise InputError(f"detrend must be one of {', '.join(DETREND_METHODS)}, got {detrend!r}")
+    return detrend
+
+
+def combined_detrend(first: str, then: str) -> str:
+    """The detrending equal to ``first`` followed by ``then`` [one of :data:`DETREND_METHODS`].
+
+    Removing the least-squares plane also removes the mean, and removing the mean of a map
+    without plane leaves it without plane, so the composition is the stronger of the two
+    (none < mean < plane).
+    """
+    order = {m: i for i, m in enumerate(reversed(DETREND_METHODS))}
+    return max(check_detrend(first), check_detrend(then), key=order.__getitem__)
+
+
+def level_heights(
+    heights_m,
+    pixel_size_m: float,
+    *,
+    detrend: str = "plane",
+    max_missing_fraction: float = 0.5,
+) -> tuple[np.ndarray, float]:
+    """Fill missing points and remove the least-squares plane, the mean, or nothing.
+
+    Steps for ``detrend="plane"``: (1) fit the mean plane to the valid (finite) points and
+    subtract it; (2) give every missing (NaN) point the levelled value of its nearest valid
+    point (Euclidean distance on the grid); (3) remove the least-squares plane of the filled
+    map, so the result has zero mean and no tilt over the full grid. ``"mean"``: the same with
+    the mean height in place of the plane (the tilt is kept). ``"none"``: only step (2); the
+    valid heights are returned unchanged.
 
     Parameters
     ----------
@@ -159,25 +201,29 @@ def level_heights(
         Raw heights [m], 2-D, NaN where the instrument did not measure.
     pixel_size_m : float
         Pixel size Δ [m] (validated; the plane is fitted in pixel coordinates).
+    detrend : str
+        ``"plane"`` (default), ``"mean"`` or ``"none"``, see :data:`DETREND_METHODS`.
     max_missing_fraction : float
         Largest accepted fraction of missing points [-], in [0, 1).
 
     Returns
     -------
     heights_m : numpy.ndarray
-        Levelled, filled heights [m], float64, same shape.
+        Detrended, filled heights [m], float64, same shape.
     missing_fraction : float
         Fraction of the points that were missing and have been filled [-].
 
     Raises
     ------
     InputError
-        Not 2-D, fewer than 2 points along an axis, ±inf values, all or too many points missing,
-        or a flat map (a plane: nothing left after levelling).
+        Unknown ``detrend``, not 2-D, fewer than 2 points along an axis, ±inf values, all or
+        too many points missing, or a flat map (constant; with ``"plane"``, any plane: nothing
+        left after levelling).
     """
     from scipy import ndimage
 
     _check_pixel_size(pixel_size_m)
+    detrend = check_detrend(detrend)
     if not (0 <= max_missing_fraction < 1):
         raise InputError(f"max_missing_fraction must be in [0, 1), got {max_missing_fraction!r}")
     h = _check_grid(heights_m).copy()
@@ -196,18 +242,24 @@ def level_heights(
             f"heights_m is mostly missing: {missing_fraction:.1%} of the points are NaN, "
             f"more than max_missing_fraction={max_missing_fraction:.1%}"
         )
-    if valid.sum() < 3:
+    if detrend == "plane" and valid.sum() < 3:
         raise InputError(f"heights_m has only {int(valid.sum())} valid point(s); need >= 3")
     raw_range = float(np.ptp(h[valid]))
-    h = h - _plane_fit(h, valid)
+    if detrend == "plane":
+        h = h - _plane_fit(h, valid)
+    elif detrend == "mean":
+        h = h - h[valid].mean()
     if n_missing:
         idx = ndimage.distance_transform_edt(~valid, return_distances=False, return_indices=True)
         h = h[tuple(idx)]
-        h = h - _plane_fit(h, np.ones_like(valid))
-    h -= h.mean()
+        if detrend == "plane":
+            h = h - _plane_fit(h, np.ones_like(valid))
+    if detrend != "none":
+        h -= h.mean()
     if raw_range == 0 or np.ptp(h) <= 1e-9 * raw_range:
+        what = "a plane" if detrend == "plane" else "constant"
         raise InputError(
-            "heights_m is flat (a plane, peak-to-valley 0 after levelling): no texture"
+            f"heights_m is flat ({what}, peak-to-valley 0 after detrend={detrend!r}): no texture"
         )
     return h, missing_fraction
 

@@ -234,6 +234,9 @@ def test_upload_a_grind_then_compute_with_it(upload_server, page, tmp_path):
     page.click("#grind-submit")
     expect(page.locator("#grind-job")).to_be_visible()
     expect(page.locator("#grind-job .accepted")).to_contain_text("64 × 64 grid")
+    # the detrending is said (default for a measured map: the least-squares plane)
+    expect(page.locator("#grind-job .accepted")).to_contain_text("least-squares plane removed")
+    assert page.locator("#grind-detrend").input_value() == ""  # default: left to the API
     expect(page.locator("#grind-job-state")).to_have_text("done")
     expect(page.locator("#grind-job .percent")).to_have_text("100 %")
     assert page.locator("#grind-progress").evaluate("el => el.value") == 1

@@ -12,6 +12,7 @@ import io
 import time
 from pathlib import Path
 
+import h5py
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
@@ -138,6 +139,12 @@ def test_grind_upload_build_contact_rename_delete(catalogue, tmp_path):
         # measured maps are mirrored to fit the periodic solver (docs/topography.md)
         assert shown["metadata"]["periodic"] == "mirror"
         assert shown["metadata"]["solve_grid"] == [128, 128]
+        # ... after their least-squares plane is removed, which the item and table record
+        assert shown["metadata"]["detrend"] == "plane"
+        assert listed["my-grind"]["detrend"] == "plane"
+        with h5py.File(tmp_path / "grinds" / f"{shown['id']}.h5") as f:
+            assert f["texture"].attrs["detrend"] == "plane"
+            assert f.attrs["texture_detrend"] == "plane"
 
         r = client.post("/v1/contact", json={"ski": "ski-a", "grind": "my-grind", **CONTACT})
         assert r.status_code == 200, r.text[:500]
@@ -198,12 +205,35 @@ def test_restart_mid_build_resumes_from_checkpoints(catalogue, tmp_path):
     with make_client(catalogue, tmp_path, **slow) as client:
         job = wait_job(client, job_id)
         assert job["state"] == "done", job
+        # declared periodic (periodic=none): only the mean is removed, by default
+        assert client.get("/v1/grinds/resumed").json()["metadata"]["detrend"] == "mean"
         shown = client.get("/v1/grinds/resumed").json()
         assert shown["usable"] is True
         table = read_table(tmp_path / "grinds" / f"{shown['id']}.h5")
         assert table.attrs["chunks_resumed"] >= len(checkpoints)
         r = client.post("/v1/contact", json={"ski": "ski-b", "grind": "resumed", **CONTACT})
         assert r.status_code == 200, r.text[:300]
+
+
+def test_grind_upload_detrend_field_is_honoured_and_recorded(catalogue, tmp_path):
+    n = 64
+    i, j = np.indices((n, n)) / (n - 1)
+    raw_um = heights_um(n, seed=3) + 0.8 * i - 0.5 * j + 25.0  # tilted, off-centre
+    with make_client(catalogue, tmp_path) as client:
+        for detrend in ("none", "mean", "plane"):
+            name = f"d-{detrend}"
+            r = post_grind(client, name=name, content=npy_bytes(raw_um), detrend=detrend)
+            assert r.status_code == 202, r.text[:500]
+            levelled, _ = level_heights(raw_um * 1e-6, 1e-6, detrend=detrend)
+            expected = iso25178_parameters(levelled, 1e-6, periodic=False)
+            assert r.json()["iso25178"] == pytest.approx(expected, rel=1e-9)
+            assert client.get(f"/v1/grinds/{name}").json()["metadata"]["detrend"] == detrend
+        # the tilt is kept or removed as asked: the slope rms differs
+        shown = {d: client.get(f"/v1/grinds/d-{d}").json()["metadata"] for d in ("mean", "plane")}
+        assert shown["mean"]["iso25178"]["Sq_m"] > 1.01 * shown["plane"]["iso25178"]["Sq_m"]
+        bad = is_problem(post_grind(client, name="d-bad", detrend="tilt"), 422)
+        assert [e["field"].split(".")[-1] for e in bad["errors"]] == ["detrend"], bad
+        assert "Traceback" not in str(bad)
 
 
 def test_job_of_a_crashed_process_is_requeued(tmp_path):

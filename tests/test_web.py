@@ -395,6 +395,7 @@ GRIND_BAD = [
     ({"name": None}, "g.npy", None, 422, "name"),
     ({"name": "tiny-grind"}, "g.npy", None, 409, "name"),
     ({"along_ski": "z"}, "g.npy", None, 422, "along_ski"),
+    ({"detrend": "tilt"}, "g.npy", None, 422, "detrend"),
     ({}, "g.npy", "big", 413, "file"),
 ]
 

@@ -9,7 +9,7 @@ from app import units
 from solvers.elastic import effective_modulus
 from solvers.errors import InputError
 from solvers.micro import solve_micro
-from solvers.texture import PERIODISATION_METHODS, make_periodic
+from solvers.texture import DETREND_METHODS, PERIODISATION_METHODS, make_periodic
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -24,7 +24,8 @@ def register(sub: argparse._SubParsersAction) -> None:
             "25178-72), instrument formats (.sur, .datx, .plu, .opd, .sdf, ...), a texture .h5, "
             "or a .npy/.csv grid (then --pixel-size-um and --height-unit are required). "
             "Measured maps are not periodic: --periodic says how they are made to fit the "
-            "periodic solver (docs/topography.md)."
+            "periodic solver (docs/topography.md). --detrend says what is removed from the "
+            "heights first; the choice is printed and in the JSON answer."
         ),
     )
     p.add_argument("heightmap", metavar="HEIGHTMAP")
@@ -60,6 +61,17 @@ def register(sub: argparse._SubParsersAction) -> None:
         ),
     )
     p.add_argument(
+        "--detrend",
+        choices=DETREND_METHODS,
+        default=None,
+        help=(
+            "what is removed from a height map's heights before the solve: plane (the "
+            "least-squares plane), mean, or none; default plane for measured maps, mean when "
+            "the map is declared periodic (--periodic none); a texture (.h5, shipped grind) is "
+            "kept as stored (synthetic textures: mean) unless --detrend is given"
+        ),
+    )
+    p.add_argument(
         "--along-ski",
         choices=("x", "y"),
         default="x",
@@ -79,10 +91,14 @@ def run(args: argparse.Namespace) -> int:
 
     if args.nominal_pressure_kpa is None or not args.nominal_pressure_kpa >= 0:
         raise InputError(f"--nominal-pressure-kpa must be >= 0, got {args.nominal_pressure_kpa}")
+    detrend = args.detrend
+    if detrend is None and args.periodic == "none":  # declared periodic: no plane to remove
+        detrend = "mean"
     texture = load_texture(
         args.heightmap,
         pixel_size_um=args.pixel_size_um,
         height_unit=args.height_unit,
+        detrend=detrend,
         along_ski=args.along_ski,
         channel=args.channel,
     )
@@ -119,6 +135,7 @@ def run(args: argparse.Namespace) -> int:
         "message": res.message,
         "solve_time_s": res.solve_time_s,
         "grid": list(texture.heights_m.shape),
+        "detrend": texture.detrend,
         "periodic": periodic,
         "solved_grid": list(heights_m.shape),
         "pixel_size_um": texture.pixel_size_m * 1e6,
@@ -128,7 +145,8 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(
             f"texture                      {texture.name}  {out['grid'][0]}x{out['grid'][1]} "
-            f"px, {out['pixel_size_um']:.3g} µm/px; periodisation {periodic} "
+            f"px, {out['pixel_size_um']:.3g} µm/px; detrend {texture.detrend}; "
+            f"periodisation {periodic} "
             f"(solved on {heights_m.shape[0]}x{heights_m.shape[1]})"
         )
         print(

@@ -105,8 +105,12 @@
     var item = body.item || {}, meta = item.metadata || {};
     if (kind === "grind" && body.iso25178) {
       var grid = meta.grid ? meta.grid.join(" × ") + " grid, " : "";
-      return "Checked: " + grid + "Sa " + fmtUm(body.iso25178.Sa_m) + ", Sq " +
-        fmtUm(body.iso25178.Sq_m) + ". Building the lookup table of grind " + item.name + ".";
+      // what was removed from the heights is said, never done silently (docs/topography.md)
+      var removed = { plane: "least-squares plane removed", mean: "mean removed",
+        none: "heights kept as given" }[meta.detrend];
+      return "Checked: " + grid + (removed ? removed + ", " : "") + "Sa " +
+        fmtUm(body.iso25178.Sa_m) + ", Sq " + fmtUm(body.iso25178.Sq_m) +
+        ". Building the lookup table of grind " + item.name + ".";
     }
     if (kind === "ski" && body.data) {
       return "Checked: " + body.data.load_cases + " load cases, " + body.data.samples_per_case +

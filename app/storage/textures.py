@@ -6,13 +6,17 @@ Texture file format (schema ``skisnow.texture/1``, HDF5):
   ``axis0 = "x, along the ski (groove direction)"``, ``axis1 = "y, across the ski"``,
   ``pixel_size_m``;
 - root attrs: ``schema``, ``name``, ``source``, ``pixel_size_m`` [m], ``missing_fraction`` [-],
-  ``shape``, the ISO 25178 parameters of the heights (``iso_<name>``, SI, unit in the name,
-  gradients on the periodic grid if ``periodic`` is true), ``periodic``, everything from
+  ``detrend`` (what was removed from the source heights: ``plane``, ``mean`` or ``none``;
+  files written before it existed read as ``mean`` when synthetic, ``plane`` otherwise, which
+  is what the code of that time did), ``shape``, the ISO 25178 parameters of the heights
+  (``iso_<name>``, SI, unit in the name, gradients on the periodic grid if ``periodic`` is
+  true), ``periodic``, everything from
   :func:`app.storage.common.provenance`, and any ``extra_attrs`` of the writer (generator
   parameters and seed for synthetic textures).
 
 Raw height maps are converted to metres at this edge (``height_unit``: m, mm, um/µm, nm) and
-levelled by :func:`solvers.texture.level_heights`.
+detrended by :func:`solvers.texture.level_heights` (``detrend``: the least-squares plane by
+default, or the mean, or nothing; the choice is kept in :attr:`Texture.detrend`).
 """
 
 from __future__ import annotations
@@ -25,7 +29,13 @@ import h5py
 import numpy as np
 
 from solvers.errors import DataFileError, InputError
-from solvers.texture import Texture, iso25178_parameters, level_heights
+from solvers.texture import (
+    Texture,
+    check_detrend,
+    combined_detrend,
+    iso25178_parameters,
+    level_heights,
+)
 
 from .common import atomic_path, provenance, sha256_file, tables_dir
 
@@ -33,6 +43,7 @@ __all__ = [
     "HEIGHT_UNITS",
     "SCHEMA",
     "SHIPPED_TEXTURES_DIR",
+    "detrend_texture",
     "list_shipped_textures",
     "load_texture",
     "parse_csv_grid",
@@ -109,8 +120,10 @@ def _read_npy(path: Path) -> np.ndarray:
     return arr.astype(np.float64)
 
 
-def read_heightmap(path, *, pixel_size_um: float, height_unit: str) -> Texture:
-    """Read a raw height map (``.npy`` or ``.csv``), convert it to metres and level it.
+def read_heightmap(
+    path, *, pixel_size_um: float, height_unit: str, detrend: str = "plane"
+) -> Texture:
+    """Read a raw height map (``.npy`` or ``.csv``), convert it to metres and detrend it.
 
     Parameters
     ----------
@@ -121,21 +134,26 @@ def read_heightmap(path, *, pixel_size_um: float, height_unit: str) -> Texture:
         Pixel size [µm].
     height_unit : str
         Unit of the stored heights: "m", "mm", "um" (or "µm"), "nm".
+    detrend : str
+        What to remove before solving: "plane" (default), "mean" or "none"
+        (:func:`solvers.texture.level_heights`); recorded in :attr:`Texture.detrend`.
 
     Returns
     -------
     Texture
-        Levelled, filled texture named after the file stem.
+        Detrended, filled texture named after the file stem.
 
     Raises
     ------
     InputError
-        Unknown unit, bad pixel size, or a map :func:`solvers.texture.level_heights` refuses.
+        Unknown unit or detrend, bad pixel size, or a map
+        :func:`solvers.texture.level_heights` refuses.
     DataFileError
         Missing, unreadable, truncated or non-numeric file (the message names the file).
     """
     factor = _height_factor(height_unit)
     dx = _pixel_size_m(pixel_size_um)
+    detrend = check_detrend(detrend)
     path = Path(path)
     if not path.is_file():
         raise DataFileError(f"height map {path} does not exist")
@@ -149,10 +167,11 @@ def read_heightmap(path, *, pixel_size_um: float, height_unit: str) -> Texture:
     if raw.ndim != 2:
         raise DataFileError(f"height map {path} is {raw.ndim}-D; a 2-D grid is needed")
     try:
-        heights, missing = level_heights(raw * factor, dx)
+        heights, missing = level_heights(raw * factor, dx, detrend=detrend)
     except InputError as exc:
         raise InputError(f"height map {path}: {exc}") from None
-    return Texture(heights, dx, path.stem, missing, f"{path.name} (sha256 {sha256_file(path)})")
+    source = f"{path.name} (sha256 {sha256_file(path)})"
+    return Texture(heights, dx, path.stem, missing, source, detrend)
 
 
 def write_texture(texture: Texture, path, *, extra_attrs: dict | None = None, periodic=False):
@@ -193,6 +212,7 @@ def write_texture(texture: Texture, path, *, extra_attrs: dict | None = None, pe
         attrs["source"] = texture.source
         attrs["pixel_size_m"] = float(texture.pixel_size_m)
         attrs["missing_fraction"] = float(texture.missing_fraction)
+        attrs["detrend"] = check_detrend(texture.detrend)
         attrs["shape"] = np.array(h.shape, dtype=np.int64)
         attrs["periodic"] = bool(periodic)
         for key, value in iso.items():
@@ -234,6 +254,9 @@ def read_texture(path) -> Texture:
             name = str(f.attrs.get("name", path.stem))
             source = str(f.attrs.get("source", str(path)))
             missing = float(f.attrs.get("missing_fraction", 0.0))
+            detrend = f.attrs.get("detrend")
+            if isinstance(detrend, bytes):
+                detrend = detrend.decode()
     except DataFileError:
         raise
     except (OSError, KeyError, ValueError, TypeError) as exc:
@@ -244,7 +267,15 @@ def read_texture(path) -> Texture:
         raise DataFileError(f"texture file {path}: heights_m is not a finite 2-D grid")
     if not (np.isfinite(pixel) and pixel > 0):
         raise DataFileError(f"texture file {path}: pixel_size_m is {pixel!r}")
-    return Texture(heights, pixel, name, missing, source)
+    if detrend is None:  # written before the attribute: what the writers of the time did
+        detrend = "mean" if source.startswith("synthetic") else "plane"
+    else:
+        detrend = str(detrend)
+        try:
+            check_detrend(detrend)
+        except InputError as exc:
+            raise DataFileError(f"texture file {path}: {exc}") from None
+    return Texture(heights, pixel, name, missing, source, detrend)
 
 
 def list_shipped_textures() -> list[str]:
@@ -259,6 +290,7 @@ def load_texture(
     *,
     pixel_size_um: float | None = None,
     height_unit: str | None = None,
+    detrend: str | None = None,
     **topography_options,
 ) -> Texture:
     """Texture from a shipped name or a height map file of any format
@@ -273,14 +305,22 @@ def load_texture(
         Pixel size of a raw map [µm]; required for ``.npy``/``.csv``.
     height_unit : str, optional
         Height unit of a raw map ("m", "mm", "um", "nm"); required for ``.npy``/``.csv``.
+    detrend : str, optional
+        "plane", "mean" or "none" (:func:`solvers.texture.level_heights`). ``None``: "plane"
+        for a raw or measured map; a texture (shipped name or ``.h5``) is kept as stored. A
+        texture given a ``detrend`` has it applied to its stored heights; its
+        :attr:`Texture.detrend` is then the combination of both
+        (:func:`solvers.texture.combined_detrend`).
     **topography_options
         ``along_ski``, ``channel``, ``max_pixels``, ... of
         :func:`app.storage.topography.read_topography`.
     """
     spec_str = os.fspath(spec)
     shipped = list_shipped_textures()
+    if detrend is not None:
+        check_detrend(detrend)
     if spec_str in shipped:
-        return read_texture(SHIPPED_TEXTURES_DIR / f"{spec_str}.h5")
+        return detrend_texture(read_texture(SHIPPED_TEXTURES_DIR / f"{spec_str}.h5"), detrend)
     if not Path(spec_str).is_file():
         raise InputError(
             f"unknown texture {spec_str!r}: give a shipped name ({', '.join(shipped) or 'none'}) "
@@ -290,5 +330,30 @@ def load_texture(
 
     # the format is decided by the content (app.storage.topography), not by the file name
     return read_topography(
-        spec_str, pixel_size_um=pixel_size_um, height_unit=height_unit, **topography_options
+        spec_str,
+        pixel_size_um=pixel_size_um,
+        height_unit=height_unit,
+        detrend=detrend,
+        **topography_options,
+    )
+
+
+def detrend_texture(texture: Texture, detrend: str | None) -> Texture:
+    """A stored texture with ``detrend`` applied to its heights (``None``: kept as it is).
+
+    The result's :attr:`Texture.detrend` is the combination of the stored detrending and
+    this one (:func:`solvers.texture.combined_detrend`); its source says what was done. When
+    the stored detrending already includes this one (the mean of a levelled texture), the
+    texture is returned unchanged.
+    """
+    if detrend is None or combined_detrend(texture.detrend, detrend) == texture.detrend:
+        return texture  # nothing to do: the stored detrending already includes this one
+    heights, _ = level_heights(texture.heights_m, texture.pixel_size_m, detrend=detrend)
+    return Texture(
+        heights,
+        texture.pixel_size_m,
+        texture.name,
+        texture.missing_fraction,
+        f"{texture.source}; detrend={detrend} applied to the stored heights",
+        combined_detrend(texture.detrend, detrend),
     )

@@ -59,7 +59,7 @@ from pathlib import Path
 import numpy as np
 
 from solvers.errors import DataFileError, InputError
-from solvers.texture import Texture, level_heights
+from solvers.texture import Texture, check_detrend, level_heights
 
 __all__ = [
     "DEFAULT_MAX_FILE_BYTES",
@@ -515,8 +515,9 @@ def read_topography(
     max_zip_members: int = DEFAULT_MAX_ZIP_MEMBERS,
     max_uncompressed_bytes: int | None = None,
     max_missing_fraction: float = 0.5,
+    detrend: str | None = None,
 ) -> Texture:
-    """Read a measured (or raw) height map, convert it to metres, level it, return a Texture.
+    """Read a measured (or raw) height map, convert it to metres, detrend it, return a Texture.
 
     Parameters
     ----------
@@ -548,18 +549,25 @@ def read_topography(
         16 MiB + 64 bytes per allowed point.
     max_missing_fraction : float
         Largest fraction of non-measured points [-] (see :func:`solvers.texture.level_heights`).
+    detrend : str, optional
+        What is removed from the heights (:func:`solvers.texture.level_heights`): "plane"
+        (the least-squares plane; the default for measured maps), "mean" (for maps that are
+        periodic: a plane fit would tilt them and put a step at the wrap) or "none". A skisnow
+        texture file is kept as stored unless ``detrend`` is given
+        (:func:`app.storage.textures.detrend_texture`).
 
     Returns
     -------
     Texture
-        Levelled (mean plane removed), filled heights [m] with axis 0 along the ski, the pixel
-        size [m], and a ``source`` naming the file, its format and sha256.
+        Detrended, filled heights [m] with axis 0 along the ski, the pixel size [m], a
+        ``source`` naming the file, its format and sha256, and the ``detrend`` applied.
 
     Raises
     ------
     InputError
         Refused content: too large or too small a grid, a zip bomb, non-square pixels, a
-        profile or point cloud, missing or superfluous calibration, an all-NaN or flat map.
+        profile or point cloud, missing or superfluous calibration, an all-NaN or flat map,
+        an unknown ``detrend``.
     DataFileError
         Missing, empty, truncated or corrupt file, or content of no accepted format.
     """
@@ -567,6 +575,8 @@ def read_topography(
 
     if along_ski not in ("x", "y"):
         raise InputError(f"along_ski must be 'x' or 'y', got {along_ski!r}")
+    if detrend is not None:
+        check_detrend(detrend)
     try:
         max_pixels = int(max_pixels)
         min_side = max(2, int(min_side))
@@ -584,7 +594,9 @@ def read_topography(
         max_zip_members=max_zip_members,
         max_uncompressed_bytes=max_uncompressed_bytes,
     )
-    if raw.texture is not None:  # a skisnow texture file: levelled when written, kept as is
+    if raw.texture is not None:  # a skisnow texture file: detrended when written, kept as is
+        from .textures import detrend_texture
+
         tex = raw.texture
         if along_ski == "y":
             tex = Texture(
@@ -593,8 +605,9 @@ def read_topography(
                 tex.name,
                 tex.missing_fraction,
                 tex.source + "; transposed: file y along the ski",
+                tex.detrend,
             )
-        return tex
+        return detrend_texture(tex, detrend)
     if isinstance(source, bytes | bytearray | memoryview):
         digest = hashlib.sha256(bytes(source)).hexdigest()
         label, stem, file_name = name or "uploaded file", Path(name or "upload").stem, name
@@ -606,13 +619,17 @@ def read_topography(
     heights = raw.heights_m if along_ski == "x" else raw.heights_m.T
     if not np.isfinite(heights).any():
         raise InputError(f"{label}: no valid point (every height is NaN)")
+    detrend = "plane" if detrend is None else detrend
     try:
         levelled, missing = level_heights(
-            heights, raw.pixel_size_m, max_missing_fraction=max_missing_fraction
+            heights,
+            raw.pixel_size_m,
+            detrend=detrend,
+            max_missing_fraction=max_missing_fraction,
         )
     except InputError as exc:
         raise InputError(f"{label}: {exc}") from None
     source_text = f"{file_name or 'upload'} ({raw.details}; sha256 {digest})"
     if along_ski == "y":
         source_text += "; transposed: file y along the ski"
-    return Texture(levelled, raw.pixel_size_m, stem, missing, source_text)
+    return Texture(levelled, raw.pixel_size_m, stem, missing, source_text, detrend)
