@@ -76,6 +76,7 @@ import scipy.linalg
 
 from . import macro
 from .beam import BeamFlexibility, BeamSki, solve_beam_contact
+from .elastic import love_rectangle_influence
 from .errors import InputError
 
 __all__ = ["FlexibleModel", "prepare_flexible", "solve_flexible"]
@@ -94,6 +95,11 @@ _MAX_CG = 400
 #: a free pixel penetrates when H < −_PEN_TOL · tol · (largest displacement): below the
 #: accuracy the CG solves are asked for, so rounding does not enter the contact set
 _PEN_TOL = 0.5
+_ROWPC = True
+_ROWSTART = True
+_TRACE = []
+_AGG = 4
+_FINE = True
 
 
 def _equilibrated_flexibility(ski: BeamSki) -> tuple[BeamFlexibility, np.ndarray]:
@@ -164,6 +170,12 @@ class FlexibleModel:
     row_flexibility: BeamFlexibility = field(repr=False)
     compliance_m_per_n: np.ndarray = field(repr=False)
     stiffness_banded_n_per_m: np.ndarray = field(repr=False)
+    snow_kernel_rows: np.ndarray = field(repr=False)
+    lag_map: np.ndarray = field(repr=False)
+    footprint_rows: np.ndarray = field(repr=False)
+    row_pixels: np.ndarray = field(repr=False)
+    row_snow_unit: np.ndarray = field(repr=False)
+    row_beam_nn: np.ndarray = field(repr=False)
 
     @property
     def positions_m(self) -> np.ndarray:
@@ -223,7 +235,30 @@ def prepare_flexible(
     )
     flex, b = _equilibrated_flexibility(row_beam)
     k_band = _banded_stiffness(row_beam.bending_stiffness_nm2, unloaded.pixel_size_m[0])
-    return FlexibleModel(ski, unloaded, row_beam, flex, b, k_band)
+    dx, dy = unloaded.pixel_size_m
+    nx, ny = unloaded.gap_m.shape
+    kern = (2.0 / np.pi) * love_rectangle_influence(
+        np.arange(nx)[:, None] * dx, np.arange(ny)[None, :] * dy, dx / 2, dy / 2
+    )
+    j = np.arange(ny)
+    lag = np.zeros((ny * ny, ny))
+    lag[np.arange(ny * ny), np.abs(j[:, None] - j[None, :]).reshape(-1)] = 1.0
+    inside = np.isfinite(unloaded.gap_m)
+    row_in = np.flatnonzero(inside.any(axis=1))
+    pat = inside[row_in]
+    upat, pid = np.unique(pat, axis=0, return_inverse=True)
+    pid = pid.reshape(-1)
+    chi = upat.astype(float)
+    npat = chi.shape[0]
+    outer = chi[:, None, :, None] * chi[None, :, None, :]
+    t = kern @ (outer.reshape(npat * npat, ny * ny) @ lag).T
+    d = np.abs(row_in[:, None] - row_in[None, :])
+    row_snow = t[d, pid[:, None] * npat + pid[None, :]]
+    n = pat.sum(axis=1).astype(float)
+    row_nn = n[:, None] * n[None, :] * b[np.ix_(row_in, row_in)]
+    return FlexibleModel(
+        ski, unloaded, row_beam, flex, b, k_band, kern, lag, row_in, n, row_snow, row_nn
+    )
 
 
 def _load_split(rows_m: np.ndarray, load_position_m: float) -> tuple[int, float]:
@@ -265,6 +300,11 @@ class _Pixels:
         self.k_band = model.stiffness_banded_n_per_m / self.area  # K̃ = K_b / (dx dy)
         self.rigid = _rigid_basis(x)
         self.u_load = self.load_deflection[self.rows]
+        self.kernel_rows = model.snow_kernel_rows / e_eff
+        self.e_eff = e_eff
+        self.xr = x - xf
+        self.h0_rows = model.row_beam.unloaded_gap_m + self.load_deflection
+        self.lag_map = model.lag_map
 
     def solve(self, contact, p_start, rel_tol, tol):
         """Zero clearance on C with balance (see :func:`_cg_on_set`)."""
@@ -321,6 +361,39 @@ class _Preconditioner:
         return (v - (s * self.inv_counts)[self.crow] + back[self.crow]) / self.rho
 
 
+class _RowPreconditioner:
+    """Two-level ``M = E A_c⁻¹ Eᵀ + (I − E D⁻¹ Eᵀ)/ρ`` on a contact set C (experimental)."""
+
+    def __init__(self, pix: "_Pixels", cidx: np.ndarray, rho: float) -> None:
+        crow = pix.rows[cidx]
+        ucol = cidx - crow * pix.ny
+        urows, local = np.unique(crow, return_inverse=True)
+        m = urows.size
+        pat = np.zeros((m, pix.ny), dtype=bool)
+        pat[local, ucol] = True
+        codes = np.packbits(pat, axis=1)
+        upat, pid = np.unique(codes, axis=0, return_inverse=True)
+        pid = pid.reshape(-1)
+        chi = np.unpackbits(upat, axis=1, count=pix.ny).astype(float)  # (npat, ny)
+        npat = chi.shape[0]
+        outer = chi[:, None, :, None] * chi[None, :, None, :]  # (a, b, c, c')
+        w = outer.reshape(npat * npat, pix.ny * pix.ny) @ pix.lag_map  # (ab, k)
+        t = pix.kernel_rows @ w.T  # (d, ab)
+        d = np.abs(urows[:, None] - urows[None, :])
+        ac = t[d, pid[:, None] * npat + pid[None, :]]
+        counts = np.bincount(local, minlength=m).astype(float)
+        ac += (pix.area * counts[:, None] * counts[None, :]) * pix.b[np.ix_(urows, urows)]
+        ac = 0.5 * (ac + ac.T)
+        self.factor = scipy.linalg.cho_factor(ac, lower=False, check_finite=False)
+        self.local, self.m, self.rho = local, m, rho
+        self.inv_counts = 1.0 / counts
+
+    def __call__(self, v: np.ndarray) -> np.ndarray:
+        s = np.bincount(self.local, weights=v, minlength=self.m)
+        c = scipy.linalg.cho_solve(self.factor, s, check_finite=False)
+        return (v - (s * self.inv_counts)[self.local]) / self.rho + c[self.local]
+
+
 def _cg_on_set(
     pix: _Pixels,
     contact: np.ndarray,
@@ -359,7 +432,10 @@ def _cg_on_set(
     p += ab[0] + ab[1] * xc
     full[cidx] = 1.0  # ρ: the snow's mean displacement under a unit pressure on C [m/Pa]
     rho = float(pix.snow(full)[cidx].mean())
-    precond = _Preconditioner(pix, pix.rows[cidx], rho)
+    if _ROWPC:
+        precond = _RowPreconditioner(pix, cidx, rho)
+    else:
+        precond = _Preconditioner(pix, pix.rows[cidx], rho)
     u = apply(p)
     abs_tol = 0.25 * tol * float(np.max(np.abs(u + pix.u_load))) * np.sqrt(cidx.size)
     r = project(-(pix.h0[cidx] + u[cidx]))
@@ -516,6 +592,82 @@ def _primal_dual(prob, p, contact, tol, budget):
         if its >= budget:
             break
     return None, p, contact, its, update, "primal-dual active set did not settle"
+
+
+def _row_pdas(a, n, mx, hsum, total, act, max_updates=60):
+    """Primal-dual active set on row levels s (uniform pressure on each row's pixels) [Pa].
+
+    ``a``: Galerkin operator [m/Pa · pixels²]; n: pixels per row; mx: Σ pixels·(X − x_F) per
+    row [m]; hsum: Σ pixels·h0 per row [m]. Returns (s, act, updates) or None.
+    """
+    seen = set()
+    s_rows = np.zeros(n.size)
+    for update in range(1, max_updates + 1):
+        idx = np.flatnonzero(act)
+        k = idx.size
+        kkt = np.zeros((k + 2, k + 2))
+        kkt[:k, :k] = a[np.ix_(idx, idx)]
+        kkt[:k, k] = -n[idx]
+        kkt[:k, k + 1] = -mx[idx]
+        kkt[k, :k] = n[idx]
+        kkt[k + 1, :k] = mx[idx]
+        rhs = np.concatenate([-hsum[idx], [total, 0.0]])
+        try:
+            sol = np.linalg.solve(kkt, rhs)
+        except np.linalg.LinAlgError:
+            return None
+        s_rows = np.zeros(n.size)
+        s_rows[idx] = sol[:k]
+        g = a[:, idx] @ sol[:k] + hsum - n * sol[k] - mx * sol[k + 1]
+        new = np.where(act, s_rows > 0, g < 0)
+        if not (np.any(new & (mx < 0)) and np.any(new & (mx > 0))):
+            return None
+        key = new.tobytes()
+        _TRACE.append((k, int(new.sum())))
+        if np.array_equal(new, act) or key in seen:
+            return s_rows, act, update
+        seen.add(key)
+        act = new
+    return s_rows, act, max_updates
+
+
+def _row_start(pix: "_Pixels", model) -> np.ndarray | None:
+    """Pixel pressures [Pa] from the row-level Galerkin problem (experimental)."""
+    row_in = model.footprint_rows
+    n = model.row_pixels
+    a = model.row_snow_unit / pix.e_eff + pix.area * model.row_beam_nn
+    xr = pix.xr[row_in]
+    h0 = pix.h0_rows[row_in]
+    total = pix.total
+    # coarse: blocks of _AGG rows
+    k = _AGG
+    nb = -(-row_in.size // k)
+    pad = nb * k - row_in.size
+    def agg(v):
+        return np.pad(v, (0, pad)).reshape(nb, k).sum(axis=1)
+    ap = np.pad(a, ((0, pad), (0, pad)))
+    ac = ap.reshape(nb, k, nb, k).sum(axis=(1, 3))
+    nc, mxc, hc = agg(n), agg(n * xr), agg(n * h0)
+    act = np.zeros(nb, dtype=bool)
+    xc = mxc / np.maximum(nc, 1)
+    hm = hc / np.maximum(nc, 1)
+    rear, front = xc <= 0, xc > 0
+    act[np.flatnonzero(rear)[np.argmin(hm[rear])]] = True
+    act[np.flatnonzero(front)[np.argmin(hm[front])]] = True
+    out = _row_pdas(ac, nc, mxc, hc, total, act)
+    if out is None:
+        return None
+    act_f = np.repeat(out[1], k)[: row_in.size]
+    if _FINE:
+        out = _row_pdas(a, n, n * xr, n * h0, total, act_f)
+        if out is None:
+            return None
+        s_rows = out[0]
+    else:
+        s_rows = np.repeat(out[0], k)[: row_in.size]
+    s_full = np.zeros(pix.nx)
+    s_full[row_in] = np.maximum(s_rows, 0.0)
+    return s_full[pix.rows]
 
 
 def _lawson_hanson(prob, p, contact, tol, budget):
@@ -745,8 +897,14 @@ def solve_flexible(
         extra["warm_start"] = "lowest row on each side of the load (Lawson-Hanson start)"
     else:
         pix = _Pixels(model, inside, f, xf, e_eff)
-        dev = solve_beam_contact(model.row_beam, f, xf, flexibility=model.row_flexibility)
+        if p_warm is None and _ROWSTART:
+            p0r = _row_start(pix, model)
+            p_warm = np.zeros(c_map.size)
+            p_warm[pix.idx] = p0r
+            p_warm = p_warm.reshape(c_map.shape)
+            extra["warm_start"] = "row problem"
         if p_warm is None:
+            dev = solve_beam_contact(model.row_beam, f, xf, flexibility=model.row_flexibility)
             p_warm = _rigid_start(model, dev.gap_m, inside, f, xf, e_eff)
             extra["warm_start"] = "rigid-shape solve of the device profile"
         else:
@@ -758,6 +916,7 @@ def solve_flexible(
         def device_start() -> np.ndarray | None:
             """The device's row reactions spread over their rows' pixels (stiff-snow limit)."""
             counts = np.bincount(pix.rows, minlength=pix.nx)
+            dev = solve_beam_contact(model.row_beam, f, xf, flexibility=model.row_flexibility)
             if not dev.converged or np.any((dev.reaction_n > 0) & (counts == 0)):
                 return None
             per_pixel = dev.reaction_n / np.maximum(counts, 1) / pix.area
