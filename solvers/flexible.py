@@ -872,20 +872,17 @@ def solve_flexible(
         extra["warm_start"] = "lowest row on each side of the load (Lawson-Hanson start)"
     else:
         pix = _Pixels(model, inside, f, xf, e_eff)
-        if p_warm is None:
-            p_rows = _row_start(pix, model)
-            if p_rows is not None:
-                p_warm = np.zeros(c_map.size)
-                p_warm[pix.idx] = p_rows
-                p_warm = p_warm.reshape(c_map.shape)
-                extra["warm_start"] = "row-level problem"
-        if p_warm is None:
+        if p_warm is not None:
+            extra["warm_start"] = "initial_pressure_pa"
+            p0 = np.ascontiguousarray(p_warm.reshape(-1)[pix.idx])
+        else:
+            p0 = _row_start(pix, model)
+            extra["warm_start"] = "row-level problem"
+        if p0 is None:
             dev = solve_beam_contact(model.row_beam, f, xf, flexibility=model.row_flexibility)
             p_warm = _rigid_start(model, dev.gap_m, inside, f, xf, e_eff)
             extra["warm_start"] = "rigid-shape solve of the device profile"
-        else:
-            extra["warm_start"] = "initial_pressure_pa"
-        p0 = np.ascontiguousarray(p_warm.reshape(-1)[pix.idx])
+            p0 = np.ascontiguousarray(p_warm.reshape(-1)[pix.idx])
         if not macro._restore_balance(p0, pix.xs, pix.total, True):
             p0 = np.zeros(pix.xs.size)
 
