@@ -105,7 +105,7 @@ _MAX_CG = 400
 #: accuracy the CG solves are asked for, so rounding does not enter the contact set
 _PEN_TOL = 0.5
 #: pixel rows per block of the coarse row problem that starts the row-level solve (choice)
-_ROW_BLOCK = 4
+_ROW_BLOCK = 8
 #: primal-dual updates of each row-level problem
 _MAX_ROW_UPDATES = 60
 
