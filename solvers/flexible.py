@@ -346,22 +346,27 @@ class _Preconditioner:
     compliance on C. Vectors live on C only.
     """
 
-    def __init__(self, pix: _Pixels, cidx: np.ndarray, rho: float) -> None:
+    def __init__(self, pix: _Pixels, cidx: np.ndarray) -> None:
         crow = pix.rows[cidx]
         urows, local = np.unique(crow, return_inverse=True)
         m = urows.size
         pat = np.zeros((m, pix.ny), dtype=bool)
         pat[local, cidx - crow * pix.ny] = True
         ac = _row_coupling(pix.kernel_rows, pix.lag_map, urows, pat)
+        #: ρ: the snow's mean displacement under a unit pressure on C [m/Pa]
+        self.rho = float(ac.sum()) / cidx.size
+        #: the beam on C's rows: deflection at row i per unit pressure on row j's pixels of C
+        #: (dx dy B_ij) [m/Pa]
+        self.beam = pix.area * pix.b[np.ix_(urows, urows)]
         counts = np.bincount(local, minlength=m).astype(float)
-        ac += (pix.area * counts[:, None] * counts[None, :]) * pix.b[np.ix_(urows, urows)]
+        ac += counts[:, None] * counts[None, :] * self.beam
         ac = 0.5 * (ac + ac.T)
         try:
             self.factor = scipy.linalg.cho_factor(ac, lower=False, check_finite=False)
         except np.linalg.LinAlgError:  # rounding on a near-singular beam: shift it slightly
             ac[np.diag_indices(m)] += 1e-12 * float(np.abs(ac.diagonal()).max())
             self.factor = scipy.linalg.cho_factor(ac, lower=False, check_finite=False)
-        self.local, self.m, self.rho = local, m, rho
+        self.local, self.m = local, m
         self.inv_counts = 1.0 / counts
 
     def __call__(self, v: np.ndarray) -> np.ndarray:
@@ -396,20 +401,24 @@ def _cg_on_set(
     def project(v: np.ndarray) -> np.ndarray:
         return v - q @ (q.T @ v)
 
-    full = np.zeros(pix.xs.size)
+    precond = _Preconditioner(pix, cidx)
+    local, b_c = precond.local, precond.beam
+    pos = pix.idx[cidx]  # C's pixels in the half-space box
+    pix.box[:] = 0.0
 
-    def apply(v: np.ndarray) -> np.ndarray:
-        full[cidx] = v
-        return pix.apply(full)
+    def apply_c(v: np.ndarray) -> np.ndarray:
+        """A_CC v [m]: the box stays zero off C, so only C's pixels are written and read."""
+        pix.flat[pos] = v
+        snow = pix.hs.displacement(pix.box).reshape(-1)[pos]
+        return snow + (b_c @ np.bincount(local, weights=v, minlength=b_c.shape[0]))[local]
 
     p = np.array(p_start[cidx], dtype=float) if p_start is not None else np.zeros(cidx.size)
     m = np.array([[xc.size, xc.sum()], [xc.sum(), xc @ xc]])
     ab = np.linalg.solve(m, [pix.total - p.sum(), -(p @ xc)])
     p += ab[0] + ab[1] * xc
-    full[cidx] = 1.0  # ρ: the snow's mean displacement under a unit pressure on C [m/Pa]
-    rho = float(pix.snow(full)[cidx].mean())
-    precond = _Preconditioner(pix, cidx, rho)
-    u = apply(p)
+    full = np.zeros(pix.xs.size)
+    full[cidx] = p
+    u = pix.apply(full)  # all pixels: the scale of the absolute stop
     abs_tol = 0.25 * tol * float(np.max(np.abs(u + pix.u_load))) * np.sqrt(cidx.size)
     r = project(-(pix.h0[cidx] + u[cidx]))
     r0 = float(np.sqrt(r @ r))
@@ -422,14 +431,12 @@ def _cg_on_set(
         if rn <= rel_tol * r0 or rn <= abs_tol or not rz > 0:
             break
         its += 1
-        ad = apply(d)
-        adc = ad[cidx]
+        adc = apply_c(d)
         den = float(d @ adc)
         if not den > 0:
             break
         alpha = rz / den
         p += alpha * d
-        u += alpha * ad
         r -= alpha * project(adc)
         z = project(precond(r))
         rz_new = float(r @ z)
@@ -437,6 +444,7 @@ def _cg_on_set(
         rz = rz_new
     full[:] = 0.0
     full[cidx] = p
+    u = pix.apply(full)  # all pixels, for the set update
     return full.copy(), u, its
 
 
