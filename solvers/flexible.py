@@ -183,6 +183,8 @@ class FlexibleModel:
     row_beam_nn : ndarray (nr, nr)
         ``n_i n_j B_ij`` on the footprint rows [m/N] (times dx dy: the beam's Galerkin row
         operator on row-uniform pressures [m/Pa]).
+    block_snow_unit, block_beam_nn : ndarray (nb, nb)
+        The same two summed over blocks of ``_ROW_BLOCK`` footprint rows (the coarse start).
     """
 
     ski: BeamSki = field(repr=False)
@@ -196,6 +198,8 @@ class FlexibleModel:
     row_pixels: np.ndarray = field(repr=False)
     row_snow_unit: np.ndarray = field(repr=False)
     row_beam_nn: np.ndarray = field(repr=False)
+    block_snow_unit: np.ndarray = field(repr=False)
+    block_beam_nn: np.ndarray = field(repr=False)
 
     @property
     def positions_m(self) -> np.ndarray:
@@ -268,7 +272,10 @@ def prepare_flexible(
     row_snow = _row_coupling(kern, lag, row_in, pat)
     n = pat.sum(axis=1).astype(float)
     row_nn = n[:, None] * n[None, :] * b[np.ix_(row_in, row_in)]
-    return FlexibleModel(ski, unloaded, row_beam, flex, b, kern, lag, row_in, n, row_snow, row_nn)
+    blocks = (_block_sum(row_snow, _ROW_BLOCK), _block_sum(row_nn, _ROW_BLOCK))
+    return FlexibleModel(
+        ski, unloaded, row_beam, flex, b, kern, lag, row_in, n, row_snow, row_nn, *blocks
+    )
 
 
 def _load_split(rows_m: np.ndarray, load_position_m: float) -> tuple[int, float]:
@@ -576,10 +583,20 @@ def _primal_dual(prob, p, contact, tol, budget):
     return None, p, contact, its, update, "primal-dual active set did not settle"
 
 
-def _row_pdas(a, n, mx, hsum, total, act):
+def _block_sum(v: np.ndarray, k: int) -> np.ndarray:
+    """Sums over consecutive blocks of k entries along every axis (the last block padded)."""
+    nb = -(-v.shape[0] // k)
+    pad = nb * k - v.shape[0]
+    if v.ndim == 1:
+        return np.pad(v, (0, pad)).reshape(nb, k).sum(axis=1)
+    return np.pad(v, ((0, pad), (0, pad))).reshape(nb, k, nb, k).sum(axis=(1, 3))
+
+
+def _row_pdas(columns, n, mx, hsum, total, act):
     """Primal–dual active set on row levels s [Pa] (a uniform pressure on each row's pixels).
 
-    ``a`` is the Galerkin operator Eᵀ A E [m/Pa], n the pixels per row, mx = Σ (X − x_F) and
+    ``columns(idx)`` returns the columns idx of the Galerkin operator Eᵀ A E [m/Pa] (only
+    those of the current set are ever formed), n the pixels per row, mx = Σ (X − x_F) and
     hsum = Σ h0 over each row's pixels [m], ``total`` = Σ P [Pa]; dense KKT solves (force
     and moment balance). Returns (s, contact rows, updates), or None when a set loses one side
     of the load.
@@ -590,7 +607,8 @@ def _row_pdas(a, n, mx, hsum, total, act):
         idx = np.flatnonzero(act)
         k = idx.size
         kkt = np.zeros((k + 2, k + 2))
-        kkt[:k, :k] = a[np.ix_(idx, idx)]
+        cols = columns(idx)
+        kkt[:k, :k] = cols[idx]
         kkt[:k, k] = -n[idx]
         kkt[:k, k + 1] = -mx[idx]
         kkt[k, :k] = n[idx]
@@ -602,7 +620,7 @@ def _row_pdas(a, n, mx, hsum, total, act):
             return None
         s_rows = np.zeros(n.size)
         s_rows[idx] = sol[:k]
-        g = a[:, idx] @ sol[:k] + hsum - n * sol[k] - mx * sol[k + 1]
+        g = cols @ sol[:k] + hsum - n * sol[k] - mx * sol[k + 1]
         new = np.where(act, s_rows > 0, g < 0)
         if not (np.any(new & (mx < 0)) and np.any(new & (mx > 0))):
             return None
@@ -625,28 +643,27 @@ def _row_start(pix: _Pixels, model: FlexibleModel) -> np.ndarray | None:
     """
     row_in = model.footprint_rows
     n = model.row_pixels
-    a = model.row_snow_unit / pix.e_eff + pix.area * model.row_beam_nn
     xr = pix.xr[row_in]
     h0 = pix.h0_rows[row_in]
     k = _ROW_BLOCK
-    nb = -(-row_in.size // k)
-    pad = nb * k - row_in.size
-
-    def blocks(v: np.ndarray) -> np.ndarray:
-        return np.pad(v, (0, pad)).reshape(nb, k).sum(axis=1)
-
-    a_blocks = np.pad(a, ((0, pad), (0, pad))).reshape(nb, k, nb, k).sum(axis=(1, 3))
-    n_b, mx_b, h_b = blocks(n), blocks(n * xr), blocks(n * h0)
+    n_b, mx_b, h_b = (_block_sum(v, k) for v in (n, n * xr, n * h0))
     x_b = mx_b / np.maximum(n_b, 1.0)
     h_mean = h_b / np.maximum(n_b, 1.0)
-    act = np.zeros(nb, dtype=bool)
+    act = np.zeros(n_b.size, dtype=bool)
     for side in (x_b <= 0, x_b > 0):
         act[np.flatnonzero(side)[np.argmin(h_mean[side])]] = True
-    coarse = _row_pdas(a_blocks, n_b, mx_b, h_b, pix.total, act)
+
+    def block_columns(idx: np.ndarray) -> np.ndarray:
+        return model.block_snow_unit[:, idx] / pix.e_eff + pix.area * model.block_beam_nn[:, idx]
+
+    def row_columns(idx: np.ndarray) -> np.ndarray:
+        return model.row_snow_unit[:, idx] / pix.e_eff + pix.area * model.row_beam_nn[:, idx]
+
+    coarse = _row_pdas(block_columns, n_b, mx_b, h_b, pix.total, act)
     if coarse is None:
         return None
     act_rows = np.repeat(coarse[1], k)[: row_in.size]
-    fine = _row_pdas(a, n, n * xr, n * h0, pix.total, act_rows)
+    fine = _row_pdas(row_columns, n, n * xr, n * h0, pix.total, act_rows)
     if fine is None:
         return None
     level = np.zeros(pix.nx)
