@@ -58,9 +58,18 @@ the beam, so its penetration-driven contact updates swing over hundreds of pixel
    preconditioner ``M = E A_c⁻¹ Eᵀ + (I − E D⁻¹ Eᵀ)/ρ``: exact on row-uniform pressures
    (``A_c`` the Galerkin row operator of step 1 on C's own pixels per row, one dense Cholesky
    of size "contact rows" per set), the within-row remainder scaled by ρ (the snow's
-   compliance to a uniform pressure on C). It carries the snow's long-range coupling along the
-   ski, which a scalar snow term does not: 4–8 CG iterations per set at 1e-4 where the
-   banded-beam preconditioner with scalar snow needed 12–15.
+   compliance to a uniform pressure on C). It carries the snow's long-range coupling along
+   the ski, which a scalar snow term does not: 4–8 CG iterations per set at 1e-4 where a
+   banded-beam preconditioner with scalar snow needed 12–15. The iterations touch only C's
+   pixels (the convolution box is zero elsewhere; the beam acts on C's rows); A P on all
+   pixels is formed once per set, for the set update.
+
+   Cost, measured on the demo skis at the papers' case (default grid, one thread, medians of
+   CPU time on a loaded 2-core machine): about 4 sets and 25 CG iterations, 1.6–1.8 × the
+   rigid solve (previously 9–11 sets and 70–107 iterations from the rigid-shape start,
+   4.5–5.5 ×). Over 2–2000 MPa and 10–90 kg: 3–5 sets, 17–36 iterations. The floor is the
+   convolutions: ~30 per solve (one per CG iteration plus one per set) against the rigid
+   solve's ~25 on a window about half the footprint's length.
 4. On stiff snow (E' ≳ 5 GPa, beyond real snow) the primal–dual sets can wander; after
    ``_MAX_PDAS_UPDATES`` the solve switches to a monotone Lawson–Hanson active set (the
    algorithm of :func:`solvers.beam.solve_beam_contact`: add the deepest penetration of each
@@ -233,7 +242,8 @@ def prepare_flexible(
     Returns
     -------
     FlexibleModel
-        Build cost ~10 ms at 4 mm on a 2 m ski (a few (nx, nx) products).
+        Build cost ~30 ms at 4 mm on a 2 m ski (a few (nx, nx) products and the row
+        operators of the start and the preconditioner; measured on a loaded machine).
     """
     if not isinstance(ski, BeamSki):
         raise InputError(f"ski must be a solvers.beam.BeamSki, got {type(ski).__name__}")
