@@ -95,7 +95,7 @@ import scipy.linalg
 from . import macro
 from .beam import BeamFlexibility, BeamSki, solve_beam_contact
 from .elastic import love_rectangle_influence
-from .errors import InputError
+from .errors import InputError, NotConvergedError
 
 __all__ = ["FlexibleModel", "prepare_flexible", "solve_flexible"]
 
@@ -146,9 +146,10 @@ def _row_coupling(
     rows narrowed by the sidecut, partial rows at zone edges), then a gather by row offset.
     """
     ny = patterns.shape[1]
-    upat, pid = np.unique(patterns, axis=0, return_inverse=True)
+    codes = patterns.astype(np.int64) @ (np.int64(1) << np.arange(ny, dtype=np.int64))
+    ucodes, pid = np.unique(codes, return_inverse=True)
     pid = pid.reshape(-1)
-    chi = upat.astype(float)
+    chi = ((ucodes[:, None] >> np.arange(ny)) & 1).astype(float)  # (npat, ny) 0/1
     npat = chi.shape[0]
     outer = chi[:, None, :, None] * chi[None, :, None, :]  # (a, b, j, j')
     t = kernel @ (outer.reshape(npat * npat, ny * ny) @ lag).T  # (row offset, a·npat + b)
@@ -378,17 +379,20 @@ class _Preconditioner:
         counts = np.bincount(local, minlength=m).astype(float)
         ac += counts[:, None] * counts[None, :] * self.beam
         ac = 0.5 * (ac + ac.T)
-        try:
-            self.factor = scipy.linalg.cho_factor(ac, lower=False, check_finite=False)
-        except np.linalg.LinAlgError:  # rounding on a near-singular beam: shift it slightly
+        self.factor, info = scipy.linalg.lapack.dpotrf(ac, lower=0)
+        if info != 0:  # rounding on a near-singular beam: shift it slightly
             ac[np.diag_indices(m)] += 1e-12 * float(np.abs(ac.diagonal()).max())
-            self.factor = scipy.linalg.cho_factor(ac, lower=False, check_finite=False)
+            self.factor, info = scipy.linalg.lapack.dpotrf(ac, lower=0)
+            if info != 0:
+                raise NotConvergedError(
+                    f"the row preconditioner is not positive definite (dpotrf info {info})"
+                )
         self.local, self.m = local, m
         self.inv_counts = 1.0 / counts
 
     def __call__(self, v: np.ndarray) -> np.ndarray:
         s = np.bincount(self.local, weights=v, minlength=self.m)
-        c = scipy.linalg.cho_solve(self.factor, s, check_finite=False)
+        c = scipy.linalg.lapack.dpotrs(self.factor, s, lower=0)[0]
         return (v - (s * self.inv_counts)[self.local]) / self.rho + c[self.local]
 
 
