@@ -297,6 +297,33 @@ def _load_split(rows_m: np.ndarray, load_position_m: float) -> tuple[int, float]
     return i, float(s - i)
 
 
+class _WindowHalfSpace:
+    """:class:`solvers.macro._LineOperator` on the first n rows, from a kernel table (internal).
+
+    ``kernel`` (≥ n, ny) [m/Pa]: displacement at row offset i, column offset j under a unit
+    pressure on one pixel; the same convention (real FFT of length 2n along X, the kernel even
+    in X, row n zero, dense coupling across the width per wavenumber).
+    """
+
+    def __init__(self, kernel: np.ndarray, n: int) -> None:
+        ny = kernel.shape[1]
+        self.n, self.ny, self.padded = n, ny, 2 * n
+        kern = np.zeros((self.padded, ny))
+        kern[:n] = kernel[:n]
+        kern[n + 1 :] = kernel[n - 1 : 0 : -1]
+        kh = scipy.fft.rfft(kern, axis=0).real
+        j = np.arange(ny)
+        self.coupling = np.ascontiguousarray(kh[:, np.abs(j[:, None] - j[None, :])])
+
+    def displacement(self, pressure_pa: np.ndarray) -> np.ndarray:
+        ph = scipy.fft.rfft(pressure_pa, n=self.padded, axis=0)
+        if self.ny == 1:
+            uh = ph * self.coupling[:, 0, :]
+        else:
+            uh = macro._couple_across(self.coupling, ph)
+        return scipy.fft.irfft(uh, n=self.padded, axis=0)[: self.n]
+
+
 class _Pixels:
     """The flexible problem on the footprint pixels, as compressed vectors (internal).
 
@@ -327,6 +354,7 @@ class _Pixels:
         self.flat = self.box.reshape(-1)
         self.u_load = self.load_deflection[self.rows]
         self.kernel_rows = model.snow_kernel_rows / e_eff
+        self.windows: dict[int, _WindowHalfSpace] = {}
         self.e_eff = e_eff
         self.xr = x - xf
         self.h0_rows = model.row_beam.unloaded_gap_m + self.load_deflection
@@ -335,6 +363,22 @@ class _Pixels:
     def solve(self, contact, p_start, rel_tol, tol):
         """Zero clearance on C with balance (see :func:`_cg_on_set`)."""
         return _cg_on_set(self, contact, p_start, rel_tol, tol, _MAX_CG)
+
+    def window(self, cidx: np.ndarray) -> tuple:
+        """Half-space operator, zeroed box and box positions of pixels ``cidx`` on the rows
+        they span (padded to a fast FFT length; exact there: zero-padded, linear convolution).
+        Operators are kept per window length for this solve."""
+        rows = self.rows[cidx]
+        i0 = int(rows[0])
+        n = macro._fast_rows(int(rows[-1]) - i0 + 1)
+        if n >= self.n_box:
+            self.box[:] = 0.0
+            return self.hs, self.box, self.idx[cidx]
+        hs = self.windows.get(n)
+        if hs is None:
+            hs = self.windows[n] = _WindowHalfSpace(self.kernel_rows, n)
+        box = np.zeros((n, self.ny))
+        return hs, box, self.idx[cidx] - i0 * self.ny
 
     def row_sum(self, v: np.ndarray) -> np.ndarray:
         return np.bincount(self.rows, weights=v, minlength=self.nx)
@@ -426,13 +470,13 @@ def _cg_on_set(
 
     precond = _Preconditioner(pix, cidx)
     local, b_c = precond.local, precond.beam
-    pos = pix.idx[cidx]  # C's pixels in the half-space box
-    pix.box[:] = 0.0
+    hs, box, pos = pix.window(cidx)  # the convolution over C's rows only
+    flat = box.reshape(-1)
 
     def apply_c(v: np.ndarray) -> np.ndarray:
         """A_CC v [m]: the box stays zero off C, so only C's pixels are written and read."""
-        pix.flat[pos] = v
-        snow = pix.hs.displacement(pix.box).reshape(-1)[pos]
+        flat[pos] = v
+        snow = hs.displacement(box).reshape(-1)[pos]
         return snow + (b_c @ np.bincount(local, weights=v, minlength=b_c.shape[0]))[local]
 
     p = np.array(p_start[cidx], dtype=float) if p_start is not None else np.zeros(cidx.size)
