@@ -43,11 +43,14 @@ the beam, so its penetration-driven contact updates swing over hundreds of pixel
    row (the Galerkin row operator ``Eᵀ A E``: the snow's row-to-row coupling for each row's
    pixels plus ``dx dy n_i n_j B_ij``; precomputed per model at unit modulus), solved by the
    primal–dual active set below with dense KKT solves, first on blocks of ``_ROW_BLOCK`` rows
-   from the lowest block on each side of the load, then on the rows. It places the contact
+   from the lowest block on each side of the load, then on the rows (on groups of rows where
+   the contact set holds more than ``_MAX_DENSE`` of them: soft snow). It places the contact
    zones within a row or two of the pixel answer for a few hundred µs (measured on the demo
    skis, 2–2000 MPa, 10–90 kg: 3–5 pixel sets instead of 4–13 from the rigid-shape start).
-   If it cannot balance the moment, the rigid-shape solve (:func:`solvers.macro.solve_macro`)
-   of the device's loaded profile is the start.
+   If a row-level KKT system is singular, the rigid-shape solve
+   (:func:`solvers.macro.solve_macro`) of the device's loaded profile is the start. Dense
+   solves stay below ~100 unknowns (``_MAX_DENSE``): multi-threaded LAPACK on a busy machine
+   was measured 10–1000 × slower above that.
 2. Primal–dual active set (Hintermüller, Ito & Kunisch, SIAM J. Optim. 13, 2002): on the set C
    of pixels in contact the clearance is zero (``A_CC P_C − δ − θ (X − x_F) = −h0_C`` with force
    and moment balance), elsewhere P = 0; the next C is ``{P > 0} ∪ {H < 0}``; when C repeats
@@ -57,9 +60,9 @@ the beam, so its penetration-driven contact updates swing over hundreds of pixel
    fit a + b (X − x_F) on C, so every iterate keeps force and moment). Two-level
    preconditioner ``M = E A_c⁻¹ Eᵀ + (I − E D⁻¹ Eᵀ)/ρ``: exact on row-uniform pressures
    (``A_c`` the Galerkin row operator of step 1 on C's own pixels per row, one dense Cholesky
-   of size "contact rows" per set), the within-row remainder scaled by ρ (the snow's
-   compliance to a uniform pressure on C). It carries the snow's long-range coupling along
-   the ski, which a scalar snow term does not: 4–8 CG iterations per set at 1e-4 where a
+   of size "contact rows" per set, rows grouped beyond ``_MAX_DENSE_PRECONDITIONER``), the
+   within-row remainder scaled by ρ (the snow's compliance to a uniform pressure on C). It
+   carries the snow's long-range coupling along the ski, which a scalar snow term does not: 4–8 CG iterations per set at 1e-4 where a
    banded-beam preconditioner with scalar snow needed 12–15. The iterations touch only C's
    pixels (the convolution box is zero elsewhere; the beam acts on C's rows); A P on all
    pixels is formed once per set, for the set update.
@@ -115,6 +118,12 @@ _MAX_CG = 400
 _PEN_TOL = 0.5
 #: pixel rows per block of the coarse row problem that starts the row-level solve (choice)
 _ROW_BLOCK = 8
+#: largest dense factorisation (unknowns) of the row start and the row preconditioner; larger
+#: problems are aggregated over consecutive rows (choice: LAPACK switches to threads above
+#: ~100–200 unknowns, which on a busy machine cost 10–1000 × the single-threaded time)
+_MAX_DENSE = 96
+#: the same for the Cholesky of the row preconditioner (~4 × cheaper than the LU: 192)
+_MAX_DENSE_PRECONDITIONER = 192
 #: primal-dual updates of each row-level problem
 _MAX_ROW_UPDATES = 60
 
@@ -194,7 +203,9 @@ class FlexibleModel:
         ``n_i n_j B_ij`` on the footprint rows [m/N] (times dx dy: the beam's Galerkin row
         operator on row-uniform pressures [m/Pa]).
     block_snow_unit, block_beam_nn : ndarray (nb, nb)
-        The same two summed over blocks of ``_ROW_BLOCK`` footprint rows (the coarse start).
+        The same two summed over blocks of ``row_block`` footprint rows (the coarse start).
+    row_block : int
+        Footprint rows per coarse block: ``_ROW_BLOCK``, or more so that nb ≤ ``_MAX_DENSE``.
     """
 
     ski: BeamSki = field(repr=False)
@@ -210,6 +221,7 @@ class FlexibleModel:
     row_beam_nn: np.ndarray = field(repr=False)
     block_snow_unit: np.ndarray = field(repr=False)
     block_beam_nn: np.ndarray = field(repr=False)
+    row_block: int = 1
 
     @property
     def positions_m(self) -> np.ndarray:
@@ -283,9 +295,10 @@ def prepare_flexible(
     row_snow = _row_coupling(kern, lag, row_in, pat)
     n = pat.sum(axis=1).astype(float)
     row_nn = n[:, None] * n[None, :] * b[np.ix_(row_in, row_in)]
-    blocks = (_block_sum(row_snow, _ROW_BLOCK), _block_sum(row_nn, _ROW_BLOCK))
+    kb = max(_ROW_BLOCK, -(-row_in.size // _MAX_DENSE))
+    blocks = (_block_sum(row_snow, kb), _block_sum(row_nn, kb))
     return FlexibleModel(
-        ski, unloaded, row_beam, flex, b, kern, lag, row_in, n, row_snow, row_nn, *blocks
+        ski, unloaded, row_beam, flex, b, kern, lag, row_in, n, row_snow, row_nn, *blocks, kb
     )
 
 
@@ -404,8 +417,9 @@ class _Preconditioner:
     ``A_c = Eᵀ A E`` is the exact Galerkin row operator: the snow's row-to-row coupling
     ``χ_iᵀ K(X_i − X_j) χ_j`` (χ_i the row's pixels in C, grouped by pattern, so one kernel
     product per pattern pair) plus the beam ``dx dy n_i n_j B_ij``; one dense Cholesky per
-    set (size: contact rows). The within-row remainder is scaled by ρ, the snow's mean
-    compliance on C. Vectors live on C only.
+    set (size: contact rows; beyond ``_MAX_DENSE_PRECONDITIONER`` rows, on soft snow, one
+    level per group of consecutive contact rows). The within-row remainder is scaled by ρ, the
+    snow's mean compliance on C. Vectors live on C only.
     """
 
     def __init__(self, pix: _Pixels, cidx: np.ndarray) -> None:
@@ -422,6 +436,11 @@ class _Preconditioner:
         self.beam = pix.area * pix.b[np.ix_(urows, urows)]
         counts = np.bincount(local, minlength=m).astype(float)
         ac += counts[:, None] * counts[None, :] * self.beam
+        #: row of C (0 … m−1) of each pixel, for the beam term of A_CC
+        self.row_local = local
+        g = max(1, -(-m // _MAX_DENSE_PRECONDITIONER))
+        if g > 1:  # many contact rows: levels per group of g consecutive contact rows
+            ac, counts, local, m = _block_sum(ac, g), _block_sum(counts, g), local // g, -(-m // g)
         ac = 0.5 * (ac + ac.T)
         self.factor, info = scipy.linalg.lapack.dpotrf(ac, lower=0)
         if info != 0:  # rounding on a near-singular beam: shift it slightly
@@ -469,7 +488,7 @@ def _cg_on_set(
         return v - q @ (q.T @ v)
 
     precond = _Preconditioner(pix, cidx)
-    local, b_c = precond.local, precond.beam
+    local, b_c = precond.row_local, precond.beam
     hs, box, pos = pix.window(cidx)  # the convolution over C's rows only
     flat = box.reshape(-1)
 
@@ -641,13 +660,50 @@ def _primal_dual(prob, p, contact, tol, budget):
     return None, p, contact, its, update, "primal-dual active set did not settle"
 
 
-def _block_sum(v: np.ndarray, k: int) -> np.ndarray:
-    """Sums over consecutive blocks of k entries along every axis (the last block padded)."""
+def _block_sum(v: np.ndarray, k: int, square: bool = True) -> np.ndarray:
+    """Sums over consecutive blocks of k entries along the first axis, and along the second
+    too if ``square`` (the last block padded with zeros)."""
     nb = -(-v.shape[0] // k)
     pad = nb * k - v.shape[0]
     if v.ndim == 1:
         return np.pad(v, (0, pad)).reshape(nb, k).sum(axis=1)
+    if not square:
+        return np.pad(v, ((0, pad), (0, 0))).reshape(nb, k, -1).sum(axis=1)
     return np.pad(v, ((0, pad), (0, pad))).reshape(nb, k, nb, k).sum(axis=(1, 3))
+
+
+def _kkt_solve(a, n, mx, hsum, total):
+    """[s, δ, θ] of ``a s − n δ − mx θ = −hsum``, ``nᵀ s = total``, ``mxᵀ s = 0``.
+
+    a is symmetric positive semi-definite: on stiff snow the beam's rigid motions make it
+    nearly singular, and the balance rows fix them. So a is augmented by ``Cᵀ Γ C`` (C = [n,
+    mx]ᵀ, Γ diagonal, scaled to a's diagonal), which leaves s unchanged and shifts the
+    multipliers by Γ C s = Γ [total, 0]; then one Cholesky and the 2 × 2 Schur complement of
+    the balance (LAPACK, single-threaded at the sizes used here). None if singular.
+    """
+    k = n.size
+    c = np.stack([n, mx])  # (2, k)
+    scale = float(np.mean(a.diagonal()))
+    gamma = scale / np.maximum(np.mean(c * c, axis=1), 1e-300)
+    factor, info = scipy.linalg.lapack.dpotrf(a + (c.T * gamma) @ c, lower=0)
+    if info != 0:  # not numerically definite: the full KKT system by LU
+        kkt = np.zeros((k + 2, k + 2))
+        kkt[:k, :k] = a
+        kkt[:k, k:] = -c.T
+        kkt[k:, :k] = c
+        try:
+            return np.linalg.solve(kkt, np.concatenate([-hsum, [total, 0.0]]))
+        except np.linalg.LinAlgError:
+            return None
+    y = scipy.linalg.lapack.dpotrs(factor, np.stack([n, mx, hsum], axis=1), lower=0)[0]
+    try:
+        lam = np.linalg.solve(c @ y[:, :2], [total + n @ y[:, 2], mx @ y[:, 2]])
+    except np.linalg.LinAlgError:
+        return None
+    out = np.empty(k + 2)
+    out[:k] = y[:, :2] @ lam - y[:, 2]
+    out[k:] = lam - gamma * np.array([total, 0.0])
+    return out
 
 
 def _row_pdas(columns, n, mx, hsum, total, act):
@@ -656,32 +712,26 @@ def _row_pdas(columns, n, mx, hsum, total, act):
     ``columns(idx)`` returns the columns idx of the Galerkin operator Eᵀ A E [m/Pa] (only
     those of the current set are ever formed), n the pixels per row, mx = Σ (X − x_F) and
     hsum = Σ h0 over each row's pixels [m], ``total`` = Σ P [Pa]; dense KKT solves (force
-    and moment balance). Returns (s, contact rows, updates), or None when a set loses one side
-    of the load.
+    and moment balance; a set that loses one side of the load gets back its most penetrating
+    row there). Returns (s, contact rows, updates), or None if a KKT system is singular.
     """
     seen = set()
     s_rows = np.zeros(n.size)
     for update in range(1, _MAX_ROW_UPDATES + 1):
         idx = np.flatnonzero(act)
         k = idx.size
-        kkt = np.zeros((k + 2, k + 2))
         cols = columns(idx)
-        kkt[:k, :k] = cols[idx]
-        kkt[:k, k] = -n[idx]
-        kkt[:k, k + 1] = -mx[idx]
-        kkt[k, :k] = n[idx]
-        kkt[k + 1, :k] = mx[idx]
-        rhs = np.concatenate([-hsum[idx], [total, 0.0]])
-        try:
-            sol = np.linalg.solve(kkt, rhs)
-        except np.linalg.LinAlgError:
+        sol = _kkt_solve(cols[idx], n[idx], mx[idx], hsum[idx], total)
+        if sol is None:
             return None
         s_rows = np.zeros(n.size)
         s_rows[idx] = sol[:k]
         g = cols @ sol[:k] + hsum - n * sol[k] - mx * sol[k + 1]
         new = np.where(act, s_rows > 0, g < 0)
-        if not (np.any(new & (mx < 0)) and np.any(new & (mx > 0))):
-            return None
+        for side in (mx < 0, mx > 0):  # keep a row on each side of the load (moment balance)
+            if not np.any(new & side):
+                cand = np.flatnonzero(side)
+                new[cand[np.argmin(g[cand])]] = True
         key = new.tobytes()
         if np.array_equal(new, act) or key in seen:
             return s_rows, act, update
@@ -703,7 +753,7 @@ def _row_start(pix: _Pixels, model: FlexibleModel) -> np.ndarray | None:
     n = model.row_pixels
     xr = pix.xr[row_in]
     h0 = pix.h0_rows[row_in]
-    k = _ROW_BLOCK
+    k = model.row_block
     n_b, mx_b, h_b = (_block_sum(v, k) for v in (n, n * xr, n * h0))
     x_b = mx_b / np.maximum(n_b, 1.0)
     h_mean = h_b / np.maximum(n_b, 1.0)
@@ -714,18 +764,33 @@ def _row_start(pix: _Pixels, model: FlexibleModel) -> np.ndarray | None:
     def block_columns(idx: np.ndarray) -> np.ndarray:
         return model.block_snow_unit[:, idx] / pix.e_eff + pix.area * model.block_beam_nn[:, idx]
 
-    def row_columns(idx: np.ndarray) -> np.ndarray:
-        return model.row_snow_unit[:, idx] / pix.e_eff + pix.area * model.row_beam_nn[:, idx]
-
     coarse = _row_pdas(block_columns, n_b, mx_b, h_b, pix.total, act)
     if coarse is None:
         return None
     act_rows = np.repeat(coarse[1], k)[: row_in.size]
-    fine = _row_pdas(row_columns, n, n * xr, n * h0, pix.total, act_rows)
-    if fine is None:
-        return None
+    s_rows = np.repeat(coarse[0], k)[: row_in.size]
+    # then on groups of g rows, g as small as keeps the dense solves below _MAX_DENSE
+    g = max(1, -(-int(act_rows.sum()) // _MAX_DENSE))
+    if g < k:
+        nr = row_in.size
+
+        def group_columns(idx: np.ndarray) -> np.ndarray:
+            r = (idx[:, None] * g + np.arange(g)).reshape(-1)
+            r = r[r < nr]
+            c = model.row_snow_unit[:, r] / pix.e_eff + pix.area * model.row_beam_nn[:, r]
+            if g == 1:
+                return c
+            c = np.add.reduceat(c, np.flatnonzero(np.r_[True, np.diff(r // g) != 0]), axis=1)
+            return _block_sum(c, g, square=False)
+
+        n_g, mx_g, h_g = (_block_sum(v, g) for v in (n, n * xr, n * h0))
+        act_g = _block_sum(act_rows.astype(float), g) > 0
+        fine = _row_pdas(group_columns, n_g, mx_g, h_g, pix.total, act_g)
+        if fine is None:
+            return None
+        s_rows = np.repeat(fine[0], g)[:nr]
     level = np.zeros(pix.nx)
-    level[row_in] = np.maximum(fine[0], 0.0)
+    level[row_in] = np.maximum(s_rows, 0.0)
     return level[pix.rows]
 
 
