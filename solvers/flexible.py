@@ -62,8 +62,9 @@ the beam, so its penetration-driven contact updates swing over hundreds of pixel
    (``A_c`` the Galerkin row operator of step 1 on C's own pixels per row, one dense Cholesky
    of size "contact rows" per set, rows grouped beyond ``_MAX_DENSE_PRECONDITIONER``), the
    within-row remainder scaled by ρ (the snow's compliance to a uniform pressure on C). It
-   carries the snow's long-range coupling along the ski, which a scalar snow term does not: 4–8 CG iterations per set at 1e-4 where a
-   banded-beam preconditioner with scalar snow needed 12–15. The iterations touch only C's
+   carries the snow's long-range coupling along the ski, which a scalar snow term does not:
+   4–8 CG iterations per set at 1e-4 where a banded-beam preconditioner with scalar snow
+   needed 12–15. The iterations touch only C's
    pixels (the convolution box is zero elsewhere; the beam acts on C's rows); A P on all
    pixels is formed once per set, for the set update.
 
@@ -122,8 +123,8 @@ _ROW_BLOCK = 8
 #: problems are aggregated over consecutive rows (choice: LAPACK switches to threads above
 #: ~100–200 unknowns, which on a busy machine cost 10–1000 × the single-threaded time)
 _MAX_DENSE = 96
-#: the same for the Cholesky of the row preconditioner (~4 × cheaper than the LU: 192)
-_MAX_DENSE_PRECONDITIONER = 192
+#: the same for the Cholesky of the row preconditioner
+_MAX_DENSE_PRECONDITIONER = 96
 #: primal-dual updates of each row-level problem
 _MAX_ROW_UPDATES = 60
 
