@@ -676,18 +676,17 @@ def _block_sum(v: np.ndarray, k: int, square: bool = True) -> np.ndarray:
 def _kkt_solve(a, n, mx, hsum, total):
     """[s, δ, θ] of ``a s − n δ − mx θ = −hsum``, ``nᵀ s = total``, ``mxᵀ s = 0``.
 
-    a is symmetric positive semi-definite: on stiff snow the beam's rigid motions make it
-    nearly singular, and the balance rows fix them. So a is augmented by ``Cᵀ Γ C`` (C = [n,
-    mx]ᵀ, Γ diagonal, scaled to a's diagonal), which leaves s unchanged and shifts the
-    multipliers by Γ C s = Γ [total, 0]; then one Cholesky and the 2 × 2 Schur complement of
-    the balance (LAPACK, single-threaded at the sizes used here). None if singular.
+    Up to ``_MAX_DENSE`` unknowns: one LU of the KKT system. Beyond (soft snow), where a
+    threaded LU is slow: a is symmetric positive semi-definite (nearly singular when the beam
+    dominates: its rigid motions), so it is augmented by ``Cᵀ Γ C`` (C = [n, mx]ᵀ, Γ
+    diagonal, scaled to a's diagonal), which leaves s unchanged and shifts the multipliers by
+    Γ C s = Γ [total, 0]; then one Cholesky and the 2 × 2 Schur complement of the balance; the
+    LU if that Cholesky fails. None if singular.
     """
     k = n.size
     c = np.stack([n, mx])  # (2, k)
-    scale = float(np.mean(a.diagonal()))
-    gamma = scale / np.maximum(np.mean(c * c, axis=1), 1e-300)
-    factor, info = scipy.linalg.lapack.dpotrf(a + (c.T * gamma) @ c, lower=0)
-    if info != 0:  # not numerically definite: the full KKT system by LU
+
+    def lu() -> np.ndarray | None:
         kkt = np.zeros((k + 2, k + 2))
         kkt[:k, :k] = a
         kkt[:k, k:] = -c.T
@@ -696,6 +695,14 @@ def _kkt_solve(a, n, mx, hsum, total):
             return np.linalg.solve(kkt, np.concatenate([-hsum, [total, 0.0]]))
         except np.linalg.LinAlgError:
             return None
+
+    if k + 2 <= _MAX_DENSE:  # small: one LU of the KKT system is cheapest
+        return lu()
+    scale = float(np.mean(a.diagonal()))
+    gamma = scale / np.maximum(np.mean(c * c, axis=1), 1e-300)
+    factor, info = scipy.linalg.lapack.dpotrf(a + (c.T * gamma) @ c, lower=0)
+    if info != 0:  # not numerically definite
+        return lu()
     y = scipy.linalg.lapack.dpotrs(factor, np.stack([n, mx, hsum], axis=1), lower=0)[0]
     try:
         lam = np.linalg.solve(c @ y[:, :2], [total + n @ y[:, 2], mx @ y[:, 2]])
