@@ -68,12 +68,13 @@ the beam, so its penetration-driven contact updates swing over hundreds of pixel
    pixels (the convolution box is zero elsewhere; the beam acts on C's rows); A P on all
    pixels is formed once per set, for the set update.
 
-   Cost, measured on the demo skis at the papers' case (default grid, one thread, medians of
-   CPU time on a loaded 2-core machine): about 4 sets and 25 CG iterations, 1.6–1.8 × the
-   rigid solve (previously 9–11 sets and 70–107 iterations from the rigid-shape start,
-   4.5–5.5 ×). Over 2–2000 MPa and 10–90 kg: 3–5 sets, 17–36 iterations. The floor is the
-   convolutions: ~30 per solve (one per CG iteration plus one per set) against the rigid
-   solve's ~25 on a window about half the footprint's length.
+   Cost, measured on the demo skis at the papers' case (default grid, one BLAS thread,
+   medians on a loaded 2-core machine, same run): 4 sets and 27–29 CG iterations, 1.3–1.5 ×
+   the rigid solve in wall time, 1.5–1.65 × in CPU time (previously 9–11 sets and 70–107
+   iterations from the rigid-shape start, 4.6–5.6 ×). Over 2–2000 MPa and 10–90 kg: 3–6
+   sets, 17–47 iterations, 0.9–3 × the rigid solve (the most on the softest snow). The floor
+   is the convolutions: ~30 per solve (one per CG iteration plus one per set, on a window
+   over the contact rows) against the rigid solve's ~25.
 4. On stiff snow (E' ≳ 5 GPa, beyond real snow) the primal–dual sets can wander; after
    ``_MAX_PDAS_UPDATES`` the solve switches to a monotone Lawson–Hanson active set (the
    algorithm of :func:`solvers.beam.solve_beam_contact`: add the deepest penetration of each
