@@ -285,27 +285,55 @@ def _band(beam: dict, key: str) -> tuple[np.ndarray, np.ndarray] | None:
     return _array(band[0]), _array(band[1])
 
 
+def _along_with_band(
+    title: str,
+    x: np.ndarray,
+    y: np.ndarray,
+    band: tuple[np.ndarray, np.ndarray] | None,
+    *,
+    colour: str,
+    ylabel: str,
+    width_label: str,
+    half_width,
+    ylim: tuple[float, float | None],
+) -> str:
+    """A quantity along the ski with its 90 % band shaded and, when there is a band, a lower
+    panel with the band's half-width (``half_width(lo, hi, y)``): the bands of an identified
+    beam are often too narrow to see on the upper axis."""
+    if band is None:
+        fig, (ax,) = _panels(title)
+    else:
+        fig, (ax, ax_w) = _panels(title, 2, 1, sharex=True, height_ratios=(3, 1.3))
+    ax.plot(x, y, color=colour, lw=1.4, label=ylabel.split(" [")[0])
+    if band is not None:
+        ax.fill_between(x, *band, color=colour, alpha=0.3, lw=0, label="90 % band")
+        ax_w.plot(x, half_width(*band, y), color=colour, lw=1.2)
+        ax_w.set_ylabel(width_label)
+        ax_w.set_ylim(bottom=0)
+        ax_w.set_xlabel(_X_LABEL)
+    else:
+        ax.set_xlabel(_X_LABEL)
+    ax.set_ylabel(ylabel)
+    ax.set_ylim(*ylim)
+    ax.legend(fontsize=8, loc="lower center")
+    return _svg(fig)
+
+
 def stiffness_svg(beam: dict) -> str:
     """Bending stiffness EI(X) [N·m²] with its 90 % band, and below it the band's half-width
-    relative to EI [%] (the band is often too narrow to see on the upper axis)."""
-    fig, (ax, ax_w) = _panels(
-        "Bending stiffness EI(X) of the beam", 2, 1, sharex=True, height_ratios=(3, 1.3)
-    )
-    x, ei = _array(beam["position_mm"]), _array(beam["bending_stiffness_nm2"])
+    relative to EI [%]; a beam without a band (a design beam) is drawn alone."""
     band = _band(beam, "bending_stiffness_band_90_nm2")
-    ax.plot(x, ei, color=_COLOURS[0], lw=1.4, label="EI(X)")
-    if band is not None:
-        ax.fill_between(x, *band, color=_COLOURS[0], alpha=0.3, lw=0, label="90 % band")
-        ax_w.plot(x, 50.0 * (band[1] - band[0]) / ei, color=_COLOURS[0], lw=1.2)
-    else:
-        ax_w.text(0.5, 0.5, "no band", transform=ax_w.transAxes, ha="center", va="center")
-    ax.set_ylabel("EI [N·m²]")
-    ax.set_ylim(bottom=0)
-    ax.legend(fontsize=8, loc="lower center")
-    ax_w.set_ylabel("90 % half-\nwidth [%]")
-    ax_w.set_ylim(bottom=0)
-    ax_w.set_xlabel(_X_LABEL)
-    return _svg(fig)
+    return _along_with_band(
+        "Bending stiffness EI(X) of the beam",
+        _array(beam["position_mm"]),
+        _array(beam["bending_stiffness_nm2"]),
+        band,
+        colour=_COLOURS[0],
+        ylabel="EI(X) [N·m²]",
+        width_label="90 % half-\nwidth [%]",
+        half_width=lambda lo, hi, y: 50.0 * (hi - lo) / y,
+        ylim=(0, None),
+    )
 
 
 def camber_top_mm(beam: dict) -> float:
@@ -320,31 +348,20 @@ def camber_top_mm(beam: dict) -> float:
 
 def camber_svg(beam: dict) -> str:
     """Unloaded camber c(X) [mm] with its 90 % band (axis cut at :func:`camber_top_mm`), and
-    below it the band's half-width [µm]."""
+    below it the band's half-width [µm]; a beam without a band is drawn alone."""
     top = camber_top_mm(beam)
-    fig, (ax, ax_w) = _panels(
-        f"Unloaded camber c(X), the gap on a rigid flat without load (axis cut at {top:.2g} mm)",
-        2,
-        1,
-        sharex=True,
-        height_ratios=(3, 1.3),
-    )
-    x, c = _array(beam["position_mm"]), _array(beam["camber_um"])
     band = _band(beam, "camber_band_90_um")
-    ax.plot(x, c * 1e-3, color=_COLOURS[1], lw=1.4, label="c(X)")
-    if band is not None:
-        lo, hi = band
-        ax.fill_between(x, lo * 1e-3, hi * 1e-3, color=_COLOURS[1], alpha=0.3, lw=0)
-        ax_w.plot(x, 0.5 * (hi - lo), color=_COLOURS[1], lw=1.2, label="90 % band")
-    else:
-        ax_w.text(0.5, 0.5, "no band", transform=ax_w.transAxes, ha="center", va="center")
-    ax.set_ylabel("camber c [mm]")
-    ax.set_ylim(0, top)
-    ax.legend(fontsize=8, loc="upper center")
-    ax_w.set_ylabel("90 % half-\nwidth [µm]")
-    ax_w.set_ylim(bottom=0)
-    ax_w.set_xlabel(_X_LABEL)
-    return _svg(fig)
+    return _along_with_band(
+        f"Unloaded camber c(X), the gap on a rigid flat without load (axis cut at {top:.2g} mm)",
+        _array(beam["position_mm"]),
+        _array(beam["camber_um"]) * 1e-3,
+        None if band is None else (band[0] * 1e-3, band[1] * 1e-3),
+        colour=_COLOURS[1],
+        ylabel="c(X) [mm]",
+        width_label="90 % half-\nwidth [µm]",
+        half_width=lambda lo, hi, y: 500.0 * (hi - lo),
+        ylim=(0, top),
+    )
 
 
 def misfit_svg(identification: dict) -> str:
@@ -385,6 +402,6 @@ def misfit_svg(identification: dict) -> str:
             ax.axhline(noise, color="k", ls="--", lw=1, label=f"device noise σ {noise:.2f} µm")
         ax.set_xlabel(label)
     axes[0].set_ylabel("RMS misfit per case [µm]")
-    axes[0].margins(y=0.35)  # room for the legend; the axis is not cut at 0: see the spread
-    axes[0].legend(fontsize=7, loc="upper left")
+    # the axis is not cut at 0: the spread about the noise is what the plot is for
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=3)
     return _svg(fig)

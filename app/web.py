@@ -838,14 +838,16 @@ def _identification_section(ident: dict) -> str:
         f'<div class="metric" data-number="{key}"><span class="name">{escape(label)}</span>'
         f'<span class="value">{_fmt(value, spec)}</span><span class="unit">{unit}</span></div>'
         for key, label, value, unit, spec in numbers
+        if value is not None
     )
     cases = len(ident["case_misfit_um"])
     limits = (
-        f'<p class="hint">Served as the profile model when the misfit is within '
-        f"{SERVED_MISFIT_LIMIT:g}× the noise and the held-out error within {HELD_OUT_LIMIT:g}× "
-        f"the noise; {cases} cases identified, {held} held out (method.md §4c, "
-        "docs/camber-identification.md).</p>"
+        f'<p class="hint">An identified beam serves as the profile model when its misfit is '
+        f"within {SERVED_MISFIT_LIMIT:g}× the noise and its held-out error within "
+        f"{HELD_OUT_LIMIT:g}× the noise; here {cases} cases were identified and {held} held out "
+        "(method.md §4c, docs/camber-identification.md).</p>"
     )
+    cards = f'<div class="metrics ski-numbers">{cards}</div>' if cards else ""
     pv = ident.get("provenance", {})
     solve = pv.get("solve_time_s")
     rows = [
@@ -865,7 +867,7 @@ def _identification_section(ident: dict) -> str:
     ]
     return (
         f'<h2 id="identification">Beam identification</h2>{verdict}'
-        f'<div class="metrics ski-numbers">{cards}</div>{limits}'
+        f"{cards}{limits}"
         f"<details><summary>Provenance of the identification</summary>{_dl(rows)}</details>"
     )
 
@@ -933,20 +935,21 @@ def _ski_figures(ski: service.Ski, beam: dict, ident: dict | None) -> list[str]:
     figures = []
     if beam["available"]:
         plot_beam = service.beam_report(ski, points=PLOT_POINTS)
-        design = not beam.get("bending_stiffness_band_90_nm2")
-        note = " (design beam: no band, it was not identified)" if design else ""
+        if beam.get("bending_stiffness_band_90_nm2"):
+            ei_note = "with its 90 % band from the identification's covariance"
+            c_note = f"with its 90 % band (± {Z90:.3f} σ of the identification)"
+        else:
+            ei_note = c_note = "of the design beam stored with the ski: not identified, no band"
         figures.append(
             _figure_html(
                 "stiffness",
                 plots.stiffness_svg(plot_beam),
-                f"Bending stiffness EI(X) [N·m²] with its 90 % band{note}",
+                f"Bending stiffness EI(X) [N·m²] {ei_note}",
             )
         )
         figures.append(
             _figure_html(
-                "camber",
-                plots.camber_svg(plot_beam),
-                f"Unloaded camber c(X) [mm] with its 90 % band (± {Z90:.3f} σ){note}",
+                "camber", plots.camber_svg(plot_beam), f"Unloaded camber c(X) [mm] {c_note}"
             )
         )
     if ident and "case_load_kg" in ident:
@@ -1332,7 +1335,7 @@ def mount(app: FastAPI) -> None:
             return render_form(cat, q, 422)
         return render_results(q, out)
 
-    @app.get("/skis/{name}", response_class=HTMLResponse, include_in_schema=False)
+    @app.get("/skis/{name:path}", response_class=HTMLResponse, include_in_schema=False)
     def ski_page(request: Request, name: str) -> HTMLResponse:
         cat = request.app.state.catalogue
         ski = cat.skis.get(name)
