@@ -3,8 +3,9 @@
 The app runs under uvicorn in a background thread on a free 127.0.0.1 port with the test
 catalogue. The test fills the form (using a load preset and the snow-density input), submits,
 finds the metrics and the plots, opens a ski's page from the form, and saves screenshots to
-``docs/screenshots/``. The upload test sends a grind through the upload page (bad inputs first: errors next to their fields),
-follows its job to done and computes a contact with it in the form.
+``docs/screenshots/``. The upload test sends a grind through the upload page (bad inputs first:
+errors next to their fields), follows its job to done and computes a contact with it in the
+form.
 Skipped only when Chromium or Playwright is missing outside CI; on CI (``CI`` set) it must run.
 """
 
