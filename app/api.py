@@ -187,6 +187,7 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
                     "width_mm": [float(w) * 1e3 for w in o.width_m],
                     "load_position_range_mm": [lo * 1e3, hi * 1e3],
                     "profile_model": profile_model(s.record).source,
+                    "profile_model_reason": profile_model(s.record).reason,
                     "network_metrics": (net or {}).get("attrs", {}).get("metrics_json"),
                     "description": s.record.metadata.get("description"),
                     "file": s.path.name,

@@ -20,7 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from app import uploads
 from app.jobs import JobRunner
-from app.service import UnknownItemError, beam_report
+from app.service import UnknownItemError, beam_report, profile_report
 from app.storage.catalogue import CatalogueDB, ItemRow, JobRow, NameTakenError
 from solvers.errors import DataFileError, InputError
 
@@ -350,7 +350,9 @@ def mount(app: FastAPI) -> None:
 def _item_routes(app: FastAPI, kind: str, plural: str) -> None:
     @app.get(f"/v1/{plural}/{{name}}", tags=["catalogue"], name=f"show_{kind}")
     def show(request: Request, name: str) -> dict:
-        """One item: state, metadata, file and its jobs."""
+        """One item: state, metadata, file and its jobs; for a usable ski also its profile model
+        (name and why) and its beam: EI(X), c(X) with their bands, the misfit per case and the
+        held-out check (the ski's page ``/skis/{name}`` shows the same)."""
         state = _state(request)
         row = _item_or_404(state, kind, name)
         cat = request.app.state.catalogue
@@ -360,6 +362,7 @@ def _item_routes(app: FastAPI, kind: str, plural: str) -> None:
             "jobs": [_job_view(state.db, j) for j in state.db.jobs(item_id=row.id)],
         }
         if kind == "ski" and name in cat.skis:
+            out["profile_model"] = profile_report(cat.skis[name])
             out["beam"] = beam_report(cat.skis[name])
         return out
 

@@ -1,6 +1,7 @@
 """Server-side SVG plots of contact results (matplotlib ``Figure``, no pyplot, no global state).
 
-Every function takes answers of :func:`app.service.contact` (technician units: mm, kPa, µm) and
+Every function takes answers of :func:`app.service.contact` (technician units: mm, kPa, µm), or
+for a ski's page the ``beam`` report of :func:`app.service.beam_report` (mm, kg, N·m², µm), and
 returns one SVG document as a string, ready to be inlined in HTML. Quantities and symbols follow
 ``shared/method.md``: P(X) apparent pressure, H(X) loaded camber clearance, a_r(X) real contact
 area fraction, h̄_n(X) average interfacial separation, (1/h)‾_n(X) average reciprocal separation.
@@ -56,6 +57,17 @@ def _figure(title: str, ylabel: str) -> tuple[Figure, object]:
     ax.set_ylabel(ylabel)
     ax.grid(True, alpha=0.3, which="both")
     return fig, ax
+
+
+def _panels(title: str, rows: int = 1, cols: int = 1, **kwargs) -> tuple[Figure, np.ndarray]:
+    """A figure of ``rows`` × ``cols`` axes (a flat array) with a title and light grids."""
+    height = 3.2 if rows == 1 else 4.6
+    fig = Figure(figsize=(7.2, height), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False, **kwargs)).ravel()
+    fig.suptitle(title, fontsize=10)
+    for ax in axes:
+        ax.grid(True, alpha=0.3, which="both")
+    return fig, axes
 
 
 def _label(result: dict, *, with_grind: bool = True) -> str:
@@ -255,3 +267,141 @@ PLOTS = (
 def all_svgs(results: Sequence[dict]) -> list[tuple[str, str, str]]:
     """``[(key, caption, svg)]`` for every plot of :data:`PLOTS`."""
     return [(key, caption, fn(results)) for key, caption, fn in PLOTS]
+
+
+# ----------------------------------------------------------------------------- a ski's beam
+
+#: the camber plot's axis stops at this factor × the largest c(X) over the middle of the ski
+#: (the tip and tail rise tens of mm and would flatten the camber pocket)
+CAMBER_TOP_FACTOR = 1.3
+#: the share of the ski's length, centred, over which that largest c(X) is taken [-]
+CAMBER_MIDDLE_SHARE = 0.8
+
+
+def _band(beam: dict, key: str) -> tuple[np.ndarray, np.ndarray] | None:
+    band = beam.get(key)
+    if not band:
+        return None
+    return _array(band[0]), _array(band[1])
+
+
+def _along_with_band(
+    title: str,
+    x: np.ndarray,
+    y: np.ndarray,
+    band: tuple[np.ndarray, np.ndarray] | None,
+    *,
+    colour: str,
+    ylabel: str,
+    width_label: str,
+    half_width,
+    ylim: tuple[float, float | None],
+) -> str:
+    """A quantity along the ski with its 90 % band shaded and, when there is a band, a lower
+    panel with the band's half-width (``half_width(lo, hi, y)``): the bands of an identified
+    beam are often too narrow to see on the upper axis."""
+    if band is None:
+        fig, (ax,) = _panels(title)
+    else:
+        fig, (ax, ax_w) = _panels(title, 2, 1, sharex=True, height_ratios=(3, 1.3))
+    ax.plot(x, y, color=colour, lw=1.4, label=ylabel.split(" [")[0])
+    if band is not None:
+        ax.fill_between(x, *band, color=colour, alpha=0.3, lw=0, label="90 % band")
+        ax_w.plot(x, half_width(*band, y), color=colour, lw=1.2)
+        ax_w.set_ylabel(width_label)
+        ax_w.set_ylim(bottom=0)
+        ax_w.set_xlabel(_X_LABEL)
+    else:
+        ax.set_xlabel(_X_LABEL)
+    ax.set_ylabel(ylabel)
+    ax.set_ylim(*ylim)
+    ax.legend(fontsize=8, loc="lower center")
+    return _svg(fig)
+
+
+def stiffness_svg(beam: dict) -> str:
+    """Bending stiffness EI(X) [N·m²] with its 90 % band, and below it the band's half-width
+    relative to EI [%]; a beam without a band (a design beam) is drawn alone."""
+    band = _band(beam, "bending_stiffness_band_90_nm2")
+    return _along_with_band(
+        "Bending stiffness EI(X) of the beam",
+        _array(beam["position_mm"]),
+        _array(beam["bending_stiffness_nm2"]),
+        band,
+        colour=_COLOURS[0],
+        ylabel="EI(X) [N·m²]",
+        width_label="90 % half-\nwidth [%]",
+        half_width=lambda lo, hi, y: 50.0 * (hi - lo) / y,
+        ylim=(0, None),
+    )
+
+
+def camber_top_mm(beam: dict) -> float:
+    """Top of the camber plot's axis [mm]: :data:`CAMBER_TOP_FACTOR` × the largest c(X) over
+    the middle :data:`CAMBER_MIDDLE_SHARE` of the sampled length."""
+    x, c = _array(beam["position_mm"]), _array(beam["camber_um"]) * 1e-3
+    mid, half = 0.5 * (x[0] + x[-1]), 0.5 * CAMBER_MIDDLE_SHARE * (x[-1] - x[0])
+    inner = c[np.abs(x - mid) <= half]
+    top = np.nanmax(inner) if np.isfinite(inner).any() else np.nanmax(c)
+    return float(CAMBER_TOP_FACTOR * top) if top > 0 else 1.0
+
+
+def camber_svg(beam: dict) -> str:
+    """Unloaded camber c(X) [mm] with its 90 % band (axis cut at :func:`camber_top_mm`), and
+    below it the band's half-width [µm]; a beam without a band is drawn alone."""
+    top = camber_top_mm(beam)
+    band = _band(beam, "camber_band_90_um")
+    return _along_with_band(
+        f"Unloaded camber c(X), the gap on a rigid flat without load (axis cut at {top:.2g} mm)",
+        _array(beam["position_mm"]),
+        _array(beam["camber_um"]) * 1e-3,
+        None if band is None else (band[0] * 1e-3, band[1] * 1e-3),
+        colour=_COLOURS[1],
+        ylabel="c(X) [mm]",
+        width_label="90 % half-\nwidth [µm]",
+        half_width=lambda lo, hi, y: 500.0 * (hi - lo),
+        ylim=(0, top),
+    )
+
+
+def misfit_svg(identification: dict) -> str:
+    """RMS misfit per camber case [µm] against the case's load [kg] and load position [mm]:
+    the identified cases (filled), the held-out cases' prediction error (open) and the device
+    noise σ estimated from the data (dashed)."""
+    fig, axes = _panels("Misfit per camber case", 1, 2, sharey=True)
+    fit = _array(identification.get("case_misfit_um", []))
+    held = identification.get("held_out") or {}
+    for ax, key, label in zip(
+        axes,
+        ("load_kg", "position_mm"),
+        ("load on the ski [kg]", "load position X_F from the balance point [mm]"),
+        strict=True,
+    ):
+        ax.plot(
+            _array(identification[f"case_{key}"]),
+            fit,
+            "o",
+            ms=3,
+            color=_COLOURS[0],
+            alpha=0.6,
+            label=f"identified cases ({fit.size})",
+        )
+        if held:
+            err = _array(held["error_um"])
+            ax.plot(
+                _array(held[key]),
+                err,
+                "s",
+                ms=4,
+                mfc="none",
+                color=_COLOURS[1],
+                label=f"held-out cases ({err.size}): prediction error",
+            )
+        noise = identification.get("noise_um")
+        if noise is not None:
+            ax.axhline(noise, color="k", ls="--", lw=1, label=f"device noise σ {noise:.2f} µm")
+        ax.set_xlabel(label)
+    axes[0].set_ylabel("RMS misfit per case [µm]")
+    # the axis is not cut at 0: the spread about the noise is what the plot is for
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=3)
+    return _svg(fig)

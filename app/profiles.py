@@ -28,6 +28,7 @@ __all__ = [
     "SERVED_MISFIT_LIMIT",
     "ProfileModel",
     "identification_group",
+    "no_beam_reason",
     "profile_model",
     "served_beam",
     "served_beam_note",
@@ -68,6 +69,18 @@ def served_beam_note(identified: dict | None) -> str:
     )
 
 
+def no_beam_reason(identified: dict | None) -> str:
+    """Why a ski has no identified beam to serve: the identification's own reason, the note of
+    :func:`served_beam_note`, or that none was run ('' when the identified beam is served)."""
+    if served_beam(identified) is not None:
+        return ""
+    return (
+        served_beam_note(identified)
+        or (identified or {}).get("attrs", {}).get("reason")
+        or "no identification was run"
+    )
+
+
 class ProfileModel:
     """The profile model of one ski record (build once per process and ski).
 
@@ -75,6 +88,13 @@ class ProfileModel:
     ----------
     record : SkiRecord
         The ski file's content.
+
+    Attributes
+    ----------
+    source : str
+        ``identified_beam``, ``network`` or ``design_beam``.
+    reason : str
+        Why this model serves (the words of ``GET /v1/skis`` and the ski's page).
     """
 
     def __init__(self, record: SkiRecord) -> None:
@@ -83,11 +103,32 @@ class ProfileModel:
         self._flex: BeamFlexibility | None = None
         if self.beam is not None:
             self.source = "identified_beam"
-        elif record.network is not None:
+            a = record.identified["attrs"]
+            held = float(a.get("held_out_rms_m", np.nan))
+            self.reason = (
+                f"the beam identified from the ski's camber measurements fits them to "
+                f"{a['misfit_m'] * 1e6:.2f} µm against device noise {a['noise_m'] * 1e6:.2f} µm "
+                f"(within {SERVED_MISFIT_LIMIT:g}× the noise)"
+                + (
+                    f" and predicts {int(a.get('held_out_cases', 0))} held-out cases to "
+                    f"{held * 1e6:.2f} µm RMS"
+                    if np.isfinite(held)
+                    else ""
+                )
+            )
+            return
+        why = no_beam_reason(record.identified)
+        if record.network is not None:
             self.source = "network"
+            self.reason = f"no identified beam ({why}): the camber network trained on the ski's "
+            self.reason += "measurements answers"
         elif record.beam is not None:
             self.beam = record.beam
             self.source = "design_beam"
+            self.reason = (
+                f"no identified beam ({why}) and no camber network: the design beam stored with "
+                "the ski answers"
+            )
         else:
             raise DataFileError(
                 f"ski {record.ski_id!r} has no profile model: no identified beam, no camber "

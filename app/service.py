@@ -6,6 +6,7 @@ unit conversion from technician units happens in :mod:`app.units`.
 
 from __future__ import annotations
 
+import json
 import logging
 import math
 import time
@@ -17,19 +18,22 @@ import numpy as np
 from app import units
 from app.band import answer_band, band_json, min_separation_unresolved, touches_profile_end
 from app.presets import DEFAULT_PRESET, Preset, get_preset
-from app.profiles import profile_model, served_beam, served_beam_note
+from app.profiles import no_beam_reason, profile_model, served_beam
 from app.storage.common import code_version, sha256_file
 from app.storage.skis import (
     SKI_MANIFEST,
     SkiRecord,
+    mean_profiles,
     read_ski,
     read_ski_manifest,
 )
 from app.storage.tables import read_manifest, read_table
+from solvers.band import Z90
 from solvers.beam import BeamSki
 from solvers.elastic import effective_modulus
 from solvers.errors import DataFileError, NotConvergedError, OutOfRangeError, SkisnowError
 from solvers.flexible import FlexibleModel, prepare_flexible, solve_flexible
+from solvers.identify import predict_gaps
 from solvers.lookup import MicroTable
 from solvers.macro import extrude_profile, solve_macro
 from solvers.multiscale import multiscale
@@ -103,11 +107,7 @@ class Ski:
                 self.record.beam,
                 "design beam stored with the ski (demo ski: its own beam)",
             )
-        why = (
-            served_beam_note(ident)
-            or (ident or {}).get("attrs", {}).get("reason")
-            or "no identification was run"
-        )
+        why = no_beam_reason(ident)
         return None, f"ski {self.name!r} has no beam model ({why}); use ski_model 'rigid'"
 
     @property
@@ -614,24 +614,116 @@ def _choose_ski_model(inp: ContactInputs, ski: Ski, preset: Preset, rigid, ms_ri
     return (flex, ms_flex, info) if use_flexible else (rigid, ms_rigid, info)
 
 
+def profile_report(ski: Ski) -> dict:
+    """The profile model a ski answers with and why (``GET /v1/skis/{name}``, the ski's page);
+    an error message instead when the ski has none."""
+    try:
+        model = profile_model(ski.record)
+    except SkisnowError as exc:
+        return {"name": None, "reason": str(exc)}
+    return {"name": model.source, "reason": model.reason}
+
+
+#: attributes of the identification's provenance shown with the beam (technician names)
+_IDENT_PROVENANCE = ("created_utc", "code_version", "git_commit", "command_line")
+
+
+def _identification_report(ski: Ski) -> dict:
+    """The identification of a ski (method.md §4c) in technician units: its verdict, noise and
+    misfit, the misfit per identified case with the case's load [kg] and position [mm], the
+    held-out check (per held-out case: RMS of prediction − measurement [µm]) and provenance."""
+    ident = ski.record.identified
+    a = ident.get("attrs", {})
+    noise = a.get("noise_m")
+    out: dict = {
+        "ok": bool(a.get("ok", False)),
+        "reason": a.get("reason", ""),
+        "noise_um": noise * 1e6 if noise is not None else None,
+        "misfit_um": a["misfit_m"] * 1e6 if "misfit_m" in a else None,
+        "case_misfit_um": _finite_list(np.asarray(ident["case_misfit_m"]), 1e6, 4)
+        if "case_misfit_m" in ident
+        else [],
+    }
+    held_rms = a.get("held_out_rms_m")
+    held_rms = float(held_rms) if held_rms is not None and math.isfinite(held_rms) else None
+    out["held_out_cases"] = int(a.get("held_out_cases", 0))
+    out["held_out_rms_um"] = None if held_rms is None else held_rms * 1e6
+    for key, value in (("misfit_to_noise", a.get("misfit_m")), ("held_out_to_noise", held_rms)):
+        ok = value is not None and noise and math.isfinite(value)
+        out[key] = round(float(value) / float(noise), 4) if ok else None
+    params = json.loads(a["parameters_json"]) if "parameters_json" in a else {}
+    out["provenance"] = {k: str(a[k]) for k in _IDENT_PROVENANCE if k in a} | {
+        "profiles": params.get("profiles"),
+        "held_out_seed": params.get("seed"),
+        "iterations": a.get("iterations"),
+        "contact_passes": a.get("contact_passes"),
+        "solve_time_s": a.get("solve_time_s"),
+    }
+    cases = _identification_cases(ski)
+    if cases is not None:
+        loads_n, positions_m, kept, held, error_m = cases
+        out["case_load_kg"] = _finite_list(units.n_to_kg(loads_n[kept]), 1.0, 4)
+        out["case_position_mm"] = _finite_list(np.round(positions_m[kept] * 1e3, 3) + 0.0, 1.0, 6)
+        if error_m is not None:
+            out["held_out"] = {
+                "load_kg": _finite_list(units.n_to_kg(loads_n[held]), 1.0, 4),
+                "position_mm": _finite_list(np.round(positions_m[held] * 1e3, 3) + 0.0, 1.0, 6),
+                "error_um": _finite_list(error_m, 1e6, 4),
+            }
+    return out
+
+
+def _identification_cases(ski: Ski):
+    """The cases of the stored identification: loads [N], positions [m], the identified and
+    held-out indices and the held-out cases' RMS error [m] (None when the stored beam cannot
+    predict). None when the stored misfits do not match the ski's measurements. Computed once
+    per ski record (the held-out predictions cost about a second for 85 cases)."""
+    ident = ski.record.identified
+    # keyed on the group itself: a dataclasses.replace copy of the record shares the cache
+    cached = ski.record.cache.get("identification_cases")
+    if cached is not None and cached[0] is ident and cached[1] is ski.record.measurements:
+        return cached[2]
+    result = None
+    if "case_misfit_m" in ident:
+        loads_n, positions_m, profiles_m, _ = mean_profiles(ski.record.measurements)
+        held = np.zeros(loads_n.size, dtype=bool)
+        index = np.asarray(ident.get("held_out_index", []), dtype=int)
+        if index.size and (index.min() < 0 or index.max() >= loads_n.size):
+            held = None
+        else:
+            held[index] = True
+        if held is not None and int((~held).sum()) == np.asarray(ident["case_misfit_m"]).size:
+            error_m = None
+            same_grid = np.array_equal(
+                np.asarray(ident.get("positions_m", [])), ski.record.measurements.positions_m
+            )
+            if held.any() and same_grid:
+                try:  # a failed identification may have stored NaN arrays: InputError
+                    beam = BeamSki(
+                        np.asarray(ident["positions_m"], dtype=float),
+                        np.asarray(ident["bending_stiffness_nm2"], dtype=float),
+                        np.asarray(ident["unloaded_gap_m"], dtype=float),
+                    )
+                    pred = predict_gaps(beam, loads_n[held], positions_m[held])
+                    error_m = np.sqrt(np.mean((pred - profiles_m[held]) ** 2, axis=1))
+                except SkisnowError as exc:
+                    log.info("no held-out predictions for ski %r: %s", ski.name, exc)
+            result = (loads_n, positions_m, np.flatnonzero(~held), np.flatnonzero(held), error_m)
+    ski.record.cache["identification_cases"] = (ident, ski.record.measurements, result)
+    return result
+
+
 def beam_report(ski: Ski, points: int = 41) -> dict:
     """The ski's beam for ``GET /v1/skis/{name}``: where it comes from, EI(X) and c(X) sampled
-    along the ski (with the identification's 90 % band on EI and 1-σ band on c), and the misfit
-    per measured case. Technician units: mm, N·m², µm."""
+    along the ski (with the identification's 90 % band on EI, and on c its 1-σ spread and the
+    90 % band ± Z90·σ), and the identification: misfit per identified case with the case's load
+    and position, the held-out check with each held-out case's error, provenance. Technician
+    units: mm, kg, N·m², µm."""
     beam, source = ski.beam()
     out: dict = {"available": beam is not None, "source": source, "used_by_auto": beam is not None}
     ident = ski.record.identified
     if ident:
-        a = ident.get("attrs", {})
-        out["identification"] = {
-            "ok": bool(a.get("ok", False)),
-            "reason": a.get("reason", ""),
-            "noise_um": a["noise_m"] * 1e6 if "noise_m" in a else None,
-            "misfit_um": a["misfit_m"] * 1e6 if "misfit_m" in a else None,
-            "case_misfit_um": _finite_list(np.asarray(ident["case_misfit_m"]), 1e6, 4)
-            if "case_misfit_m" in ident
-            else [],
-        }
+        out["identification"] = _identification_report(ski)
     if beam is None:
         return out
     idx = np.linspace(0, beam.positions_m.size - 1, points).round().astype(int)
@@ -644,5 +736,11 @@ def beam_report(ski: Ski, points: int = 41) -> dict:
             _finite_list(band[0][idx]),
             _finite_list(band[1][idx]),
         ]
-        out["camber_sd_um"] = _finite_list(np.asarray(ident["camber_band_m"])[idx], 1e6)
+        sd = np.asarray(ident["camber_band_m"])[idx]
+        out["camber_sd_um"] = _finite_list(sd, 1e6)
+        c = beam.unloaded_gap_m[idx]
+        out["camber_band_90_um"] = [
+            _finite_list(c - Z90 * sd, 1e6),
+            _finite_list(c + Z90 * sd, 1e6),
+        ]
     return out

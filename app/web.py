@@ -10,13 +10,20 @@ Routes (all ``GET`` so that every result is a link; no multipart, no JavaScript 
     The four metrics for every ski × grind, a comparison table, plots and provenance.
 ``/results.csv``
     The comparison table as CSV (one row per combination, units in the column names).
+``/skis/{name}``
+    One ski's page: its served profile model and why, the beam identified from its camber
+    measurements (provenance, held-out check), EI(X) and c(X) with their bands and the misfit
+    per camber case, the same figures as ``GET /v1/skis/{name}``; why there is no beam when
+    there is none. An unknown name is a 404 page.
 ``/upload``
     Upload a ski's camber CSV or a grind's topography with their metadata. The two forms post
     multipart to the REST routes (``POST /v1/skis``, ``POST /v1/grinds``, checks in
     :mod:`app.uploads`) from ``static/upload.js``, show the problem+json errors next to the
     field they name, then follow the job (``GET /v1/jobs/{id}`` every second) with a progress
-    bar and, when it is done, link back to the form with the new item selected. This page is
-    the one that needs JavaScript (uploads are multipart, progress needs polling).
+    bar and, when it is done, link back to the form with the new item selected (and, for a
+    ski, to its page ``/skis/{name}``: the beam its job identified, or why there is none).
+    This page is the one that needs JavaScript (uploads are multipart, progress needs
+    polling).
 
 The query is validated with the bounds of :class:`app.schemas.ContactBody`; bad input re-shows
 the form with a message next to the offending field (422; 404 for an unknown ski or grind).
@@ -36,17 +43,20 @@ from dataclasses import astuple, dataclass, field
 from html import escape
 from importlib import resources
 from string import Template
-from urllib.parse import urlencode
+from urllib.parse import quote, urlencode
 
 from fastapi import FastAPI, Request
 from fastapi.responses import HTMLResponse, Response
 from pydantic import ValidationError
 
-from app import plots, service, uploads
+from app import plots, service, units, uploads
 from app.presets import DEFAULT_PRESET
 from app.presets import PRESETS as ACCURACY_PRESETS
+from app.profiles import SERVED_MISFIT_LIMIT
 from app.schemas import ContactBody
+from solvers.band import Z90
 from solvers.errors import SkisnowError
+from solvers.identify import HELD_OUT_LIMIT
 
 #: density of ice used to turn snow density into porosity, n = 1 − ρ/ρ_ice [kg/m³]
 ICE_DENSITY_KG_M3 = 917.0
@@ -370,7 +380,8 @@ def _number_field(q: Query, name: str, *, disabled: bool = False) -> str:
     )
 
 
-def _choices(q: Query, kind: str, items: dict, describe) -> str:
+def _choices(q: Query, kind: str, items: dict, describe, link=None) -> str:
+    """Checkboxes of ``items``; ``link(name)``, when given, is an HTML link after each hint."""
     chosen = q.skis if kind == "ski" else q.grinds
     if not chosen and not q.errors:
         chosen = sorted(items)[:1]
@@ -379,7 +390,8 @@ def _choices(q: Query, kind: str, items: dict, describe) -> str:
         rows.append(
             f'<label class="choice"><input type="checkbox" name="{kind}" value="{escape(name)}"'
             f"{' checked' if name in chosen else ''}> <b>{escape(name)}</b>"
-            f'<span class="hint">{escape(describe(items[name]))}</span></label>'
+            f'<span class="hint">{escape(describe(items[name]))}'
+            f"{' · ' + link(name) if link else ''}</span></label>"
         )
     err = q.errors.get(kind)
     if err:
@@ -388,13 +400,27 @@ def _choices(q: Query, kind: str, items: dict, describe) -> str:
 
 
 def _describe_ski(ski: service.Ski) -> str:
+    """One line per ski in the form: description, length, load positions and the profile model
+    that serves it (the name ``GET /v1/skis`` gives)."""
     lo, hi = ski.position_range_m
-    model = "network" if ski.record.network is not None else "beam"
+    model = service.profile_report(ski)["name"] or "none"
     desc = ski.record.metadata.get("description") or ""
     length = ski.record.outline.length_m * 1e3
     return (
         f"{desc + '; ' if desc else ''}length {length:.0f} mm; load positions "
-        f"{lo * 1e3:.0f} … {hi * 1e3:.0f} mm; camber model: {model}"
+        f"{lo * 1e3:.0f} … {hi * 1e3:.0f} mm; profile model: {model}"
+    )
+
+
+def ski_url(name: str) -> str:
+    """The path of a ski's page (the name percent-encoded as one path segment)."""
+    return "/skis/" + quote(name, safe="")
+
+
+def _ski_page_link(name: str) -> str:
+    return (
+        f'<a class="ski-link" href="{escape(ski_url(name))}" title="the profile model, beam, '
+        f'camber and misfit per case of {escape(name)}">ski page</a>'
     )
 
 
@@ -481,7 +507,8 @@ def render_form(cat: service.Catalogue, q: Query, status: int = 200) -> HTMLResp
 {alert}
 <form id="contact-form" method="get" action="/results">
 <div class="grid2">
-<fieldset><legend>Skis</legend>{_choices(q, "ski", cat.skis, _describe_ski)}</fieldset>
+<fieldset><legend>Skis</legend>
+{_choices(q, "ski", cat.skis, _describe_ski, _ski_page_link)}</fieldset>
 <fieldset><legend>Base grinds</legend>{_choices(q, "grind", cat.grinds, _describe_grind)}</fieldset>
 </div>
 <div class="grid2">
@@ -606,7 +633,8 @@ def _metric_cards(results: list[dict]) -> str:
 <dt>texture pixel</dt><dd>{table["texture_pixel_size_um"]:.4g} µm</dd>
 <dt>gap floor h_c</dt><dd>{table["gap_floor_nm"]:.4g} nm</dd>
 <dt>ski file</dt><dd>{escape(ski["file"])} · sha256 {ski["sha256"][:12]}</dd>
-<dt>camber model</dt><dd>{escape(str(ski["profile_model"]))}</dd>
+<dt>profile model</dt><dd>{escape(str(ski["profile_model"]))} ·
+<a href="{escape(ski_url(inp["ski"]))}">ski page</a></dd>
 <dt>ski model</dt><dd>{escape(str(prov["ski_model"]["used"]))}:
 {escape(str(prov["ski_model"]["reason"]))}</dd>
 <dt>macro solve</dt><dd>{prov["macro"]["iterations"]} iterations, converged
@@ -734,6 +762,288 @@ def _csv_value(v) -> str:
     if isinstance(v, float):
         return f"{v:.8g}" if math.isfinite(v) else ""
     return str(v)
+
+
+# ----------------------------------------------------------------------------- ski page
+
+#: points along the ski of the EI(X) and c(X) plots (the JSON API and the page's table: 41)
+PLOT_POINTS = 401
+
+#: the served profile models (``GET /v1/skis``'s ``profile_model``) as a technician reads them
+PROFILE_MODEL_LABELS = {
+    "identified_beam": "beam identified from the ski's camber measurements",
+    "network": "camber network trained on the ski's measurements",
+    "design_beam": "design beam stored with the ski",
+}
+
+
+def _dl(rows: list[tuple[str, str]]) -> str:
+    """A definition list of (term, HTML) rows; the terms are escaped here."""
+    return (
+        '<dl class="facts">'
+        + "".join(f"<dt>{escape(t)}</dt><dd>{v}</dd>" for t, v in rows if v != "")
+        + "</dl>"
+    )
+
+
+def _figure_html(key: str, svg: str, caption: str) -> str:
+    return (
+        f'<figure class="plot" id="plot-{key}">{svg}<figcaption>{escape(caption)}</figcaption>'
+        "</figure>"
+    )
+
+
+def _ski_summary(ski: service.Ski) -> str:
+    rec = ski.record
+    m, o = rec.measurements, rec.outline
+    loads_kg = units.n_to_kg(m.loads_n)
+    desc = rec.metadata.get("description") or rec.metadata.get("brand_model") or ""
+    sides = ", ".join(sorted(set(m.sides)))
+    return (
+        f'<p class="summary">{escape(desc) + " · " if desc else ""}length '
+        f"{o.length_m * 1e3:.0f} mm, running-surface width {o.width_m.min() * 1e3:.3g} … "
+        f"{o.width_m.max() * 1e3:.3g} mm · {m.loads_n.size} measured camber profiles "
+        f"({escape(sides)}): loads {loads_kg.min():.3g} … {loads_kg.max():.3g} kg at "
+        f"{m.load_positions_m.min() * 1e3:.0f} … {m.load_positions_m.max() * 1e3:.0f} mm from the "
+        f"balance point, {m.positions_m.size} samples every "
+        f"{(m.positions_m[1] - m.positions_m[0]) * 1e3:.3g} mm · file {escape(ski.path.name)} "
+        f"(sha256 {escape(ski.sha256[:12])})</p>"
+    )
+
+
+def _identification_section(ident: dict) -> str:
+    """Verdict, summary numbers and provenance of the beam identification."""
+    verdict = (
+        '<p class="ok">The identification passed: the beam fits the camber cases at the device '
+        "noise and predicts the held-out cases.</p>"
+        if ident["ok"]
+        else '<div class="alert" role="note" id="identification-failed"><b>No beam was '
+        f"identified:</b> {escape(ident['reason'] or 'no reason recorded')}</div>"
+    )
+    held = ident["held_out_cases"]
+    numbers = (
+        ("noise_um", "Device noise σ (from the data)", ident["noise_um"], "µm", "{:.3f}"),
+        ("misfit_um", "Misfit, RMS over the identified cases", ident["misfit_um"], "µm", "{:.3f}"),
+        ("misfit_to_noise", "Misfit / noise", ident["misfit_to_noise"], "–", "{:.3f}"),
+        (
+            "held_out_rms_um",
+            f"Held-out error, RMS over {held} cases",
+            ident["held_out_rms_um"],
+            "µm",
+            "{:.3f}",
+        ),
+        ("held_out_to_noise", "Held-out error / noise", ident["held_out_to_noise"], "–", "{:.3f}"),
+    )
+    cards = "".join(
+        f'<div class="metric" data-number="{key}"><span class="name">{escape(label)}</span>'
+        f'<span class="value">{_fmt(value, spec)}</span><span class="unit">{unit}</span></div>'
+        for key, label, value, unit, spec in numbers
+        if value is not None
+    )
+    cases = len(ident["case_misfit_um"])
+    limits = (
+        f'<p class="hint">An identified beam serves as the profile model when its misfit is '
+        f"within {SERVED_MISFIT_LIMIT:g}× the noise and its held-out error within "
+        f"{HELD_OUT_LIMIT:g}× the noise; here {cases} cases were identified and {held} held out "
+        "(method.md §4c, docs/camber-identification.md).</p>"
+    )
+    cards = f'<div class="metrics ski-numbers">{cards}</div>' if cards else ""
+    pv = ident.get("provenance", {})
+    solve = pv.get("solve_time_s")
+    rows = [
+        ("created (UTC)", escape(str(pv.get("created_utc", "")))),
+        ("code version", escape(str(pv.get("code_version", "")))),
+        ("git commit", escape(str(pv.get("git_commit", "")))),
+        ("command", escape(str(pv.get("command_line", "")))),
+        ("profiles", escape(str(pv.get("profiles") or ""))),
+        ("held-out draw seed", escape(str(pv.get("held_out_seed", "")))),
+        (
+            "fit",
+            ""
+            if pv.get("iterations") is None
+            else f"{pv['iterations']} Gauss–Newton steps over {pv.get('contact_passes')} contact "
+            f"passes" + (f", {solve:.1f} s" if solve is not None else ""),
+        ),
+    ]
+    return (
+        f'<h2 id="identification">Beam identification</h2>{verdict}'
+        f"{cards}{limits}"
+        f"<details><summary>Provenance of the identification</summary>{_dl(rows)}</details>"
+    )
+
+
+def _beam_table(beam: dict) -> str:
+    """EI(X) and c(X) at the points of ``GET /v1/skis/{name}``, with their bands."""
+    band = beam.get("bending_stiffness_band_90_nm2")
+    cband = beam.get("camber_band_90_um")
+    head = "<th>X [mm]</th><th>EI [N·m²]</th>"
+    head += "<th>EI 90 % band [N·m²]</th>" if band else ""
+    head += "<th>c [µm]</th>" + ("<th>c 90 % band [µm]</th>" if cband else "")
+    rows = []
+    for i, x in enumerate(beam["position_mm"]):
+        cells = f"<td>{_fmt(x, '{:g}')}</td><td>{_fmt(beam['bending_stiffness_nm2'][i], '{:g}')}"
+        cells += "</td>"
+        if band:
+            cells += f"<td>{_fmt(band[0][i], '{:g}')} … {_fmt(band[1][i], '{:g}')}</td>"
+        cells += f"<td>{_fmt(beam['camber_um'][i], '{:g}')}</td>"
+        if cband:
+            cells += f"<td>{_fmt(cband[0][i], '{:g}')} … {_fmt(cband[1][i], '{:g}')}</td>"
+        rows.append(f"<tr>{cells}</tr>")
+    return (
+        f"<details><summary>EI(X) and c(X) at {len(rows)} points (as in the JSON API)</summary>"
+        f'<div class="table-wrap"><table id="beam-table"><tr>{head}</tr>{"".join(rows)}'
+        "</table></div></details>"
+    )
+
+
+def _misfit_table(ident: dict) -> str:
+    """The misfit of every identified case and the error of every held-out case."""
+    rows = [
+        f'<tr class="identified"><td>{_fmt(f, "{:g}")}</td><td>{_fmt(x, "{:g}")}</td>'
+        f'<td>{_fmt(e, "{:g}")}</td><td class="text">identified</td></tr>'
+        for f, x, e in zip(
+            ident["case_load_kg"], ident["case_position_mm"], ident["case_misfit_um"], strict=True
+        )
+    ]
+    held = ident.get("held_out") or {}
+    rows += [
+        f'<tr class="held-out"><td>{_fmt(f, "{:g}")}</td><td>{_fmt(x, "{:g}")}</td>'
+        f'<td>{_fmt(e, "{:g}")}</td><td class="text">held out</td></tr>'
+        for f, x, e in zip(
+            held.get("load_kg", []),
+            held.get("position_mm", []),
+            held.get("error_um", []),
+            strict=True,
+        )
+    ]
+    return (
+        f"<details><summary>Misfit per case ({len(rows)} cases)</summary>"
+        '<div class="table-wrap"><table id="misfit-table"><tr><th>load [kg]</th>'
+        '<th>load position [mm]</th><th>RMS misfit [µm]</th><th class="text">case</th></tr>'
+        f"{''.join(rows)}</table></div></details>"
+    )
+
+
+def _ski_figures(ski: service.Ski, beam: dict, ident: dict | None) -> list[str]:
+    """The ski page's figures (EI(X), c(X), misfit per case), drawn once per ski record: they
+    depend only on its file (about a second each)."""
+    rec = ski.record
+    key = (rec.identified, rec.beam, rec.network)
+    cached = rec.cache.get("page_figures")  # a dataclasses.replace copy shares the cache
+    if cached is not None and all(a is b for a, b in zip(cached[0], key, strict=True)):
+        return cached[1]
+    figures = []
+    if beam["available"]:
+        plot_beam = service.beam_report(ski, points=PLOT_POINTS)
+        if beam.get("bending_stiffness_band_90_nm2"):
+            ei_note = "with its 90 % band from the identification's covariance"
+            c_note = f"with its 90 % band (± {Z90:.3f} σ of the identification)"
+        else:
+            ei_note = c_note = "of the design beam stored with the ski: not identified, no band"
+        figures.append(
+            _figure_html(
+                "stiffness",
+                plots.stiffness_svg(plot_beam),
+                f"Bending stiffness EI(X) [N·m²] {ei_note}",
+            )
+        )
+        figures.append(
+            _figure_html(
+                "camber", plots.camber_svg(plot_beam), f"Unloaded camber c(X) [mm] {c_note}"
+            )
+        )
+    if ident and "case_load_kg" in ident:
+        figures.append(
+            _figure_html(
+                "misfit",
+                plots.misfit_svg(ident),
+                "RMS misfit per camber case [µm] against load [kg] and load position [mm], "
+                "with the device noise σ estimated from the data",
+            )
+        )
+    rec.cache["page_figures"] = (key, figures)
+    return figures
+
+
+def render_ski(cat: service.Catalogue, ski: service.Ski) -> HTMLResponse:
+    """A ski's page: profile model and why, identification, EI(X), c(X), misfit per case."""
+    name = ski.name
+    profile = service.profile_report(ski)
+    beam = service.beam_report(ski)
+    ident = beam.get("identification")
+    model = profile["name"]
+    model_html = (
+        f"<code>{escape(model)}</code> — {escape(PROFILE_MODEL_LABELS.get(model, model))}"
+        if model
+        else "none"
+    )
+    if beam["available"]:
+        beam_html = f"available — {escape(beam['source'])}"
+        no_beam = ""
+    else:
+        beam_html = "none"
+        no_beam = (
+            '<div class="notice" role="note" id="no-beam"><b>This ski has no beam.</b> '
+            f"{escape(beam['source'])}. Contacts use the rigid shape (``auto`` falls back to "
+            "it with a warning; ``flexible`` answers 422), and the profile comes from the "
+            f"{escape(PROFILE_MODEL_LABELS.get(model, str(model)))}.</div>"
+        ).replace("``", "")
+    sections = [
+        f'<h2 id="profile-model">Profile model</h2>{no_beam}'
+        + _dl(
+            [
+                ("served profile model", model_html),
+                ("why", f'<span id="profile-reason">{escape(profile["reason"])}</span>'),
+                ("beam for the bending ski", f'<span id="beam-source">{beam_html}</span>'),
+            ]
+        )
+    ]
+    if ident:
+        sections.append(_identification_section(ident))
+    figures = _ski_figures(ski, beam, ident)
+    if figures:
+        sections.append(
+            f'<h2 id="plots">Along the ski and per case</h2><div class="plots">'
+            f"{''.join(figures)}</div>"
+        )
+    tables = (_beam_table(beam) if beam["available"] else "") + (
+        _misfit_table(ident) if ident and "case_load_kg" in ident else ""
+    )
+    if tables:
+        sections.append(f"<h2>Numbers</h2>{tables}")
+    api = "/v1/skis/" + quote(name, safe="")
+    form = "/?" + urlencode(
+        [("ski", name)]
+        + [(k, DEFAULTS[k]) for k in (*NUMERIC, "snow_input")]
+        + [("grind", g) for g in sorted(cat.grinds)[:1]]
+    )
+    body = f"""
+<h1>Ski <span id="ski-name">{escape(name)}</span></h1>
+{_ski_summary(ski)}
+<div class="actions"><a class="button primary" href="{escape(form)}">Compute a contact with
+this ski</a> <a class="button" href="{escape(api)}">The same as JSON</a>
+<a class="button" href="/">All skis</a></div>
+{"".join(sections)}
+"""
+    return _page(f"skisnow — ski {name}", body)
+
+
+def render_unknown_ski(cat: service.Catalogue, name: str, state: str | None) -> HTMLResponse:
+    """The 404 page of a ski name the catalogue does not serve."""
+    why = (
+        f"is an upload that is {escape(state)}, not ready to use"
+        if state not in (None, "ready")
+        else "is not in the catalogue"
+    )
+    known = "".join(
+        f'<li><a href="{escape(ski_url(n))}">{escape(n)}</a></li>' for n in sorted(cat.skis)
+    )
+    body = (
+        f'<h1>Unknown ski</h1><div class="alert" role="alert">Ski <b id="ski-name">'
+        f"{escape(name)}</b> {why}.</div><p>Skis you can open:</p><ul>{known or '<li>none</li>'}"
+        '</ul><p><a href="/">Back to the contact form</a> · <a href="/upload">Upload a ski</a></p>'
+    )
+    return _page("skisnow — unknown ski", body, 404)
 
 
 # ----------------------------------------------------------------------------- upload page
@@ -939,6 +1249,12 @@ def render_upload(cat: service.Catalogue, settings) -> HTMLResponse:
             if token
             else ""
         )
+        item_link = (
+            f' <a class="button item-link" id="{kind}-item-link" hidden href="/">Open the '
+            "ski's page</a>"
+            if kind == "ski"
+            else ""
+        )
         sections.append(
             f"""<section class="upload" id="{kind}-upload">
 <h2>{escape(title)}</h2>
@@ -961,15 +1277,21 @@ background</span>
 <p>State: <b class="state" id="{kind}-job-state">queued</b> <span class="message"></span></p>
 <p class="error job-error" role="alert" hidden></p>
 <p class="actions"><a class="button primary done-link" id="{kind}-done-link" hidden href="/">
-Use it in the contact form</a></p>
+Use it in the contact form</a>{item_link}</p>
 </div>
 </section>"""
         )
+    ski_pages = " · ".join(
+        f'<a href="{escape(ski_url(n))}">{escape(n)}</a>' for n in sorted(cat.skis)
+    )
     body = f"""
 <h1>Upload a ski or a grind</h1>
 <p class="summary">The file is checked at once; a background job then builds the grind's lookup
-table or trains the ski's camber network (progress below). When it is done the item is in the
-<a href="/">contact form</a> and the JSON API (docs/uploads.md).</p>
+table, or trains the ski's camber network and identifies its beam (progress below). When it is
+done the item is in the <a href="/">contact form</a> and the JSON API (docs/uploads.md), and a
+ski has its own page.</p>
+<p class="hint" id="ski-pages">Ski pages (profile model, beam, misfit per case):
+{ski_pages or "none yet"}</p>
 <noscript><p class="alert">This page needs JavaScript to upload and to follow the job; the
 REST API (<a href="/docs">/docs</a>) does the same.</p></noscript>
 <div class="grid2">{"".join(sections)}</div>
@@ -1012,6 +1334,19 @@ def mount(app: FastAPI) -> None:
                 q.errors.setdefault(_failure_field(msg), f"{inp.ski} × {inp.grind}: {msg}")
             return render_form(cat, q, 422)
         return render_results(q, out)
+
+    @app.get("/skis/{name:path}", response_class=HTMLResponse, include_in_schema=False)
+    def ski_page(request: Request, name: str) -> HTMLResponse:
+        cat = request.app.state.catalogue
+        ski = cat.skis.get(name)
+        if ski is None:
+            state = None
+            uploads_state = getattr(request.app.state, "uploads", None)
+            if uploads_state is not None:
+                row = uploads_state.db.item_by_name("ski", name)
+                state = row.state if row is not None else None
+            return render_unknown_ski(cat, name, state)
+        return render_ski(cat, ski)
 
     @app.get("/upload", response_class=HTMLResponse, include_in_schema=False)
     def upload(request: Request) -> HTMLResponse:

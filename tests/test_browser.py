@@ -2,9 +2,10 @@
 
 The app runs under uvicorn in a background thread on a free 127.0.0.1 port with the test
 catalogue. The test fills the form (using a load preset and the snow-density input), submits,
-finds the metrics and the plots, and saves screenshots to ``docs/screenshots/``. The upload
-test sends a grind through the upload page (bad inputs first: errors next to their fields),
-follows its job to done and computes a contact with it in the form.
+finds the metrics and the plots, opens a ski's page from the form, and saves screenshots to
+``docs/screenshots/``. The upload test sends a grind through the upload page (bad inputs first:
+errors next to their fields), follows its job to done and computes a contact with it in the
+form.
 Skipped only when Chromium or Playwright is missing outside CI; on CI (``CI`` set) it must run.
 """
 
@@ -177,6 +178,32 @@ def test_bad_input_shows_the_field_error(server, page):
     expect(page.locator(".alert")).to_contain_text("Equivalent load on the ski")
     expect(page.locator("#load_kg-error")).to_contain_text("less than or equal to 150")
     expect(page.locator("#contact-form")).to_be_visible()
+
+
+def test_ski_page_from_the_form(server, page, tmp_path):
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    page.goto(server + "/")
+    page.get_by_role("link", name="ski page").nth(1).click()  # skis are listed sorted: ski-b
+    page.wait_for_url("**/skis/ski-b")
+    expect(page.locator("h1")).to_have_text("Ski ski-b")
+    expect(page.locator("#profile-model + dl")).to_contain_text("identified_beam")
+    for key in ("stiffness", "camber", "misfit"):
+        svg = page.locator(f"#plot-{key} svg")
+        expect(svg).to_be_visible()
+        assert svg.bounding_box()["width"] > 300
+    noise = page.locator('[data-number="noise_um"] .value')
+    assert float(noise.inner_text()) == pytest.approx(3.0, abs=0.1)
+    page.screenshot(path=str(tmp_path / "ski-page.png"), full_page=True)
+    SCREENSHOTS.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(tmp_path / "ski-page.png", SCREENSHOTS / "ski-page.png")
+    # an unknown ski: a page that says so and lists the known ones
+    response = page.goto(server + "/skis/no-such-ski")
+    assert response.status == 404
+    expect(page.locator(".alert")).to_contain_text("no-such-ski")
+    page.get_by_role("link", name="ski-a").click()
+    expect(page.locator("h1")).to_have_text("Ski ski-a")
+    assert errors == []
 
 
 def _npy_bytes(a) -> bytes:

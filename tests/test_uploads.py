@@ -9,6 +9,7 @@ Table and training settings are tiny so that every job takes seconds.
 from __future__ import annotations
 
 import io
+import re
 import time
 from pathlib import Path
 
@@ -294,6 +295,21 @@ def test_ski_upload_train_and_contact(catalogue, tmp_path, camber_csv):
         beam = shown["beam"]
         assert len(ident["case_misfit_um"]) == 20  # 5 of the 25 cases held out
         assert ident["noise_um"] == pytest.approx(3.0, rel=0.15)
+        # the ski's page shows the same: profile model, and every case's misfit with its load
+        page = client.get("/skis/my-ski")
+        assert page.status_code == 200
+        assert f"<code>{profile}</code>" in page.text
+        assert f"profile model: {profile}" in client.get("/").text
+        # the CSV's 5 loads × 5 positions (camber_csv), less the held-out cases
+        assert set(ident["case_load_kg"]) <= {20.0, 35.0, 50.0, 65.0, 80.0}
+        assert set(ident["case_position_mm"]) <= {-300.0, -200.0, -100.0, 0.0, 100.0}
+        rows = re.findall(
+            r'<tr class="identified"><td>([^<]+)</td><td>([^<]+)</td><td>([^<]+)</td>', page.text
+        )
+        assert [float(r[2]) for r in rows] == ident["case_misfit_um"]
+        assert page.text.count('<tr class="held-out">') == len(
+            (ident.get("held_out") or {}).get("error_um", [])
+        )
         body = {"ski": "my-ski", "grind": "tiny-grind", **CONTACT}
         flex = client.post("/v1/contact", json={**body, "ski_model": "flexible"})
         auto = client.post("/v1/contact", json={**body, "ski_model": "auto"}).json()

@@ -131,6 +131,8 @@
     panel.querySelector(".accepted").textContent = note || "";
     error.hidden = true;
     link.hidden = true;
+    var oldItemLink = document.getElementById(kind + "-item-link");
+    if (oldItemLink) { oldItemLink.hidden = true; }
     bar.value = 0;
     percent.textContent = "0 %";
     state.textContent = "queued";
@@ -158,6 +160,12 @@
             link.href = form.dataset.return + "&" + kind + "=" + encodeURIComponent(job.item);
             link.textContent = "Compute a contact with " + kind + " " + job.item;
             link.hidden = false;
+            var itemLink = document.getElementById(kind + "-item-link");
+            if (itemLink) {  // a ski's page: the beam its job identified, or why there is none
+              itemLink.href = "/" + kind + "s/" + encodeURIComponent(job.item);
+              itemLink.textContent = "Beam, camber and misfit of " + kind + " " + job.item;
+              itemLink.hidden = false;
+            }
           } else if (job.state === "failed") {
             error.textContent = "The job failed: " + (job.error || "no reason given") +
               ". Nothing was kept; correct the data and upload again.";

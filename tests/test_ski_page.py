@@ -1,0 +1,292 @@
+"""A ski's page (``/skis/{name}``): the profile model and why, the identified beam's EI(X) and
+c(X) with their bands, the misfit per camber case, all equal to ``GET /v1/skis/{name}``; skis
+without a beam say why; unknown names are a 404 page; names are escaped."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+from html import escape, unescape
+from urllib.parse import quote
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from app import service, web
+from app.api import create_app
+from app.settings import Settings
+from solvers.band import Z90
+
+DEMO = ("ski-a", "ski-b")
+#: a name that would run as script if it were not escaped (the catalogue accepts any name in
+#: memory; uploads are restricted to letters, digits, '.', '_' and '-')
+NASTY = '<script>alert("x")</script>'
+#: the identification of a ski whose data could not identify a beam (as the upload job stores it)
+FAILED = {"attrs": {"ok": False, "reason": "beam not identified: 3 cases are too few"}}
+
+
+def _variant(base: service.Ski, name: str, **changes) -> service.Ski:
+    return service.Ski(name, base.path, base.sha256, dataclasses.replace(base.record, **changes))
+
+
+def _rejected(base: service.Ski) -> dict:
+    """ski-a's identification as if its held-out check had failed (arrays kept, ok False)."""
+    group = dict(base.record.identified)
+    group["attrs"] = {
+        **group["attrs"],
+        "ok": False,
+        "reason": "held-out cases miss by 9.00 µm RMS, more than 2× the device noise 3.01 µm",
+    }
+    return group
+
+
+@pytest.fixture(scope="module")
+def client(catalogue, tmp_path_factory):
+    a = catalogue.skis["ski-a"]
+    skis = dict(catalogue.skis)
+    skis["net-only"] = _variant(a, "net-only", identified=FAILED, beam=None)
+    skis["design-only"] = _variant(a, "design-only", identified=None, network=None)
+    skis["rejected"] = _variant(a, "rejected", identified=_rejected(a), beam=None)
+    skis[NASTY] = _variant(a, NASTY, identified=FAILED)
+    cat = service.Catalogue(tables_dir=catalogue.tables_dir, skis=skis, grinds=catalogue.grinds)
+    settings = Settings(data_dir=tmp_path_factory.mktemp("ski-page"), warm_up=False)
+    with TestClient(create_app(settings, catalogue=cat), raise_server_exceptions=False) as c:
+        yield c
+
+
+def _page(client, name: str) -> str:
+    r = client.get(web.ski_url(name))
+    assert r.status_code == 200, r.text[:500]
+    assert r.headers["content-type"].startswith("text/html")
+    return r.text
+
+
+def _number(html: str, key: str) -> float:
+    m = re.search(rf'data-number="{key}">.*?<span class="value">([^<]+)</span>', html)
+    assert m, key
+    return float(m.group(1))
+
+
+def _rows(html: str, table_id: str) -> list[list[str]]:
+    table = re.search(rf'<table id="{table_id}">(.*?)</table>', html, re.S)
+    assert table, table_id
+    rows = re.findall(r"<tr[^>]*>(.*?)</tr>", table.group(1), re.S)
+    return [[unescape(c) for c in re.findall(r"<td[^>]*>(.*?)</td>", r, re.S)] for r in rows[1:]]
+
+
+def _pair(cell: str) -> tuple[float, float]:
+    lo, hi = cell.split(" … ")
+    return float(lo), float(hi)
+
+
+# ----------------------------------------------------------------------------- demo skis
+
+
+@pytest.fixture(scope="module", params=DEMO)
+def demo(request, client):
+    name = request.param
+    api = client.get(f"/v1/skis/{name}")
+    assert api.status_code == 200, api.text[:300]
+    return name, _page(client, name), api.json()
+
+
+def test_profile_model_and_why_in_the_api_words(demo, client):
+    name, html, api = demo
+    profile = api["profile_model"]
+    assert profile["name"] == "identified_beam"
+    assert f"<code>{profile['name']}</code>" in html
+    assert f'<span id="profile-reason">{escape(profile["reason"])}</span>' in html
+    assert escape(api["beam"]["source"]) in html
+    listed = {s["name"]: s for s in client.get("/v1/skis").json()["skis"]}
+    assert listed[name]["profile_model"] == profile["name"]
+    assert listed[name]["profile_model_reason"] == profile["reason"]
+
+
+def test_summary_numbers_equal_the_api(demo):
+    _, html, api = demo
+    ident = api["beam"]["identification"]
+    assert ident["ok"] and ident["held_out_cases"] > 0
+    for key in ("noise_um", "misfit_um", "misfit_to_noise", "held_out_rms_um", "held_out_to_noise"):
+        # shown with 3 decimals
+        assert _number(html, key) == pytest.approx(ident[key], abs=5e-4 + 1e-12), key
+    # the ratios are the ratios of the figures shown next to them
+    assert ident["misfit_to_noise"] == pytest.approx(ident["misfit_um"] / ident["noise_um"], 1e-3)
+    assert ident["held_out_to_noise"] == pytest.approx(
+        ident["held_out_rms_um"] / ident["noise_um"], 1e-3
+    )
+    for label in ("Device noise σ", "Held-out error, RMS over 85 cases", "µm"):
+        assert label in html
+
+
+def test_beam_table_equals_the_api(demo):
+    _, html, api = demo
+    beam = api["beam"]
+    rows = _rows(html, "beam-table")
+    assert len(rows) == len(beam["position_mm"]) == 41
+    ei_lo, ei_hi = beam["bending_stiffness_band_90_nm2"]
+    c_lo, c_hi = beam["camber_band_90_um"]
+    for i, (x, ei, ei_band, c, c_band) in enumerate(rows):
+        assert float(x) == beam["position_mm"][i]
+        assert float(ei) == beam["bending_stiffness_nm2"][i]
+        assert _pair(ei_band) == (ei_lo[i], ei_hi[i])
+        assert float(c) == beam["camber_um"][i]
+        assert _pair(c_band) == (c_lo[i], c_hi[i])
+        # the bands hold the value; c's band is ± Z90 σ (6 significant digits in the API)
+        assert ei_lo[i] <= beam["bending_stiffness_nm2"][i] <= ei_hi[i]
+        assert c_lo[i] <= beam["camber_um"][i] <= c_hi[i]
+        half = 0.5 * (c_hi[i] - c_lo[i])
+        # each bound is rounded to 6 significant digits: the half-width is within half a unit
+        # in the 6th digit of the larger bound
+        digit = 10.0 ** (math.floor(math.log10(max(abs(c_lo[i]), abs(c_hi[i])))) - 5)
+        assert abs(half - Z90 * beam["camber_sd_um"][i]) <= 0.5 * digit + 1e-9
+    assert "[N·m²]" in html and "c [µm]" in html and "X [mm]" in html
+
+
+def test_misfit_per_case_equals_the_api_and_is_consistent(demo, catalogue):
+    name, html, api = demo
+    ident = api["beam"]["identification"]
+    rows = _rows(html, "misfit-table")
+    fitted = [r for r in rows if r[3] == "identified"]
+    held = [r for r in rows if r[3] == "held out"]
+    assert [tuple(map(float, r[:3])) for r in fitted] == list(
+        zip(ident["case_load_kg"], ident["case_position_mm"], ident["case_misfit_um"], strict=True)
+    )
+    h = ident["held_out"]
+    assert [tuple(map(float, r[:3])) for r in held] == list(
+        zip(h["load_kg"], h["position_mm"], h["error_um"], strict=True)
+    )
+    # every measured case is either identified or held out, each (load, position) once
+    data = catalogue.skis[name].record.measurements
+    assert len(fitted) + len(held) == data.loads_n.size == 425
+    assert len(held) == ident["held_out_cases"]
+    cases = {(round(f, 2), round(x, 1)) for f, x, *_ in map(lambda r: map(float, r[:2]), rows)}
+    measured = {
+        (round(f / 9.82, 2), round(x * 1e3, 1))
+        for f, x in zip(data.loads_n, data.load_positions_m, strict=True)
+    }
+    assert cases == measured
+    # the overall figures are the RMS of the per-case ones (same number of nodes per case);
+    # per-case values carry 4 significant digits
+    fit = np.asarray(ident["case_misfit_um"])
+    err = np.asarray(h["error_um"])
+    assert math.sqrt(np.mean(fit**2)) == pytest.approx(ident["misfit_um"], rel=1e-3)
+    assert math.sqrt(np.mean(err**2)) == pytest.approx(ident["held_out_rms_um"], rel=1e-3)
+
+
+def test_plots_and_units(demo):
+    _, html, _ = demo
+    for key in ("stiffness", "camber", "misfit"):
+        fig = re.search(rf'<figure class="plot" id="plot-{key}">(.*?)</figure>', html, re.S)
+        assert fig and "<svg" in fig.group(1), key
+    for text in (
+        "Bending stiffness EI(X) [N·m²] with its 90 % band",
+        "Unloaded camber c(X) [mm] with its 90 % band",
+        "RMS misfit per camber case [µm] against load [kg] and load position [mm]",
+        "device noise σ",
+    ):
+        assert text in html
+    assert not re.search(r'(src|href)="(https?:)?//', html)
+
+
+# ----------------------------------------------------------------------------- no beam
+
+
+@pytest.mark.parametrize(
+    ("name", "model", "why"),
+    [
+        ("net-only", "network", "beam not identified: 3 cases are too few"),
+        ("rejected", "network", "held-out cases miss by 9.00 µm RMS"),
+        ("design-only", "design_beam", "no identification was run"),
+    ],
+)
+def test_ski_without_an_identified_beam_says_why(client, name, model, why):
+    html = _page(client, name)
+    api = client.get(f"/v1/skis/{name}").json()
+    assert api["profile_model"]["name"] == model
+    assert why in api["profile_model"]["reason"]
+    assert f"<code>{model}</code>" in html
+    assert escape(api["profile_model"]["reason"]) in html
+    assert escape(why) in html
+    beam = api["beam"]
+    if model == "network":
+        # no beam at all: said at the top, no EI or camber plot, no beam table
+        assert not beam["available"]
+        assert 'id="no-beam"' in html and "This ski has no beam." in html
+        assert escape(beam["source"]) in html
+        assert "plot-stiffness" not in html and "beam-table" not in html
+        assert 'id="identification-failed"' in html
+    else:
+        # the design beam: drawn, without a band, and said to be unidentified
+        assert beam["available"] and "bending_stiffness_band_90_nm2" not in beam
+        assert "identification" not in beam and 'id="identification"' not in html
+        assert "not identified, no band" in html
+        rows = _rows(html, "beam-table")
+        assert [float(r[1]) for r in rows] == beam["bending_stiffness_nm2"]
+        assert [float(r[2]) for r in rows] == beam["camber_um"]
+    if name == "rejected":
+        # a fit that failed its held-out check still shows its misfit per case
+        assert "plot-misfit" in html
+        assert len(_rows(html, "misfit-table")) == 425
+    if name == "net-only":
+        assert "plot-misfit" not in html and "misfit-table" not in html
+        assert 'data-number="misfit_um"' not in html  # nothing to show, no empty cards
+
+
+# ----------------------------------------------------------------------------- errors
+
+
+def test_unknown_ski_is_a_404_page(client):
+    r = client.get("/skis/no-such-ski")
+    assert r.status_code == 404
+    assert r.headers["content-type"].startswith("text/html")
+    assert "Unknown ski" in r.text and "no-such-ski" in r.text
+    assert "Traceback" not in r.text
+    for name in DEMO:
+        assert f'href="/skis/{name}"' in r.text
+
+
+def test_pending_upload_says_so(client):
+    client.app.state.uploads.db.add_item("ski", "still-training", state="pending")
+    r = client.get("/skis/still-training")
+    assert r.status_code == 404
+    assert "upload that is pending" in r.text
+
+
+def test_names_are_escaped(client):
+    page, form = _page(client, NASTY), client.get("/").text
+    for html in (page, form):
+        assert NASTY not in html
+        assert escape(NASTY) in html
+    # links carry the name percent-encoded as one path segment
+    assert f'href="/skis/{quote(NASTY, safe="")}"' in form
+    assert f'href="/v1/skis/{quote(NASTY, safe="")}"' in page
+    assert f'<span id="ski-name">{escape(NASTY)}</span>' in page
+    r = client.get("/skis/" + quote("<b>x</b>", safe=""))
+    assert r.status_code == 404
+    assert "<b>x</b>" not in r.text and escape("<b>x</b>") in r.text
+
+
+# ----------------------------------------------------------------------------- links
+
+
+def test_form_names_the_profile_model_and_links_the_ski_pages(client):
+    html = client.get("/").text
+    assert "camber model:" not in html
+    for name, model in (
+        ("ski-a", "identified_beam"),
+        ("net-only", "network"),
+        ("design-only", "design_beam"),
+    ):
+        entry = re.search(rf'value="{name}".*?</label>', html, re.S).group(0)
+        assert f"profile model: {model}" in entry
+        assert f'href="/skis/{name}"' in entry
+
+
+def test_upload_page_lists_the_ski_pages(client):
+    html = client.get("/upload").text
+    pages = re.search(r'<p class="hint" id="ski-pages">(.*?)</p>', html, re.S).group(1)
+    for name in DEMO:
+        assert f'href="/skis/{name}"' in pages
+    assert 'id="ski-item-link"' in html and 'id="grind-item-link"' not in html
