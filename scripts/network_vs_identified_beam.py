@@ -39,6 +39,7 @@ Usage::
 
     python scripts/network_vs_identified_beam.py [--ski ski-a] [--all-cases] [--epochs 4000]
                                                  [--lbfgs-epochs 1500] [--repeats 3]
+                                                 [--skip-training]
                                                  [--jobs 2]
 
 Needs PyTorch (``pip install 'skisnow[train]'``); one training takes about 1–2 min on a quiet
@@ -169,6 +170,31 @@ def timings(models: dict[str, ProfileModel], f: np.ndarray, xf: np.ndarray, repe
     }
 
 
+def papers_case_timing(record, beam_model: ProfileModel, repeats: int) -> dict[str, float]:
+    """Yardstick against the quiet-machine benchmark (``skisnow bench macro``, papers' case):
+    median wall times [ms] of the beam profile and of the rigid macro solve of that profile at
+    40 kg / −160 mm, interleaved, in this run."""
+    load, pos = cfs.PAPERS_CASE
+    x, gap = beam_model(load, pos)
+    gm = extrude_profile(
+        x, gap, record.outline.width_m, width_positions_m=record.outline.positions_m
+    )
+    e_eff = elastic.effective_modulus(cfs.SNOW_MODULUS_PA)
+    solve_macro(gm, load, pos, e_eff)  # warm-up
+    t_beam, t_macro = [], []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        beam_model(load, pos)
+        t_beam.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        solve_macro(gm, load, pos, e_eff)
+        t_macro.append(time.perf_counter() - t0)
+    return {
+        "beam_profile_ms": round(float(np.median(t_beam)) * 1e3, 3),
+        "rigid_macro_solve_ms": round(float(np.median(t_macro)) * 1e3, 3),
+    }
+
+
 def study_ski(ski: str, networks: dict, repeats: int) -> dict:
     """Errors and timings of every model on one ski's held-out cases (main process)."""
     record = read_record(ski)
@@ -186,6 +212,7 @@ def study_ski(ski: str, networks: dict, repeats: int) -> dict:
         models[name] = network_model(record, net)
     models[SHIPPED] = network_model(record, record.network)
     times = timings(models, f, xf, repeats)
+    yardstick = papers_case_timing(record, beam_model, 10 * repeats)
 
     truth = tc.beam_truth_profiles(record.beam, m.positions_m, f, xf)
     truth_area = np.array([area(record, truth[k], f[k], xf[k]) for k in range(f.size)])
@@ -245,6 +272,7 @@ def study_ski(ski: str, networks: dict, repeats: int) -> dict:
         "cases_load_position_m": np.round(xf, 4).tolist(),
         "cases_true_area_cm2": np.round(truth_area * 1e4, 3).tolist(),
         "beam_first_call_ms": round(first_call_s * 1e3, 1),
+        "papers_case_ms": yardstick,
         "models": rows,
     }
 
@@ -285,6 +313,11 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="also train on all 425 measured cases (held-out ones included)",
     )
+    ap.add_argument(
+        "--skip-training",
+        action="store_true",
+        help="only the identified beam and the shipped network (errors and timings)",
+    )
     ap.add_argument("--epochs", type=int, default=4000, help="Adam epochs (default 4000)")
     ap.add_argument("--lbfgs-epochs", type=int, default=1500, help="L-BFGS (default 1500)")
     ap.add_argument("--repeats", type=int, default=3, help="timing rounds (default 3)")
@@ -297,12 +330,15 @@ def main(argv: list[str] | None = None) -> int:
     names = args.ski or ["ski-a", "ski-b"]
     t0 = time.perf_counter()
     # one process per ski (each trains with one torch thread)
-    with ProcessPoolExecutor(max_workers=min(len(names), args.jobs)) as pool:
-        futures = [
-            pool.submit(train_networks, s, args.all_cases, args.epochs, args.lbfgs_epochs)
-            for s in names
-        ]
-        networks = dict(zip(names, (fut.result() for fut in futures), strict=True))
+    if args.skip_training:
+        networks = {ski: {} for ski in names}
+    else:
+        with ProcessPoolExecutor(max_workers=min(len(names), args.jobs)) as pool:
+            futures = [
+                pool.submit(train_networks, s, args.all_cases, args.epochs, args.lbfgs_epochs)
+                for s in names
+            ]
+            networks = dict(zip(names, (fut.result() for fut in futures), strict=True))
     train_wall_s = time.perf_counter() - t0
     # errors and timings in this process, one ski after the other (no training running)
     results = {ski: study_ski(ski, networks[ski], args.repeats) for ski in names}
@@ -311,6 +347,7 @@ def main(argv: list[str] | None = None) -> int:
         "provenance": common.provenance(
             {
                 "all_cases": args.all_cases,
+                "skip_training": args.skip_training,
                 "epochs": args.epochs,
                 "lbfgs_epochs": args.lbfgs_epochs,
                 "ensemble": 1,
