@@ -8,7 +8,10 @@ Three profile models, in the order a ski uses them (``source`` names the one tha
    identification passed the held-out check), pressed on the rigid flat by the virtual device
    (:func:`solvers.beam.solve_beam_contact`, flexibility cached per ski). Measured on the demo
    skis: 0.07–0.2 µm RMS from the beam truth near contact on held-out loads, against 0.5–1.1 µm
-   for the camber network (docs/camber-identification.md).
+   for the camber network (docs/camber-identification.md). A network retrained on the identified
+   beam's noise-free profiles is 21–43× faster but 2.5–19× further from the truth near contact
+   on the held-out cases (docs/camber-network.md, "Identified beam or network on its profiles";
+   ``scripts/network_vs_identified_beam.py``), so the beam serves.
 2. ``network``: the per-ski network of the papers (:mod:`solvers.camber`), for skis whose
    beam could not be identified.
 3. ``design_beam``: a beam stored with the ski (demo skis), when nothing else is available.

@@ -191,15 +191,23 @@ def evaluate(record, network, name: str, n_cases: int, train_s: float) -> dict:
     }
 
 
+def train_variant(x, f, xf, h, name: str, ensemble: int = 1, **kwargs) -> tuple[dict, float]:
+    """The network of one training set: ``skisnow train-camber``'s defaults except
+    ``ensemble`` members, seed 0 (``kwargs`` override other settings, e.g. ``epochs``).
+    Returns the network dict and the training time [s]."""
+    t0 = time.perf_counter()
+    res = tc.train_camber_network(x, f, xf, h, ensemble=ensemble, seed=0, ski_id=name, **kwargs)
+    return res.network, time.perf_counter() - t0
+
+
 def run_variant(record, x, name, f, xf, h, ensemble: int, residual: bool) -> list[dict]:
     """Train on one training set and check against the truth; with ``residual`` also the
     network plus a residual stage (:func:`residual_stage`)."""
-    t0 = time.perf_counter()
-    res = tc.train_camber_network(x, f, xf, h, ensemble=ensemble, seed=0, ski_id=name)
-    rows = [evaluate(record, res.network, name, f.size, time.perf_counter() - t0)]
+    network, train_s = train_variant(x, f, xf, h, name, ensemble)
+    rows = [evaluate(record, network, name, f.size, train_s)]
     if residual:
         t0 = time.perf_counter()
-        both = residual_stage(res.network, f, xf, h)
+        both = residual_stage(network, f, xf, h)
         extra_s = time.perf_counter() - t0
         rows.append(
             evaluate(
