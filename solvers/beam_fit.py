@@ -530,7 +530,16 @@ def fit_forward(
                         damped, gs, assume_a="pos", check_finite=False
                     )
                 except (np.linalg.LinAlgError, ValueError):
-                    step = -scale * np.linalg.lstsq(damped, gs, rcond=None)[0]
+                    try:
+                        step = -scale * np.linalg.lstsq(damped, gs, rcond=None)[0]
+                    except np.linalg.LinAlgError:
+                        step = np.full(theta.size, np.nan)
+                if not np.all(np.isfinite(step)):
+                    new = np.inf  # a singular or overflowing system: damp more
+                    if lam > 1e8:
+                        break
+                    lam *= 10.0
+                    continue
                 step[nc:] = np.clip(step[nc:], -1.0, 1.0)
                 trial = theta + step
                 ssr_t, *_ = model.evaluate(trial, jacobian=False)
@@ -538,6 +547,9 @@ def fit_forward(
                 if new <= cur or lam > 1e8:
                     break
                 lam *= 10.0
+            if not np.isfinite(new):
+                message = "no finite step: the normal equations are singular or overflow"
+                break
             if new > cur:
                 message = "no step lowers the misfit (converged to a local minimum)"
                 converged = True
