@@ -162,7 +162,7 @@ def _kink_offset(window: np.ndarray, s: np.ndarray) -> float:
     'stiff' test design's tail, where a ±2-node search stopped at its edge, 1 node off, and
     the forward fit stalled at 1.004 × the noise); the residual is exact at the kink."""
     dx = float(s[1] - s[0])
-    reach = min(KINK_SEARCH_NODES, (s.size - 1) // 2 - 2) * dx
+    reach = min(KINK_SEARCH_NODES, max(2, (s.size - 1) // 2 - 2)) * dx
     best, best_rss = 0.0, np.inf
     for tau in np.linspace(-reach, reach, 20 * round(reach / dx) + 1):
         sp = np.maximum(s - tau, 0.0)
