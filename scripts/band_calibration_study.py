@@ -8,7 +8,11 @@ For each case (ski, load F at x_F, snow modulus) the answer is solved as the ser
   times as coarse (``c4``: a third level for an observed order of convergence);
 - on the fine grid (1 mm × 16) with the *served* profile (``fine``): its difference to the
   answer is the answer's own grid error;
-- on the fine grid with the *true* profile (``truth``: the ski's design beam, no noise).
+- on the fine grid with the *true* profile (``truth``: the ski's design beam, no noise);
+- on the reference grid of ``skisnow bench accuracy`` (0.5 mm × 64) with the true profile
+  (``reference``), for every case of ``test`` and every third of ``calib``
+  (``--reference-every``). The fine grid's own error has the same sign as the default grid's
+  and about half its size, so ``reference`` is the truth the band is calibrated against.
 
 Per quantity it records the five values, the band's components (camber model, table
 interpolation) and whether the minimum separation is unresolved. Two sets of cases:
@@ -27,7 +31,7 @@ Usage::
 
     python scripts/band_calibration_study.py --out /tmp/band_study.json
 
-About 4 min on a loaded 2-core machine.
+About 10 min (45 min with the reference grid) on a loaded 2-core machine.
 """
 
 from __future__ import annotations
@@ -93,7 +97,10 @@ def _solve(rec, table, x, g, p, f, xf, e):
     return gm, m, multiscale(m, table, 0.5, e)
 
 
-def case_row(name, rec, table, f, xf, e_mpa, truth_beam):
+REFERENCE_GRID = (0.5e-3, 64)
+
+
+def case_row(name, rec, table, f, xf, e_mpa, truth_beam, reference=False):
     """Everything about one answer (see the module docstring)."""
     pre, fine = PRESETS["default"], PRESETS["fine"]
     c2 = _grid(*band.coarse_grid(pre))
@@ -125,6 +132,11 @@ def case_row(name, rec, table, f, xf, e_mpa, truth_beam):
     vals["truth"] = band._quantities(
         *_solve(rec, table, truth.positions_m, truth.gap_m, fine, f, xf, e)[1:]
     )
+    if reference:
+        ref = _grid(*REFERENCE_GRID)
+        vals["reference"] = band._quantities(
+            *_solve(rec, table, truth.positions_m, truth.gap_m, ref, f, xf, e)[1:]
+        )
     return {
         "ski": name,
         "load_n": f,
@@ -180,14 +192,16 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--sets", nargs="+", default=["test", "calib"])
+    ap.add_argument("--reference-every", type=int, default=3, help="calib cases per reference")
     args = ap.parse_args(argv)
     table = read_table(TABLES / "grind-1.h5")
     rows = []
     for s in args.sets:
         cases = demo_cases("test") if s == "test" else demo_cases("calib") + design_cases()
-        for name, rec, f, xf, e, truth in cases:
+        for i, (name, rec, f, xf, e, truth) in enumerate(cases):
+            reference = s == "test" or i % args.reference_every == 0
             try:
-                r = case_row(name, rec, table, f, xf, e, truth)
+                r = case_row(name, rec, table, f, xf, e, truth, reference)
             except Exception as exc:  # a failing case is recorded, the study goes on
                 r = {"ski": name, "load_n": f, "load_position_m": xf, "e_snow_mpa": e}
                 r["error"] = repr(exc)

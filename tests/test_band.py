@@ -139,9 +139,10 @@ def test_band_follows_the_preset_grid(shipped):
         assert fast["components"]["macro_grid"][q] > fine["components"]["macro_grid"][q]
     for p, a in ans.items():
         grid = a["band"]["components"]["macro_grid"]
-        assert (
-            grid["total_reciprocal_separation"]
-            == PRESETS[p].grid_band["total_reciprocal_separation"]
+        assert grid["total_reciprocal_separation"] == pytest.approx(
+            band.GRID_BAND_FACTOR["total_reciprocal_separation"]
+            * PRESETS[p].grid_band["total_reciprocal_separation"],
+            rel=1e-3,
         )
         lengths = [z["length_mm"] * 1e-3 for z in a["apparent"]["zones"]]
         share = end_pixel_share(lengths, PRESETS[p].pixel_along_m)
@@ -208,12 +209,20 @@ CAL_MODULI_MPA = (20.0, 100.0, 500.0)
 CAL_CASES_PER_SKI = 8
 
 
+#: the truth's grid: the reference of ``skisnow bench accuracy`` (0.5 mm × 64 across). The
+#: fine preset (1 mm × 16) is not converged enough to judge the default grid: its own error has
+#: the same sign and about half the size (real area +0.45 % where the default is +0.73 %), so
+#: against it the RMS error of the default answers is 0.84 % instead of 1.24 %.
+TRUTH_GRID = (0.5e-3, 64)
+
+
 def _calibration_rows() -> list[dict]:
     """Held-out cases (the camber network's test split) of both demo skis at three snow moduli:
-    the answer (network profile, default preset) with its band, against the truth (the ski's
-    own beam at the fine grid, no device noise)."""
+    the answer (served profile, default preset) with its band, against the truth (the ski's
+    own beam, no device noise, on the benchmark's reference grid)."""
     table = read_table(TABLES / "grind-1.h5")
-    pre, fine = PRESETS["default"], PRESETS["fine"]
+    pre = PRESETS["default"]
+    fine = replace(pre, pixel_along_m=TRUTH_GRID[0], pixels_across=TRUTH_GRID[1])
     rows = []
     for name in ("ski-a", "ski-b"):
         rec = read_ski(TABLES / "skis" / f"{name}.h5")
@@ -273,9 +282,10 @@ def _calibration() -> tuple[np.ndarray, np.ndarray, list[str]]:
     return err, width, [r["q"] for r in rows]
 
 
+@pytest.mark.slow
 def test_band_covers_held_out_cases_of_the_demo_skis():
     """≥ 85 % of the truths inside the band, ≥ 80 % per quantity (measured with the identified
-    beams as profile model: 99 % inside, 96 % for the apparent area)."""
+    beams as profile model: 93.9 % inside, 89.6 % for the reciprocal separation)."""
     err, width, qs = _calibration()
     assert np.mean(err <= width) >= 0.85, np.mean(err <= width)
     for q in band.QUANTITIES:
@@ -284,8 +294,9 @@ def test_band_covers_held_out_cases_of_the_demo_skis():
         assert np.mean(err[sel] <= width[sel]) >= 0.8, q
 
 
+@pytest.mark.slow
 def test_band_is_not_uselessly_wide():
-    """Mean half-width ≤ 2× the RMS actual error (measured: 1.8×). The band's factors were
+    """Mean half-width ≤ 2× the RMS actual error (measured: 1.86×). The band's factors were
     calibrated on other cases (scripts/band_calibration_study.py, set ``calib``: other loads,
     moduli and ski designs), so this checks them on cases they were not fitted to."""
     err, width, _ = _calibration()
