@@ -28,6 +28,7 @@ from solvers.errors import InputError
 __all__ = [
     "Z90",
     "combine",
+    "end_pixel_share",
     "model_error_sigma",
     "position_error_sigma",
     "profile_perturbations",
@@ -97,6 +98,30 @@ def sampled_half_width(nominal: float, samples: np.ndarray) -> float:
     if v.size < 2 or not math.isfinite(nominal) or nominal == 0:
         return float("nan")
     return float(Z90 * np.sqrt(np.mean((v - nominal) ** 2)) / abs(nominal))
+
+
+def end_pixel_share(zone_lengths_m: np.ndarray, pixel_along_m: float) -> float:
+    """Share [-] of an answer's contact length that lies in the end pixels of its contact zones:
+    ``2 · n_zones · Δx / Σ L_z``. Each zone end is located only to within a pixel, so this is
+    the scale of the apparent area's grid error (the pixels counted in or out at the ends).
+    Zones shorter than a pixel count as one pixel; no zone gives ``nan``.
+
+    Parameters
+    ----------
+    zone_lengths_m : array_like
+        Lengths of the contact zones along the ski [m].
+    pixel_along_m : float
+        Pixel size along the ski [m], > 0.
+    """
+    lengths = np.asarray(zone_lengths_m, dtype=float).ravel()
+    if not (math.isfinite(pixel_along_m) and pixel_along_m > 0):
+        raise InputError(f"pixel_along_m must be finite and > 0, got {pixel_along_m!r}")
+    if np.any(~np.isfinite(lengths)) or np.any(lengths < 0):
+        raise InputError("zone_lengths_m must be finite and >= 0")
+    if lengths.size == 0:
+        return float("nan")
+    total = float(np.sum(np.maximum(lengths, pixel_along_m)))
+    return min(2.0 * lengths.size * pixel_along_m / total, 2.0)
 
 
 def table_interpolation_error(ratios: np.ndarray, values: np.ndarray) -> np.ndarray:

@@ -17,6 +17,7 @@ from app.storage.skis import read_ski
 from app.storage.tables import read_table
 from solvers.band import (
     combine,
+    end_pixel_share,
     model_error_sigma,
     position_error_sigma,
     profile_perturbations,
@@ -130,11 +131,34 @@ def test_every_answer_carries_a_band_with_intervals_around_it(shipped):
 
 
 def test_band_follows_the_preset_grid(shipped):
-    fast = service.contact(shipped, replace(PAPER, preset="fast"))["band"]
-    fine = service.contact(shipped, replace(PAPER, preset="fine"))["band"]
+    """Coarser grids get wider grid parts: the apparent area's from the answer's own end-pixel
+    share on its grid, the real-area-type quantities' from the preset's measured width."""
+    ans = {p: service.contact(shipped, replace(PAPER, preset=p)) for p in ("fast", "fine")}
+    fast, fine = ans["fast"]["band"], ans["fine"]["band"]
     for q in ("apparent_contact_area", "total_reciprocal_separation"):
         assert fast["components"]["macro_grid"][q] > fine["components"]["macro_grid"][q]
-        assert fast["components"]["macro_grid"][q] >= PRESETS["fast"].grid_band[q]
+    for p, a in ans.items():
+        grid = a["band"]["components"]["macro_grid"]
+        assert grid["total_reciprocal_separation"] == pytest.approx(
+            band.GRID_BAND_FACTOR["total_reciprocal_separation"]
+            * PRESETS[p].grid_band["total_reciprocal_separation"],
+            rel=1e-3,
+        )
+        lengths = [z["length_mm"] * 1e-3 for z in a["apparent"]["zones"]]
+        share = end_pixel_share(lengths, PRESETS[p].pixel_along_m)
+        assert grid["apparent_contact_area"] == pytest.approx(band.K_END_PIXELS * share, rel=1e-3)
+
+
+def test_end_pixel_share_counts_two_end_pixels_per_zone():
+    assert end_pixel_share([0.1, 0.3], 0.004) == pytest.approx(4 * 0.004 / 0.4)
+    assert end_pixel_share([0.002], 0.004) == 2.0  # a zone below one pixel: both ends in it
+    assert math.isnan(end_pixel_share([], 0.004))
+    # halving the pixel halves the share (the apparent area's grid error is first order)
+    assert end_pixel_share([0.2], 0.002) == pytest.approx(0.5 * end_pixel_share([0.2], 0.004))
+    with pytest.raises(InputError):
+        end_pixel_share([0.1], 0.0)
+    with pytest.raises(InputError):
+        end_pixel_share([-0.1], 0.004)
 
 
 def test_flexible_answers_say_what_of_the_beam_is_covered(shipped):
@@ -185,12 +209,20 @@ CAL_MODULI_MPA = (20.0, 100.0, 500.0)
 CAL_CASES_PER_SKI = 8
 
 
+#: the truth's grid: the reference of ``skisnow bench accuracy`` (0.5 mm × 64 across). The
+#: fine preset (1 mm × 16) is not converged enough to judge the default grid: its own error has
+#: the same sign and about half the size (real area +0.45 % where the default is +0.73 %), so
+#: against it the RMS error of the default answers is 0.84 % instead of 1.24 %.
+TRUTH_GRID = (0.5e-3, 64)
+
+
 def _calibration_rows() -> list[dict]:
     """Held-out cases (the camber network's test split) of both demo skis at three snow moduli:
-    the answer (network profile, default preset) with its band, against the truth (the ski's
-    own beam at the fine grid, no device noise)."""
+    the answer (served profile, default preset) with its band, against the truth (the ski's
+    own beam, no device noise, on the benchmark's reference grid)."""
     table = read_table(TABLES / "grind-1.h5")
-    pre, fine = PRESETS["default"], PRESETS["fine"]
+    pre = PRESETS["default"]
+    fine = replace(pre, pixel_along_m=TRUTH_GRID[0], pixels_across=TRUTH_GRID[1])
     rows = []
     for name in ("ski-a", "ski-b"):
         rec = read_ski(TABLES / "skis" / f"{name}.h5")
@@ -250,9 +282,10 @@ def _calibration() -> tuple[np.ndarray, np.ndarray, list[str]]:
     return err, width, [r["q"] for r in rows]
 
 
+@pytest.mark.slow
 def test_band_covers_held_out_cases_of_the_demo_skis():
     """≥ 85 % of the truths inside the band, ≥ 80 % per quantity (measured with the identified
-    beams as profile model: 100 % inside)."""
+    beams as profile model: 93.9 % inside, 89.6 % for the reciprocal separation)."""
     err, width, qs = _calibration()
     assert np.mean(err <= width) >= 0.85, np.mean(err <= width)
     for q in band.QUANTITIES:
@@ -261,13 +294,10 @@ def test_band_covers_held_out_cases_of_the_demo_skis():
         assert np.mean(err[sel] <= width[sel]) >= 0.8, q
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the band is 3.0x the RMS actual error (target <= 2x): with the identified beams the "
-    "camber part fell to ~0.2 %, and the macro-grid part's floor (the accuracy benchmark's "
-    "90th percentile) now dominates; the per-answer grid estimate alone gives 1.9x but covers "
-    "only 81 % (issue #12)",
-)
+@pytest.mark.slow
 def test_band_is_not_uselessly_wide():
+    """Mean half-width ≤ 2× the RMS actual error (measured: 1.87×). The band's factors were
+    calibrated on other cases (scripts/band_calibration_study.py, set ``calib``: other loads,
+    moduli and ski designs), so this checks them on cases they were not fitted to."""
     err, width, _ = _calibration()
     assert width.mean() <= 2 * np.sqrt(np.mean(err**2))
