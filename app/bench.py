@@ -514,9 +514,13 @@ def _service_md(d: dict) -> list[str]:
     ]
 
 
-def bench_macro_stage(repeats: int = 7, inference_calls: int = 300) -> dict:
+def bench_macro_stage(
+    repeats: int = 7, inference_calls: int = 300, identification: bool = True
+) -> dict:
     """``skisnow bench macro``: one macro solve per demo ski at the default grid against the
-    fine reference (``app.commands.macro.bench_macro``), and the network inference time."""
+    fine reference (``app.commands.macro.bench_macro``), the bending ski, the network inference
+    time and (``identification``) the beam identification of both demo skis (about 1.5–2 min
+    each on 2 cores; the tests leave it out, tests/test_identify*.py cover it)."""
     from app.commands.macro import SKI_DIR, bench_macro
     from app.storage.skis import read_ski
     from solvers import camber
@@ -524,7 +528,8 @@ def bench_macro_stage(repeats: int = 7, inference_calls: int = 300) -> dict:
 
     out = {"skis": bench_macro(repeats=repeats), "inference": {}}
     out["flexible"] = bench_flexible(repeats=repeats)
-    out["identification"] = bench_identification()
+    if identification:
+        out["identification"] = bench_identification()
     for name in out["skis"]:
         net = read_ski(SKI_DIR / f"{name}.h5").network
         if net is None:

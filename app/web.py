@@ -443,9 +443,9 @@ def _preset_field(q: Query) -> str:
     return (
         '<label class="field" for="preset"><span>Accuracy preset</span>'
         f'<select id="preset" name="preset">{options}</select>'
-        '<span class="hint">the macro grid\'s share of the error band, measured against a '
-        "converged grid (90 % of cases): default 2.1 % in apparent area, fine 0.8 % at about "
-        "9× the time, fast 10.8 %; every answer shows its own band (docs/benchmarks.md)"
+        '<span class="hint">the macro grid\'s error against a converged grid (90th percentile '
+        "of the accuracy benchmark): default 2.1 % in apparent area, fine 0.8 % at about 9× "
+        "the time, fast 10.8 %; every answer shows its own band (docs/benchmarks.md)"
         "</span></label>"
     )
 

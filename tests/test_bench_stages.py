@@ -27,8 +27,9 @@ def test_bench_micro_structure_and_agreement():
 
 
 def test_bench_macro_stage_renders():
-    data = bench.bench_macro_stage(repeats=1, inference_calls=3)
+    data = bench.bench_macro_stage(repeats=1, inference_calls=3, identification=False)
     assert set(data["skis"]) == {"ski-a", "ski-b"}
+    assert "identification" not in data
     for r in data["skis"].values():
         assert r["default"]["converged"] and r["fine"]["converged"]
         assert abs(r["area_error"]) < 0.05
@@ -54,3 +55,23 @@ def test_benchmarks_md_renders_stages_and_skips_other_json(tmp_path):
     text = out.read_text()
     assert "## custom" in text and "on 2 cores" in text
     assert "notes" not in text
+
+
+def test_identification_table_renders_each_ski():
+    """The identification rows of ``skisnow bench macro`` (the stage is run without them above:
+    identifying both demo skis takes minutes; tests/test_identify*.py check the identification)."""
+    row = {
+        "time_s": 95.2,
+        "start_time_s": 20.1,
+        "forward_time_s": 75.1,
+        "misfit_um": 3.004,
+        "noise_um": 3.01,
+        "held_out_vs_measured_rms_um": 2.998,
+        "held_out_vs_design_beam_rms_um": 0.0964,
+    }
+    lines = bench._identification_md({"ski-a": row, "ski-b": row})
+    rows = [line for line in lines if line.startswith("| ski-")]
+    assert rows == [
+        f"| {s} | 95 (20 + 75) | 3.00 / 3.01 | 3.00 | 0.096 |" for s in ("ski-a", "ski-b")
+    ]
+    assert bench._identification_md({}) == []
