@@ -52,32 +52,14 @@ from app import band, service  # noqa: E402
 from app.presets import PRESETS  # noqa: E402
 from app.storage.skis import read_ski  # noqa: E402
 from app.storage.tables import read_table  # noqa: E402
-from solvers.beam import ClassicSkiDesign, solve_beam_contact  # noqa: E402
+from solvers.beam import OTHER_DESIGNS, solve_beam_contact  # noqa: E402
 from solvers.elastic import effective_modulus  # noqa: E402
 from solvers.macro import extrude_profile, solve_macro  # noqa: E402
 from solvers.multiscale import multiscale  # noqa: E402
 
 TABLES = REPO / "tables"
-#: the two designs of tests/test_identify.py (unlike the demo skis)
-DESIGNS = {
-    "stiff": ClassicSkiDesign(
-        camber_height_m=0.0025,
-        pocket_m=(-0.30, 0.35),
-        pocket_height_m=6e-4,
-        stiffness_nm2=2200.0,
-        end_stiffness_ratio=0.2,
-    ),
-    "soft": ClassicSkiDesign(
-        camber_height_m=0.0012,
-        tail_contact_m=-0.85,
-        tip_contact_m=0.75,
-        pocket_m=(-0.45, 0.50),
-        camber_peak_m=0.05,
-        pocket_height_m=4e-4,
-        stiffness_nm2=700.0,
-        end_stiffness_ratio=0.35,
-    ),
-}
+#: the two designs unlike the demo skis (also used by tests/test_identify.py)
+DESIGNS = OTHER_DESIGNS
 
 
 def _grid(pixel_along_m, pixels_across):

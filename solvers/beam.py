@@ -37,6 +37,7 @@ from .errors import InputError
 
 __all__ = [
     "G_STANDARD",
+    "OTHER_DESIGNS",
     "BeamFlexibility",
     "BeamResult",
     "BeamSki",
@@ -487,6 +488,29 @@ class ClassicSkiDesign:
         taper[front] = 0.5 * (1 + np.cos(np.pi * s_f))
         ratio = self.end_stiffness_ratio
         return self.stiffness_nm2 * (ratio + (1 - ratio) * taper)
+
+
+#: two designs unlike the demo skis (stable IDs for tests and studies): a short stiff pocket
+#: ('stiff') and a long soft pocket with a forward camber peak ('soft')
+OTHER_DESIGNS = {
+    "stiff": ClassicSkiDesign(
+        camber_height_m=0.0025,
+        pocket_m=(-0.30, 0.35),
+        pocket_height_m=6e-4,
+        stiffness_nm2=2200.0,
+        end_stiffness_ratio=0.2,
+    ),
+    "soft": ClassicSkiDesign(
+        camber_height_m=0.0012,
+        tail_contact_m=-0.85,
+        tip_contact_m=0.75,
+        pocket_m=(-0.45, 0.50),
+        camber_peak_m=0.05,
+        pocket_height_m=4e-4,
+        stiffness_nm2=700.0,
+        end_stiffness_ratio=0.35,
+    ),
+}
 
 
 def measure_camber(

@@ -7,32 +7,13 @@ import numpy as np
 import pytest
 
 from solvers import identify
-from solvers.beam import ClassicSkiDesign, measure_camber, solve_beam_contact
+from solvers.beam import OTHER_DESIGNS, measure_camber, solve_beam_contact
 from solvers.errors import InputError
 
 LOADS_N = np.linspace(10, 90, 7) * 9.82
 POSITIONS_M = np.linspace(-0.30, 0.10, 6)
 
-#: two designs unlike the demo skis: short stiff pocket, long soft pocket with a forward peak
-DESIGNS = {
-    "stiff": ClassicSkiDesign(
-        camber_height_m=0.0025,
-        pocket_m=(-0.30, 0.35),
-        pocket_height_m=6e-4,
-        stiffness_nm2=2200.0,
-        end_stiffness_ratio=0.2,
-    ),
-    "soft": ClassicSkiDesign(
-        camber_height_m=0.0012,
-        tail_contact_m=-0.85,
-        tip_contact_m=0.75,
-        pocket_m=(-0.45, 0.50),
-        camber_peak_m=0.05,
-        pocket_height_m=4e-4,
-        stiffness_nm2=700.0,
-        end_stiffness_ratio=0.35,
-    ),
-}
+DESIGNS = OTHER_DESIGNS
 
 
 def _data(design, spacing_m, noise_m, seed):
