@@ -945,17 +945,19 @@ def solve_macro(
     )
 
 
+@numba.njit(cache=True, error_model="numpy")
 def _edge(h1: float, h2: float, x1: float, x0: float) -> float:
     """Sub-pixel contact edge between the last contact pixel (centre x0) and the first free
     pixel beyond it (centre x1, clearance h1 [m]), with h2 the clearance of the next free pixel
     (centre 2 x1 − x0): zero crossing of H^{2/3}, linear in X, clipped to [x0, x1]."""
-    if not (np.isfinite(h1) and np.isfinite(h2)) or not h2 > h1 >= 0:
+    if not (np.isfinite(h1) and np.isfinite(h2)) or not (h2 > h1 and h1 >= 0):
         return 0.5 * (x0 + x1)
     a1, a2 = h1 ** (2.0 / 3.0), h2 ** (2.0 / 3.0)
     e = x1 + (x0 - x1) * a1 / (a2 - a1)
-    return float(min(max(e, min(x0, x1)), max(x0, x1)))
+    return min(max(e, min(x0, x1)), max(x0, x1))
 
 
+@numba.njit(cache=True, error_model="numpy")
 def _edge_lengths(
     contact: np.ndarray, clearance: np.ndarray, x: np.ndarray, a: int, b: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -967,6 +969,8 @@ def _edge_lengths(
     the last contact and the first free pixel centres. Pixel counting puts the edge midway,
     which is the fallback when the two clearances are not available (footprint end) and for
     runs of a single pixel (a contact narrower than a pixel cannot be located by two edges).
+    Compiled (numba): the runs are few, but a Python loop over them cost about half of
+    :func:`_finish` (0.7 ms per solve at the default grid); the arithmetic is the same.
 
     Returns
     -------
@@ -976,27 +980,32 @@ def _edge_lengths(
         Contact length per column, summed over its runs [m].
     """
     nx, ny = contact.shape
-    dx = float(x[1] - x[0])
+    dx = x[1] - x[0]
     rear = np.full(ny, np.nan)
     front = np.full(ny, np.nan)
     length = np.zeros(ny)
     for j in range(ny):
-        col = contact[a:b, j].astype(np.int8)
-        ed = np.flatnonzero(np.diff(np.concatenate([[0], col, [0]])))
-        for r0, r1 in zip(ed[::2] + a, ed[1::2] + a - 1, strict=True):
+        r = a
+        while r < b:
+            if not contact[r, j]:
+                r += 1
+                continue
+            r0 = r
+            while r + 1 < b and contact[r + 1, j]:
+                r += 1
+            r1 = r
+            r += 1
             if r1 == r0:  # one contact pixel cannot place two edges: count it
                 e_r, e_f = x[r0] - dx / 2, x[r0] + dx / 2
                 length[j] += dx
-                rear[j] = e_r if np.isnan(rear[j]) else min(rear[j], e_r)
-                front[j] = e_f if np.isnan(front[j]) else max(front[j], e_f)
-                continue
-            h1 = clearance[r0 - 1, j] if r0 >= 1 else np.nan
-            h2 = clearance[r0 - 2, j] if r0 >= 2 else np.nan
-            e_r = _edge(h1, h2, x[r0] - dx, x[r0])
-            h1 = clearance[r1 + 1, j] if r1 + 1 < nx else np.nan
-            h2 = clearance[r1 + 2, j] if r1 + 2 < nx else np.nan
-            e_f = _edge(h1, h2, x[r1] + dx, x[r1])
-            length[j] += e_f - e_r
+            else:
+                h1 = clearance[r0 - 1, j] if r0 >= 1 else np.nan
+                h2 = clearance[r0 - 2, j] if r0 >= 2 else np.nan
+                e_r = _edge(h1, h2, x[r0] - dx, x[r0])
+                h1 = clearance[r1 + 1, j] if r1 + 1 < nx else np.nan
+                h2 = clearance[r1 + 2, j] if r1 + 2 < nx else np.nan
+                e_f = _edge(h1, h2, x[r1] + dx, x[r1])
+                length[j] += e_f - e_r
             rear[j] = e_r if np.isnan(rear[j]) else min(rear[j], e_r)
             front[j] = e_f if np.isnan(front[j]) else max(front[j], e_f)
     return rear, front, length

@@ -260,3 +260,57 @@ def test_a_nearby_rigid_body_start_gives_the_same_answer():
         assert near.approach_m == pytest.approx(plain.approach_m, rel=1e-5, abs=1e-10)
     with pytest.raises(InputError):
         solve_macro(gm, load, xf, e, initial_rigid_body=(float("nan"), 0.0))
+
+
+def _edge_lengths_python(contact, clearance, x, a, b):
+    """The former pure-Python loop of solvers.macro._edge_lengths (the compiled one must give
+    the same numbers bit for bit)."""
+
+    def edge(h1, h2, x1, x0):
+        if not (np.isfinite(h1) and np.isfinite(h2)) or not h2 > h1 >= 0:
+            return 0.5 * (x0 + x1)
+        a1, a2 = h1 ** (2.0 / 3.0), h2 ** (2.0 / 3.0)
+        e = x1 + (x0 - x1) * a1 / (a2 - a1)
+        return float(min(max(e, min(x0, x1)), max(x0, x1)))
+
+    nx, ny = contact.shape
+    dx = float(x[1] - x[0])
+    rear, front, length = np.full(ny, np.nan), np.full(ny, np.nan), np.zeros(ny)
+    for j in range(ny):
+        col = contact[a:b, j].astype(np.int8)
+        ed = np.flatnonzero(np.diff(np.concatenate([[0], col, [0]])))
+        for r0, r1 in zip(ed[::2] + a, ed[1::2] + a - 1, strict=True):
+            if r1 == r0:
+                e_r, e_f = x[r0] - dx / 2, x[r0] + dx / 2
+                length[j] += dx
+            else:
+                h1 = clearance[r0 - 1, j] if r0 >= 1 else np.nan
+                h2 = clearance[r0 - 2, j] if r0 >= 2 else np.nan
+                e_r = edge(h1, h2, x[r0] - dx, x[r0])
+                h1 = clearance[r1 + 1, j] if r1 + 1 < nx else np.nan
+                h2 = clearance[r1 + 2, j] if r1 + 2 < nx else np.nan
+                e_f = edge(h1, h2, x[r1] + dx, x[r1])
+                length[j] += e_f - e_r
+            rear[j] = e_r if np.isnan(rear[j]) else min(rear[j], e_r)
+            front[j] = e_f if np.isnan(front[j]) else max(front[j], e_f)
+    return rear, front, length
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_compiled_edge_lengths_are_the_python_loop_bit_for_bit(seed):
+    from solvers.macro import _edge_lengths
+
+    rng = np.random.default_rng(seed)
+    nx, ny = 60, 1 + seed
+    x = -0.1 + 4e-3 * (np.arange(nx) + 0.5)
+    contact = rng.random((nx, ny)) < 0.3
+    contact[:2, 0] = True  # runs at the footprint ends and single pixels
+    contact[-1, -1] = True
+    clearance = np.where(contact, 0.0, rng.lognormal(-12, 1, (nx, ny)))
+    clearance[rng.random((nx, ny)) < 0.05] = np.nan  # outside the footprint
+    clearance[5, 0] = clearance[6, 0] = 1e-6  # h2 == h1: fallback to the midpoint
+    for a, b in ((0, nx), (3, 41), (10, 11)):
+        got = _edge_lengths(contact, clearance, x, a, b)
+        expected = _edge_lengths_python(contact, clearance, x, a, b)
+        for g, e in zip(got, expected, strict=True):
+            assert np.array_equal(g, e, equal_nan=True)
