@@ -306,7 +306,7 @@ def _sample(case: _Case, sigma_m: float | np.ndarray, samples: int, seed: int) -
     macro, ms, table, porosity, e_eff = case.macro, case.ms, case.table, case.porosity, case.e_eff
     dx, ny = coarse_grid(preset)
 
-    def solve(g, near=None):
+    def solve(g, near, near_pressure_pa):
         gm = extrude_profile(
             positions_m,
             g,
@@ -315,22 +315,29 @@ def _sample(case: _Case, sigma_m: float | np.ndarray, samples: int, seed: int) -
             pixel_along_m=dx,
             pixels_across=ny,
         )
+        if near_pressure_pa is None:  # the answer's line pressure on the coarse rows
+            line = np.interp(gm.positions_m, near.positions_m, np.nan_to_num(near.pressure_line_pa))
+            near_pressure_pa = np.where(np.isfinite(gm.gap_m), line[:, None], 0.0)
         m = solve_macro(
             gm,
             macro.load_n,
             macro.load_position_m,
             e_eff,
             tol=SAMPLE_TOL,
-            initial_pressure_pa=None if near is None else near.pressure_pa,
-            initial_rigid_body=None if near is None else (near.approach_m, near.tilt_rad),
-            window_gap_m=None if near is None else near.window_gap_m,
+            initial_pressure_pa=near_pressure_pa,
+            initial_rigid_body=(near.approach_m, near.tilt_rad),
+            window_gap_m=near.window_gap_m,
         )
         if not m.converged:
             return None
         return m, multiscale(m, table, porosity, e_eff)
 
+    # every coarse solve starts near its answer: the nominal one from the answer itself (its
+    # approach, tilt, window and line pressure; the window check still grows the window until
+    # it holds, so only the path changes: 8.6 -> 2.9 ms, and the quantities move within the
+    # solver tolerance SAMPLE_TOL), the perturbed ones from the coarse nominal
     try:
-        base = solve(gap_m)
+        base = solve(gap_m, macro, None)
     except SkisnowError:
         base = None
     if base is None:
@@ -352,7 +359,7 @@ def _sample(case: _Case, sigma_m: float | np.ndarray, samples: int, seed: int) -
         g = gap_m + d
         g = g - min(float(np.nanmin(g)), 0.0)  # a rigid approach absorbs a constant
         try:
-            r = solve(g, m0)
+            r = solve(g, m0, m0.pressure_pa)
         except SkisnowError:
             r = None
         if r is None:
