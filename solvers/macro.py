@@ -406,15 +406,23 @@ def line_convolution(pressure_pa: np.ndarray, coupling: np.ndarray, n: int) -> n
 
 @numba.njit(cache=True)
 def _couple_across(coupling: np.ndarray, ph: np.ndarray) -> np.ndarray:
-    """uh[f, j] = Σ_k coupling[f, j, k] ph[f, k] (dense across the width, per wavenumber)."""
+    """uh[f, j] = Σ_k coupling[f, j, k] ph[f, k] (dense across the width, per wavenumber).
+
+    The coupling is real, so the real and imaginary parts are summed apart: two products per
+    term instead of the four of a complex product whose imaginary factor is zero (the same
+    sums, up to the sign of an exact zero)."""
     nf, ny = ph.shape
     out = np.empty_like(ph)
     for f in range(nf):
         for j in range(ny):
-            s = 0j
+            sr = 0.0
+            si = 0.0
             for k in range(ny):
-                s += coupling[f, j, k] * ph[f, k]
-            out[f, j] = s
+                c = coupling[f, j, k]
+                v = ph[f, k]
+                sr += c * v.real
+                si += c * v.imag
+            out[f, j] = complex(sr, si)
     return out
 
 

@@ -314,3 +314,21 @@ def test_compiled_edge_lengths_are_the_python_loop_bit_for_bit(seed):
         expected = _edge_lengths_python(contact, clearance, x, a, b)
         for g, e in zip(got, expected, strict=True):
             assert np.array_equal(g, e, equal_nan=True)
+
+
+@pytest.mark.parametrize("ny", [2, 5, 8])
+def test_coupling_across_the_width_is_the_complex_product_sum(ny):
+    """The compiled coupling sums real and imaginary parts apart; the numbers are those of
+    the complex sum Σ_k K̂[f, j, k] · P̂[f, k] in k order, bit for bit."""
+    rng = np.random.default_rng(ny)
+    nf = 9
+    coupling = rng.normal(size=(nf, ny, ny))
+    ph = rng.normal(size=(nf, ny)) + 1j * rng.normal(size=(nf, ny))
+    expected = np.empty_like(ph)
+    for f in range(nf):
+        for j in range(ny):
+            s = 0j
+            for k in range(ny):
+                s += complex(coupling[f, j, k]) * complex(ph[f, k])
+            expected[f, j] = s
+    assert np.array_equal(_couple_across(coupling, ph), expected)
