@@ -50,7 +50,7 @@ from solvers.band import (
 from solvers.errors import SkisnowError
 from solvers.identify import estimate_noise
 from solvers.lookup import MicroTable
-from solvers.macro import extrude_profile, solve_macro
+from solvers.macro import ProfileExtruder, solve_macro
 from solvers.multiscale import multiscale
 
 __all__ = [
@@ -306,15 +306,16 @@ def _sample(case: _Case, sigma_m: float | np.ndarray, samples: int, seed: int) -
     macro, ms, table, porosity, e_eff = case.macro, case.ms, case.table, case.porosity, case.e_eff
     dx, ny = coarse_grid(preset)
 
+    extrude = ProfileExtruder(  # the coarse grid and footprint, set up once for all solves
+        positions_m,
+        outline.width_m,
+        width_positions_m=outline.positions_m,
+        pixel_along_m=dx,
+        pixels_across=ny,
+    )
+
     def solve(g, near, near_pressure_pa):
-        gm = extrude_profile(
-            positions_m,
-            g,
-            outline.width_m,
-            width_positions_m=outline.positions_m,
-            pixel_along_m=dx,
-            pixels_across=ny,
-        )
+        gm = extrude(g)
         if near_pressure_pa is None:  # the answer's line pressure on the coarse rows
             line = np.interp(gm.positions_m, near.positions_m, np.nan_to_num(near.pressure_line_pa))
             near_pressure_pa = np.where(np.isfinite(gm.gap_m), line[:, None], 0.0)

@@ -79,6 +79,7 @@ __all__ = [
     "ContactZone",
     "GapMap",
     "MacroResult",
+    "ProfileExtruder",
     "extrude_profile",
     "interpolate_sides",
     "solve_macro",
@@ -153,6 +154,79 @@ def _check_profile(positions_m: np.ndarray, gap_m: np.ndarray, name: str) -> tup
     return x, g
 
 
+class ProfileExtruder:
+    """Gap maps of many profiles on one grid: the grid, the width and the footprint are set up
+    once, each call interpolates one profile (the error band's perturbed solves extrude nine
+    profiles per answer). ``ProfileExtruder(...)(gap_m)`` is :func:`extrude_profile` and
+    ``.sides(left, right)`` is :func:`interpolate_sides`, with the same numbers.
+
+    Parameters
+    ----------
+    positions_m : ndarray (M,)
+        Sample positions X of the profiles [m], increasing.
+    width_m, pixel_along_m, pixels_across, width_positions_m :
+        As :func:`interpolate_sides`.
+    """
+
+    def __init__(
+        self,
+        positions_m: np.ndarray,
+        width_m: float | np.ndarray,
+        *,
+        pixel_along_m: float = DEFAULT_PIXEL_ALONG_M,
+        pixels_across: int = DEFAULT_PIXEL_ACROSS,
+        width_positions_m: np.ndarray | None = None,
+    ) -> None:
+        x = np.asarray(positions_m, dtype=float)
+        if x.ndim != 1 or x.size < 2:
+            raise InputError("positions_m must be 1-D of length >= 2")
+        if not np.all(np.isfinite(x)):
+            raise InputError("positions_m must be finite")
+        if np.any(np.diff(x) <= 0):
+            raise InputError("positions_m must be strictly increasing")
+        if not np.isfinite(pixel_along_m) or pixel_along_m <= 0:
+            raise InputError(f"pixel_along_m must be finite and > 0, got {pixel_along_m!r}")
+        if int(pixels_across) != pixels_across or pixels_across < 1:
+            raise InputError(f"pixels_across must be an integer >= 1, got {pixels_across!r}")
+        xc = _grid_along(x, pixel_along_m)
+        if width_positions_m is None:
+            w = np.full(xc.shape, float(np.asarray(width_m, dtype=float)))
+        else:
+            w = np.interp(xc, np.asarray(width_positions_m, float), np.asarray(width_m, float))
+        if not np.all(np.isfinite(w)) or np.any(w <= 0):
+            raise InputError(f"width_m must be finite and > 0, got {width_m!r}")
+        w_max = float(w.max())
+        dy = w_max / pixels_across
+        yc = -w_max / 2 + dy * (np.arange(pixels_across) + 0.5)
+        self.positions_m = x
+        self._xc = xc
+        self._pixel = (float(pixel_along_m), dy)
+        self._frac = yc[None, :] / w[:, None] + 0.5  # 0 at the left edge, 1 at the right edge
+        self._outside = np.abs(yc[None, :]) > w[:, None] / 2 + 1e-12
+
+    def _edge(self, gap_m: np.ndarray, name: str) -> np.ndarray:
+        g = np.asarray(gap_m, dtype=float)
+        if g.shape != self.positions_m.shape:
+            raise InputError(f"{name}: positions_m and gap_m must be 1-D of equal length >= 2")
+        if not np.all(np.isfinite(g)):
+            raise InputError(f"{name}: positions_m and gap_m must be finite")
+        return np.interp(self._xc, self.positions_m, np.maximum(g, 0.0))
+
+    def _map(self, hl: np.ndarray, hr: np.ndarray) -> GapMap:
+        h = hl[:, None] * (1 - self._frac) + hr[:, None] * self._frac
+        h[self._outside] = np.nan
+        return GapMap(h, self._xc, self._pixel)
+
+    def sides(self, left_gap_m: np.ndarray, right_gap_m: np.ndarray) -> GapMap:
+        """Gap map from left and right edge profiles [m], linear across the width."""
+        return self._map(self._edge(left_gap_m, "left"), self._edge(right_gap_m, "right"))
+
+    def __call__(self, gap_m: np.ndarray) -> GapMap:
+        """Gap map of one profile [m] held constant across the width."""
+        h = self._edge(gap_m, "left")
+        return self._map(h, h)
+
+
 def interpolate_sides(
     positions_m: np.ndarray,
     left_gap_m: np.ndarray,
@@ -188,26 +262,13 @@ def interpolate_sides(
     """
     x, gl = _check_profile(positions_m, left_gap_m, "left")
     _, gr = _check_profile(positions_m, right_gap_m, "right")
-    if not np.isfinite(pixel_along_m) or pixel_along_m <= 0:
-        raise InputError(f"pixel_along_m must be finite and > 0, got {pixel_along_m!r}")
-    if int(pixels_across) != pixels_across or pixels_across < 1:
-        raise InputError(f"pixels_across must be an integer >= 1, got {pixels_across!r}")
-    xc = _grid_along(x, pixel_along_m)
-    if width_positions_m is None:
-        w = np.full(xc.shape, float(np.asarray(width_m, dtype=float)))
-    else:
-        w = np.interp(xc, np.asarray(width_positions_m, float), np.asarray(width_m, float))
-    if not np.all(np.isfinite(w)) or np.any(w <= 0):
-        raise InputError(f"width_m must be finite and > 0, got {width_m!r}")
-    w_max = float(w.max())
-    dy = w_max / pixels_across
-    yc = -w_max / 2 + dy * (np.arange(pixels_across) + 0.5)
-    hl = np.interp(xc, x, np.maximum(gl, 0.0))
-    hr = np.interp(xc, x, np.maximum(gr, 0.0))
-    frac = yc[None, :] / w[:, None] + 0.5  # 0 at the left edge, 1 at the right edge
-    h = hl[:, None] * (1 - frac) + hr[:, None] * frac
-    h[np.abs(yc[None, :]) > w[:, None] / 2 + 1e-12] = np.nan
-    return GapMap(h, xc, (float(pixel_along_m), dy))
+    return ProfileExtruder(
+        x,
+        width_m,
+        pixel_along_m=pixel_along_m,
+        pixels_across=pixels_across,
+        width_positions_m=width_positions_m,
+    ).sides(gl, gr)
 
 
 def extrude_profile(

@@ -332,3 +332,32 @@ def test_coupling_across_the_width_is_the_complex_product_sum(ny):
                 s += complex(coupling[f, j, k]) * complex(ph[f, k])
             expected[f, j] = s
     assert np.array_equal(_couple_across(coupling, ph), expected)
+
+
+def test_profile_extruder_gives_the_maps_of_extrude_profile_and_interpolate_sides():
+    from solvers.macro import ProfileExtruder
+
+    rng = np.random.default_rng(11)
+    x = np.linspace(-0.9, 1.0, 401)
+    width_x, width = np.array([-0.9, 0.0, 1.0]), np.array([0.044, 0.047, 0.043])
+    ext = ProfileExtruder(x, width, width_positions_m=width_x, pixel_along_m=8e-3, pixels_across=5)
+    for _ in range(3):
+        g, g2 = rng.uniform(-1e-6, 1e-3, x.size), rng.uniform(0, 1e-3, x.size)
+        a = ext(g)
+        b = extrude_profile(
+            x, g, width, width_positions_m=width_x, pixel_along_m=8e-3, pixels_across=5
+        )
+        assert np.array_equal(a.gap_m, b.gap_m, equal_nan=True)
+        assert np.array_equal(a.positions_m, b.positions_m)
+        assert a.pixel_size_m == b.pixel_size_m
+        s = ext.sides(g, g2)
+        t = interpolate_sides(
+            x, g, g2, width, width_positions_m=width_x, pixel_along_m=8e-3, pixels_across=5
+        )
+        assert np.array_equal(s.gap_m, t.gap_m, equal_nan=True)
+    with pytest.raises(InputError, match="equal length"):
+        ext(np.zeros(x.size - 1))
+    with pytest.raises(InputError, match="finite"):
+        ext(np.full(x.size, np.nan))
+    with pytest.raises(InputError, match="increasing"):
+        ProfileExtruder(x[::-1], 0.044)
