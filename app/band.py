@@ -31,6 +31,7 @@ method itself (elastic half-spaces, no friction, no snow plasticity; docs/limits
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass
 
@@ -44,10 +45,10 @@ from solvers.band import (
     end_pixel_share,
     model_error_sigma,
     position_error_sigma,
-    profile_perturbations,
     table_interpolation_error,
+    unit_perturbations,
 )
-from solvers.errors import SkisnowError
+from solvers.errors import InputError, SkisnowError
 from solvers.identify import estimate_noise
 from solvers.lookup import MicroTable
 from solvers.macro import ProfileExtruder, solve_macro
@@ -352,7 +353,7 @@ def _sample(case: _Case, sigma_m: float | np.ndarray, samples: int, seed: int) -
     zs, lines = [], []
     failed = 0
     deltas = (
-        profile_perturbations(positions_m, sigma_m, PROFILE_CORRELATION_M, samples, seed)
+        _unit_fields(positions_m, samples, seed) * _nonnegative(sigma_m, positions_m)
         if np.any(np.asarray(sigma_m) > 0)
         else np.zeros((0, np.size(positions_m)))
     )
@@ -383,6 +384,36 @@ def _sample(case: _Case, sigma_m: float | np.ndarray, samples: int, seed: int) -
         )
         line = np.interp(macro.positions_m, m0.positions_m, half)
     return _Sampled(widths, zone_w, line, grid, zone_grid, failed)
+
+
+#: unit perturbation fields per profile grid (:func:`_unit_fields`); a ski's profile model
+#: answers on one grid, so a process holds a few entries (at most _UNIT_FIELDS_MAX)
+_UNIT_FIELDS: dict[tuple, np.ndarray] = {}
+_UNIT_FIELDS_MAX = 16
+
+
+def _unit_fields(positions_m: np.ndarray, samples: int, seed: int) -> np.ndarray:
+    """:func:`solvers.band.unit_perturbations` on ``positions_m`` (ℓ =
+    :data:`PROFILE_CORRELATION_M`), kept per grid: they depend on the grid, the count and the
+    seed only, and × σ they are :func:`solvers.band.profile_perturbations` exactly (~1 ms of
+    convolutions per answer saved)."""
+    x = np.ascontiguousarray(positions_m, dtype=float)
+    key = (x.size, hashlib.sha1(x.tobytes()).hexdigest(), PROFILE_CORRELATION_M, samples, seed)
+    hit = _UNIT_FIELDS.get(key)
+    if hit is None:
+        hit = unit_perturbations(x, PROFILE_CORRELATION_M, samples, seed)
+        hit.flags.writeable = False
+        if len(_UNIT_FIELDS) >= _UNIT_FIELDS_MAX:
+            _UNIT_FIELDS.clear()
+        _UNIT_FIELDS[key] = hit
+    return hit
+
+
+def _nonnegative(sigma_m, positions_m) -> np.ndarray:
+    sigma = np.broadcast_to(np.asarray(sigma_m, dtype=float), np.shape(positions_m))
+    if not np.all(sigma >= 0):
+        raise InputError("sigma_m must be ≥ 0")
+    return sigma
 
 
 _TABLE_ERRORS: dict[int, tuple[MicroTable, dict[str, np.ndarray]]] = {}
