@@ -94,6 +94,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 import scipy.linalg
 
@@ -153,18 +154,42 @@ def _row_coupling(
 
     ``kernel`` (nx, ny): displacement at row/column offsets under a unit pixel pressure;
     ``lag`` from :func:`prepare_flexible`; ``rows`` (m,) row indices; ``patterns`` (m, ny)
-    bool, the row's pixels. One kernel product per pair of distinct patterns (few: full rows,
-    rows narrowed by the sidecut, partial rows at zone edges), then a gather by row offset.
+    bool, the row's pixels. The pixel pairs of each pair of distinct patterns (few: full rows,
+    rows narrowed by the sidecut, partial rows at zone edges) are counted by their offset
+    across the width, then each pair of rows sums the kernel at its row offset against those
+    counts (compiled: ``ny`` products per pair of rows).
     """
     ny = patterns.shape[1]
     codes = patterns.astype(np.int64) @ (np.int64(1) << np.arange(ny, dtype=np.int64))
     ucodes, pid = np.unique(codes, return_inverse=True)
-    pid = pid.reshape(-1)
     chi = ((ucodes[:, None] >> np.arange(ny)) & 1).astype(float)  # (npat, ny) 0/1
     npat = chi.shape[0]
     outer = chi[:, None, :, None] * chi[None, :, None, :]  # (a, b, j, j')
-    t = kernel @ (outer.reshape(npat * npat, ny * ny) @ lag).T  # (row offset, a·npat + b)
-    return t[np.abs(rows[:, None] - rows[None, :]), pid[:, None] * npat + pid[None, :]]
+    pairs = (outer.reshape(npat * npat, ny * ny) @ lag).reshape(npat, npat, ny)
+    return _row_pairs(
+        np.ascontiguousarray(kernel, dtype=float),
+        np.asarray(rows, dtype=np.int64),
+        pid.reshape(-1).astype(np.int64),
+        pairs,
+    )
+
+
+@numba.njit(cache=True)
+def _row_pairs(kernel, rows, pid, pairs):
+    """``out[i, j] = Σ_l kernel[|rows_i − rows_j|, l] · pairs[pid_i, pid_j, l]`` (symmetric)."""
+    m = rows.size
+    ny = kernel.shape[1]
+    out = np.empty((m, m))
+    for i in range(m):
+        for j in range(i, m):
+            o = abs(rows[i] - rows[j])
+            a, b = pid[i], pid[j]
+            s = 0.0
+            for k in range(ny):
+                s += kernel[o, k] * pairs[a, b, k]
+            out[i, j] = s
+            out[j, i] = s
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -434,7 +459,7 @@ class _Preconditioner:
         counts = np.bincount(local, minlength=m).astype(float)
         ac += counts[:, None] * counts[None, :] * self.beam
         #: row of C (0 … m−1) of each pixel, for the beam term of A_CC
-        self.row_local = local
+        self.row_local = local = local.astype(np.int64)
         g = max(1, -(-m // _MAX_DENSE_PRECONDITIONER))
         if g > 1:  # many contact rows: levels per group of g consecutive contact rows
             ac, counts, local, m = _block_sum(ac, g), _block_sum(counts, g), local // g, -(-m // g)
@@ -451,9 +476,93 @@ class _Preconditioner:
         self.inv_counts = 1.0 / counts
 
     def __call__(self, v: np.ndarray) -> np.ndarray:
-        s = np.bincount(self.local, weights=v, minlength=self.m)
-        c = scipy.linalg.lapack.dpotrs(self.factor, s, lower=0)[0]
-        return (v - (s * self.inv_counts)[self.local]) / self.rho + c[self.local]
+        out = np.empty_like(v)
+        _precondition(v, self.local, self.factor, self.inv_counts, self.rho, out)
+        return out
+
+
+@numba.njit(cache=True)
+def _precondition(v, local, factor, inv_counts, rho, out):
+    """out = M v: row sums s of v, c = A_c⁻¹ s by the Cholesky factor U (upper, A_c = UᵀU,
+    two triangular solves), then ``(v − s/n)/ρ + c`` per pixel of its row (group)."""
+    m = factor.shape[0]
+    s = np.zeros(m)
+    for i in range(v.size):
+        s[local[i]] += v[i]
+    c = np.empty(m)
+    for i in range(m):  # Uᵀ y = s
+        acc = s[i]
+        for k in range(i):
+            acc -= factor[k, i] * c[k]
+        c[i] = acc / factor[i, i]
+    for i in range(m - 1, -1, -1):  # U c = y
+        acc = c[i]
+        for k in range(i + 1, m):
+            acc -= factor[i, k] * c[k]
+        c[i] = acc / factor[i, i]
+    for i in range(v.size):
+        g = local[i]
+        out[i] = (v[i] - s[g] * inv_counts[g]) / rho + c[g]
+
+
+@numba.njit(cache=True)
+def _project(v, q0, q1):
+    """v ← v − q (qᵀ v) in place, q = [q0, q1] orthonormal (removes the fit a + b xs)."""
+    a = 0.0
+    b = 0.0
+    for i in range(v.size):
+        a += q0[i] * v[i]
+        b += q1[i] * v[i]
+    for i in range(v.size):
+        v[i] -= a * q0[i] + b * q1[i]
+
+
+@numba.njit(cache=True)
+def _snow_plus_beam(snow, pos, v, local, beam, out):
+    """out = snow[pos] + (beam · row sums of v)[row]: A_CC v from the convolution's output."""
+    m = beam.shape[0]
+    s = np.zeros(m)
+    for i in range(v.size):
+        s[local[i]] += v[i]
+    w = np.zeros(m)
+    for i in range(m):
+        acc = 0.0
+        for k in range(m):
+            acc += beam[i, k] * s[k]
+        w[i] = acc
+    for i in range(v.size):
+        out[i] = snow[pos[i]] + w[local[i]]
+
+
+@numba.njit(cache=True)
+def _dot(a, b):
+    s = 0.0
+    for i in range(a.size):
+        s += a[i] * b[i]
+    return s
+
+
+@numba.njit(cache=True)
+def _cg_step(p, r, d, adc, z, q0, q1, local, factor, inv_counts, rho, rz):
+    """One projected preconditioned CG step after ``adc = A_CC d``, in place on p, r, z, d.
+
+    Returns (r·z new, |r| new); (nan, nan) when dᵀ A d ≤ 0 (nothing updated)."""
+    den = _dot(d, adc)
+    if not den > 0.0:
+        return np.nan, np.nan
+    alpha = rz / den
+    for i in range(p.size):
+        p[i] += alpha * d[i]
+    _project(adc, q0, q1)
+    for i in range(p.size):
+        r[i] -= alpha * adc[i]
+    _precondition(r, local, factor, inv_counts, rho, z)
+    _project(z, q0, q1)
+    rz_new = _dot(r, z)
+    beta = rz_new / rz
+    for i in range(p.size):
+        d[i] = z[i] + beta * d[i]
+    return rz_new, np.sqrt(_dot(r, r))
 
 
 def _cg_on_set(
@@ -472,62 +581,61 @@ def _cg_on_set(
     preconditioned residuals, so every iterate keeps both. Stops when the projected residual
     (the clearance on C with δ, θ fitted) has dropped by ``rel_tol``, or when its RMS is below
     ``tol / 4`` of the largest elastic displacement on C (the final test of :func:`_residual`
-    takes it over all pixels). Iterations touch only C's pixels; A P on all pixels is
-    evaluated once at the end.
+    takes it over all pixels). Iterations touch only C's pixels (the vector work of a step
+    compiled: :func:`_cg_step`); A P on all pixels is evaluated once at the end.
     """
     cidx = np.flatnonzero(contact)
     xc = pix.xs[cidx]
     if cidx.size < 2 or np.ptp(xc) <= 0:
         return None
-    q, _ = np.linalg.qr(np.stack([np.ones_like(xc), xc], axis=1))
-
-    def project(v: np.ndarray) -> np.ndarray:
-        return v - q @ (q.T @ v)
+    # orthonormal basis of span{1, xs} on C (Gram–Schmidt; xs is centred first)
+    q0 = np.full(cidx.size, 1.0 / np.sqrt(cidx.size))
+    q1 = xc - xc.mean()
+    q1 /= np.sqrt(q1 @ q1)
 
     precond = _Preconditioner(pix, cidx)
     local, b_c = precond.row_local, precond.beam
+    pl, factor, inv_counts, rho = precond.local, precond.factor, precond.inv_counts, precond.rho
     hs, box, pos = pix.window(cidx)  # the convolution over C's rows only
     flat = box.reshape(-1)
 
-    def apply_c(v: np.ndarray) -> np.ndarray:
+    def apply_c(v: np.ndarray, out: np.ndarray) -> np.ndarray:
         """A_CC v [m]: the box stays zero off C, so only C's pixels are written and read."""
         flat[pos] = v
-        snow = hs.displacement(box).reshape(-1)[pos]
-        return snow + (b_c @ np.bincount(local, weights=v, minlength=b_c.shape[0]))[local]
+        _snow_plus_beam(hs.displacement(box).reshape(-1), pos, v, local, b_c, out)
+        return out
 
     p = np.array(p_start[cidx], dtype=float) if p_start is not None else np.zeros(cidx.size)
-    m = np.array([[xc.size, xc.sum()], [xc.sum(), xc @ xc]])
-    ab = np.linalg.solve(m, [pix.total - p.sum(), -(p @ xc)])
-    p += ab[0] + ab[1] * xc
-    uc = apply_c(p)
+    # a + b xs that restores Σ P = total and Σ P xs = 0 (2 × 2 normal equations)
+    s0, s1, s2 = float(cidx.size), float(xc.sum()), float(xc @ xc)
+    r0_, r1_ = pix.total - p.sum(), -float(p @ xc)
+    det = s0 * s2 - s1 * s1
+    p += (s2 * r0_ - s1 * r1_) / det + (s0 * r1_ - s1 * r0_) / det * xc
+    uc = apply_c(p, np.empty(cidx.size))
     # the scale over C only: at most the largest displacement of _residual, so never looser
     abs_tol = 0.25 * tol * float(np.max(np.abs(uc + pix.u_load[cidx]))) * np.sqrt(cidx.size)
-    r = project(-(pix.h0[cidx] + uc))
+    r = -(pix.h0[cidx] + uc)
+    _project(r, q0, q1)
     r0 = float(np.sqrt(r @ r))
-    z = project(precond(r))
+    z = precond(r)
+    _project(z, q0, q1)
     d = z.copy()
     rz = float(r @ z)
+    adc = np.empty(cidx.size)
     its = 0
+    rn = r0
     while its < max_iterations:
-        rn = float(np.sqrt(r @ r))
         if rn <= rel_tol * r0 or rn <= abs_tol or not rz > 0:
             break
         its += 1
-        adc = apply_c(d)
-        den = float(d @ adc)
-        if not den > 0:
+        apply_c(d, adc)
+        rz, rn = _cg_step(p, r, d, adc, z, q0, q1, pl, factor, inv_counts, rho, rz)
+        if np.isnan(rn):
             break
-        alpha = rz / den
-        p += alpha * d
-        r -= alpha * project(adc)
-        z = project(precond(r))
-        rz_new = float(r @ z)
-        d = z + (rz_new / rz) * d
-        rz = rz_new
     full = np.zeros(pix.xs.size)
     full[cidx] = p
     u = pix.apply(full)  # all pixels, for the set update
-    return full.copy(), u, its
+    return full, u, its
 
 
 @dataclass
@@ -687,10 +795,12 @@ def _kkt_solve(a, n, mx, hsum, total):
         kkt[:k, :k] = a
         kkt[:k, k:] = -c.T
         kkt[k:, :k] = c
-        try:
-            return np.linalg.solve(kkt, np.concatenate([-hsum, [total, 0.0]]))
-        except np.linalg.LinAlgError:
-            return None
+        rhs = np.empty(k + 2)
+        rhs[:k] = -hsum
+        rhs[k:] = total, 0.0
+        # LAPACK's dgesv directly (numpy.linalg.solve's checks cost more than these solves)
+        x, info = scipy.linalg.lapack.dgesv(kkt, rhs)[2:]
+        return x if info == 0 and np.all(np.isfinite(x)) else None
 
     if k + 2 <= _MAX_DENSE:  # small: one LU of the KKT system is cheapest
         return lu()
@@ -710,38 +820,80 @@ def _kkt_solve(a, n, mx, hsum, total):
     return out
 
 
-def _row_pdas(columns, n, mx, hsum, total, act):
+def _row_pdas(op, n, mx, hsum, total, act):
     """Primal–dual active set on row levels s [Pa] (a uniform pressure on each row's pixels).
 
-    ``columns(idx)`` returns the columns idx of the Galerkin operator Eᵀ A E [m/Pa] (only
-    those of the current set are ever formed), n the pixels per row, mx = Σ (X − x_F) and
-    hsum = Σ h0 over each row's pixels [m], ``total`` = Σ P [Pa]; dense KKT solves (force
-    and moment balance; a set that loses one side of the load gets back its most penetrating
-    row there). Returns (s, contact rows, updates), or None if a KKT system is singular.
+    ``op = (snow, beam, e_eff, area, g)``: the Galerkin operator Eᵀ A E [m/Pa] is
+    ``snow / e_eff + area · beam`` summed over groups of g consecutive rows (only its block on
+    the current set and the response to the current levels are ever formed:
+    :func:`_group_block`, :func:`_group_response`); n the pixels per row (group), mx =
+    Σ (X − x_F) and hsum = Σ h0 over each row's pixels [m], ``total`` = Σ P [Pa]; dense KKT
+    solves (force and moment balance; a set that loses one side of the load gets back its most
+    penetrating row there). Returns (s, contact rows, updates), or None if a KKT system is
+    singular.
     """
+    snow, beam, e_eff, area, g = op
     seen = set()
     s_rows = np.zeros(n.size)
+    sides = [np.flatnonzero(mx < 0), np.flatnonzero(mx > 0)]
     for update in range(1, _MAX_ROW_UPDATES + 1):
         idx = np.flatnonzero(act)
         k = idx.size
-        cols = columns(idx)
-        sol = _kkt_solve(cols[idx], n[idx], mx[idx], hsum[idx], total)
+        sol = _kkt_solve(
+            _group_block(snow, beam, e_eff, area, g, idx), n[idx], mx[idx], hsum[idx], total
+        )
         if sol is None:
             return None
         s_rows = np.zeros(n.size)
         s_rows[idx] = sol[:k]
-        g = cols @ sol[:k] + hsum - n * sol[k] - mx * sol[k + 1]
-        new = np.where(act, s_rows > 0, g < 0)
-        for side in (mx < 0, mx > 0):  # keep a row on each side of the load (moment balance)
-            if not np.any(new & side):
-                cand = np.flatnonzero(side)
-                new[cand[np.argmin(g[cand])]] = True
+        gap = _group_response(snow, beam, e_eff, area, g, n.size, idx, sol[:k])
+        gap += hsum - n * sol[k] - mx * sol[k + 1]
+        new = np.where(act, s_rows > 0, gap < 0)
+        for cand in sides:  # keep a row on each side of the load (moment balance)
+            if cand.size and not new[cand].any():
+                new[cand[np.argmin(gap[cand])]] = True
         key = new.tobytes()
         if np.array_equal(new, act) or key in seen:
             return s_rows, act, update
         seen.add(key)
         act = new
     return s_rows, act, _MAX_ROW_UPDATES
+
+
+@numba.njit(cache=True)
+def _group_block(snow, beam, e_eff, area, g, idx):
+    """``A[idx][:, idx]`` of ``A = snow / e_eff + area · beam`` summed over groups of g rows."""
+    nr = snow.shape[0]
+    k = idx.size
+    out = np.zeros((k, k))
+    for a in range(k):
+        i0 = idx[a] * g
+        for b in range(k):
+            j0 = idx[b] * g
+            s = 0.0
+            for i in range(i0, min(i0 + g, nr)):
+                for j in range(j0, min(j0 + g, nr)):
+                    s += snow[i, j] / e_eff + area * beam[i, j]
+            out[a, b] = s
+    return out
+
+
+@numba.njit(cache=True)
+def _group_response(snow, beam, e_eff, area, g, ng, idx, s):
+    """``A[:, idx] @ s`` (ng,) of the grouped operator of :func:`_group_block`."""
+    nr = snow.shape[0]
+    out = np.zeros(ng)
+    for gi in range(ng):
+        acc = 0.0
+        for i in range(gi * g, min(gi * g + g, nr)):
+            for b in range(idx.size):
+                j0 = idx[b] * g
+                t = 0.0
+                for j in range(j0, min(j0 + g, nr)):
+                    t += snow[i, j] / e_eff + area * beam[i, j]
+                acc += t * s[b]
+        out[gi] = acc
+    return out
 
 
 def _row_start(pix: _Pixels, model: FlexibleModel) -> np.ndarray | None:
@@ -764,11 +916,8 @@ def _row_start(pix: _Pixels, model: FlexibleModel) -> np.ndarray | None:
     act = np.zeros(n_b.size, dtype=bool)
     for side in (x_b <= 0, x_b > 0):
         act[np.flatnonzero(side)[np.argmin(h_mean[side])]] = True
-
-    def block_columns(idx: np.ndarray) -> np.ndarray:
-        return model.block_snow_unit[:, idx] / pix.e_eff + pix.area * model.block_beam_nn[:, idx]
-
-    coarse = _row_pdas(block_columns, n_b, mx_b, h_b, pix.total, act)
+    block_op = (model.block_snow_unit, model.block_beam_nn, pix.e_eff, pix.area, 1)
+    coarse = _row_pdas(block_op, n_b, mx_b, h_b, pix.total, act)
     if coarse is None:
         return None
     act_rows = np.repeat(coarse[1], k)[: row_in.size]
@@ -777,19 +926,10 @@ def _row_start(pix: _Pixels, model: FlexibleModel) -> np.ndarray | None:
     g = max(1, -(-int(act_rows.sum()) // _MAX_DENSE))
     if g < k:
         nr = row_in.size
-
-        def group_columns(idx: np.ndarray) -> np.ndarray:
-            r = (idx[:, None] * g + np.arange(g)).reshape(-1)
-            r = r[r < nr]
-            c = model.row_snow_unit[:, r] / pix.e_eff + pix.area * model.row_beam_nn[:, r]
-            if g == 1:
-                return c
-            c = np.add.reduceat(c, np.flatnonzero(np.r_[True, np.diff(r // g) != 0]), axis=1)
-            return _block_sum(c, g, square=False)
-
         n_g, mx_g, h_g = (_block_sum(v, g) for v in (n, n * xr, n * h0))
         act_g = _block_sum(act_rows.astype(float), g) > 0
-        fine = _row_pdas(group_columns, n_g, mx_g, h_g, pix.total, act_g)
+        row_op = (model.row_snow_unit, model.row_beam_nn, pix.e_eff, pix.area, g)
+        fine = _row_pdas(row_op, n_g, mx_g, h_g, pix.total, act_g)
         if fine is None:
             return None
         s_rows = np.repeat(fine[0], g)[:nr]
