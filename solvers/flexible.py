@@ -147,38 +147,47 @@ def _rigid_basis(x: np.ndarray) -> np.ndarray:
     return q
 
 
-def _row_coupling(
-    kernel: np.ndarray, lag: np.ndarray, rows: np.ndarray, patterns: np.ndarray
-) -> np.ndarray:
+@numba.njit(cache=True)
+def _row_coupling(kernel: np.ndarray, rows: np.ndarray, patterns: np.ndarray) -> np.ndarray:
     """Galerkin snow coupling ``χ_iᵀ K(X_i − X_j) χ_j`` of rows with pixel patterns χ [m/Pa].
 
     ``kernel`` (nx, ny): displacement at row/column offsets under a unit pixel pressure;
-    ``lag`` from :func:`prepare_flexible`; ``rows`` (m,) row indices; ``patterns`` (m, ny)
-    bool, the row's pixels. The pixel pairs of each pair of distinct patterns (few: full rows,
-    rows narrowed by the sidecut, partial rows at zone edges) are counted by their offset
-    across the width, then each pair of rows sums the kernel at its row offset against those
-    counts (compiled: ``ny`` products per pair of rows).
+    ``rows`` (m,) row indices; ``patterns`` (m, ny) bool, the row's pixels. The pixel pairs of
+    each pair of distinct patterns (few: full rows, rows narrowed by the sidecut, partial rows
+    at zone edges) are counted by their offset |j − j'| across the width, then each pair of
+    rows sums the kernel at its row offset against those counts (``ny`` products per pair of
+    rows). Compiled.
     """
-    ny = patterns.shape[1]
-    codes = patterns.astype(np.int64) @ (np.int64(1) << np.arange(ny, dtype=np.int64))
-    ucodes, pid = np.unique(codes, return_inverse=True)
-    chi = ((ucodes[:, None] >> np.arange(ny)) & 1).astype(float)  # (npat, ny) 0/1
-    npat = chi.shape[0]
-    outer = chi[:, None, :, None] * chi[None, :, None, :]  # (a, b, j, j')
-    pairs = (outer.reshape(npat * npat, ny * ny) @ lag).reshape(npat, npat, ny)
-    return _row_pairs(
-        np.ascontiguousarray(kernel, dtype=float),
-        np.asarray(rows, dtype=np.int64),
-        pid.reshape(-1).astype(np.int64),
-        pairs,
-    )
-
-
-@numba.njit(cache=True)
-def _row_pairs(kernel, rows, pid, pairs):
-    """``out[i, j] = Σ_l kernel[|rows_i − rows_j|, l] · pairs[pid_i, pid_j, l]`` (symmetric)."""
-    m = rows.size
-    ny = kernel.shape[1]
+    m, ny = patterns.shape
+    # distinct patterns: pid[i] indexes uniq
+    uniq = np.empty((m, ny), dtype=np.bool_)
+    pid = np.empty(m, dtype=np.int64)
+    npat = 0
+    for i in range(m):
+        found = -1
+        for a in range(npat):
+            same = True
+            for j in range(ny):
+                if uniq[a, j] != patterns[i, j]:
+                    same = False
+                    break
+            if same:
+                found = a
+                break
+        if found < 0:
+            uniq[npat] = patterns[i]
+            found = npat
+            npat += 1
+        pid[i] = found
+    # pairs[a, b, l]: pixel pairs (j of a, j' of b) with |j − j'| = l
+    pairs = np.zeros((npat, npat, ny))
+    for a in range(npat):
+        for b in range(npat):
+            for j in range(ny):
+                if uniq[a, j]:
+                    for jj in range(ny):
+                        if uniq[b, jj]:
+                            pairs[a, b, abs(j - jj)] += 1.0
     out = np.empty((m, m))
     for i in range(m):
         for j in range(i, m):
@@ -190,6 +199,36 @@ def _row_pairs(kernel, rows, pid, pairs):
             out[i, j] = s
             out[j, i] = s
     return out
+
+
+@numba.njit(cache=True)
+def _set_rows(cidx, ny):
+    """Rows of a contact set: pixel indices ``cidx`` (sorted) on a grid ``ny`` wide →
+    (rows with contact, row (0 … m−1) of each pixel, each row's pixel pattern (m, ny) bool,
+    pixels per row)."""
+    m = 0
+    last = -1
+    for i in range(cidx.size):
+        r = cidx[i] // ny
+        if r != last:
+            m += 1
+            last = r
+    urows = np.empty(m, dtype=np.int64)
+    local = np.empty(cidx.size, dtype=np.int64)
+    pat = np.zeros((m, ny), dtype=np.bool_)
+    counts = np.zeros(m)
+    k = -1
+    last = -1
+    for i in range(cidx.size):
+        r = cidx[i] // ny
+        if r != last:
+            k += 1
+            urows[k] = r
+            last = r
+        local[i] = k
+        pat[k, cidx[i] - r * ny] = True
+        counts[k] += 1.0
+    return urows, local, pat, counts
 
 
 @dataclass(frozen=True, eq=False)
@@ -217,8 +256,6 @@ class FlexibleModel:
     snow_kernel_rows : ndarray (nx, ny)
         Love's influence at unit modulus, ``E' · u`` at row offset i and column offset j
         under a unit pressure on one pixel [m] (divide by E' [Pa] for [m/Pa]).
-    lag_map : ndarray (ny², ny)
-        0/1 map from a pixel pair (j, j') across the width to the offset |j − j'|.
     footprint_rows : ndarray (nr,)
         Indices of the pixel rows with footprint pixels.
     row_pixels : ndarray (nr,)
@@ -241,7 +278,6 @@ class FlexibleModel:
     row_flexibility: BeamFlexibility = field(repr=False)
     compliance_m_per_n: np.ndarray = field(repr=False)
     snow_kernel_rows: np.ndarray = field(repr=False)
-    lag_map: np.ndarray = field(repr=False)
     footprint_rows: np.ndarray = field(repr=False)
     row_pixels: np.ndarray = field(repr=False)
     row_snow_unit: np.ndarray = field(repr=False)
@@ -313,19 +349,16 @@ def prepare_flexible(
     kern = (2.0 / np.pi) * love_rectangle_influence(
         np.arange(nx)[:, None] * dx, np.arange(ny)[None, :] * dy, dx / 2, dy / 2
     )
-    j = np.arange(ny)
-    lag = np.zeros((ny * ny, ny))
-    lag[np.arange(ny * ny), np.abs(j[:, None] - j[None, :]).reshape(-1)] = 1.0
     inside = np.isfinite(unloaded.gap_m)
     row_in = np.flatnonzero(inside.any(axis=1))
     pat = inside[row_in]
-    row_snow = _row_coupling(kern, lag, row_in, pat)
+    row_snow = _row_coupling(kern, row_in, pat)
     n = pat.sum(axis=1).astype(float)
     row_nn = n[:, None] * n[None, :] * b[np.ix_(row_in, row_in)]
     kb = max(_ROW_BLOCK, -(-row_in.size // _MAX_DENSE))
     blocks = (_block_sum(row_snow, kb), _block_sum(row_nn, kb))
     return FlexibleModel(
-        ski, unloaded, row_beam, flex, b, kern, lag, row_in, n, row_snow, row_nn, *blocks, kb
+        ski, unloaded, row_beam, flex, b, kern, row_in, n, row_snow, row_nn, *blocks, kb
     )
 
 
@@ -390,10 +423,10 @@ class _Pixels:
         self.u_load = self.load_deflection[self.rows]
         self.kernel_rows = model.snow_kernel_rows / e_eff
         self.windows: dict[int, _WindowHalfSpace] = {}
+        self.fast_rows: dict[int, int] = {}
         self.e_eff = e_eff
         self.xr = x - xf
         self.h0_rows = model.row_beam.unloaded_gap_m + self.load_deflection
-        self.lag_map = model.lag_map
 
     def solve(self, contact, p_start, rel_tol, tol):
         """Zero clearance on C with balance (see :func:`_cg_on_set`)."""
@@ -403,9 +436,11 @@ class _Pixels:
         """Half-space operator, zeroed box and box positions of pixels ``cidx`` on the rows
         they span (padded to a fast FFT length; exact there: zero-padded, linear convolution).
         Operators are kept per window length for this solve."""
-        rows = self.rows[cidx]
-        i0 = int(rows[0])
-        n = macro._fast_rows(int(rows[-1]) - i0 + 1)
+        i0 = int(self.rows[cidx[0]])
+        span = int(self.rows[cidx[-1]]) - i0 + 1
+        n = self.fast_rows.get(span)
+        if n is None:
+            n = self.fast_rows[span] = macro._fast_rows(span)
         if n >= self.n_box:
             self.box[:] = 0.0
             return self.hs, self.box, self.idx[cidx]
@@ -431,6 +466,28 @@ class _Pixels:
     def apply(self, v: np.ndarray) -> np.ndarray:
         return self.snow(v) + self.beam(self.row_sum(v) * self.area)[self.rows]
 
+    def apply_set(
+        self, v: np.ndarray, vc: np.ndarray, local: np.ndarray, urows: np.ndarray
+    ) -> np.ndarray:
+        """``apply(v)`` for v zero off a set C: ``vc`` its values on C, ``local`` the row of C
+        (0 … m−1) of each, ``urows`` (m,) those rows (the beam term uses B's m columns only)."""
+        return self.snow(v) + _beam_columns(self.b, urows, local, vc, self.area)[self.rows]
+
+
+@numba.njit(cache=True)
+def _beam_columns(b, cols, local, v, area):
+    """``B[:, cols] f`` with the row forces ``f_k = area · Σ_{local = k} v`` [m]."""
+    f = np.zeros(cols.size)
+    for i in range(v.size):
+        f[local[i]] += v[i]
+    out = np.empty(b.shape[0])
+    for i in range(b.shape[0]):
+        s = 0.0
+        for k in range(cols.size):
+            s += b[i, cols[k]] * (area * f[k])
+        out[i] = s
+    return out
+
 
 class _Preconditioner:
     """Two-level ``M = E A_c⁻¹ Eᵀ + (I − E D⁻¹ Eᵀ)/ρ`` on a contact set C.
@@ -445,21 +502,19 @@ class _Preconditioner:
     """
 
     def __init__(self, pix: _Pixels, cidx: np.ndarray) -> None:
-        crow = pix.rows[cidx]
-        urows, local = np.unique(crow, return_inverse=True)
+        urows, local, pat, counts = _set_rows(pix.idx[cidx], pix.ny)
         m = urows.size
-        pat = np.zeros((m, pix.ny), dtype=bool)
-        pat[local, cidx - crow * pix.ny] = True
-        ac = _row_coupling(pix.kernel_rows, pix.lag_map, urows, pat)
+        ac = _row_coupling(pix.kernel_rows, urows, pat)
         #: ρ: the snow's mean displacement under a unit pressure on C [m/Pa]
         self.rho = float(ac.sum()) / cidx.size
         #: the beam on C's rows: deflection at row i per unit pressure on row j's pixels of C
         #: (dx dy B_ij) [m/Pa]
         self.beam = pix.area * pix.b[np.ix_(urows, urows)]
-        counts = np.bincount(local, minlength=m).astype(float)
         ac += counts[:, None] * counts[None, :] * self.beam
         #: row of C (0 … m−1) of each pixel, for the beam term of A_CC
-        self.row_local = local = local.astype(np.int64)
+        self.row_local = local
+        #: the rows of C (grid row indices)
+        self.rows = urows
         g = max(1, -(-m // _MAX_DENSE_PRECONDITIONER))
         if g > 1:  # many contact rows: levels per group of g consecutive contact rows
             ac, counts, local, m = _block_sum(ac, g), _block_sum(counts, g), local // g, -(-m // g)
@@ -634,7 +689,7 @@ def _cg_on_set(
             break
     full = np.zeros(pix.xs.size)
     full[cidx] = p
-    u = pix.apply(full)  # all pixels, for the set update
+    u = pix.apply_set(full, p, local, precond.rows)  # all pixels, for the set update
     return full, u, its
 
 
@@ -768,10 +823,10 @@ def _primal_dual(prob, p, contact, tol, budget):
 def _block_sum(v: np.ndarray, k: int, square: bool = True) -> np.ndarray:
     """Sums over consecutive blocks of k entries along the first axis, and along the second
     too if ``square`` (the last block padded with zeros)."""
+    if v.ndim == 1:
+        return v.copy() if k == 1 else np.add.reduceat(v, np.arange(0, v.size, k))
     nb = -(-v.shape[0] // k)
     pad = nb * k - v.shape[0]
-    if v.ndim == 1:
-        return np.pad(v, (0, pad)).reshape(nb, k).sum(axis=1)
     if not square:
         return np.pad(v, ((0, pad), (0, 0))).reshape(nb, k, -1).sum(axis=1)
     return np.pad(v, ((0, pad), (0, pad))).reshape(nb, k, nb, k).sum(axis=(1, 3))
@@ -831,12 +886,22 @@ def _row_pdas(op, n, mx, hsum, total, act):
     solves (force and moment balance; a set that loses one side of the load gets back its most
     penetrating row there). Returns (s, contact rows, updates), or None if a KKT system is
     singular.
+
+    The updates run compiled (:func:`_row_pdas_dense`, one LU of the KKT system each) while the
+    sets have at most ``_MAX_DENSE`` − 2 rows; a larger set continues here with
+    :func:`_kkt_solve`'s Cholesky route (soft snow).
     """
     snow, beam, e_eff, area, g = op
-    seen = set()
-    s_rows = np.zeros(n.size)
+    status, s_rows, act, first, hist = _row_pdas_dense(
+        snow, beam, e_eff, area, g, n, mx, hsum, total, act, _MAX_ROW_UPDATES, _MAX_DENSE
+    )
+    if status == 0:
+        return s_rows, act, first
+    if status == 1:
+        return None
+    seen = {h.tobytes() for h in hist}
     sides = [np.flatnonzero(mx < 0), np.flatnonzero(mx > 0)]
-    for update in range(1, _MAX_ROW_UPDATES + 1):
+    for update in range(first, _MAX_ROW_UPDATES + 1):
         idx = np.flatnonzero(act)
         k = idx.size
         sol = _kkt_solve(
@@ -861,20 +926,118 @@ def _row_pdas(op, n, mx, hsum, total, act):
 
 
 @numba.njit(cache=True)
+def _row_pdas_dense(snow, beam, e_eff, area, g, n, mx, hsum, total, act, max_updates, max_dense):
+    """The updates of :func:`_row_pdas` while its KKT systems have at most ``max_dense``
+    unknowns (one LU with partial pivoting each: :func:`_lu_solve`).
+
+    Returns (status, s, act, update, sets seen): status 0 done, 1 singular KKT system, 2 the
+    set of ``update`` is too large (continue from ``act``).
+    """
+    nn = n.size
+    hist = np.zeros((max_updates, nn), dtype=np.bool_)
+    nh = 0
+    s_rows = np.zeros(nn)
+    act = act.copy()
+    for update in range(1, max_updates + 1):
+        idx = np.flatnonzero(act)
+        k = idx.size
+        if k + 2 > max_dense:
+            return 2, s_rows, act, update, hist[:nh]
+        kkt = np.zeros((k + 2, k + 2))
+        kkt[:k, :k] = _group_block(snow, beam, e_eff, area, g, idx)
+        rhs = np.empty(k + 2)
+        for a in range(k):
+            i = idx[a]
+            kkt[a, k] = -n[i]
+            kkt[a, k + 1] = -mx[i]
+            kkt[k, a] = n[i]
+            kkt[k + 1, a] = mx[i]
+            rhs[a] = -hsum[i]
+        rhs[k] = total
+        rhs[k + 1] = 0.0
+        if not _lu_solve(kkt, rhs):
+            return 1, s_rows, act, update, hist[:nh]
+        s_rows = np.zeros(nn)
+        for a in range(k):
+            s_rows[idx[a]] = rhs[a]
+        gap = _group_response(snow, beam, e_eff, area, g, nn, idx, rhs[:k])
+        new = np.empty(nn, dtype=np.bool_)
+        for i in range(nn):
+            gap[i] += hsum[i] - n[i] * rhs[k] - mx[i] * rhs[k + 1]
+            new[i] = s_rows[i] > 0.0 if act[i] else gap[i] < 0.0
+        for side in (-1.0, 1.0):  # keep a row on each side of the load (moment balance)
+            best = -1
+            for i in range(nn):
+                if mx[i] * side > 0.0:
+                    if new[i]:
+                        best = -2
+                        break
+                    if best == -1 or gap[i] < gap[best]:
+                        best = i
+            if best >= 0:
+                new[best] = True
+        if np.array_equal(new, act):
+            return 0, s_rows, act, update, hist[:nh]
+        for h in range(nh):
+            if np.array_equal(hist[h], new):
+                return 0, s_rows, act, update, hist[:nh]
+        hist[nh] = new
+        nh += 1
+        act = new
+    return 0, s_rows, act, max_updates, hist[:nh]
+
+
+@numba.njit(cache=True)
+def _lu_solve(a, b):
+    """Solve a x = b in place (x in b, a overwritten): LU with partial pivoting, as LAPACK's
+    dgesv. False when a pivot is exactly zero or the solution is not finite (singular)."""
+    k = b.size
+    for c in range(k):
+        p = c
+        for i in range(c + 1, k):
+            if abs(a[i, c]) > abs(a[p, c]):
+                p = i
+        if a[p, c] == 0.0:
+            return False
+        if p != c:
+            for j in range(k):
+                a[c, j], a[p, j] = a[p, j], a[c, j]
+            b[c], b[p] = b[p], b[c]
+        inv = 1.0 / a[c, c]
+        for i in range(c + 1, k):
+            f = a[i, c] * inv
+            if f != 0.0:
+                for j in range(c + 1, k):
+                    a[i, j] -= f * a[c, j]
+                b[i] -= f * b[c]
+    for c in range(k - 1, -1, -1):
+        s = b[c]
+        for j in range(c + 1, k):
+            s -= a[c, j] * b[j]
+        b[c] = s / a[c, c]
+    for c in range(k):
+        if not np.isfinite(b[c]):
+            return False
+    return True
+
+
+@numba.njit(cache=True)
 def _group_block(snow, beam, e_eff, area, g, idx):
     """``A[idx][:, idx]`` of ``A = snow / e_eff + area · beam`` summed over groups of g rows."""
     nr = snow.shape[0]
     k = idx.size
-    out = np.zeros((k, k))
+    out = np.empty((k, k))
     for a in range(k):
         i0 = idx[a] * g
         for b in range(k):
             j0 = idx[b] * g
-            s = 0.0
+            ss = 0.0
+            sb = 0.0
             for i in range(i0, min(i0 + g, nr)):
                 for j in range(j0, min(j0 + g, nr)):
-                    s += snow[i, j] / e_eff + area * beam[i, j]
-            out[a, b] = s
+                    ss += snow[i, j]
+                    sb += beam[i, j]
+            out[a, b] = ss / e_eff + area * sb
     return out
 
 
@@ -882,17 +1045,22 @@ def _group_block(snow, beam, e_eff, area, g, idx):
 def _group_response(snow, beam, e_eff, area, g, ng, idx, s):
     """``A[:, idx] @ s`` (ng,) of the grouped operator of :func:`_group_block`."""
     nr = snow.shape[0]
+    cols = np.empty(idx.size * g, dtype=np.int64)  # the rows of the groups idx, and their level
+    lev = np.empty(idx.size * g)
+    nc = 0
+    for b in range(idx.size):
+        for j in range(idx[b] * g, min(idx[b] * g + g, nr)):
+            cols[nc] = j
+            lev[nc] = s[b]
+            nc += 1
     out = np.zeros(ng)
-    for gi in range(ng):
-        acc = 0.0
-        for i in range(gi * g, min(gi * g + g, nr)):
-            for b in range(idx.size):
-                j0 = idx[b] * g
-                t = 0.0
-                for j in range(j0, min(j0 + g, nr)):
-                    t += snow[i, j] / e_eff + area * beam[i, j]
-                acc += t * s[b]
-        out[gi] = acc
+    for i in range(nr):
+        ss = 0.0
+        sb = 0.0
+        for c in range(nc):
+            ss += snow[i, cols[c]] * lev[c]
+            sb += beam[i, cols[c]] * lev[c]
+        out[i // g] += ss / e_eff + area * sb
     return out
 
 
