@@ -129,6 +129,8 @@ _MAX_DENSE = 96
 _MAX_DENSE_PRECONDITIONER = 96
 #: primal-dual updates of each row-level problem
 _MAX_ROW_UPDATES = 60
+#: window lengths whose kernel transform a FlexibleModel keeps (~0.13 MB each at 256 × 8)
+_WINDOW_CACHE = 32
 
 
 def _equilibrated_flexibility(ski: BeamSki) -> tuple[BeamFlexibility, np.ndarray]:
@@ -270,6 +272,13 @@ class FlexibleModel:
         The same two summed over blocks of ``row_block`` footprint rows (the coarse start).
     row_block : int
         Footprint rows per coarse block: ``_ROW_BLOCK``, or more so that nb ≤ ``_MAX_DENSE``.
+    compliance_columns : ndarray (nx, nx)
+        ``Bᵀ``, contiguous: row j is B's column j (the beam deflection under a force on row j)
+        [m/N]; derived from ``compliance_m_per_n`` when not given.
+    window_couplings : dict
+        Kernel transforms of the convolution windows at unit modulus, per window length, filled
+        by the solves (a cache: at most ``_WINDOW_CACHE`` entries, each independent of load,
+        position and modulus).
     """
 
     ski: BeamSki = field(repr=False)
@@ -285,6 +294,14 @@ class FlexibleModel:
     block_snow_unit: np.ndarray = field(repr=False)
     block_beam_nn: np.ndarray = field(repr=False)
     row_block: int = 1
+    compliance_columns: np.ndarray = field(repr=False, default=None)
+    window_couplings: dict = field(repr=False, default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.compliance_columns is None:
+            object.__setattr__(
+                self, "compliance_columns", np.ascontiguousarray(self.compliance_m_per_n.T)
+            )
 
     @property
     def positions_m(self) -> np.ndarray:
@@ -373,23 +390,38 @@ def _load_split(rows_m: np.ndarray, load_position_m: float) -> tuple[int, float]
 class _WindowHalfSpace:
     """:class:`solvers.macro._LineOperator` on the first n rows, from a kernel table (internal).
 
-    ``kernel`` (≥ n, ny) [m/Pa]: displacement at row offset i, column offset j under a unit
-    pressure on one pixel; the same convention (real FFT of length 2n along X, the kernel even
-    in X, row n zero, dense coupling across the width per wavenumber).
+    ``coupling`` (n + 1, ny, ny) [m/Pa]: the kernel transform of :func:`_window_coupling`
+    (real FFT of length 2n along X, the kernel even in X, row n zero, dense coupling across
+    the width per wavenumber).
     """
 
-    def __init__(self, kernel: np.ndarray, n: int) -> None:
+    def __init__(self, coupling: np.ndarray, n: int) -> None:
+        self.n, self.ny, self.padded = n, coupling.shape[1], 2 * n
+        self.coupling = coupling
+
+    def displacement(self, pressure_pa: np.ndarray) -> np.ndarray:
+        return macro.line_convolution(pressure_pa, self.coupling, self.n)
+
+
+def _window_coupling(model: FlexibleModel, n: int) -> np.ndarray:
+    """Kernel transform (n + 1, ny, ny) of an n-row window at unit modulus [m] (divide by E'),
+    kept on the model (at most ``_WINDOW_CACHE`` window lengths; the oldest goes first)."""
+    cache = model.window_couplings
+    coupling = cache.get(n)
+    if coupling is None:
+        kernel = model.snow_kernel_rows
         ny = kernel.shape[1]
-        self.n, self.ny, self.padded = n, ny, 2 * n
-        kern = np.zeros((self.padded, ny))
+        kern = np.zeros((2 * n, ny))
         kern[:n] = kernel[:n]
         kern[n + 1 :] = kernel[n - 1 : 0 : -1]
         kh = scipy.fft.rfft(kern, axis=0).real
         j = np.arange(ny)
-        self.coupling = np.ascontiguousarray(kh[:, np.abs(j[:, None] - j[None, :])])
-
-    def displacement(self, pressure_pa: np.ndarray) -> np.ndarray:
-        return macro.line_convolution(pressure_pa, self.coupling, self.n)
+        coupling = np.ascontiguousarray(kh[:, np.abs(j[:, None] - j[None, :])])
+        coupling.flags.writeable = False
+        while len(cache) >= _WINDOW_CACHE:
+            cache.pop(next(iter(cache)), None)
+        cache[n] = coupling
+    return coupling
 
 
 class _Pixels:
@@ -409,7 +441,9 @@ class _Pixels:
         self.nx, self.ny, self.area = nx, ny, dx * dy
         self.n_box = macro._fast_rows(nx)
         self.hs = macro._halfspace((self.n_box, ny), dx, dy, e_eff)
+        self.model = model
         self.b = model.compliance_m_per_n
+        self.bt = model.compliance_columns
         i, t = _load_split(x, xf)
         #: beam deflection under the load alone, −F B e_F [m] (rows)
         self.load_deflection = -f * ((1.0 - t) * self.b[:, i] + t * self.b[:, i + 1])
@@ -446,7 +480,8 @@ class _Pixels:
             return self.hs, self.box, self.idx[cidx]
         hs = self.windows.get(n)
         if hs is None:
-            hs = self.windows[n] = _WindowHalfSpace(self.kernel_rows, n)
+            coupling = _window_coupling(self.model, n) / self.e_eff
+            hs = self.windows[n] = _WindowHalfSpace(coupling, n)
         box = np.zeros((n, self.ny))
         return hs, box, self.idx[cidx] - i0 * self.ny
 
@@ -471,21 +506,22 @@ class _Pixels:
     ) -> np.ndarray:
         """``apply(v)`` for v zero off a set C: ``vc`` its values on C, ``local`` the row of C
         (0 … m−1) of each, ``urows`` (m,) those rows (the beam term uses B's m columns only)."""
-        return self.snow(v) + _beam_columns(self.b, urows, local, vc, self.area)[self.rows]
+        return self.snow(v) + _beam_columns(self.bt, urows, local, vc, self.area)[self.rows]
 
 
 @numba.njit(cache=True)
-def _beam_columns(b, cols, local, v, area):
-    """``B[:, cols] f`` with the row forces ``f_k = area · Σ_{local = k} v`` [m]."""
+def _beam_columns(bt, cols, local, v, area):
+    """``B[:, cols] f`` from ``bt = Bᵀ`` (contiguous columns), with the row forces
+    ``f_k = area · Σ_{local = k} v`` [m]."""
     f = np.zeros(cols.size)
     for i in range(v.size):
         f[local[i]] += v[i]
-    out = np.empty(b.shape[0])
-    for i in range(b.shape[0]):
-        s = 0.0
-        for k in range(cols.size):
-            s += b[i, cols[k]] * (area * f[k])
-        out[i] = s
+    out = np.zeros(bt.shape[1])
+    for k in range(cols.size):
+        fk = area * f[k]
+        c = cols[k]
+        for i in range(bt.shape[1]):
+            out[i] += bt[c, i] * fk
     return out
 
 
@@ -755,11 +791,37 @@ class _Rows:
 
 def _clearance(prob, contact: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, float, float]:
     """H for every unknown with δ, θ fitted (least squares) on C; returns (H, δ, θ)."""
-    g = prob.h0 + u
-    xc, gc = prob.xs[contact], g[contact]
-    m = np.array([[xc.size, xc.sum()], [xc.sum(), xc @ xc]])
-    delta, theta = np.linalg.solve(m, [gc.sum(), xc @ gc])
-    return g - delta - theta * prob.xs, float(delta), float(theta)
+    h = np.empty(u.size)
+    delta, theta = _fit_clearance(prob.h0, u, prob.xs, contact, h)
+    return h, delta, theta
+
+
+@numba.njit(cache=True)
+def _fit_clearance(h0, u, xs, contact, h):
+    """h = h0 + u − δ − θ xs with (δ, θ) the least-squares fit of h0 + u on the contact set
+    (about the set's mean xs, so no cancellation); returns (δ, θ)."""
+    n = 0
+    sx = 0.0
+    sg = 0.0
+    for i in range(u.size):
+        if contact[i]:
+            n += 1
+            sx += xs[i]
+            sg += h0[i] + u[i]
+    xm = sx / n
+    gm = sg / n
+    sxx = 0.0
+    sxg = 0.0
+    for i in range(u.size):
+        if contact[i]:
+            d = xs[i] - xm
+            sxx += d * d
+            sxg += d * (h0[i] + u[i] - gm)
+    theta = sxg / sxx if sxx > 0.0 else 0.0
+    delta = gm - theta * xm
+    for i in range(u.size):
+        h[i] = h0[i] + u[i] - delta - theta * xs[i]
+    return delta, theta
 
 
 def _u_ref(prob, u: np.ndarray) -> float:
