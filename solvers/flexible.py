@@ -156,12 +156,30 @@ def _row_coupling(kernel: np.ndarray, rows: np.ndarray, patterns: np.ndarray) ->
     ``kernel`` (nx, ny): displacement at row/column offsets under a unit pixel pressure;
     ``rows`` (m,) row indices; ``patterns`` (m, ny) bool, the row's pixels. The pixel pairs of
     each pair of distinct patterns (few: full rows, rows narrowed by the sidecut, partial rows
-    at zone edges) are counted by their offset |j − j'| across the width, then each pair of
-    rows sums the kernel at its row offset against those counts (``ny`` products per pair of
-    rows). Compiled.
+    at zone edges) are counted by their offset |j − j'| across the width
+    (:func:`_pattern_pairs`), then each pair of rows sums the kernel at its row offset against
+    those counts (``ny`` products per pair of rows). Compiled.
     """
+    pid, pairs = _pattern_pairs(patterns)
     m, ny = patterns.shape
-    # distinct patterns: pid[i] indexes uniq
+    out = np.empty((m, m))
+    for i in range(m):
+        for j in range(i, m):
+            o = abs(rows[i] - rows[j])
+            a, b = pid[i], pid[j]
+            s = 0.0
+            for k in range(ny):
+                s += kernel[o, k] * pairs[a, b, k]
+            out[i, j] = s
+            out[j, i] = s
+    return out
+
+
+@numba.njit(cache=True)
+def _pattern_pairs(patterns):
+    """Distinct rows of ``patterns`` (m, ny) bool: (pattern id of each row, pixel pairs
+    ``pairs[a, b, l]`` of patterns a, b at offset l = |j − j'| across the width)."""
+    m, ny = patterns.shape
     uniq = np.empty((m, ny), dtype=np.bool_)
     pid = np.empty(m, dtype=np.int64)
     npat = 0
@@ -181,7 +199,6 @@ def _row_coupling(kernel: np.ndarray, rows: np.ndarray, patterns: np.ndarray) ->
             found = npat
             npat += 1
         pid[i] = found
-    # pairs[a, b, l]: pixel pairs (j of a, j' of b) with |j − j'| = l
     pairs = np.zeros((npat, npat, ny))
     for a in range(npat):
         for b in range(npat):
@@ -190,17 +207,46 @@ def _row_coupling(kernel: np.ndarray, rows: np.ndarray, patterns: np.ndarray) ->
                     for jj in range(ny):
                         if uniq[b, jj]:
                             pairs[a, b, abs(j - jj)] += 1.0
-    out = np.empty((m, m))
+    return pid, pairs
+
+
+@numba.njit(cache=True)
+def _set_operator(kernel, b, area, rows, patterns, counts, g):
+    """The row operators of a contact set (see :class:`_Preconditioner`).
+
+    Returns (beam (m, m) = ``area · B[rows][:, rows]`` [m/Pa]; the Galerkin row operator
+    ``χ_iᵀ K χ_j + counts_i counts_j beam_ij`` summed over groups of g consecutive rows,
+    symmetrised ((m/g), (m/g)) [m/Pa]; the sum of its snow part [m/Pa])."""
+    pid, pairs = _pattern_pairs(patterns)
+    m, ny = patterns.shape
+    mg = (m + g - 1) // g
+    beam = np.empty((m, m))
+    for i in range(m):
+        for j in range(m):
+            beam[i, j] = area * b[rows[i], rows[j]]
+    ac = np.zeros((mg, mg))
+    snow_sum = 0.0
     for i in range(m):
         for j in range(i, m):
             o = abs(rows[i] - rows[j])
-            a, b = pid[i], pid[j]
+            pa, pb = pid[i], pid[j]
             s = 0.0
             for k in range(ny):
-                s += kernel[o, k] * pairs[a, b, k]
-            out[i, j] = s
-            out[j, i] = s
-    return out
+                s += kernel[o, k] * pairs[pa, pb, k]
+            cc = counts[i] * counts[j]
+            gi, gj = i // g, j // g
+            if i == j:
+                snow_sum += s
+                ac[gi, gi] += s + cc * beam[i, i]
+            else:
+                snow_sum += 2.0 * s
+                v = 2.0 * s + cc * (beam[i, j] + beam[j, i])
+                if gi == gj:
+                    ac[gi, gi] += v
+                else:  # symmetrised: half of each ordered pair on either side
+                    ac[gi, gj] += 0.5 * v
+                    ac[gj, gi] += 0.5 * v
+    return beam, ac, snow_sum
 
 
 @numba.njit(cache=True)
@@ -540,21 +586,21 @@ class _Preconditioner:
     def __init__(self, pix: _Pixels, cidx: np.ndarray) -> None:
         urows, local, pat, counts = _set_rows(pix.idx[cidx], pix.ny)
         m = urows.size
-        ac = _row_coupling(pix.kernel_rows, urows, pat)
+        g = max(1, -(-m // _MAX_DENSE_PRECONDITIONER))
+        # beam: deflection at row i per unit pressure on row j's pixels of C (dx dy B_ij)
+        # [m/Pa]; ac: the Galerkin row operator, per group of g consecutive contact rows when
+        # there are many (soft snow)
+        self.beam, ac, snow_sum = _set_operator(
+            pix.kernel_rows, pix.b, pix.area, urows, pat, counts, g
+        )
         #: ρ: the snow's mean displacement under a unit pressure on C [m/Pa]
-        self.rho = float(ac.sum()) / cidx.size
-        #: the beam on C's rows: deflection at row i per unit pressure on row j's pixels of C
-        #: (dx dy B_ij) [m/Pa]
-        self.beam = pix.area * pix.b[np.ix_(urows, urows)]
-        ac += counts[:, None] * counts[None, :] * self.beam
+        self.rho = snow_sum / cidx.size
         #: row of C (0 … m−1) of each pixel, for the beam term of A_CC
         self.row_local = local
         #: the rows of C (grid row indices)
         self.rows = urows
-        g = max(1, -(-m // _MAX_DENSE_PRECONDITIONER))
-        if g > 1:  # many contact rows: levels per group of g consecutive contact rows
-            ac, counts, local, m = _block_sum(ac, g), _block_sum(counts, g), local // g, -(-m // g)
-        ac = 0.5 * (ac + ac.T)
+        if g > 1:
+            counts, local, m = _block_sum(counts, g), local // g, -(-m // g)
         self.factor, info = scipy.linalg.lapack.dpotrf(ac, lower=0)
         if info != 0:  # rounding on a near-singular beam: shift it slightly
             ac[np.diag_indices(m)] += 1e-12 * float(np.abs(ac.diagonal()).max())
