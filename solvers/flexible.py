@@ -161,18 +161,51 @@ def _row_coupling(kernel: np.ndarray, rows: np.ndarray, patterns: np.ndarray) ->
     those counts (``ny`` products per pair of rows). Compiled.
     """
     pid, pairs = _pattern_pairs(patterns)
-    m, ny = patterns.shape
+    table = _pair_table(kernel, rows, pairs)
+    m = rows.size
     out = np.empty((m, m))
     for i in range(m):
         for j in range(i, m):
-            o = abs(rows[i] - rows[j])
-            a, b = pid[i], pid[j]
-            s = 0.0
-            for k in range(ny):
-                s += kernel[o, k] * pairs[a, b, k]
+            s = _pair_sum(kernel, table, abs(rows[i] - rows[j]), pairs, pid[i], pid[j])
             out[i, j] = s
             out[j, i] = s
     return out
+
+
+@numba.njit(cache=True)
+def _pair_table(kernel, rows, pairs):
+    """``table[o, a, b] = Σ_l kernel[o, l] pairs[a, b, l]`` for the row offsets o the rows span,
+    when that is fewer sums than one per pair of rows (few patterns, many rows: soft snow);
+    else an empty table (sum per pair)."""
+    m = rows.size
+    npat, ny = pairs.shape[1], pairs.shape[2]
+    span = 0
+    for i in range(m):
+        span = max(span, abs(rows[i] - rows[0]))
+    for i in range(m):
+        span = max(span, abs(rows[i] - rows[m - 1]))
+    if (span + 1) * npat * npat >= m * (m + 1) // 2:
+        return np.empty((0, npat, npat))
+    table = np.empty((span + 1, npat, npat))
+    for o in range(span + 1):
+        for a in range(npat):
+            for b in range(npat):
+                s = 0.0
+                for k in range(ny):
+                    s += kernel[o, k] * pairs[a, b, k]
+                table[o, a, b] = s
+    return table
+
+
+@numba.njit(cache=True, inline="always")
+def _pair_sum(kernel, table, o, pairs, a, b):
+    """``Σ_l kernel[o, l] pairs[a, b, l]``, from ``table`` when it holds it (same sum)."""
+    if table.shape[0] > 0:
+        return table[o, a, b]
+    s = 0.0
+    for k in range(kernel.shape[1]):
+        s += kernel[o, k] * pairs[a, b, k]
+    return s
 
 
 @numba.njit(cache=True)
@@ -217,24 +250,22 @@ def _set_operator(kernel, b, area, rows, patterns, counts, g):
     Returns (beam (m, m) = ``area · B[rows][:, rows]`` [m/Pa]; the Galerkin row operator
     ``χ_iᵀ K χ_j + counts_i counts_j beam_ij`` summed over groups of g consecutive rows,
     symmetrised ((m/g), (m/g)) [m/Pa]; the sum of its snow part [m/Pa])."""
-    pid, pairs = _pattern_pairs(patterns)
-    m, ny = patterns.shape
+    snow = _row_coupling(kernel, rows, patterns)
+    m = rows.size
     mg = (m + g - 1) // g
     beam = np.empty((m, m))
     for i in range(m):
         for j in range(m):
             beam[i, j] = area * b[rows[i], rows[j]]
+    grp = np.arange(m) // g
     ac = np.zeros((mg, mg))
     snow_sum = 0.0
     for i in range(m):
+        gi = grp[i]
         for j in range(i, m):
-            o = abs(rows[i] - rows[j])
-            pa, pb = pid[i], pid[j]
-            s = 0.0
-            for k in range(ny):
-                s += kernel[o, k] * pairs[pa, pb, k]
+            s = snow[i, j]
             cc = counts[i] * counts[j]
-            gi, gj = i // g, j // g
+            gj = grp[j]
             if i == j:
                 snow_sum += s
                 ac[gi, gi] += s + cc * beam[i, i]
