@@ -45,8 +45,10 @@ the beam, so its penetration-driven contact updates swing over hundreds of pixel
    primal–dual active set below with dense KKT solves, first on blocks of ``_ROW_BLOCK`` rows
    from the lowest block on each side of the load, then on the rows (on groups of rows where
    the contact set holds more than ``_MAX_DENSE`` of them: soft snow). It places the contact
-   zones within a row or two of the pixel answer for a few hundred µs (measured on the demo
-   skis, 2–2000 MPa, 10–90 kg: 3–5 pixel sets instead of 4–13 from the rigid-shape start).
+   zones within a row or two of the pixel answer (measured on the demo skis, 2–2000 MPa,
+   10–90 kg: 3–5 pixel sets instead of 4–13 from the rigid-shape start) for 0.6–2.6 ms
+   (demo skis at 40 kg, 2–2000 MPa, medians on a loaded 2-core machine; the updates run
+   compiled, one LU with partial pivoting each, while the sets stay below ``_MAX_DENSE``).
    If a row-level KKT system is singular, the rigid-shape solve
    (:func:`solvers.macro.solve_macro`) of the device's loaded profile is the start. Dense
    solves stay below ~100 unknowns (``_MAX_DENSE``): multi-threaded LAPACK on a busy machine
@@ -68,13 +70,24 @@ the beam, so its penetration-driven contact updates swing over hundreds of pixel
    pixels (the convolution box is zero elsewhere; the beam acts on C's rows); A P on all
    pixels is formed once per set, for the set update.
 
-   Cost, measured on the demo skis at the papers' case (default grid, one BLAS thread,
-   medians on a loaded 2-core machine, same run): 4 sets and 27–29 CG iterations, 1.3–1.5 ×
-   the rigid solve in wall time, 1.5–1.65 × in CPU time (previously 9–11 sets and 70–107
-   iterations from the rigid-shape start, 4.6–5.6 ×). Over 2–2000 MPa and 10–90 kg: 3–6
-   sets, 17–47 iterations, 0.9–3 × the rigid solve (the most on the softest snow). The floor
-   is the convolutions: ~30 per solve (one per CG iteration plus one per set, on a window
-   over the contact rows) against the rigid solve's ~25.
+   Compiled (numba, ``cache=True``): the vector work of a CG step (update, projections,
+   the preconditioner's row sums and two triangular solves), A_CC's beam term, the set's row
+   operators (pixel pairs counted per pattern pair and offset across the width, then one
+   sum per pair of rows or, when fewer, per row offset and pattern pair), the clearance fit
+   and the row-level active set; the FFTs stay pocketfft (:func:`solvers.macro.line_convolution`).
+   Kept on the model: the kernel transforms of the convolution windows at unit modulus and
+   B's columns (``FlexibleModel.window_couplings``, ``compliance_columns``).
+
+   Cost, measured on the demo skis at the papers' case (default grid, medians of 15 solves
+   each, the median of the per-pair flexible/rigid ratios, rigid and flexible solves
+   alternated in one process, loaded 2-core machine, two runs): 4 sets and 27–29 CG
+   iterations, 0.99–1.15 × the rigid solve (1.8–2.5 × in the same runs before the compiled
+   kernels and caches; previously 9–11 sets and 70–107 iterations from the rigid-shape start,
+   4.6–5.6 ×). Over 2–2000 MPa, 10–90 kg, −300…+100 mm: 3–6 sets, 21–47 iterations,
+   0.67–1.15 × the rigid solve, except ski-a at 2 MPa (47 iterations, 6 sets over ~330
+   contact rows): 2.0–2.3 × (was 3.5–3.7 ×). The floor is the convolutions: ~30 per solve
+   (one per CG iteration plus one per set, on a window over the contact rows, and one over
+   the footprint per set) against the rigid solve's ~25.
 4. On stiff snow (E' ≳ 5 GPa, beyond real snow) the primal–dual sets can wander; after
    ``_MAX_PDAS_UPDATES`` the solve switches to a monotone Lawson–Hanson active set (the
    algorithm of :func:`solvers.beam.solve_beam_contact`: add the deepest penetration of each
@@ -607,8 +620,9 @@ class _Preconditioner:
 
     E spreads a level per contact row over that row's pixels of C (D = EᵀE: pixels per row);
     ``A_c = Eᵀ A E`` is the exact Galerkin row operator: the snow's row-to-row coupling
-    ``χ_iᵀ K(X_i − X_j) χ_j`` (χ_i the row's pixels in C, grouped by pattern, so one kernel
-    product per pattern pair) plus the beam ``dx dy n_i n_j B_ij``; one dense Cholesky per
+    ``χ_iᵀ K(X_i − X_j) χ_j`` (χ_i the row's pixels in C by their grid column;
+    :func:`_row_coupling`) plus the beam ``dx dy n_i n_j B_ij``, formed in one compiled pass
+    (:func:`_set_operator`); one dense Cholesky per
     set (size: contact rows; beyond ``_MAX_DENSE_PRECONDITIONER`` rows, on soft snow, one
     level per group of consecutive contact rows). The within-row remainder is scaled by ρ, the
     snow's mean compliance on C. Vectors live on C only.
