@@ -104,6 +104,7 @@ Units: SI throughout (m, N, Pa, N·m²).
 
 from __future__ import annotations
 
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -144,6 +145,7 @@ _MAX_DENSE_PRECONDITIONER = 96
 _MAX_ROW_UPDATES = 60
 #: window lengths whose kernel transform a FlexibleModel keeps (~0.13 MB each at 256 × 8)
 _WINDOW_CACHE = 32
+_WINDOW_LOCK = threading.Lock()
 
 
 def _equilibrated_flexibility(ski: BeamSki) -> tuple[BeamFlexibility, np.ndarray]:
@@ -508,9 +510,10 @@ def _window_coupling(model: FlexibleModel, n: int) -> np.ndarray:
         j = np.arange(ny)
         coupling = np.ascontiguousarray(kh[:, np.abs(j[:, None] - j[None, :])])
         coupling.flags.writeable = False
-        while len(cache) >= _WINDOW_CACHE:
-            cache.pop(next(iter(cache)), None)
-        cache[n] = coupling
+        with _WINDOW_LOCK:  # solves of one model may run in several threads
+            while len(cache) >= _WINDOW_CACHE:
+                cache.pop(next(iter(cache)))
+            cache[n] = coupling
     return coupling
 
 
