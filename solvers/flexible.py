@@ -80,14 +80,14 @@ the beam, so its penetration-driven contact updates swing over hundreds of pixel
 
    Cost, measured on the demo skis at the papers' case (default grid, medians of 15 solves
    each, the median of the per-pair flexible/rigid ratios, rigid and flexible solves
-   alternated in one process, loaded 2-core machine, two runs): 4 sets and 27–29 CG
-   iterations, 0.99–1.15 × the rigid solve (1.8–2.5 × in the same runs before the compiled
-   kernels and caches; previously 9–11 sets and 70–107 iterations from the rigid-shape start,
-   4.6–5.6 ×). Over 2–2000 MPa, 10–90 kg, −300…+100 mm: 3–6 sets, 21–47 iterations,
-   0.67–1.15 × the rigid solve, except ski-a at 2 MPa (47 iterations, 6 sets over ~330
-   contact rows): 2.0–2.3 × (was 3.5–3.7 ×). The floor is the convolutions: ~30 per solve
-   (one per CG iteration plus one per set, on a window over the contact rows, and one over
-   the footprint per set) against the rigid solve's ~25.
+   alternated in one process, loaded 2-core machine, four runs; ``scripts/flexible_speed.py``):
+   4 sets and 27–29 CG iterations, 0.99–1.15 × the rigid solve (1.7–2.5 × in the same runs
+   before the compiled kernels and caches; previously 9–11 sets and 70–107 iterations from
+   the rigid-shape start, 4.6–5.6 ×). Over 2–2000 MPa, 10–90 kg, −300…+100 mm: 3–6 sets,
+   21–47 iterations, 0.6–1.15 × the rigid solve, except ski-a at 2 MPa (47 iterations, 6
+   sets over ~330 contact rows): 1.85–2.3 × (was 3.5–3.7 ×). The floor is the
+   convolutions: ~30 per solve (one per CG iteration plus one per set, on a window over the
+   contact rows, and one over the footprint per set) against the rigid solve's ~25.
 4. On stiff snow (E' ≳ 5 GPa, beyond real snow) the primal–dual sets can wander; after
    ``_MAX_PDAS_UPDATES`` the solve switches to a monotone Lawson–Hanson active set (the
    algorithm of :func:`solvers.beam.solve_beam_contact`: add the deepest penetration of each
