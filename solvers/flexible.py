@@ -45,8 +45,10 @@ the beam, so its penetration-driven contact updates swing over hundreds of pixel
    primal–dual active set below with dense KKT solves, first on blocks of ``_ROW_BLOCK`` rows
    from the lowest block on each side of the load, then on the rows (on groups of rows where
    the contact set holds more than ``_MAX_DENSE`` of them: soft snow). It places the contact
-   zones within a row or two of the pixel answer for a few hundred µs (measured on the demo
-   skis, 2–2000 MPa, 10–90 kg: 3–5 pixel sets instead of 4–13 from the rigid-shape start).
+   zones within a row or two of the pixel answer (measured on the demo skis, 2–2000 MPa,
+   10–90 kg: 3–5 pixel sets instead of 4–13 from the rigid-shape start) for 0.6–2.6 ms
+   (demo skis at 40 kg, 2–2000 MPa, medians on a loaded 2-core machine; the updates run
+   compiled, one LU with partial pivoting each, while the sets stay below ``_MAX_DENSE``).
    If a row-level KKT system is singular, the rigid-shape solve
    (:func:`solvers.macro.solve_macro`) of the device's loaded profile is the start. Dense
    solves stay below ~100 unknowns (``_MAX_DENSE``): multi-threaded LAPACK on a busy machine
@@ -68,13 +70,24 @@ the beam, so its penetration-driven contact updates swing over hundreds of pixel
    pixels (the convolution box is zero elsewhere; the beam acts on C's rows); A P on all
    pixels is formed once per set, for the set update.
 
-   Cost, measured on the demo skis at the papers' case (default grid, one BLAS thread,
-   medians on a loaded 2-core machine, same run): 4 sets and 27–29 CG iterations, 1.3–1.5 ×
-   the rigid solve in wall time, 1.5–1.65 × in CPU time (previously 9–11 sets and 70–107
-   iterations from the rigid-shape start, 4.6–5.6 ×). Over 2–2000 MPa and 10–90 kg: 3–6
-   sets, 17–47 iterations, 0.9–3 × the rigid solve (the most on the softest snow). The floor
-   is the convolutions: ~30 per solve (one per CG iteration plus one per set, on a window
-   over the contact rows) against the rigid solve's ~25.
+   Compiled (numba, ``cache=True``): the vector work of a CG step (update, projections,
+   the preconditioner's row sums and two triangular solves), A_CC's beam term, the set's row
+   operators (pixel pairs counted per pattern pair and offset across the width, then one
+   sum per pair of rows or, when fewer, per row offset and pattern pair), the clearance fit
+   and the row-level active set; the FFTs stay pocketfft (:func:`solvers.macro.line_convolution`).
+   Kept on the model: the kernel transforms of the convolution windows at unit modulus and
+   B's columns (``FlexibleModel.window_couplings``, ``compliance_columns``).
+
+   Cost, measured on the demo skis at the papers' case (default grid, medians of 15 solves
+   each, the median of the per-pair flexible/rigid ratios, rigid and flexible solves
+   alternated in one process, loaded 2-core machine, four runs; ``scripts/flexible_speed.py``):
+   4 sets and 27–29 CG iterations, 0.99–1.15 × the rigid solve (1.7–2.5 × in the same runs
+   before the compiled kernels and caches; previously 9–11 sets and 70–107 iterations from
+   the rigid-shape start, 4.6–5.6 ×). Over 2–2000 MPa, 10–90 kg, −300…+100 mm: 3–6 sets,
+   21–47 iterations, 0.6–1.15 × the rigid solve, except ski-a at 2 MPa (47 iterations, 6
+   sets over ~330 contact rows): 1.85–2.3 × (was 3.5–3.7 ×). The floor is the
+   convolutions: ~30 per solve (one per CG iteration plus one per set, on a window over the
+   contact rows, and one over the footprint per set) against the rigid solve's ~25.
 4. On stiff snow (E' ≳ 5 GPa, beyond real snow) the primal–dual sets can wander; after
    ``_MAX_PDAS_UPDATES`` the solve switches to a monotone Lawson–Hanson active set (the
    algorithm of :func:`solvers.beam.solve_beam_contact`: add the deepest penetration of each
@@ -91,9 +104,11 @@ Units: SI throughout (m, N, Pa, N·m²).
 
 from __future__ import annotations
 
+import threading
 import time
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 import scipy.linalg
 
@@ -128,6 +143,9 @@ _MAX_DENSE = 96
 _MAX_DENSE_PRECONDITIONER = 96
 #: primal-dual updates of each row-level problem
 _MAX_ROW_UPDATES = 60
+#: window lengths whose kernel transform a FlexibleModel keeps (~0.13 MB each at 256 × 8)
+_WINDOW_CACHE = 32
+_WINDOW_LOCK = threading.Lock()
 
 
 def _equilibrated_flexibility(ski: BeamSki) -> tuple[BeamFlexibility, np.ndarray]:
@@ -146,25 +164,165 @@ def _rigid_basis(x: np.ndarray) -> np.ndarray:
     return q
 
 
-def _row_coupling(
-    kernel: np.ndarray, lag: np.ndarray, rows: np.ndarray, patterns: np.ndarray
-) -> np.ndarray:
+@numba.njit(cache=True)
+def _row_coupling(kernel: np.ndarray, rows: np.ndarray, patterns: np.ndarray) -> np.ndarray:
     """Galerkin snow coupling ``χ_iᵀ K(X_i − X_j) χ_j`` of rows with pixel patterns χ [m/Pa].
 
     ``kernel`` (nx, ny): displacement at row/column offsets under a unit pixel pressure;
-    ``lag`` from :func:`prepare_flexible`; ``rows`` (m,) row indices; ``patterns`` (m, ny)
-    bool, the row's pixels. One kernel product per pair of distinct patterns (few: full rows,
-    rows narrowed by the sidecut, partial rows at zone edges), then a gather by row offset.
+    ``rows`` (m,) row indices; ``patterns`` (m, ny) bool, the row's pixels. The pixel pairs of
+    each pair of distinct patterns (few: full rows, rows narrowed by the sidecut, partial rows
+    at zone edges) are counted by their offset |j − j'| across the width
+    (:func:`_pattern_pairs`), then each pair of rows sums the kernel at its row offset against
+    those counts (``ny`` products per pair of rows). Compiled.
     """
-    ny = patterns.shape[1]
-    codes = patterns.astype(np.int64) @ (np.int64(1) << np.arange(ny, dtype=np.int64))
-    ucodes, pid = np.unique(codes, return_inverse=True)
-    pid = pid.reshape(-1)
-    chi = ((ucodes[:, None] >> np.arange(ny)) & 1).astype(float)  # (npat, ny) 0/1
-    npat = chi.shape[0]
-    outer = chi[:, None, :, None] * chi[None, :, None, :]  # (a, b, j, j')
-    t = kernel @ (outer.reshape(npat * npat, ny * ny) @ lag).T  # (row offset, a·npat + b)
-    return t[np.abs(rows[:, None] - rows[None, :]), pid[:, None] * npat + pid[None, :]]
+    pid, pairs = _pattern_pairs(patterns)
+    table = _pair_table(kernel, rows, pairs)
+    m = rows.size
+    out = np.empty((m, m))
+    for i in range(m):
+        for j in range(i, m):
+            s = _pair_sum(kernel, table, abs(rows[i] - rows[j]), pairs, pid[i], pid[j])
+            out[i, j] = s
+            out[j, i] = s
+    return out
+
+
+@numba.njit(cache=True)
+def _pair_table(kernel, rows, pairs):
+    """``table[o, a, b] = Σ_l kernel[o, l] pairs[a, b, l]`` for the row offsets o the rows span,
+    when that is fewer sums than one per pair of rows (few patterns, many rows: soft snow);
+    else an empty table (sum per pair)."""
+    m = rows.size
+    npat, ny = pairs.shape[1], pairs.shape[2]
+    span = 0
+    for i in range(m):
+        span = max(span, abs(rows[i] - rows[0]))
+    for i in range(m):
+        span = max(span, abs(rows[i] - rows[m - 1]))
+    if (span + 1) * npat * npat >= m * (m + 1) // 2:
+        return np.empty((0, npat, npat))
+    table = np.empty((span + 1, npat, npat))
+    for o in range(span + 1):
+        for a in range(npat):
+            for b in range(npat):
+                s = 0.0
+                for k in range(ny):
+                    s += kernel[o, k] * pairs[a, b, k]
+                table[o, a, b] = s
+    return table
+
+
+@numba.njit(cache=True, inline="always")
+def _pair_sum(kernel, table, o, pairs, a, b):
+    """``Σ_l kernel[o, l] pairs[a, b, l]``, from ``table`` when it holds it (same sum)."""
+    if table.shape[0] > 0:
+        return table[o, a, b]
+    s = 0.0
+    for k in range(kernel.shape[1]):
+        s += kernel[o, k] * pairs[a, b, k]
+    return s
+
+
+@numba.njit(cache=True)
+def _pattern_pairs(patterns):
+    """Distinct rows of ``patterns`` (m, ny) bool: (pattern id of each row, pixel pairs
+    ``pairs[a, b, l]`` of patterns a, b at offset l = |j − j'| across the width)."""
+    m, ny = patterns.shape
+    uniq = np.empty((m, ny), dtype=np.bool_)
+    pid = np.empty(m, dtype=np.int64)
+    npat = 0
+    for i in range(m):
+        found = -1
+        for a in range(npat):
+            same = True
+            for j in range(ny):
+                if uniq[a, j] != patterns[i, j]:
+                    same = False
+                    break
+            if same:
+                found = a
+                break
+        if found < 0:
+            uniq[npat] = patterns[i]
+            found = npat
+            npat += 1
+        pid[i] = found
+    pairs = np.zeros((npat, npat, ny))
+    for a in range(npat):
+        for b in range(npat):
+            for j in range(ny):
+                if uniq[a, j]:
+                    for jj in range(ny):
+                        if uniq[b, jj]:
+                            pairs[a, b, abs(j - jj)] += 1.0
+    return pid, pairs
+
+
+@numba.njit(cache=True)
+def _set_operator(kernel, b, area, rows, patterns, counts, g):
+    """The row operators of a contact set (see :class:`_Preconditioner`).
+
+    Returns (beam (m, m) = ``area · B[rows][:, rows]`` [m/Pa]; the Galerkin row operator
+    ``χ_iᵀ K χ_j + counts_i counts_j beam_ij`` summed over groups of g consecutive rows,
+    symmetrised ((m/g), (m/g)) [m/Pa]; the sum of its snow part [m/Pa])."""
+    snow = _row_coupling(kernel, rows, patterns)
+    m = rows.size
+    mg = (m + g - 1) // g
+    beam = np.empty((m, m))
+    for i in range(m):
+        for j in range(m):
+            beam[i, j] = area * b[rows[i], rows[j]]
+    grp = np.arange(m) // g
+    ac = np.zeros((mg, mg))
+    snow_sum = 0.0
+    for i in range(m):
+        gi = grp[i]
+        for j in range(i, m):
+            s = snow[i, j]
+            cc = counts[i] * counts[j]
+            gj = grp[j]
+            if i == j:
+                snow_sum += s
+                ac[gi, gi] += s + cc * beam[i, i]
+            else:
+                snow_sum += 2.0 * s
+                v = 2.0 * s + cc * (beam[i, j] + beam[j, i])
+                if gi == gj:
+                    ac[gi, gi] += v
+                else:  # symmetrised: half of each ordered pair on either side
+                    ac[gi, gj] += 0.5 * v
+                    ac[gj, gi] += 0.5 * v
+    return beam, ac, snow_sum
+
+
+@numba.njit(cache=True)
+def _set_rows(cidx, ny):
+    """Rows of a contact set: pixel indices ``cidx`` (sorted) on a grid ``ny`` wide →
+    (rows with contact, row (0 … m−1) of each pixel, each row's pixel pattern (m, ny) bool,
+    pixels per row)."""
+    m = 0
+    last = -1
+    for i in range(cidx.size):
+        r = cidx[i] // ny
+        if r != last:
+            m += 1
+            last = r
+    urows = np.empty(m, dtype=np.int64)
+    local = np.empty(cidx.size, dtype=np.int64)
+    pat = np.zeros((m, ny), dtype=np.bool_)
+    counts = np.zeros(m)
+    k = -1
+    last = -1
+    for i in range(cidx.size):
+        r = cidx[i] // ny
+        if r != last:
+            k += 1
+            urows[k] = r
+            last = r
+        local[i] = k
+        pat[k, cidx[i] - r * ny] = True
+        counts[k] += 1.0
+    return urows, local, pat, counts
 
 
 @dataclass(frozen=True, eq=False)
@@ -192,8 +350,6 @@ class FlexibleModel:
     snow_kernel_rows : ndarray (nx, ny)
         Love's influence at unit modulus, ``E' · u`` at row offset i and column offset j
         under a unit pressure on one pixel [m] (divide by E' [Pa] for [m/Pa]).
-    lag_map : ndarray (ny², ny)
-        0/1 map from a pixel pair (j, j') across the width to the offset |j − j'|.
     footprint_rows : ndarray (nr,)
         Indices of the pixel rows with footprint pixels.
     row_pixels : ndarray (nr,)
@@ -208,6 +364,13 @@ class FlexibleModel:
         The same two summed over blocks of ``row_block`` footprint rows (the coarse start).
     row_block : int
         Footprint rows per coarse block: ``_ROW_BLOCK``, or more so that nb ≤ ``_MAX_DENSE``.
+    compliance_columns : ndarray (nx, nx)
+        ``Bᵀ``, contiguous: row j is B's column j (the beam deflection under a force on row j)
+        [m/N]; derived from ``compliance_m_per_n`` when not given.
+    window_couplings : dict
+        Kernel transforms of the convolution windows at unit modulus, per window length, filled
+        by the solves (a cache: at most ``_WINDOW_CACHE`` entries, each independent of load,
+        position and modulus).
     """
 
     ski: BeamSki = field(repr=False)
@@ -216,7 +379,6 @@ class FlexibleModel:
     row_flexibility: BeamFlexibility = field(repr=False)
     compliance_m_per_n: np.ndarray = field(repr=False)
     snow_kernel_rows: np.ndarray = field(repr=False)
-    lag_map: np.ndarray = field(repr=False)
     footprint_rows: np.ndarray = field(repr=False)
     row_pixels: np.ndarray = field(repr=False)
     row_snow_unit: np.ndarray = field(repr=False)
@@ -224,6 +386,14 @@ class FlexibleModel:
     block_snow_unit: np.ndarray = field(repr=False)
     block_beam_nn: np.ndarray = field(repr=False)
     row_block: int = 1
+    compliance_columns: np.ndarray = field(repr=False, default=None)
+    window_couplings: dict = field(repr=False, default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.compliance_columns is None:
+            object.__setattr__(
+                self, "compliance_columns", np.ascontiguousarray(self.compliance_m_per_n.T)
+            )
 
     @property
     def positions_m(self) -> np.ndarray:
@@ -288,19 +458,16 @@ def prepare_flexible(
     kern = (2.0 / np.pi) * love_rectangle_influence(
         np.arange(nx)[:, None] * dx, np.arange(ny)[None, :] * dy, dx / 2, dy / 2
     )
-    j = np.arange(ny)
-    lag = np.zeros((ny * ny, ny))
-    lag[np.arange(ny * ny), np.abs(j[:, None] - j[None, :]).reshape(-1)] = 1.0
     inside = np.isfinite(unloaded.gap_m)
     row_in = np.flatnonzero(inside.any(axis=1))
     pat = inside[row_in]
-    row_snow = _row_coupling(kern, lag, row_in, pat)
+    row_snow = _row_coupling(kern, row_in, pat)
     n = pat.sum(axis=1).astype(float)
     row_nn = n[:, None] * n[None, :] * b[np.ix_(row_in, row_in)]
     kb = max(_ROW_BLOCK, -(-row_in.size // _MAX_DENSE))
     blocks = (_block_sum(row_snow, kb), _block_sum(row_nn, kb))
     return FlexibleModel(
-        ski, unloaded, row_beam, flex, b, kern, lag, row_in, n, row_snow, row_nn, *blocks, kb
+        ski, unloaded, row_beam, flex, b, kern, row_in, n, row_snow, row_nn, *blocks, kb
     )
 
 
@@ -315,23 +482,39 @@ def _load_split(rows_m: np.ndarray, load_position_m: float) -> tuple[int, float]
 class _WindowHalfSpace:
     """:class:`solvers.macro._LineOperator` on the first n rows, from a kernel table (internal).
 
-    ``kernel`` (≥ n, ny) [m/Pa]: displacement at row offset i, column offset j under a unit
-    pressure on one pixel; the same convention (real FFT of length 2n along X, the kernel even
-    in X, row n zero, dense coupling across the width per wavenumber).
+    ``coupling`` (n + 1, ny, ny) [m/Pa]: the kernel transform of :func:`_window_coupling`
+    (real FFT of length 2n along X, the kernel even in X, row n zero, dense coupling across
+    the width per wavenumber).
     """
 
-    def __init__(self, kernel: np.ndarray, n: int) -> None:
+    def __init__(self, coupling: np.ndarray, n: int) -> None:
+        self.n, self.ny, self.padded = n, coupling.shape[1], 2 * n
+        self.coupling = coupling
+
+    def displacement(self, pressure_pa: np.ndarray) -> np.ndarray:
+        return macro.line_convolution(pressure_pa, self.coupling, self.n)
+
+
+def _window_coupling(model: FlexibleModel, n: int) -> np.ndarray:
+    """Kernel transform (n + 1, ny, ny) of an n-row window at unit modulus [m] (divide by E'),
+    kept on the model (at most ``_WINDOW_CACHE`` window lengths; the oldest goes first)."""
+    cache = model.window_couplings
+    coupling = cache.get(n)
+    if coupling is None:
+        kernel = model.snow_kernel_rows
         ny = kernel.shape[1]
-        self.n, self.ny, self.padded = n, ny, 2 * n
-        kern = np.zeros((self.padded, ny))
+        kern = np.zeros((2 * n, ny))
         kern[:n] = kernel[:n]
         kern[n + 1 :] = kernel[n - 1 : 0 : -1]
         kh = scipy.fft.rfft(kern, axis=0).real
         j = np.arange(ny)
-        self.coupling = np.ascontiguousarray(kh[:, np.abs(j[:, None] - j[None, :])])
-
-    def displacement(self, pressure_pa: np.ndarray) -> np.ndarray:
-        return macro.line_convolution(pressure_pa, self.coupling, self.n)
+        coupling = np.ascontiguousarray(kh[:, np.abs(j[:, None] - j[None, :])])
+        coupling.flags.writeable = False
+        with _WINDOW_LOCK:  # solves of one model may run in several threads
+            while len(cache) >= _WINDOW_CACHE:
+                cache.pop(next(iter(cache)))
+            cache[n] = coupling
+    return coupling
 
 
 class _Pixels:
@@ -351,7 +534,9 @@ class _Pixels:
         self.nx, self.ny, self.area = nx, ny, dx * dy
         self.n_box = macro._fast_rows(nx)
         self.hs = macro._halfspace((self.n_box, ny), dx, dy, e_eff)
+        self.model = model
         self.b = model.compliance_m_per_n
+        self.bt = model.compliance_columns
         i, t = _load_split(x, xf)
         #: beam deflection under the load alone, −F B e_F [m] (rows)
         self.load_deflection = -f * ((1.0 - t) * self.b[:, i] + t * self.b[:, i + 1])
@@ -365,10 +550,10 @@ class _Pixels:
         self.u_load = self.load_deflection[self.rows]
         self.kernel_rows = model.snow_kernel_rows / e_eff
         self.windows: dict[int, _WindowHalfSpace] = {}
+        self.fast_rows: dict[int, int] = {}
         self.e_eff = e_eff
         self.xr = x - xf
         self.h0_rows = model.row_beam.unloaded_gap_m + self.load_deflection
-        self.lag_map = model.lag_map
 
     def solve(self, contact, p_start, rel_tol, tol):
         """Zero clearance on C with balance (see :func:`_cg_on_set`)."""
@@ -378,15 +563,18 @@ class _Pixels:
         """Half-space operator, zeroed box and box positions of pixels ``cidx`` on the rows
         they span (padded to a fast FFT length; exact there: zero-padded, linear convolution).
         Operators are kept per window length for this solve."""
-        rows = self.rows[cidx]
-        i0 = int(rows[0])
-        n = macro._fast_rows(int(rows[-1]) - i0 + 1)
+        i0 = int(self.rows[cidx[0]])
+        span = int(self.rows[cidx[-1]]) - i0 + 1
+        n = self.fast_rows.get(span)
+        if n is None:
+            n = self.fast_rows[span] = macro._fast_rows(span)
         if n >= self.n_box:
             self.box[:] = 0.0
             return self.hs, self.box, self.idx[cidx]
         hs = self.windows.get(n)
         if hs is None:
-            hs = self.windows[n] = _WindowHalfSpace(self.kernel_rows, n)
+            coupling = _window_coupling(self.model, n) / self.e_eff
+            hs = self.windows[n] = _WindowHalfSpace(coupling, n)
         box = np.zeros((n, self.ny))
         return hs, box, self.idx[cidx] - i0 * self.ny
 
@@ -406,39 +594,61 @@ class _Pixels:
     def apply(self, v: np.ndarray) -> np.ndarray:
         return self.snow(v) + self.beam(self.row_sum(v) * self.area)[self.rows]
 
+    def apply_set(
+        self, v: np.ndarray, vc: np.ndarray, local: np.ndarray, urows: np.ndarray
+    ) -> np.ndarray:
+        """``apply(v)`` for v zero off a set C: ``vc`` its values on C, ``local`` the row of C
+        (0 … m−1) of each, ``urows`` (m,) those rows (the beam term uses B's m columns only)."""
+        return self.snow(v) + _beam_columns(self.bt, urows, local, vc, self.area)[self.rows]
+
+
+@numba.njit(cache=True)
+def _beam_columns(bt, cols, local, v, area):
+    """``B[:, cols] f`` from ``bt = Bᵀ`` (contiguous columns), with the row forces
+    ``f_k = area · Σ_{local = k} v`` [m]."""
+    f = np.zeros(cols.size)
+    for i in range(v.size):
+        f[local[i]] += v[i]
+    out = np.zeros(bt.shape[1])
+    for k in range(cols.size):
+        fk = area * f[k]
+        c = cols[k]
+        for i in range(bt.shape[1]):
+            out[i] += bt[c, i] * fk
+    return out
+
 
 class _Preconditioner:
     """Two-level ``M = E A_c⁻¹ Eᵀ + (I − E D⁻¹ Eᵀ)/ρ`` on a contact set C.
 
     E spreads a level per contact row over that row's pixels of C (D = EᵀE: pixels per row);
     ``A_c = Eᵀ A E`` is the exact Galerkin row operator: the snow's row-to-row coupling
-    ``χ_iᵀ K(X_i − X_j) χ_j`` (χ_i the row's pixels in C, grouped by pattern, so one kernel
-    product per pattern pair) plus the beam ``dx dy n_i n_j B_ij``; one dense Cholesky per
+    ``χ_iᵀ K(X_i − X_j) χ_j`` (χ_i the row's pixels in C by their grid column;
+    :func:`_row_coupling`) plus the beam ``dx dy n_i n_j B_ij``, formed in one compiled pass
+    (:func:`_set_operator`); one dense Cholesky per
     set (size: contact rows; beyond ``_MAX_DENSE_PRECONDITIONER`` rows, on soft snow, one
     level per group of consecutive contact rows). The within-row remainder is scaled by ρ, the
     snow's mean compliance on C. Vectors live on C only.
     """
 
     def __init__(self, pix: _Pixels, cidx: np.ndarray) -> None:
-        crow = pix.rows[cidx]
-        urows, local = np.unique(crow, return_inverse=True)
+        urows, local, pat, counts = _set_rows(pix.idx[cidx], pix.ny)
         m = urows.size
-        pat = np.zeros((m, pix.ny), dtype=bool)
-        pat[local, cidx - crow * pix.ny] = True
-        ac = _row_coupling(pix.kernel_rows, pix.lag_map, urows, pat)
+        g = max(1, -(-m // _MAX_DENSE_PRECONDITIONER))
+        # beam: deflection at row i per unit pressure on row j's pixels of C (dx dy B_ij)
+        # [m/Pa]; ac: the Galerkin row operator, per group of g consecutive contact rows when
+        # there are many (soft snow)
+        self.beam, ac, snow_sum = _set_operator(
+            pix.kernel_rows, pix.b, pix.area, urows, pat, counts, g
+        )
         #: ρ: the snow's mean displacement under a unit pressure on C [m/Pa]
-        self.rho = float(ac.sum()) / cidx.size
-        #: the beam on C's rows: deflection at row i per unit pressure on row j's pixels of C
-        #: (dx dy B_ij) [m/Pa]
-        self.beam = pix.area * pix.b[np.ix_(urows, urows)]
-        counts = np.bincount(local, minlength=m).astype(float)
-        ac += counts[:, None] * counts[None, :] * self.beam
+        self.rho = snow_sum / cidx.size
         #: row of C (0 … m−1) of each pixel, for the beam term of A_CC
         self.row_local = local
-        g = max(1, -(-m // _MAX_DENSE_PRECONDITIONER))
-        if g > 1:  # many contact rows: levels per group of g consecutive contact rows
-            ac, counts, local, m = _block_sum(ac, g), _block_sum(counts, g), local // g, -(-m // g)
-        ac = 0.5 * (ac + ac.T)
+        #: the rows of C (grid row indices)
+        self.rows = urows
+        if g > 1:
+            counts, local, m = _block_sum(counts, g), local // g, -(-m // g)
         self.factor, info = scipy.linalg.lapack.dpotrf(ac, lower=0)
         if info != 0:  # rounding on a near-singular beam: shift it slightly
             ac[np.diag_indices(m)] += 1e-12 * float(np.abs(ac.diagonal()).max())
@@ -451,9 +661,108 @@ class _Preconditioner:
         self.inv_counts = 1.0 / counts
 
     def __call__(self, v: np.ndarray) -> np.ndarray:
-        s = np.bincount(self.local, weights=v, minlength=self.m)
-        c = scipy.linalg.lapack.dpotrs(self.factor, s, lower=0)[0]
-        return (v - (s * self.inv_counts)[self.local]) / self.rho + c[self.local]
+        out = np.empty_like(v)
+        _precondition(v, self.local, self.factor, self.inv_counts, self.rho, out)
+        return out
+
+
+@numba.njit(cache=True)
+def _precondition(v, local, factor, inv_counts, rho, out):
+    """out = M v: row sums s of v, c = A_c⁻¹ s by the Cholesky factor U (upper, A_c = UᵀU,
+    two triangular solves), then ``(v − s/n)/ρ + c`` per pixel of its row (group)."""
+    m = factor.shape[0]
+    s = np.zeros(m)
+    for i in range(v.size):
+        s[local[i]] += v[i]
+    c = np.empty(m)
+    for i in range(m):  # Uᵀ y = s
+        acc = s[i]
+        for k in range(i):
+            acc -= factor[k, i] * c[k]
+        c[i] = acc / factor[i, i]
+    for i in range(m - 1, -1, -1):  # U c = y
+        acc = c[i]
+        for k in range(i + 1, m):
+            acc -= factor[i, k] * c[k]
+        c[i] = acc / factor[i, i]
+    for i in range(v.size):
+        g = local[i]
+        out[i] = (v[i] - s[g] * inv_counts[g]) / rho + c[g]
+
+
+@numba.njit(cache=True)
+def _project(v, q0, q1):
+    """v ← v − q (qᵀ v) in place, q = [q0, q1] orthonormal (removes the fit a + b xs)."""
+    a = 0.0
+    b = 0.0
+    for i in range(v.size):
+        a += q0[i] * v[i]
+        b += q1[i] * v[i]
+    for i in range(v.size):
+        v[i] -= a * q0[i] + b * q1[i]
+
+
+@numba.njit(cache=True)
+def _snow_plus_beam(snow, pos, v, local, beam, out):
+    """out = snow[pos] + (beam · row sums of v)[row]: A_CC v from the convolution's output."""
+    m = beam.shape[0]
+    s = np.zeros(m)
+    for i in range(v.size):
+        s[local[i]] += v[i]
+    w = _matvec(beam, s)
+    for i in range(v.size):
+        out[i] = snow[pos[i]] + w[local[i]]
+
+
+@numba.njit(cache=True)
+def _matvec(a, x):
+    """``a @ x`` with four running sums per row (one sum is bound by the latency of its
+    additions: measured 4 × slower at 336 rows); single-threaded, unlike BLAS."""
+    m, n = a.shape
+    out = np.empty(m)
+    n4 = n - n % 4
+    for i in range(m):
+        s0 = s1 = s2 = s3 = 0.0
+        for k in range(0, n4, 4):
+            s0 += a[i, k] * x[k]
+            s1 += a[i, k + 1] * x[k + 1]
+            s2 += a[i, k + 2] * x[k + 2]
+            s3 += a[i, k + 3] * x[k + 3]
+        for k in range(n4, n):
+            s0 += a[i, k] * x[k]
+        out[i] = (s0 + s1) + (s2 + s3)
+    return out
+
+
+@numba.njit(cache=True)
+def _dot(a, b):
+    s = 0.0
+    for i in range(a.size):
+        s += a[i] * b[i]
+    return s
+
+
+@numba.njit(cache=True)
+def _cg_step(p, r, d, adc, z, q0, q1, local, factor, inv_counts, rho, rz):
+    """One projected preconditioned CG step after ``adc = A_CC d``, in place on p, r, z, d.
+
+    Returns (r·z new, |r| new); (nan, nan) when dᵀ A d ≤ 0 (nothing updated)."""
+    den = _dot(d, adc)
+    if not den > 0.0:
+        return np.nan, np.nan
+    alpha = rz / den
+    for i in range(p.size):
+        p[i] += alpha * d[i]
+    _project(adc, q0, q1)
+    for i in range(p.size):
+        r[i] -= alpha * adc[i]
+    _precondition(r, local, factor, inv_counts, rho, z)
+    _project(z, q0, q1)
+    rz_new = _dot(r, z)
+    beta = rz_new / rz
+    for i in range(p.size):
+        d[i] = z[i] + beta * d[i]
+    return rz_new, np.sqrt(_dot(r, r))
 
 
 def _cg_on_set(
@@ -472,62 +781,61 @@ def _cg_on_set(
     preconditioned residuals, so every iterate keeps both. Stops when the projected residual
     (the clearance on C with δ, θ fitted) has dropped by ``rel_tol``, or when its RMS is below
     ``tol / 4`` of the largest elastic displacement on C (the final test of :func:`_residual`
-    takes it over all pixels). Iterations touch only C's pixels; A P on all pixels is
-    evaluated once at the end.
+    takes it over all pixels). Iterations touch only C's pixels (the vector work of a step
+    compiled: :func:`_cg_step`); A P on all pixels is evaluated once at the end.
     """
     cidx = np.flatnonzero(contact)
     xc = pix.xs[cidx]
     if cidx.size < 2 or np.ptp(xc) <= 0:
         return None
-    q, _ = np.linalg.qr(np.stack([np.ones_like(xc), xc], axis=1))
-
-    def project(v: np.ndarray) -> np.ndarray:
-        return v - q @ (q.T @ v)
+    # orthonormal basis of span{1, xs} on C (Gram–Schmidt; xs is centred first)
+    q0 = np.full(cidx.size, 1.0 / np.sqrt(cidx.size))
+    q1 = xc - xc.mean()
+    q1 /= np.sqrt(q1 @ q1)
 
     precond = _Preconditioner(pix, cidx)
     local, b_c = precond.row_local, precond.beam
+    pl, factor, inv_counts, rho = precond.local, precond.factor, precond.inv_counts, precond.rho
     hs, box, pos = pix.window(cidx)  # the convolution over C's rows only
     flat = box.reshape(-1)
 
-    def apply_c(v: np.ndarray) -> np.ndarray:
+    def apply_c(v: np.ndarray, out: np.ndarray) -> np.ndarray:
         """A_CC v [m]: the box stays zero off C, so only C's pixels are written and read."""
         flat[pos] = v
-        snow = hs.displacement(box).reshape(-1)[pos]
-        return snow + (b_c @ np.bincount(local, weights=v, minlength=b_c.shape[0]))[local]
+        _snow_plus_beam(hs.displacement(box).reshape(-1), pos, v, local, b_c, out)
+        return out
 
     p = np.array(p_start[cidx], dtype=float) if p_start is not None else np.zeros(cidx.size)
-    m = np.array([[xc.size, xc.sum()], [xc.sum(), xc @ xc]])
-    ab = np.linalg.solve(m, [pix.total - p.sum(), -(p @ xc)])
-    p += ab[0] + ab[1] * xc
-    uc = apply_c(p)
+    # a + b xs that restores Σ P = total and Σ P xs = 0 (2 × 2 normal equations)
+    s0, s1, s2 = float(cidx.size), float(xc.sum()), float(xc @ xc)
+    r0_, r1_ = pix.total - p.sum(), -float(p @ xc)
+    det = s0 * s2 - s1 * s1
+    p += (s2 * r0_ - s1 * r1_) / det + (s0 * r1_ - s1 * r0_) / det * xc
+    uc = apply_c(p, np.empty(cidx.size))
     # the scale over C only: at most the largest displacement of _residual, so never looser
     abs_tol = 0.25 * tol * float(np.max(np.abs(uc + pix.u_load[cidx]))) * np.sqrt(cidx.size)
-    r = project(-(pix.h0[cidx] + uc))
+    r = -(pix.h0[cidx] + uc)
+    _project(r, q0, q1)
     r0 = float(np.sqrt(r @ r))
-    z = project(precond(r))
+    z = precond(r)
+    _project(z, q0, q1)
     d = z.copy()
     rz = float(r @ z)
+    adc = np.empty(cidx.size)
     its = 0
+    rn = r0
     while its < max_iterations:
-        rn = float(np.sqrt(r @ r))
         if rn <= rel_tol * r0 or rn <= abs_tol or not rz > 0:
             break
         its += 1
-        adc = apply_c(d)
-        den = float(d @ adc)
-        if not den > 0:
+        apply_c(d, adc)
+        rz, rn = _cg_step(p, r, d, adc, z, q0, q1, pl, factor, inv_counts, rho, rz)
+        if np.isnan(rn):
             break
-        alpha = rz / den
-        p += alpha * d
-        r -= alpha * project(adc)
-        z = project(precond(r))
-        rz_new = float(r @ z)
-        d = z + (rz_new / rz) * d
-        rz = rz_new
     full = np.zeros(pix.xs.size)
     full[cidx] = p
-    u = pix.apply(full)  # all pixels, for the set update
-    return full.copy(), u, its
+    u = pix.apply_set(full, p, local, precond.rows)  # all pixels, for the set update
+    return full, u, its
 
 
 @dataclass
@@ -592,11 +900,37 @@ class _Rows:
 
 def _clearance(prob, contact: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, float, float]:
     """H for every unknown with δ, θ fitted (least squares) on C; returns (H, δ, θ)."""
-    g = prob.h0 + u
-    xc, gc = prob.xs[contact], g[contact]
-    m = np.array([[xc.size, xc.sum()], [xc.sum(), xc @ xc]])
-    delta, theta = np.linalg.solve(m, [gc.sum(), xc @ gc])
-    return g - delta - theta * prob.xs, float(delta), float(theta)
+    h = np.empty(u.size)
+    delta, theta = _fit_clearance(prob.h0, u, prob.xs, contact, h)
+    return h, delta, theta
+
+
+@numba.njit(cache=True)
+def _fit_clearance(h0, u, xs, contact, h):
+    """h = h0 + u − δ − θ xs with (δ, θ) the least-squares fit of h0 + u on the contact set
+    (about the set's mean xs, so no cancellation); returns (δ, θ)."""
+    n = 0
+    sx = 0.0
+    sg = 0.0
+    for i in range(u.size):
+        if contact[i]:
+            n += 1
+            sx += xs[i]
+            sg += h0[i] + u[i]
+    xm = sx / n
+    gm = sg / n
+    sxx = 0.0
+    sxg = 0.0
+    for i in range(u.size):
+        if contact[i]:
+            d = xs[i] - xm
+            sxx += d * d
+            sxg += d * (h0[i] + u[i] - gm)
+    theta = sxg / sxx if sxx > 0.0 else 0.0
+    delta = gm - theta * xm
+    for i in range(u.size):
+        h[i] = h0[i] + u[i] - delta - theta * xs[i]
+    return delta, theta
 
 
 def _u_ref(prob, u: np.ndarray) -> float:
@@ -660,10 +994,10 @@ def _primal_dual(prob, p, contact, tol, budget):
 def _block_sum(v: np.ndarray, k: int, square: bool = True) -> np.ndarray:
     """Sums over consecutive blocks of k entries along the first axis, and along the second
     too if ``square`` (the last block padded with zeros)."""
+    if v.ndim == 1:
+        return v.copy() if k == 1 else np.add.reduceat(v, np.arange(0, v.size, k))
     nb = -(-v.shape[0] // k)
     pad = nb * k - v.shape[0]
-    if v.ndim == 1:
-        return np.pad(v, (0, pad)).reshape(nb, k).sum(axis=1)
     if not square:
         return np.pad(v, ((0, pad), (0, 0))).reshape(nb, k, -1).sum(axis=1)
     return np.pad(v, ((0, pad), (0, pad))).reshape(nb, k, nb, k).sum(axis=(1, 3))
@@ -687,10 +1021,12 @@ def _kkt_solve(a, n, mx, hsum, total):
         kkt[:k, :k] = a
         kkt[:k, k:] = -c.T
         kkt[k:, :k] = c
-        try:
-            return np.linalg.solve(kkt, np.concatenate([-hsum, [total, 0.0]]))
-        except np.linalg.LinAlgError:
-            return None
+        rhs = np.empty(k + 2)
+        rhs[:k] = -hsum
+        rhs[k:] = total, 0.0
+        # LAPACK's dgesv directly (numpy.linalg.solve's checks cost more than these solves)
+        x, info = scipy.linalg.lapack.dgesv(kkt, rhs)[2:]
+        return x if info == 0 and np.all(np.isfinite(x)) else None
 
     if k + 2 <= _MAX_DENSE:  # small: one LU of the KKT system is cheapest
         return lu()
@@ -710,38 +1046,193 @@ def _kkt_solve(a, n, mx, hsum, total):
     return out
 
 
-def _row_pdas(columns, n, mx, hsum, total, act):
+def _row_pdas(op, n, mx, hsum, total, act):
     """Primal–dual active set on row levels s [Pa] (a uniform pressure on each row's pixels).
 
-    ``columns(idx)`` returns the columns idx of the Galerkin operator Eᵀ A E [m/Pa] (only
-    those of the current set are ever formed), n the pixels per row, mx = Σ (X − x_F) and
-    hsum = Σ h0 over each row's pixels [m], ``total`` = Σ P [Pa]; dense KKT solves (force
-    and moment balance; a set that loses one side of the load gets back its most penetrating
-    row there). Returns (s, contact rows, updates), or None if a KKT system is singular.
+    ``op = (snow, beam, e_eff, area, g)``: the Galerkin operator Eᵀ A E [m/Pa] is
+    ``snow / e_eff + area · beam`` summed over groups of g consecutive rows (only its block on
+    the current set and the response to the current levels are ever formed:
+    :func:`_group_block`, :func:`_group_response`); n the pixels per row (group), mx =
+    Σ (X − x_F) and hsum = Σ h0 over each row's pixels [m], ``total`` = Σ P [Pa]; dense KKT
+    solves (force and moment balance; a set that loses one side of the load gets back its most
+    penetrating row there). Returns (s, contact rows, updates), or None if a KKT system is
+    singular.
+
+    The updates run compiled (:func:`_row_pdas_dense`, one LU of the KKT system each) while the
+    sets have at most ``_MAX_DENSE`` − 2 rows; a larger set continues here with
+    :func:`_kkt_solve`'s Cholesky route (soft snow).
     """
-    seen = set()
-    s_rows = np.zeros(n.size)
-    for update in range(1, _MAX_ROW_UPDATES + 1):
+    snow, beam, e_eff, area, g = op
+    status, s_rows, act, first, hist = _row_pdas_dense(
+        snow, beam, e_eff, area, g, n, mx, hsum, total, act, _MAX_ROW_UPDATES, _MAX_DENSE
+    )
+    if status == 0:
+        return s_rows, act, first
+    if status == 1:
+        return None
+    seen = {h.tobytes() for h in hist}
+    sides = [np.flatnonzero(mx < 0), np.flatnonzero(mx > 0)]
+    for update in range(first, _MAX_ROW_UPDATES + 1):
         idx = np.flatnonzero(act)
         k = idx.size
-        cols = columns(idx)
-        sol = _kkt_solve(cols[idx], n[idx], mx[idx], hsum[idx], total)
+        sol = _kkt_solve(
+            _group_block(snow, beam, e_eff, area, g, idx), n[idx], mx[idx], hsum[idx], total
+        )
         if sol is None:
             return None
         s_rows = np.zeros(n.size)
         s_rows[idx] = sol[:k]
-        g = cols @ sol[:k] + hsum - n * sol[k] - mx * sol[k + 1]
-        new = np.where(act, s_rows > 0, g < 0)
-        for side in (mx < 0, mx > 0):  # keep a row on each side of the load (moment balance)
-            if not np.any(new & side):
-                cand = np.flatnonzero(side)
-                new[cand[np.argmin(g[cand])]] = True
+        gap = _group_response(snow, beam, e_eff, area, g, n.size, idx, sol[:k])
+        gap += hsum - n * sol[k] - mx * sol[k + 1]
+        new = np.where(act, s_rows > 0, gap < 0)
+        for cand in sides:  # keep a row on each side of the load (moment balance)
+            if cand.size and not new[cand].any():
+                new[cand[np.argmin(gap[cand])]] = True
         key = new.tobytes()
         if np.array_equal(new, act) or key in seen:
             return s_rows, act, update
         seen.add(key)
         act = new
     return s_rows, act, _MAX_ROW_UPDATES
+
+
+@numba.njit(cache=True)
+def _row_pdas_dense(snow, beam, e_eff, area, g, n, mx, hsum, total, act, max_updates, max_dense):
+    """The updates of :func:`_row_pdas` while its KKT systems have at most ``max_dense``
+    unknowns (one LU with partial pivoting each: :func:`_lu_solve`).
+
+    Returns (status, s, act, update, sets seen): status 0 done, 1 singular KKT system, 2 the
+    set of ``update`` is too large (continue from ``act``).
+    """
+    nn = n.size
+    hist = np.zeros((max_updates, nn), dtype=np.bool_)
+    nh = 0
+    s_rows = np.zeros(nn)
+    act = act.copy()
+    for update in range(1, max_updates + 1):
+        idx = np.flatnonzero(act)
+        k = idx.size
+        if k + 2 > max_dense:
+            return 2, s_rows, act, update, hist[:nh]
+        kkt = np.zeros((k + 2, k + 2))
+        kkt[:k, :k] = _group_block(snow, beam, e_eff, area, g, idx)
+        rhs = np.empty(k + 2)
+        for a in range(k):
+            i = idx[a]
+            kkt[a, k] = -n[i]
+            kkt[a, k + 1] = -mx[i]
+            kkt[k, a] = n[i]
+            kkt[k + 1, a] = mx[i]
+            rhs[a] = -hsum[i]
+        rhs[k] = total
+        rhs[k + 1] = 0.0
+        if not _lu_solve(kkt, rhs):
+            return 1, s_rows, act, update, hist[:nh]
+        s_rows = np.zeros(nn)
+        for a in range(k):
+            s_rows[idx[a]] = rhs[a]
+        gap = _group_response(snow, beam, e_eff, area, g, nn, idx, rhs[:k])
+        new = np.empty(nn, dtype=np.bool_)
+        for i in range(nn):
+            gap[i] += hsum[i] - n[i] * rhs[k] - mx[i] * rhs[k + 1]
+            new[i] = s_rows[i] > 0.0 if act[i] else gap[i] < 0.0
+        for side in (-1.0, 1.0):  # keep a row on each side of the load (moment balance)
+            best = -1
+            for i in range(nn):
+                if mx[i] * side > 0.0:
+                    if new[i]:
+                        best = -2
+                        break
+                    if best == -1 or gap[i] < gap[best]:
+                        best = i
+            if best >= 0:
+                new[best] = True
+        if np.array_equal(new, act):
+            return 0, s_rows, act, update, hist[:nh]
+        for h in range(nh):
+            if np.array_equal(hist[h], new):
+                return 0, s_rows, act, update, hist[:nh]
+        hist[nh] = new
+        nh += 1
+        act = new
+    return 0, s_rows, act, max_updates, hist[:nh]
+
+
+@numba.njit(cache=True)
+def _lu_solve(a, b):
+    """Solve a x = b in place (x in b, a overwritten): LU with partial pivoting, as LAPACK's
+    dgesv. False when a pivot is exactly zero or the solution is not finite (singular)."""
+    k = b.size
+    for c in range(k):
+        p = c
+        for i in range(c + 1, k):
+            if abs(a[i, c]) > abs(a[p, c]):
+                p = i
+        if a[p, c] == 0.0:
+            return False
+        if p != c:
+            for j in range(k):
+                a[c, j], a[p, j] = a[p, j], a[c, j]
+            b[c], b[p] = b[p], b[c]
+        inv = 1.0 / a[c, c]
+        for i in range(c + 1, k):
+            f = a[i, c] * inv
+            if f != 0.0:
+                for j in range(c + 1, k):
+                    a[i, j] -= f * a[c, j]
+                b[i] -= f * b[c]
+    for c in range(k - 1, -1, -1):
+        s = b[c]
+        for j in range(c + 1, k):
+            s -= a[c, j] * b[j]
+        b[c] = s / a[c, c]
+    for c in range(k):
+        if not np.isfinite(b[c]):
+            return False
+    return True
+
+
+@numba.njit(cache=True)
+def _group_block(snow, beam, e_eff, area, g, idx):
+    """``A[idx][:, idx]`` of ``A = snow / e_eff + area · beam`` summed over groups of g rows."""
+    nr = snow.shape[0]
+    k = idx.size
+    out = np.empty((k, k))
+    for a in range(k):
+        i0 = idx[a] * g
+        for b in range(k):
+            j0 = idx[b] * g
+            ss = 0.0
+            sb = 0.0
+            for i in range(i0, min(i0 + g, nr)):
+                for j in range(j0, min(j0 + g, nr)):
+                    ss += snow[i, j]
+                    sb += beam[i, j]
+            out[a, b] = ss / e_eff + area * sb
+    return out
+
+
+@numba.njit(cache=True)
+def _group_response(snow, beam, e_eff, area, g, ng, idx, s):
+    """``A[:, idx] @ s`` (ng,) of the grouped operator of :func:`_group_block`."""
+    nr = snow.shape[0]
+    cols = np.empty(idx.size * g, dtype=np.int64)  # the rows of the groups idx, and their level
+    lev = np.empty(idx.size * g)
+    nc = 0
+    for b in range(idx.size):
+        for j in range(idx[b] * g, min(idx[b] * g + g, nr)):
+            cols[nc] = j
+            lev[nc] = s[b]
+            nc += 1
+    out = np.zeros(ng)
+    for i in range(nr):
+        ss = 0.0
+        sb = 0.0
+        for c in range(nc):
+            ss += snow[i, cols[c]] * lev[c]
+            sb += beam[i, cols[c]] * lev[c]
+        out[i // g] += ss / e_eff + area * sb
+    return out
 
 
 def _row_start(pix: _Pixels, model: FlexibleModel) -> np.ndarray | None:
@@ -764,11 +1255,8 @@ def _row_start(pix: _Pixels, model: FlexibleModel) -> np.ndarray | None:
     act = np.zeros(n_b.size, dtype=bool)
     for side in (x_b <= 0, x_b > 0):
         act[np.flatnonzero(side)[np.argmin(h_mean[side])]] = True
-
-    def block_columns(idx: np.ndarray) -> np.ndarray:
-        return model.block_snow_unit[:, idx] / pix.e_eff + pix.area * model.block_beam_nn[:, idx]
-
-    coarse = _row_pdas(block_columns, n_b, mx_b, h_b, pix.total, act)
+    block_op = (model.block_snow_unit, model.block_beam_nn, pix.e_eff, pix.area, 1)
+    coarse = _row_pdas(block_op, n_b, mx_b, h_b, pix.total, act)
     if coarse is None:
         return None
     act_rows = np.repeat(coarse[1], k)[: row_in.size]
@@ -777,19 +1265,10 @@ def _row_start(pix: _Pixels, model: FlexibleModel) -> np.ndarray | None:
     g = max(1, -(-int(act_rows.sum()) // _MAX_DENSE))
     if g < k:
         nr = row_in.size
-
-        def group_columns(idx: np.ndarray) -> np.ndarray:
-            r = (idx[:, None] * g + np.arange(g)).reshape(-1)
-            r = r[r < nr]
-            c = model.row_snow_unit[:, r] / pix.e_eff + pix.area * model.row_beam_nn[:, r]
-            if g == 1:
-                return c
-            c = np.add.reduceat(c, np.flatnonzero(np.r_[True, np.diff(r // g) != 0]), axis=1)
-            return _block_sum(c, g, square=False)
-
         n_g, mx_g, h_g = (_block_sum(v, g) for v in (n, n * xr, n * h0))
         act_g = _block_sum(act_rows.astype(float), g) > 0
-        fine = _row_pdas(group_columns, n_g, mx_g, h_g, pix.total, act_g)
+        row_op = (model.row_snow_unit, model.row_beam_nn, pix.e_eff, pix.area, g)
+        fine = _row_pdas(row_op, n_g, mx_g, h_g, pix.total, act_g)
         if fine is None:
             return None
         s_rows = np.repeat(fine[0], g)[:nr]
