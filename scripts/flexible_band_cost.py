@@ -11,8 +11,10 @@ porosity 0.5, default preset; ``--modulus`` for other snow), one ``service.conta
     bending ski (:func:`app.band.beam_models` answering None);
 ``coarse``
     the coarse nominal solve only (the per-answer grid estimate, no beam draws);
-``draws4``, ``draws8``
-    the coarse nominal and 4 or 8 (the service's :data:`app.band.BEAM_SAMPLES`) plausible beams.
+``draws2``, ``draws4``, ``draws8``
+    the coarse nominal and 2, 4 or 8 plausible beams, their deviations × the factor given by
+    ``--draw-scale N=S`` (default :data:`app.band.BEAM_SCALE`; the factor changes how far the
+    perturbed solves start from their answer, so it changes their cost a little).
 
 Variants run round-robin, one call each per round, after one warm-up round (which also
 prepares and caches the beam models), so that a changing machine load hits them alike; the
@@ -20,7 +22,7 @@ medians over ``--repeats`` rounds [ms] are printed as JSON.
 
 Usage::
 
-    python scripts/flexible_band_cost.py --repeats 25
+    python scripts/flexible_band_cost.py --repeats 25 --draw-scale 4=8
 """
 
 from __future__ import annotations
@@ -39,17 +41,20 @@ sys.path.insert(0, str(REPO))
 
 from app import band, service  # noqa: E402
 
-VARIANTS = ("no_band", "before", "coarse", "draws4", "draws8")
+VARIANTS = ("no_band", "before", "coarse", "draws2", "draws4", "draws8")
 
 
-def run(cat, inp, variant: str) -> dict:
+def run(cat, inp, variant: str, scales: dict[int, float]) -> dict:
     original_band, original_models = service.answer_band, band.beam_models
     try:
         if variant == "before":
             band.beam_models = lambda *a, **k: None
-        elif variant in ("coarse", "draws4"):
+        elif variant == "coarse":
+            service.answer_band = functools.partial(band.answer_band, beam_samples=0)
+        elif variant.startswith("draws"):
+            n = int(variant[5:])
             service.answer_band = functools.partial(
-                band.answer_band, beam_samples=0 if variant == "coarse" else 4
+                band.answer_band, beam_samples=n, beam_scale=scales.get(n, band.BEAM_SCALE)
             )
         return service.contact(cat, inp, error_band=variant != "no_band")
     finally:
@@ -60,9 +65,17 @@ def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeats", type=int, default=25)
     ap.add_argument("--modulus", type=float, default=200.0, help="snow modulus [MPa]")
+    ap.add_argument(
+        "--draw-scale",
+        action="append",
+        default=[],
+        metavar="N=S",
+        help="deviation factor S of the variant with N draws (repeatable)",
+    )
     args = ap.parse_args(argv)
+    scales = {int(a.split("=")[0]): float(a.split("=")[1]) for a in args.draw_scale}
     cat = service.load_catalogue(REPO / "tables")
-    out: dict = {"repeats": args.repeats, "snow_modulus_mpa": args.modulus}
+    out: dict = {"repeats": args.repeats, "snow_modulus_mpa": args.modulus, "scales": scales}
     for ski in ("ski-a", "ski-b"):
         for mode in ("flexible", "auto"):
             inp = service.ContactInputs(
@@ -74,7 +87,7 @@ def main(argv=None) -> dict:
             for rnd in range(args.repeats + 1):
                 for v in VARIANTS:
                     t0 = time.perf_counter()
-                    ans = run(cat, inp, v)
+                    ans = run(cat, inp, v, scales)
                     dt = time.perf_counter() - t0
                     used = ans["provenance"]["ski_model"]["used"]
                     if rnd:  # round 0 is the warm-up
