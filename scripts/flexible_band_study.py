@@ -8,12 +8,16 @@ preset's grid, then the texture table. Recorded per quantity:
 - the answer, its solve on the grid twice as coarse (``c2``, the band's per-answer grid
   estimate) and the **truth**: the ski's own design beam (no device noise) on the reference
   grid of ``skisnow bench accuracy`` (0.5 mm × 64 across, as the rigid calibration test);
+- the answer with the ski's true beam on the answer's own grid (``design``): its difference
+  to the answer is the identification's own error, which the camber part stands for;
 - the band's components: ``macro_grid`` (:func:`app.band.grid_component` with the coarse
-  nominal) and ``table_interpolation``, and the ``camber_model`` spread for each of
-  ``--scales`` (factor on the identification covariance's deviations of the beam draws) and
-  two kinds of draw: ``full`` (EI(X) and c(X) drawn together, :func:`solvers.identify.
-  sample_beams`, what the service uses) and ``camber`` (the draws' c(X) on the identified
-  EI(X), so that all draws share one flexibility);
+  nominal; ``macro_grid_preset`` without it) and ``table_interpolation``, and the
+  ``camber_model`` spread for each of :data:`SCALES` (factor on the identification
+  covariance's deviations of the beam draws) and each kind of draw (:data:`KINDS`):
+  ``full8``, ``full4``, ``full2`` (EI(X) and c(X) drawn together,
+  :func:`solvers.identify.sample_beams`, 8, 4 or 2 draws: what the service does with
+  ``BEAM_SAMPLES`` of that value) and ``camber8`` (the 8 draws' c(X) on the identified EI(X),
+  so that all draws share one flexibility);
 - the answer's and the band's solve times.
 
 Two sets of cases:
@@ -26,16 +30,20 @@ Two sets of cases:
     cases the test does not use: the identification's held-out loads not among the test's
     (6 per ski, seed 1) at 2, 10, 50 and 500 MPa.
 
-The factor :data:`app.band.BEAM_SCALE` is the smallest of ``--scales`` that puts 90 % of the
-``calib`` truths inside the whole band (all quantities with a band); ``--summary`` prints
-coverage and width per set, draw kind and factor from a written file.
+The summary fits, per kind of draw, the factor (the smallest of :data:`SCALES` whose camber
+part alone covers 90 % of the ``calib`` identification errors), then per quantity the grid
+factor (the smallest of :data:`GRID_FACTORS` that puts 90 % of the ``calib`` truths inside the
+whole band), and checks both on ``test``; then it prints the service's own constants
+(:data:`app.band.BEAM_SAMPLES`, :data:`app.band.BEAM_SCALE`,
+:data:`app.band.FLEXIBLE_GRID_FACTOR`) on both sets. ``--summary`` reprints it from a
+written file.
 
 Usage::
 
     python scripts/flexible_band_study.py --out /tmp/flex_band.json
     python scripts/flexible_band_study.py --summary /tmp/flex_band.json
 
-About 25 min on a loaded 2-core machine (the reference truth is ~10 s per case).
+About 45 min on a loaded 2-core machine (the reference truth is 10–20 s per case).
 """
 
 from __future__ import annotations
