@@ -8,14 +8,21 @@ in quadrature (:func:`solvers.band.combine`):
     (``metric_test_rmse_band_m`` minus the device noise, in quadrature). The answer is solved
     again with :data:`PROFILE_SAMPLES` smooth perturbations of that size and correlation length
     :data:`PROFILE_CORRELATION_M`, and the spread of every quantity about the nominal answer
-    gives its width. A design beam (the demo skis' own beams) is taken as exact.
+    gives its width. A design beam (the demo skis' own beams) is taken as exact. An answer of
+    the bending ski (``flexible``, or ``auto`` when it bends) from an identified beam is solved
+    again with :data:`BEAM_SAMPLES` plausible beams (EI(X) and c(X)) drawn from the
+    identification's covariance, their deviations × :data:`BEAM_SCALE` (:func:`beam_models`;
+    the covariance understates the identified beam's actual error, and the factor is
+    calibrated against the demo skis' true beams).
 ``macro_grid``
     Per answer (:func:`grid_component`): the apparent area from the share of its contact length
     in its zones' end pixels, the minimum average separation from its difference to the grid
     twice as coarse; the real area, real pressure and reciprocal separation from the preset's
     measured grid error (``skisnow bench accuracy``, :attr:`Preset.grid_band`), because no
     per-answer estimate follows their error. Factors calibrated on cases the calibration test
-    does not use (``scripts/band_calibration_study.py``; docs/limits.md, Error band).
+    does not use (``scripts/band_calibration_study.py``; docs/limits.md, Error band); for an
+    answer of the bending ski times :data:`FLEXIBLE_GRID_FACTOR`
+    (``scripts/flexible_band_study.py``).
 ``table_interpolation``
     The texture table's interpolation error between its own nodes, estimated by leaving nodes
     out (:func:`solvers.band.table_interpolation_error`), weighted by where the answer loads the
@@ -39,6 +46,7 @@ import numpy as np
 
 from app.presets import Preset
 from app.profiles import served_beam
+from app.storage.skis import identification_for_sampling
 from solvers.band import (
     Z90,
     combine,
@@ -49,7 +57,8 @@ from solvers.band import (
     unit_perturbations,
 )
 from solvers.errors import InputError, SkisnowError
-from solvers.identify import estimate_noise
+from solvers.flexible import FlexibleModel, prepare_flexible, solve_flexible
+from solvers.identify import estimate_noise, sample_beams
 from solvers.lookup import MicroTable
 from solvers.macro import ProfileExtruder, solve_macro
 from solvers.multiscale import multiscale
@@ -107,6 +116,9 @@ class Band:
     camber_sigma_m: float | None
     camber_source: str
     not_covered: list[str]
+    #: factor on the identification covariance's deviations of the beam draws (bending-ski
+    #: answers of an identified beam), else None
+    beam_scale: float | None = None
 
 
 #: moving window of the camber model's error along the ski [m] (:func:`camber_sigma_m`)
@@ -344,14 +356,8 @@ def _sample(case: _Case, sigma_m: float | np.ndarray, samples: int, seed: int) -
         base = None
     if base is None:
         return None
-    m0, s0 = base
-    q_nom, q0 = _quantities(macro, ms), _quantities(m0, s0)
-    z_nom, z0 = _zone_loads(macro, ms.zones), _zone_loads(m0, ms.zones)
-    grid = {k: abs(q0[k] / q_nom[k] - 1) if q_nom[k] else float("nan") for k in q_nom}
-    zone_grid = [abs(a / b - 1) if b else float("nan") for a, b in zip(z0, z_nom, strict=True)]
-    qs: dict[str, list[float]] = {k: [] for k in q_nom}
-    zs, lines = [], []
-    failed = 0
+    m0 = base[0]
+    perturbed, failed = [], 0
     deltas = (
         _unit_fields(positions_m, samples, seed) * _nonnegative(sigma_m, positions_m)
         if np.any(np.asarray(sigma_m) > 0)
@@ -367,7 +373,22 @@ def _sample(case: _Case, sigma_m: float | np.ndarray, samples: int, seed: int) -
         if r is None:
             failed += 1
             continue
-        m, s = r
+        perturbed.append(r)
+    return _spread(macro, ms, base, perturbed, failed)
+
+
+def _spread(macro, ms, base, perturbed, failed: int) -> _Sampled:
+    """The answer (``macro``, ``ms``) against its coarse nominal ``base`` (the grid estimate)
+    and the ``perturbed`` coarse solves (pairs of macro and multiscale results) against that
+    nominal (the camber model's spread)."""
+    m0, s0 = base
+    q_nom, q0 = _quantities(macro, ms), _quantities(m0, s0)
+    z_nom, z0 = _zone_loads(macro, ms.zones), _zone_loads(m0, ms.zones)
+    grid = {k: abs(q0[k] / q_nom[k] - 1) if q_nom[k] else float("nan") for k in q_nom}
+    zone_grid = [abs(a / b - 1) if b else float("nan") for a, b in zip(z0, z_nom, strict=True)]
+    qs: dict[str, list[float]] = {k: [] for k in q_nom}
+    zs, lines = [], []
+    for m, s in perturbed:
         for k, v in _quantities(m, s).items():
             qs[k].append(v)
         zs.append(_zone_loads(m, ms.zones))
@@ -384,6 +405,108 @@ def _sample(case: _Case, sigma_m: float | np.ndarray, samples: int, seed: int) -
         )
         line = np.interp(macro.positions_m, m0.positions_m, half)
     return _Sampled(widths, zone_w, line, grid, zone_grid, failed)
+
+
+# ----------------------------------------------------------------------------- bending ski
+
+#: plausible beams per answer of the bending ski: antithetic pairs of draws from the
+#: identification's covariance (:func:`solvers.identify.sample_beams`). 4 calibrate as 8 do
+#: (test cases 94.4 % inside at 1.19× the RMS error, against 94.8 % at 1.21×) at about half
+#: the band's cost; 2 need a larger factor and cover the apparent area less (87.5 %)
+#: (``scripts/flexible_band_study.py``; docs/limits.md, Error band)
+BEAM_SAMPLES = 4
+#: factor on the covariance's parameter deviations of those draws [-]: the smallest of the
+#: study's candidates whose camber part alone covers 90 % of the identification's own error in
+#: the ``calib`` cases (the answer against the ski's true beam on the answer's grid; 93.3 %,
+#: test cases 95.8 %). The covariance understates that error far more than the loaded
+#: profile's (about 3×, docs/limits.md): at factor 1 the camber part covers 34 % of it
+BEAM_SCALE = 16.0
+#: models of plausible beams kept per ski record (one entry per coarse grid and draw setting)
+_BEAM_MODELS_MAX = 8
+
+
+def _prepare(beam, outline, dx: float, ny: int) -> FlexibleModel:
+    return prepare_flexible(
+        beam,
+        outline.width_m,
+        pixel_along_m=dx,
+        pixels_across=ny,
+        width_positions_m=outline.positions_m,
+    )
+
+
+def beam_models(
+    record, preset: Preset, *, samples: int, seed: int, scale: float
+) -> tuple[FlexibleModel, list[FlexibleModel]] | None:
+    """The bending ski on the grid twice as coarse as ``preset`` (:func:`coarse_grid`): the
+    nominal model of the beam the ski answers with, and ``samples`` models of plausible beams
+    drawn from its identification's covariance with deviations × ``scale`` (antithetic pairs,
+    seeded: the same request always gets the same band); the second is empty for a design
+    beam (taken as exact). None when the ski has no beam. Prepared once per record, grid and
+    draw setting and kept in ``record.cache`` (~1 s for 8 draws on a loaded machine)."""
+    ident = record.identified
+    beam = served_beam(ident)
+    drawable = beam is not None
+    if beam is None:
+        beam = record.beam
+    if beam is None:
+        return None
+    dx, ny = coarse_grid(preset)
+    key = (float(dx), int(ny), int(samples), int(seed), float(scale))
+    store = record.cache.get("band_beam_models")
+    if store is None or store[0] is not ident or store[1] is not record.beam:
+        store = (ident, record.beam, {})
+        record.cache["band_beam_models"] = store
+    hit = store[2].get(key)
+    if hit is None:
+        nominal = _prepare(beam, record.outline, dx, ny)
+        drawn = []
+        if drawable and samples > 0 and scale > 0:
+            ib = identification_for_sampling(ident)
+            if ib is not None:
+                beams = sample_beams(ib, samples, seed, scale=scale, antithetic=True)
+                drawn = [_prepare(b, record.outline, dx, ny) for b in beams]
+        if len(store[2]) >= _BEAM_MODELS_MAX:
+            store[2].clear()
+        hit = store[2][key] = (nominal, drawn)
+    return hit
+
+
+def _sample_flexible(
+    macro, ms, models: tuple[FlexibleModel, list[FlexibleModel]], table, porosity, e_eff
+) -> _Sampled | None:
+    """The bending-ski answer (``macro``, ``ms``) solved again on the coarse grid: the nominal
+    beam (warm-started from the answer's line pressure) for the grid estimate, the plausible
+    beams (warm-started from that coarse nominal) for the spread. Tolerance
+    :data:`SAMPLE_TOL`."""
+    nominal, drawn = models
+    f, xf = macro.load_n, macro.load_position_m
+
+    def solve(model, start_pa):
+        m = solve_flexible(model, f, xf, e_eff, tol=SAMPLE_TOL, initial_pressure_pa=start_pa)
+        if not m.converged:
+            return None
+        return m, multiscale(m, table, porosity, e_eff)
+
+    inside = np.isfinite(nominal.unloaded_map.gap_m)
+    line = np.interp(nominal.positions_m, macro.positions_m, np.nan_to_num(macro.pressure_line_pa))
+    try:
+        base = solve(nominal, np.where(inside, line[:, None], 0.0))
+    except SkisnowError:
+        base = None
+    if base is None:
+        return None
+    perturbed, failed = [], 0
+    for model in drawn:
+        try:
+            r = solve(model, base[0].pressure_pa)
+        except SkisnowError:
+            r = None
+        if r is None:
+            failed += 1
+            continue
+        perturbed.append(r)
+    return _spread(macro, ms, base, perturbed, failed)
 
 
 #: unit perturbation fields per profile grid (:func:`_unit_fields`); a ski's profile model
@@ -493,6 +616,21 @@ GRID_BAND_FACTOR = {
 }
 
 
+#: factors on the grid part of an answer of the bending ski, per quantity: each the smallest
+#: (step 0.05) that puts 90 % of the ``calib`` truths inside the whole band with the camber
+#: part above (``scripts/flexible_band_study.py``; the truth: the ski's true beam bending on
+#: the snow on 0.5 mm × 64). Soft snow (2 MPa) needs the larger real-area factors: there the
+#: default grid's real area is +1.7…+2.6 % off. The apparent area's is below 1 because the
+#: beam draws at factor 16 already move it (zones appear and vanish)
+FLEXIBLE_GRID_FACTOR: dict[str, float] = {
+    "apparent_contact_area": 0.65,
+    "total_real_contact_area": 1.4,
+    "average_real_contact_pressure": 1.45,
+    "min_average_separation": 1.55,
+    "total_reciprocal_separation": 1.05,
+}
+
+
 def grid_component(preset: Preset, macro, sampled: _Sampled | None) -> dict[str, float]:
     """The macro grid's relative 90 % half-width per quantity for one answer.
 
@@ -519,6 +657,24 @@ def grid_component(preset: Preset, macro, sampled: _Sampled | None) -> dict[str,
     return grid
 
 
+def _beam_sigma(identified: dict, scale: float, draws: int) -> tuple[float | None, str]:
+    """RMS [m] of the loaded profile's spread implied by the beam draws (the stored
+    ``profile_sd_m`` × ``scale``; None when not stored) and the band's words for them."""
+    sd = identified.get("profile_sd_m")
+    rms = None if sd is None else scale * float(np.sqrt(np.mean(np.square(sd))))
+    spread = (
+        ""
+        if rms is None
+        else f"; on the flat their loaded profiles spread {rms * 1e6:.2f} µm RMS along the ski"
+    )
+    return rms, (
+        f"identified beam: the bending ski solved again with {draws} plausible beams (EI(X) and "
+        f"c(X)) drawn from the fit's covariance in antithetic pairs, deviations × {scale:g} (the "
+        "covariance understates the identified profile's actual error; factor calibrated "
+        f"against the demo skis' true beams, docs/limits.md){spread}"
+    )
+
+
 def answer_band(
     *,
     record,
@@ -536,11 +692,19 @@ def answer_band(
     min_separation_unresolved: str | None = None,
     samples: int = PROFILE_SAMPLES,
     seed: int = BAND_SEED,
+    beam_samples: int = BEAM_SAMPLES,
+    beam_scale: float = BEAM_SCALE,
 ) -> Band:
     """The band of one answer (``macro``/``ms`` are the answer's own solves, ``positions_m``/
     ``gap_m`` the rigid model's loaded profile behind them). ``min_separation_unresolved``: why
     the minimum average separation has no grid-converged value
-    (:func:`min_separation_unresolved`); it then gets no band (``nan``)."""
+    (:func:`min_separation_unresolved`); it then gets no band (``nan``).
+
+    A rigid answer (``ski_model_used`` "rigid") is solved again with ``samples`` perturbed
+    loaded profiles (:func:`camber_sigma_m`); an answer of the bending ski with
+    ``beam_samples`` plausible beams drawn from the identification's covariance, deviations
+    × ``beam_scale`` (:func:`beam_models`; none for a design beam). Both on the grid twice as
+    coarse, whose nominal solve also gives the per-answer grid estimate."""
     components: dict[str, dict[str, float]] = {}
     not_covered = [
         "texture pixel size of the table (no estimate stored; skisnow bench accuracy measures "
@@ -550,23 +714,33 @@ def answer_band(
     ]
     rigid = ski_model_used == "rigid"
     sigma, source = None, ""
+    sampled = None
+    perturbed = samples
     if rigid:
         sigma, source = camber_sigma_m(record, positions_m)
         if sigma is None:
             not_covered.insert(0, "the camber model (" + source + ")")
-    elif beam_is_design:
-        sigma, source = 0.0, "design beam stored with the ski, taken as exact"
-    else:
-        source = "identified beam: its uncertainty is not propagated yet"
-        not_covered.insert(0, "the identified beam's uncertainty (EI(X), c(X))")
-    sampled = None
-    if rigid:
         case = _Case(positions_m, gap_m, record.outline, preset, macro, ms, table, porosity, e_eff)
         sampled = _sample(case, 0.0 if sigma is None else sigma, samples, seed)
+    else:
+        models = beam_models(record, preset, samples=beam_samples, seed=seed, scale=beam_scale)
+        if models is not None:
+            sampled = _sample_flexible(macro, ms, models, table, porosity, e_eff)
+        perturbed = 0 if models is None else len(models[1])
+        if beam_is_design:
+            sigma, source = 0.0, "design beam stored with the ski, taken as exact"
+        elif perturbed:
+            sigma, source = _beam_sigma(record.identified, beam_scale, perturbed)
+        else:
+            source = "identified beam: no covariance stored with the identification"
+            not_covered.insert(0, "the identified beam's uncertainty (EI(X), c(X)): " + source)
     has_sigma = sigma is not None and bool(np.any(np.asarray(sigma) > 0))
     if sampled is not None and has_sigma:
         components["camber_model"] = sampled.widths
-    components["macro_grid"] = grid_component(preset, macro, sampled)
+    grid = grid_component(preset, macro, sampled)
+    if not rigid:
+        grid = {q: w * FLEXIBLE_GRID_FACTOR.get(q, 1.0) for q, w in grid.items()}
+    components["macro_grid"] = grid
     components["table_interpolation"] = _table_component(table, macro, porosity, e_eff)
     if rigid and rigid_minus_flexible:
         components["ski_model"] = {
@@ -609,10 +783,11 @@ def answer_band(
         components=components,
         zone_load_widths=zone_widths,
         pressure_line_band_pa=line_band,
-        samples=(samples - sampled.failed) if (sampled is not None and has_sigma) else 0,
+        samples=(perturbed - sampled.failed) if (sampled is not None and has_sigma) else 0,
         camber_sigma_m=None if sigma is None else float(np.sqrt(np.mean(np.square(sigma)))),
         camber_source=source,
         not_covered=not_covered,
+        beam_scale=beam_scale if (not rigid and has_sigma) else None,
     )
 
 
@@ -673,13 +848,19 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
             else None,
             "source": band.camber_source,
             "perturbed_solves": band.samples,
-            "correlation_length_mm": PROFILE_CORRELATION_M * 1e3,
+            # smooth profile perturbations (rigid answers) or beam draws (bending ski)
+            "correlation_length_mm": PROFILE_CORRELATION_M * 1e3
+            if band.beam_scale is None
+            else None,
+            "beam_deviation_scale": band.beam_scale,
             "seed": BAND_SEED,
         },
         "not_covered": band.not_covered,
         "method": "relative 90 % half-widths per source combined in quadrature: camber model "
-        "(the answer solved again with perturbed loaded profiles), macro grid (measured by "
-        "skisnow bench accuracy), table interpolation (leave-one-out on the table's nodes), "
+        "(the answer solved again with perturbed loaded profiles, or for the bending ski with "
+        "plausible beams drawn from the identification), macro grid (the answer's end-pixel "
+        "share and its difference to the grid twice as coarse, and the preset's width measured "
+        "by skisnow bench accuracy), table interpolation (leave-one-out on the table's nodes), "
         "and, when auto answers with the rigid shape, its measured difference to the bending "
         "ski (docs/limits.md, Error band)",
     }

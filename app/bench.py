@@ -690,7 +690,8 @@ def _flexible_md(d: dict) -> list[str]:
         "pressure. Request: one "
         "`service.contact` computation (profile, macro, multiscale; auto also solves the "
         "flexible ski), with its 90 % error band and without it (the band re-solves a rigid "
-        "answer 9 times on a grid twice as coarse; docs/limits.md, Error band).",
+        "answer 9 times on a grid twice as coarse, an answer of the bending ski once plus once "
+        "per plausible beam drawn from the identification; docs/limits.md, Error band).",
         "",
         "| ski | profile model | profile [ms] | rigid solve [ms] | flexible cold [ms] | "
         "flexible warm [ms] | cold / rigid | request rigid [ms] (no band) | request auto [ms] "

@@ -38,6 +38,7 @@ Units: SI throughout (m, N, N·m²).
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -955,16 +956,49 @@ def _stiffness_band(phi: np.ndarray, gamma: np.ndarray, cov_g: np.ndarray) -> np
 
 
 def sample_beams(
-    ident: IdentifiedBeam, count: int, rng: np.random.Generator | int
+    ident: IdentifiedBeam,
+    count: int,
+    rng: np.random.Generator | int,
+    *,
+    scale: float = 1.0,
+    antithetic: bool = False,
 ) -> list[BeamSki]:
     """Draw ``count`` plausible beams from the identification's Gauss–Newton covariance.
 
     Each draw perturbs log(1/EI) by the covariance of γ and c(X) consistently with it
     (``ĉ − D Δγ`` plus its per-node scatter). Draws feed the error bands of downstream solves.
+
+    Parameters
+    ----------
+    ident : IdentifiedBeam
+        A successful identification.
+    count : int
+        Number of beams [-]; even when ``antithetic``.
+    rng : numpy.random.Generator or int
+        Generator or seed.
+    scale : float
+        Factor [-] on every parameter deviation (1: the covariance as fitted; the error band of
+        a bending-ski answer widens it by a factor calibrated against the truth, because the
+        covariance understates the identified profile's actual error, docs/limits.md).
+    antithetic : bool
+        Draw in pairs (d, −d) of parameter deviations: the first ``count/2`` beams, then their
+        mirrors in the same order (a linear response then has no sampling bias).
     """
     if not ident.ok:
         raise InputError(f"no identified beam to sample: {ident.reason}")
+    count = int(count)
+    if not (math.isfinite(scale) and scale >= 0):
+        raise InputError(f"scale must be finite and >= 0, got {scale!r}")
+    if antithetic and count % 2:
+        raise InputError(f"count must be even for antithetic draws, got {count}")
     gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+
+    def normals(n: int) -> list[np.ndarray]:
+        if not antithetic:
+            return [gen.standard_normal(n) for _ in range(count)]
+        half = [gen.standard_normal(n) for _ in range(count // 2)]
+        return half + [-z for z in half]
+
     x = ident.beam.positions_m
     phi = hats(x, ident.knots_m)
     if ident.parameter_covariance is not None:
@@ -975,8 +1009,8 @@ def sample_beams(
         vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
         root = vecs * np.sqrt(np.maximum(vals, 0.0))
         out = []
-        for _ in range(int(count)):
-            d = root @ gen.standard_normal(vals.size)
+        for z in normals(vals.size):
+            d = scale * (root @ z)
             c = basis @ (ident.camber_coefficients + d[:nc])
             gamma = ident.log_compliance + d[nc:]
             out.append(BeamSki(x, 1.0 / (phi @ np.exp(gamma)), camber_on_flat(x, c)))
@@ -984,9 +1018,10 @@ def sample_beams(
     chol = np.linalg.cholesky(ident.log_compliance_covariance + 1e-15 * np.eye(ident.knots_m.size))
     c_hat = ident.beam.unloaded_gap_m
     out = []
-    for _ in range(int(count)):
-        dg = chol @ gen.standard_normal(ident.knots_m.size)
-        c = c_hat - ident.camber_sensitivity @ dg + ident.camber_sd_m * gen.standard_normal(x.size)
+    m = ident.knots_m.size
+    for z in normals(m + x.size):
+        dg = scale * (chol @ z[:m])
+        c = c_hat - ident.camber_sensitivity @ dg + scale * ident.camber_sd_m * z[m:]
         gamma = ident.log_compliance + dg
         out.append(BeamSki(x, 1.0 / (phi @ np.exp(gamma)), camber_on_flat(x, c)))
     return out

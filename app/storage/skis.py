@@ -490,6 +490,44 @@ def identified_beam(identified: dict | None) -> BeamSki | None:
     )
 
 
+def identification_for_sampling(identified: dict | None):
+    """The stored identification as a :class:`solvers.identify.IdentifiedBeam` that
+    :func:`solvers.identify.sample_beams` can draw plausible beams from, or None: it failed, or
+    it stores no forward-fit covariance (``parameter_covariance`` with the camber's B-spline).
+
+    The file does not store the variable-projection fallback's ``camber_sensitivity`` and
+    ``camber_sd_m``; they are NaN here, so a draw that would need them cannot pass unnoticed."""
+    from solvers.identify import IdentifiedBeam
+
+    beam = identified_beam(identified)
+    keys = ("parameter_covariance", "camber_knots_m", "camber_coefficients_m", "knots_m")
+    if beam is None or any(k not in identified for k in keys):
+        return None
+    a = identified["attrs"]
+    knots = np.asarray(identified["knots_m"], dtype=float)
+    n = beam.positions_m.size
+    return IdentifiedBeam(
+        beam=beam,
+        ok=True,
+        reason="",
+        noise_m=float(a.get("noise_m", np.nan)),
+        misfit_m=float(a.get("misfit_m", np.nan)),
+        case_misfit_m=np.asarray(identified.get("case_misfit_m", []), dtype=float),
+        stiffness_band_nm2=np.asarray(identified["stiffness_band_nm2"], dtype=float),
+        camber_band_m=np.asarray(identified["camber_band_m"], dtype=float),
+        iterations=int(a.get("iterations", 0)),
+        contact_passes=int(a.get("contact_passes", 0)),
+        knots_m=knots,
+        log_compliance=np.asarray(identified["log_compliance"], dtype=float),
+        log_compliance_covariance=np.asarray(identified["log_compliance_covariance"], dtype=float),
+        camber_sensitivity=np.full((n, knots.size), np.nan),
+        camber_sd_m=np.full(n, np.nan),
+        camber_knots_m=np.asarray(identified["camber_knots_m"], dtype=float),
+        camber_coefficients=np.asarray(identified["camber_coefficients_m"], dtype=float),
+        parameter_covariance=np.asarray(identified["parameter_covariance"], dtype=float),
+    )
+
+
 def mean_profiles(data: CamberData) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     """One profile per (load, position) for beam identification: left and right profiles of a
     case averaged (the measurements themselves are not changed). Returns F [N], x_F [m],
