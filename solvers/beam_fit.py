@@ -520,7 +520,11 @@ def fit_forward(
         converged = False
         while steps < steps_left:
             # Jacobi scaling: c's coefficients [m] and γ [-] differ by ~1e6 in the normal matrix
-            scale = 1.0 / np.sqrt(np.maximum(np.diag(h), 1e-300))
+            # (floored relative to the largest diagonal: a parameter the data barely see, such
+            # as a camber spline piece between the coarse stage's nodes, would get a scale of
+            # ~1e150 and overflow the scaled matrix; measured on ski-b)
+            d = np.diag(h)
+            scale = 1.0 / np.sqrt(np.maximum(d, 1e-12 * max(float(d.max()), 1e-300)))
             hs = h * scale[:, None] * scale[None, :]
             gs = g * scale
             while True:

@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from app.profiles import identification_group
 from app.storage.common import atomic_path, provenance, tables_dir
@@ -65,15 +66,24 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def identify_report(
-    data: CamberData, design_beam, holdout: float, seed: int, *, keep: dict | None = None
+    data: CamberData,
+    design_beam,
+    holdout: float,
+    seed: int,
+    *,
+    keep: dict | None = None,
+    callback=None,
 ) -> dict:
     """Identify on the kept cases and measure on the held-out ones; a JSON-ready report.
-    ``keep``: a dict that receives the identification and its check (for ``--store``)."""
+    ``keep``: a dict that receives the identification and its check (for ``--store``);
+    ``callback(fraction, message)``: progress of the identification."""
     if not (0.0 <= holdout < 0.9):
         raise InputError(f"--holdout must be in [0, 0.9), got {holdout}")
     f, xf, y, sides_note = mean_profiles(data)
     t0 = time.perf_counter()
-    ident, check = identify_beam_checked(data.positions_m, f, xf, y, holdout=holdout, seed=seed)
+    ident, check = identify_beam_checked(
+        data.positions_m, f, xf, y, holdout=holdout, seed=seed, callback=callback
+    )
     elapsed = time.perf_counter() - t0
     if keep is not None:
         keep.update(ident=ident, check=check, sides=sides_note, loads_n=f, positions_m=xf)
@@ -132,7 +142,14 @@ def run(args: argparse.Namespace) -> int:
     if args.store and not args.ski:
         raise InputError("--store needs --ski (a stored ski file)")
     keep: dict = {}
-    rep = identify_report(data, design, args.holdout, args.seed, keep=keep)
+    # a progress bar on stderr (the identification takes minutes; shown on a terminal only)
+    with tqdm(total=100, desc="identify", unit="%", disable=None, leave=False) as bar:
+
+        def progress(fraction: float, message: str) -> None:
+            bar.n = round(100 * min(max(fraction, 0.0), 1.0))
+            bar.set_postfix_str(message[:60], refresh=True)
+
+        rep = identify_report(data, design, args.holdout, args.seed, keep=keep, callback=progress)
     if args.store:
         store_identification(path, record, keep, vars_of(args))
         rep["stored_in"] = str(path)
