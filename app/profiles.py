@@ -21,20 +21,35 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.storage.skis import SkiRecord, identified_beam, identified_to_dict
+from app.storage.common import provenance
+from app.storage.skis import (
+    CamberData,
+    SkiRecord,
+    identified_beam,
+    identified_to_dict,
+    mean_profiles,
+)
 from solvers.beam import BeamFlexibility, BeamSki, solve_beam_contact
-from solvers.errors import DataFileError, NotConvergedError
-from solvers.identify import profile_sigma
+from solvers.errors import DataFileError, InputError, NotConvergedError, SkisnowError
+from solvers.identify import predict_gaps, profile_sigma
 
 __all__ = [
+    "HELD_OUT_ADDED",
+    "HELD_OUT_ERRORS",
+    "HELD_OUT_STORED",
     "PROFILE_SIGMA_CASES",
     "SERVED_MISFIT_LIMIT",
     "ProfileModel",
+    "add_held_out_errors",
+    "held_out_case_errors",
+    "held_out_errors_group",
+    "held_out_mask",
     "identification_group",
     "no_beam_reason",
     "profile_model",
     "served_beam",
     "served_beam_note",
+    "stored_held_out_errors",
 ]
 
 #: cases (spread over the measured ones) and seed of the loaded profile's spread
@@ -164,11 +179,126 @@ def profile_model(record: SkiRecord) -> ProfileModel:
     return model
 
 
-def identification_group(ident, check: dict, sides: str, loads_n, positions_m, params: dict):
+#: subgroup of the ``identified`` group with the error of every held-out case
+HELD_OUT_ERRORS = "held_out_errors"
+#: its ``source`` when written with the identification (``identify-ski --store``, upload job)
+HELD_OUT_STORED = "stored with the identification"
+#: its ``source`` when added to an identification stored without it (no re-identification)
+HELD_OUT_ADDED = (
+    "added to an existing identification (skisnow identify-ski --add-held-out-errors): "
+    "predicted from the stored beam, the identification itself unchanged"
+)
+
+
+def held_out_mask(identified: dict, n_cases: int) -> np.ndarray | None:
+    """The held-out cases of a stored identification as a mask over the ``n_cases`` cases of
+    :func:`app.storage.skis.mean_profiles`, or None when the stored indices and misfits do not
+    match those cases (an identification of other data)."""
+    held = np.zeros(n_cases, dtype=bool)
+    index = np.asarray(identified.get("held_out_index", []), dtype=int)
+    if index.size and (index.min() < 0 or index.max() >= n_cases):
+        return None
+    held[index] = True
+    if int((~held).sum()) != np.asarray(identified.get("case_misfit_m", [])).size:
+        return None
+    return held
+
+
+def held_out_case_errors(
+    identified: dict,
+    loads_n: np.ndarray,
+    positions_m: np.ndarray,
+    profiles_m: np.ndarray,
+    *,
+    nodes_m: np.ndarray | None = None,
+) -> np.ndarray:
+    """The error of every held-out case of a stored identification: RMS over X of the stored
+    beam's loaded gap minus the measured profile [m] (the device model,
+    :func:`solvers.identify.predict_gaps`), in case order.
+
+    Parameters
+    ----------
+    identified : dict
+        The ``identified`` group (beam arrays, ``held_out_index``, ``case_misfit_m``).
+    loads_n, positions_m : ndarray (K,)
+        F [N] and x_F [m] of every case (:func:`app.storage.skis.mean_profiles`).
+    profiles_m : ndarray (K, N)
+        Measured profiles [m] on the identification's nodes.
+    nodes_m : ndarray (N,), optional
+        The measurement nodes X [m]; checked equal to the identification's.
+
+    Raises
+    ------
+    DataFileError
+        The held-out indices do not match the cases, or the identification is on another grid.
+    InputError
+        The stored beam cannot predict (a failed identification may hold NaN arrays).
+    """
+    held = held_out_mask(identified, np.asarray(loads_n).size)
+    if held is None:
+        raise DataFileError("the identification's held-out cases do not match the measurements")
+    x = np.asarray(identified.get("positions_m", []), dtype=float)
+    if x.size != np.shape(profiles_m)[1] or (
+        nodes_m is not None and not np.array_equal(x, nodes_m)
+    ):
+        raise DataFileError("the identification is on other nodes than the measurements")
+    beam = BeamSki(
+        x,
+        np.asarray(identified["bending_stiffness_nm2"], dtype=float),
+        np.asarray(identified["unloaded_gap_m"], dtype=float),
+    )
+    pred = predict_gaps(beam, np.asarray(loads_n)[held], np.asarray(positions_m)[held])
+    return np.sqrt(np.mean((pred - np.asarray(profiles_m)[held]) ** 2, axis=1))
+
+
+def held_out_errors_group(
+    error_m: np.ndarray, case_index: np.ndarray, source: str, params: dict | None
+) -> dict:
+    """The :data:`HELD_OUT_ERRORS` subgroup: each held-out case's error [m], the cases it
+    belongs to (indices into the cases of :func:`app.storage.skis.mean_profiles`), how it was
+    stored (``source``) and provenance."""
+    return {
+        "attrs": {
+            "description": "RMS over X of the identified beam's loaded gap minus the measured "
+            "profile, per held-out case (device model, solvers.identify.predict_gaps)",
+            "units": "m",
+            "source": source,
+            **provenance(params),
+        },
+        "rms_error_m": np.asarray(error_m, dtype=float),
+        "case_index": np.asarray(case_index, dtype=int),
+    }
+
+
+def stored_held_out_errors(identified: dict, held: np.ndarray) -> tuple[np.ndarray, dict] | None:
+    """The held-out errors [m] stored with an identification and the attributes saying where
+    they come from; None when there are none (a file written before they were stored) or they
+    belong to other cases than ``held`` (the mask of :func:`held_out_mask`)."""
+    group = identified.get(HELD_OUT_ERRORS)
+    if not isinstance(group, dict) or "rms_error_m" not in group:
+        return None
+    index = np.asarray(group.get("case_index", []), dtype=int)
+    error = np.asarray(group["rms_error_m"], dtype=float)
+    if not np.array_equal(index, np.flatnonzero(held)) or error.shape != index.shape:
+        return None
+    return error, dict(group.get("attrs", {}))
+
+
+def identification_group(
+    ident,
+    check: dict,
+    sides: str,
+    loads_n,
+    positions_m,
+    params: dict,
+    profiles_m: np.ndarray | None = None,
+):
     """The ``identified`` group of a ski file: the identification, its held-out check in the
-    provenance, and (when it passed) the loaded profile's spread along the ski over the
-    measured cases, the error band's camber-model part (:func:`solvers.identify.profile_sigma`;
-    at most PROFILE_SIGMA_CASES cases, spread over the measured ones)."""
+    provenance, (when it passed) the loaded profile's spread along the ski over the measured
+    cases, the error band's camber-model part (:func:`solvers.identify.profile_sigma`; at most
+    PROFILE_SIGMA_CASES cases, spread over the measured ones), and, given the measured
+    ``profiles_m`` [m] (K, N), each held-out case's error (:data:`HELD_OUT_ERRORS`, what
+    ``GET /v1/skis/{name}`` and the ski's page show; about a second for 85 cases)."""
     sd = None
     if ident.ok:
         pick = np.unique(np.linspace(0, loads_n.size - 1, PROFILE_SIGMA_CASES).round().astype(int))
@@ -178,4 +308,36 @@ def identification_group(ident, check: dict, sides: str, loads_n, positions_m, p
     out["attrs"]["held_out_rms_m"] = float("nan") if rms is None else float(rms)
     out["attrs"]["held_out_cases"] = int(check.get("held_out_cases", 0))
     out["held_out_index"] = np.asarray(check.get("held_out_index", []), dtype=int)
+    if profiles_m is not None and out["held_out_index"].size:
+        try:  # a failed identification may hold NaN arrays: no errors to store
+            error = held_out_case_errors(out, loads_n, positions_m, profiles_m)
+        except SkisnowError:
+            return out
+        index = np.flatnonzero(held_out_mask(out, np.asarray(loads_n).size))
+        out[HELD_OUT_ERRORS] = held_out_errors_group(error, index, HELD_OUT_STORED, params)
     return out
+
+
+def add_held_out_errors(identified: dict, data: CamberData, params: dict | None) -> dict:
+    """A copy of a stored ``identified`` group with each held-out case's error added
+    (:data:`HELD_OUT_ADDED` in its provenance), for files identified before the errors were
+    stored; the identification itself is not changed.
+
+    Raises
+    ------
+    InputError
+        No identification, or one without held-out cases.
+    DataFileError, InputError
+        As :func:`held_out_case_errors`.
+    """
+    if not identified or not np.asarray(identified.get("held_out_index", [])).size:
+        raise InputError("the ski has no stored identification with held-out cases")
+    loads_n, positions_m, profiles_m, _ = mean_profiles(data)
+    error = held_out_case_errors(
+        identified, loads_n, positions_m, profiles_m, nodes_m=data.positions_m
+    )
+    index = np.flatnonzero(held_out_mask(identified, loads_n.size))
+    return {
+        **identified,
+        HELD_OUT_ERRORS: held_out_errors_group(error, index, HELD_OUT_ADDED, params),
+    }

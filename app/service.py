@@ -18,7 +18,14 @@ import numpy as np
 from app import units
 from app.band import answer_band, band_json, min_separation_unresolved, touches_profile_end
 from app.presets import DEFAULT_PRESET, Preset, get_preset
-from app.profiles import no_beam_reason, profile_model, served_beam
+from app.profiles import (
+    held_out_case_errors,
+    held_out_mask,
+    no_beam_reason,
+    profile_model,
+    served_beam,
+    stored_held_out_errors,
+)
 from app.storage.common import code_version, sha256_file
 from app.storage.skis import (
     SKI_MANIFEST,
@@ -33,7 +40,6 @@ from solvers.beam import BeamSki
 from solvers.elastic import effective_modulus
 from solvers.errors import DataFileError, NotConvergedError, OutOfRangeError, SkisnowError
 from solvers.flexible import FlexibleModel, prepare_flexible, solve_flexible
-from solvers.identify import predict_gaps
 from solvers.lookup import MicroTable
 from solvers.macro import extrude_profile, solve_macro
 from solvers.multiscale import multiscale
@@ -250,7 +256,40 @@ class ContactInputs:
 
 
 def _finite_list(a: np.ndarray, scale: float = 1.0, digits: int = 6) -> list[float | None]:
-    return [None if not math.isfinite(v) else float(f"{v * scale:.{digits}g}") for v in a]
+    """``a · scale`` rounded to ``digits`` significant digits, ``None`` where not finite (after
+    scaling, so that an overflow never reaches the JSON encoder as inf): for
+    every value exactly ``float(f"{v:.{digits}g}")`` (tests/test_service_rounding.py), without
+    formatting every value as text (the answer's distributions hold a few thousand values).
+
+    The decimal ``m · 10^k`` (``m`` an integer of ``digits`` digits) is rounded to the nearest
+    float in one correctly rounded multiplication or division by the exact power ``10^|k|``
+    (|k| ≤ 22), which is what parsing its text does. Where ``m`` itself is uncertain (the scaled
+    value within 1e-6 of a rounding tie, or a magnitude outside that range) the value is
+    formatted as text."""
+    v = np.asarray(a, dtype=float).ravel() * scale
+    out = v.copy()
+    finite = np.isfinite(v)
+    nonzero = finite & (v != 0)
+    slow = np.zeros(v.shape, dtype=bool)
+    if nonzero.any():
+        w = v[nonzero]
+        k = np.floor(np.log10(np.abs(w))).astype(int) - (digits - 1)
+        ok = (np.abs(k) <= 22) & (digits <= 15)
+        kk = np.where(ok, k, 0)
+        up = np.power(10.0, np.abs(kk))
+        r = np.where(kk >= 0, w / up, w * up)  # w / 10^k (exact power)
+        m = np.rint(r)
+        tie = np.abs(np.abs(r - np.floor(r)) - 0.5) < 1e-6
+        ok &= ~tie & (np.abs(m) < 10.0 ** (digits + 1))
+        out[nonzero] = np.where(kk >= 0, m * up, m / up)
+        slow[np.flatnonzero(nonzero)[~ok]] = True
+    spec = f".{digits}g"
+    for i in np.flatnonzero(slow):
+        out[i] = float(format(float(v[i]), spec))
+    values = out.tolist()
+    if finite.all():
+        return values
+    return [x if f else None for x, f in zip(values, finite.tolist(), strict=True)]
 
 
 def loaded_profile(ski: Ski, load_n: float, load_position_m: float):
@@ -661,7 +700,7 @@ def _identification_report(ski: Ski) -> dict:
     }
     cases = _identification_cases(ski)
     if cases is not None:
-        loads_n, positions_m, kept, held, error_m = cases
+        loads_n, positions_m, kept, held, error_m, origin = cases
         out["case_load_kg"] = _finite_list(units.n_to_kg(loads_n[kept]), 1.0, 4)
         out["case_position_mm"] = _finite_list(np.round(positions_m[kept] * 1e3, 3) + 0.0, 1.0, 6)
         if error_m is not None:
@@ -669,15 +708,24 @@ def _identification_report(ski: Ski) -> dict:
                 "load_kg": _finite_list(units.n_to_kg(loads_n[held]), 1.0, 4),
                 "position_mm": _finite_list(np.round(positions_m[held] * 1e3, 3) + 0.0, 1.0, 6),
                 "error_um": _finite_list(error_m, 1e6, 4),
+                "provenance": origin,
             }
     return out
 
 
+#: provenance of held-out errors predicted on reading a file that does not store them
+HELD_OUT_COMPUTED = "computed on read (the file stores no held-out errors)"
+
+
 def _identification_cases(ski: Ski):
     """The cases of the stored identification: loads [N], positions [m], the identified and
-    held-out indices and the held-out cases' RMS error [m] (None when the stored beam cannot
-    predict). None when the stored misfits do not match the ski's measurements. Computed once
-    per ski record (the held-out predictions cost about a second for 85 cases)."""
+    held-out indices, the held-out cases' RMS error [m] (None when the stored beam cannot
+    predict) and where that error comes from (a dict: ``source`` and, for stored errors, their
+    provenance). None when the stored misfits do not match the ski's measurements.
+
+    The held-out errors are read from the file when the identification stores them
+    (:data:`app.profiles.HELD_OUT_ERRORS`), else predicted from the stored beam (about a second
+    for 85 cases: files identified before they were stored); either way once per ski record."""
     ident = ski.record.identified
     # keyed on the group itself: a dataclasses.replace copy of the record shares the cache
     cached = ski.record.cache.get("identification_cases")
@@ -685,30 +733,33 @@ def _identification_cases(ski: Ski):
         return cached[2]
     result = None
     if "case_misfit_m" in ident:
-        loads_n, positions_m, profiles_m, _ = mean_profiles(ski.record.measurements)
-        held = np.zeros(loads_n.size, dtype=bool)
-        index = np.asarray(ident.get("held_out_index", []), dtype=int)
-        if index.size and (index.min() < 0 or index.max() >= loads_n.size):
-            held = None
-        else:
-            held[index] = True
-        if held is not None and int((~held).sum()) == np.asarray(ident["case_misfit_m"]).size:
-            error_m = None
-            same_grid = np.array_equal(
-                np.asarray(ident.get("positions_m", [])), ski.record.measurements.positions_m
-            )
-            if held.any() and same_grid:
+        data = ski.record.measurements
+        loads_n, positions_m, profiles_m, _ = mean_profiles(data)
+        held = held_out_mask(ident, loads_n.size)
+        if held is not None:
+            error_m, origin = None, {}
+            stored = stored_held_out_errors(ident, held) if held.any() else None
+            if stored is not None:
+                error_m, attrs = stored
+                origin = {"source": str(attrs.get("source", "stored"))} | {
+                    k: str(attrs[k]) for k in _IDENT_PROVENANCE if k in attrs
+                }
+            elif held.any():
                 try:  # a failed identification may have stored NaN arrays: InputError
-                    beam = BeamSki(
-                        np.asarray(ident["positions_m"], dtype=float),
-                        np.asarray(ident["bending_stiffness_nm2"], dtype=float),
-                        np.asarray(ident["unloaded_gap_m"], dtype=float),
+                    error_m = held_out_case_errors(
+                        ident, loads_n, positions_m, profiles_m, nodes_m=data.positions_m
                     )
-                    pred = predict_gaps(beam, loads_n[held], positions_m[held])
-                    error_m = np.sqrt(np.mean((pred - profiles_m[held]) ** 2, axis=1))
+                    origin = {"source": HELD_OUT_COMPUTED}
                 except SkisnowError as exc:
                     log.info("no held-out predictions for ski %r: %s", ski.name, exc)
-            result = (loads_n, positions_m, np.flatnonzero(~held), np.flatnonzero(held), error_m)
+            result = (
+                loads_n,
+                positions_m,
+                np.flatnonzero(~held),
+                np.flatnonzero(held),
+                error_m,
+                origin,
+            )
     ski.record.cache["identification_cases"] = (ident, ski.record.measurements, result)
     return result
 

@@ -8,6 +8,9 @@ Storage layout under the data directory (``Settings.data_dir``)::
     work/<item id>/              a job's scratch space (table checkpoints; removed when done)
     grinds/<item id>.h5          finished texture table (schema skisnow.table/…)
     skis/<item id>.h5            finished ski file with its network (schema skisnow.ski/1)
+    cache/ski-figures/<stem>.json the figures of a ski's page, drawn by the ski's job or on the
+                                 page's first view (:mod:`app.ski_figures`; ``<stem>``: the
+                                 ski file's name, ``<item id>`` for an upload; removed with it)
 
 Files are named by item id so renaming touches only the database. Every file is written
 atomically (:func:`app.storage.common.atomic_path`) or moved in with one ``os.replace`` from
@@ -105,12 +108,17 @@ class Layout:
     def ski_file(self, item_id: str) -> Path:
         return self.root / "skis" / f"{item_id}.h5"
 
+    def ski_figures(self, stem: str) -> Path:
+        """The ski page's figures of ski file ``{stem}.h5`` (:mod:`app.ski_figures`)."""
+        return self.root / "cache" / "ski-figures" / f"{stem}.json"
+
     def remove_item_files(self, item_id: str) -> None:
         for path in (
             self.grind_texture(item_id),
             self.ski_csv(item_id),
             self.grind_table(item_id),
             self.ski_file(item_id),
+            self.ski_figures(item_id),
         ):
             with contextlib.suppress(FileNotFoundError):
                 path.unlink()
@@ -662,12 +670,30 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
     final.parent.mkdir(parents=True, exist_ok=True)
     os.replace(staged, final)
     shutil.rmtree(work, ignore_errors=True)
+    ctx.progress(0.98, "drawing the ski page's figures")
+    _draw_page_figures(item, final, layout)
     meta = {**item.metadata, "accuracy": {k: v for k, v in m.items() if isinstance(v, float)}}
     db_item = ctx.db.update_item(
         item.id, state="ready", file_path=str(final), sha256=sha256_file(final), metadata=meta
     )
     on_ready(db_item)
     return f"network trained; {figures}; {beam_note}"
+
+
+def _draw_page_figures(item, path: Path, layout: Layout) -> None:
+    """Draw the figures of the ski's page into its figure cache (:mod:`app.ski_figures`), so
+    that its first view is fast. A failure is logged, never fails the job: the page then draws
+    them on its first view."""
+    from app.ski_figures import ski_figures
+    from app.storage.skis import read_ski
+
+    try:
+        ski = service.Ski(item.name, path, sha256_file(path), read_ski(path))
+        ski_figures(ski, layout.ski_figures(path.stem))
+    except Exception as exc:  # a cache not filled must not fail the upload
+        log.warning(
+            "figures of ski %r not drawn in its job (%s): its page draws them", item.name, exc
+        )
 
 
 def _identify(data, item) -> tuple[dict, str]:
@@ -685,7 +711,7 @@ def _identify(data, item) -> tuple[dict, str]:
         reason = f"beam not identified: {exc}"
         failed = {"attrs": {"ok": False, "reason": reason, **provenance({"item": item.id})}}
         return failed, reason + " (rigid model only)"
-    group = identification_group(ident, check, note, f, xf, {"item": item.id})
+    group = identification_group(ident, check, note, f, xf, {"item": item.id}, y)
     if not ident.ok:
         return group, f"beam not identified: {ident.reason} (rigid model only)"
     if served_beam_note(group):

@@ -42,6 +42,7 @@ from collections import OrderedDict
 from dataclasses import astuple, dataclass, field
 from html import escape
 from importlib import resources
+from pathlib import Path
 from string import Template
 from urllib.parse import quote, urlencode
 
@@ -54,6 +55,7 @@ from app.presets import DEFAULT_PRESET
 from app.presets import PRESETS as ACCURACY_PRESETS
 from app.profiles import SERVED_MISFIT_LIMIT
 from app.schemas import ContactBody
+from app.ski_figures import ski_figures
 from solvers.band import Z90
 from solvers.errors import SkisnowError
 from solvers.identify import HELD_OUT_LIMIT
@@ -766,9 +768,6 @@ def _csv_value(v) -> str:
 
 # ----------------------------------------------------------------------------- ski page
 
-#: points along the ski of the EI(X) and c(X) plots (the JSON API and the page's table: 41)
-PLOT_POINTS = 401
-
 #: the served profile models (``GET /v1/skis``'s ``profile_model``) as a technician reads them
 PROFILE_MODEL_LABELS = {
     "identified_beam": "beam identified from the ski's camber measurements",
@@ -857,6 +856,7 @@ def _identification_section(ident: dict) -> str:
         ("command", escape(str(pv.get("command_line", "")))),
         ("profiles", escape(str(pv.get("profiles") or ""))),
         ("held-out draw seed", escape(str(pv.get("held_out_seed", "")))),
+        ("held-out errors", _held_out_origin((ident.get("held_out") or {}).get("provenance"))),
         (
             "fit",
             ""
@@ -870,6 +870,20 @@ def _identification_section(ident: dict) -> str:
         f"{cards}{limits}"
         f"<details><summary>Provenance of the identification</summary>{_dl(rows)}</details>"
     )
+
+
+def _held_out_origin(origin: dict | None) -> str:
+    """Where the held-out errors come from: stored in the file (with when and by which command)
+    or computed on reading it."""
+    if not origin:
+        return ""
+    when = ", ".join(
+        f"{label} {origin[k]}"
+        for k, label in (("created_utc", "on"), ("command_line", "by"))
+        if origin.get(k)
+    )
+    text = origin.get("source", "") + (f" ({when})" if when else "")
+    return f'<span id="held-out-source">{escape(text)}</span>'
 
 
 def _beam_table(beam: dict) -> str:
@@ -924,49 +938,27 @@ def _misfit_table(ident: dict) -> str:
     )
 
 
-def _ski_figures(ski: service.Ski, beam: dict, ident: dict | None) -> list[str]:
-    """The ski page's figures (EI(X), c(X), misfit per case), drawn once per ski record: they
-    depend only on its file (about a second each)."""
-    rec = ski.record
-    key = (rec.identified, rec.beam, rec.network)
-    cached = rec.cache.get("page_figures")  # a dataclasses.replace copy shares the cache
-    if cached is not None and all(a is b for a, b in zip(cached[0], key, strict=True)):
-        return cached[1]
-    figures = []
-    if beam["available"]:
-        plot_beam = service.beam_report(ski, points=PLOT_POINTS)
-        if beam.get("bending_stiffness_band_90_nm2"):
-            ei_note = "with its 90 % band from the identification's covariance"
-            c_note = f"with its 90 % band (± {Z90:.3f} σ of the identification)"
-        else:
-            ei_note = c_note = "of the design beam stored with the ski: not identified, no band"
-        figures.append(
-            _figure_html(
-                "stiffness",
-                plots.stiffness_svg(plot_beam),
-                f"Bending stiffness EI(X) [N·m²] {ei_note}",
-            )
-        )
-        figures.append(
-            _figure_html(
-                "camber", plots.camber_svg(plot_beam), f"Unloaded camber c(X) [mm] {c_note}"
-            )
-        )
-    if ident and "case_load_kg" in ident:
-        figures.append(
-            _figure_html(
-                "misfit",
-                plots.misfit_svg(ident),
-                "RMS misfit per camber case [µm] against load [kg] and load position [mm], "
-                "with the device noise σ estimated from the data",
-            )
-        )
-    rec.cache["page_figures"] = (key, figures)
-    return figures
+def _ski_figures(ski: service.Ski, beam: dict, cache_file=None) -> list[str]:
+    """The ski page's figures (EI(X), c(X), misfit per case) with their captions; drawn once
+    per ski file and kept (:mod:`app.ski_figures`)."""
+    svgs = ski_figures(ski, cache_file)
+    if beam.get("bending_stiffness_band_90_nm2"):
+        ei_note = "with its 90 % band from the identification's covariance"
+        c_note = f"with its 90 % band (± {Z90:.3f} σ of the identification)"
+    else:
+        ei_note = c_note = "of the design beam stored with the ski: not identified, no band"
+    captions = {
+        "stiffness": f"Bending stiffness EI(X) [N·m²] {ei_note}",
+        "camber": f"Unloaded camber c(X) [mm] {c_note}",
+        "misfit": "RMS misfit per camber case [µm] against load [kg] and load position [mm], "
+        "with the device noise σ estimated from the data",
+    }
+    return [_figure_html(k, svgs[k], captions[k]) for k in captions if k in svgs]
 
 
-def render_ski(cat: service.Catalogue, ski: service.Ski) -> HTMLResponse:
-    """A ski's page: profile model and why, identification, EI(X), c(X), misfit per case."""
+def render_ski(cat: service.Catalogue, ski: service.Ski, figure_cache=None) -> HTMLResponse:
+    """A ski's page: profile model and why, identification, EI(X), c(X), misfit per case
+    (``figure_cache``: the file keeping its figures between processes, or None)."""
     name = ski.name
     profile = service.profile_report(ski)
     beam = service.beam_report(ski)
@@ -1000,7 +992,7 @@ def render_ski(cat: service.Catalogue, ski: service.Ski) -> HTMLResponse:
     ]
     if ident:
         sections.append(_identification_section(ident))
-    figures = _ski_figures(ski, beam, ident)
+    figures = _ski_figures(ski, beam, figure_cache)
     if figures:
         sections.append(
             f'<h2 id="plots">Along the ski and per case</h2><div class="plots">'
@@ -1346,7 +1338,11 @@ def mount(app: FastAPI) -> None:
                 row = uploads_state.db.item_by_name("ski", name)
                 state = row.state if row is not None else None
             return render_unknown_ski(cat, name, state)
-        return render_ski(cat, ski)
+        settings = getattr(request.app.state, "settings", None)
+        cache = None
+        if settings is not None:
+            cache = uploads.Layout(Path(settings.data_dir)).ski_figures(ski.path.stem)
+        return render_ski(cat, ski, cache)
 
     @app.get("/upload", response_class=HTMLResponse, include_in_schema=False)
     def upload(request: Request) -> HTMLResponse:

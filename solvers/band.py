@@ -34,6 +34,7 @@ __all__ = [
     "profile_perturbations",
     "sampled_half_width",
     "table_interpolation_error",
+    "unit_perturbations",
 ]
 
 #: two-sided 90 % quantile of the standard normal distribution
@@ -62,14 +63,28 @@ def profile_perturbations(
     """``samples`` smooth random fields δH(X) [m], shape (samples, M), each with pointwise
     standard deviation ``sigma_m`` (a constant, or one value per position) and Gaussian
     correlation exp(−Δ²/(2 ℓ²)), ℓ = ``correlation_m``. Drawn in antithetic pairs (δ, −δ)
-    so that the mean perturbation is zero and a linear response has no sampling bias."""
+    so that the mean perturbation is zero and a linear response has no sampling bias.
+    ``unit_perturbations(...) · sigma_m`` (:func:`unit_perturbations`, which a caller may
+    keep for a grid it perturbs often)."""
+    x = np.asarray(positions_m, dtype=float)
+    unit = unit_perturbations(x, correlation_m, samples, seed)
+    sigma = np.broadcast_to(np.asarray(sigma_m, dtype=float), x.shape)
+    if not np.all(sigma >= 0):
+        raise InputError("correlation_m must be > 0 and sigma_m ≥ 0")
+    return unit * sigma
+
+
+def unit_perturbations(
+    positions_m: np.ndarray, correlation_m: float, samples: int, seed: int
+) -> np.ndarray:
+    """The fields of :func:`profile_perturbations` with unit standard deviation [-], shape
+    (samples, M): they depend on the grid, ℓ, the count and the seed only."""
     x = np.asarray(positions_m, dtype=float)
     if x.ndim != 1 or x.size < 2:
         raise InputError("positions_m must be a 1-D grid of at least 2 points")
     if samples < 2 or samples % 2:
         raise InputError(f"samples must be an even number ≥ 2, got {samples}")
-    sigma = np.broadcast_to(np.asarray(sigma_m, dtype=float), x.shape)
-    if not (correlation_m > 0 and np.all(sigma >= 0)):
+    if not correlation_m > 0:
         raise InputError("correlation_m must be > 0 and sigma_m ≥ 0")
     rng = np.random.default_rng(seed)
     # white noise on a padded uniform grid, smoothed by a Gaussian kernel of std ℓ/√2 (the
@@ -84,7 +99,7 @@ def profile_perturbations(
     n_pairs = samples // 2
     white = rng.standard_normal((n_pairs, grid.size))
     smooth = np.array([np.convolve(w, k, mode="same") for w in white])
-    fields = np.array([np.interp(x, grid, f) for f in smooth]) * sigma
+    fields = np.array([np.interp(x, grid, f) for f in smooth])
     return np.concatenate([fields, -fields])
 
 

@@ -331,12 +331,7 @@ class _WindowHalfSpace:
         self.coupling = np.ascontiguousarray(kh[:, np.abs(j[:, None] - j[None, :])])
 
     def displacement(self, pressure_pa: np.ndarray) -> np.ndarray:
-        ph = scipy.fft.rfft(pressure_pa, n=self.padded, axis=0)
-        if self.ny == 1:
-            uh = ph * self.coupling[:, 0, :]
-        else:
-            uh = macro._couple_across(self.coupling, ph)
-        return scipy.fft.irfft(uh, n=self.padded, axis=0)[: self.n]
+        return macro.line_convolution(pressure_pa, self.coupling, self.n)
 
 
 class _Pixels:

@@ -22,6 +22,7 @@ from solvers.band import (
     position_error_sigma,
     profile_perturbations,
     table_interpolation_error,
+    unit_perturbations,
 )
 from solvers.beam import solve_beam_contact
 from solvers.elastic import effective_modulus
@@ -62,6 +63,25 @@ def test_perturbations_have_the_asked_spread_and_correlation():
     assert np.std(varying[:, 700]) == pytest.approx(3e-6, rel=0.08)
     with pytest.raises(InputError):
         profile_perturbations(x, sigma, ell, 3, seed=0)
+
+
+def test_unit_fields_times_sigma_are_the_perturbations_and_are_kept_per_grid():
+    """The service keeps the unit fields per profile grid; × σ they are the perturbations of
+    profile_perturbations bit for bit, so the band does not depend on what was cached."""
+    from app import band
+
+    x = np.linspace(-0.9, 1.0, 2001)
+    sigma = np.where(x < 0, 1e-6, 2.5e-6)
+    expected = profile_perturbations(x, sigma, band.PROFILE_CORRELATION_M, 8, seed=12)
+    assert np.array_equal(
+        unit_perturbations(x, band.PROFILE_CORRELATION_M, 8, 12) * sigma, expected
+    )
+    first = band._unit_fields(x, 8, 12)
+    assert band._unit_fields(x.copy(), 8, 12) is first  # same grid, another array: kept
+    assert np.array_equal(first * sigma, expected)
+    assert not np.array_equal(band._unit_fields(x, 8, 13), first)  # the seed is in the key
+    with pytest.raises(InputError):
+        band._nonnegative(-1e-6, x)
 
 
 def test_table_interpolation_error_is_zero_for_a_power_law_and_positive_for_a_bend():

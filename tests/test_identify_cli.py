@@ -1,10 +1,20 @@
-"""``skisnow identify-ski``: the report, the held-out split, the JSON file, bad input."""
+"""``skisnow identify-ski``: the report, the held-out split, the JSON file, bad input, the
+held-out errors stored with an identification (``--store``) or added to it later."""
 
 from __future__ import annotations
 
 import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
 
 from app.cli import main
+from app.storage.skis import mean_profiles
+from solvers.beam import BeamSki, solve_beam_contact
+
+REPO = Path(__file__).resolve().parents[1]
 
 
 def test_identify_ski_from_csv(tmp_path, camber_csv, capsys):
@@ -30,3 +40,88 @@ def test_identify_ski_bad_holdout(tmp_path, camber_csv, capsys):
     csv_path.write_bytes(camber_csv)
     assert main(["identify-ski", "--csv", str(csv_path), "--holdout", "0.95"]) == 2
     assert "--holdout" in capsys.readouterr().err
+
+
+def _small_ski_file(tmp_path, camber_csv) -> Path:
+    """A ski file with the fixture's 25 camber cases (no identification yet)."""
+    from app.storage.skis import SkiRecord, read_camber_csv, read_ski, write_ski
+
+    csv_path = tmp_path / "ski.csv"
+    csv_path.write_bytes(camber_csv)
+    demo = read_ski(REPO / "tables" / "skis" / "ski-a.h5")
+    path = tmp_path / "skis" / "small.h5"
+    write_ski(path, SkiRecord(read_camber_csv(csv_path), demo.outline, {"description": "test"}))
+    return path
+
+
+def _recomputed_held_out_errors(record) -> tuple[np.ndarray, np.ndarray]:
+    """Held-out cases and their RMS error [m], predicted from the stored identified beam."""
+    ident = record.identified
+    f, xf, y, _ = mean_profiles(record.measurements)
+    held = np.sort(np.asarray(ident["held_out_index"], dtype=int))
+    beam = BeamSki(ident["positions_m"], ident["bending_stiffness_nm2"], ident["unloaded_gap_m"])
+    gaps = np.stack([solve_beam_contact(beam, f[k], xf[k]).gap_m for k in held])
+    return held, np.sqrt(np.mean((gaps - y[held]) ** 2, axis=1))
+
+
+@pytest.mark.slow  # one identification of 25 cases: 35-70 s on 2 loaded cores
+def test_store_keeps_the_held_out_errors(tmp_path, camber_csv, capsys):
+    """``--store`` writes each held-out case's error with the identification (what the ski's
+    page shows), equal to a recomputation from the stored beam."""
+    from app.profiles import HELD_OUT_ERRORS, HELD_OUT_STORED
+    from app.storage.skis import read_ski
+
+    path = _small_ski_file(tmp_path, camber_csv)
+    main(["identify-ski", "--ski", str(path), "--store", "--json"])
+    capsys.readouterr()
+    record = read_ski(path)
+    held, expected = _recomputed_held_out_errors(record)
+    group = record.identified[HELD_OUT_ERRORS]
+    assert held.size == 5 and np.array_equal(group["case_index"], held)
+    np.testing.assert_allclose(group["rms_error_m"], expected, rtol=1e-12, atol=0)
+    assert group["attrs"]["source"] == HELD_OUT_STORED and group["attrs"]["units"] == "m"
+    assert json.loads(group["attrs"]["parameters_json"])["store"] == "True"
+
+
+def test_add_held_out_errors_to_an_older_file(tmp_path, capsys):
+    """``--add-held-out-errors`` adds to an identification stored without them (here: a demo
+    ski's, stripped) the errors the shipped file stores, changing nothing else, and says so in
+    their provenance."""
+    from app.profiles import HELD_OUT_ADDED, HELD_OUT_ERRORS
+    from app.storage.skis import read_ski, replace_ski_group
+
+    path = tmp_path / "ski-a.h5"
+    shutil.copyfile(REPO / "tables" / "skis" / "ski-a.h5", path)
+    stored = read_ski(path).identified
+    older = {k: v for k, v in stored.items() if k != HELD_OUT_ERRORS}
+    replace_ski_group(path, "identified", older)
+    assert HELD_OUT_ERRORS not in read_ski(path).identified
+    assert main(["identify-ski", "--ski", str(path), "--add-held-out-errors", "--json"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    assert rep["held_out_cases"] == 85
+    added = read_ski(path).identified
+    np.testing.assert_allclose(
+        added[HELD_OUT_ERRORS]["rms_error_m"],
+        stored[HELD_OUT_ERRORS]["rms_error_m"],
+        rtol=1e-12,
+        atol=0,
+    )
+    assert np.array_equal(added[HELD_OUT_ERRORS]["case_index"], stored["held_out_index"])
+    attrs = added[HELD_OUT_ERRORS]["attrs"]
+    assert attrs["source"] == HELD_OUT_ADDED and attrs["units"] == "m"
+    assert json.loads(attrs["parameters_json"])["add_held_out_errors"] == "True"
+    assert rep["held_out_rms_um"] == pytest.approx(stored["attrs"]["held_out_rms_m"] * 1e6, 1e-12)
+    # the identification itself is unchanged
+    for key, value in older.items():
+        if key != "attrs":
+            assert np.array_equal(added[key], value, equal_nan=True), key
+    assert added["attrs"] == older["attrs"]
+
+
+def test_add_held_out_errors_needs_a_stored_identification(tmp_path, camber_csv, capsys):
+    path = _small_ski_file(tmp_path, camber_csv)
+    assert main(["identify-ski", "--ski", str(path), "--add-held-out-errors"]) == 2
+    assert "no stored identification" in capsys.readouterr().err
+    csv_path = tmp_path / "ski.csv"
+    assert main(["identify-ski", "--csv", str(csv_path), "--add-held-out-errors"]) == 2
+    assert "--add-held-out-errors needs --ski" in capsys.readouterr().err

@@ -13,6 +13,7 @@ from solvers.macro import (
     DEFAULT_PIXEL_ACROSS,
     DEFAULT_PIXEL_ALONG_M,
     GapMap,
+    _couple_across,
     _LineOperator,
     _solve_windowed,
     extrude_profile,
@@ -65,6 +66,23 @@ def test_line_operator_is_the_2d_operator(shape):
     line = _LineOperator(*shape, dx, dy, E_EFF).displacement(p)
     full = NonPeriodicHalfSpace(shape, (dx, dy), E_EFF).displacement(p)
     assert np.max(np.abs(line - full)) < 1e-12 * np.max(np.abs(full))
+
+
+@pytest.mark.parametrize("shape", [(40, 1), (37, 4), (33, 8), (2, 3)])
+def test_line_operator_is_bit_for_bit_the_scipy_fft_convolution(shape):
+    """The operator calls SciPy's pocketfft directly (no per-call dispatch); the numbers are
+    those of the public scipy.fft.rfft/irfft path, not merely close to them."""
+    import scipy.fft
+
+    n = shape[0]
+    op = _LineOperator(*shape, 4e-3, 5.5e-3, E_EFF)
+    p = np.random.default_rng(8).random(shape)
+    ph = scipy.fft.rfft(p, n=2 * n, axis=0)
+    uh = ph * op.coupling[:, 0, :] if shape[1] == 1 else _couple_across(op.coupling, ph)
+    expected = scipy.fft.irfft(uh, n=2 * n, axis=0)[:n]
+    got = op.displacement(p)
+    assert got.shape == shape
+    assert np.array_equal(got, expected)
 
 
 def _demo_gap_map(name, dx=DEFAULT_PIXEL_ALONG_M, ny=DEFAULT_PIXEL_ACROSS):
@@ -242,3 +260,104 @@ def test_a_nearby_rigid_body_start_gives_the_same_answer():
         assert near.approach_m == pytest.approx(plain.approach_m, rel=1e-5, abs=1e-10)
     with pytest.raises(InputError):
         solve_macro(gm, load, xf, e, initial_rigid_body=(float("nan"), 0.0))
+
+
+def _edge_lengths_python(contact, clearance, x, a, b):
+    """The former pure-Python loop of solvers.macro._edge_lengths (the compiled one must give
+    the same numbers bit for bit)."""
+
+    def edge(h1, h2, x1, x0):
+        if not (np.isfinite(h1) and np.isfinite(h2)) or not h2 > h1 >= 0:
+            return 0.5 * (x0 + x1)
+        a1, a2 = h1 ** (2.0 / 3.0), h2 ** (2.0 / 3.0)
+        e = x1 + (x0 - x1) * a1 / (a2 - a1)
+        return float(min(max(e, min(x0, x1)), max(x0, x1)))
+
+    nx, ny = contact.shape
+    dx = float(x[1] - x[0])
+    rear, front, length = np.full(ny, np.nan), np.full(ny, np.nan), np.zeros(ny)
+    for j in range(ny):
+        col = contact[a:b, j].astype(np.int8)
+        ed = np.flatnonzero(np.diff(np.concatenate([[0], col, [0]])))
+        for r0, r1 in zip(ed[::2] + a, ed[1::2] + a - 1, strict=True):
+            if r1 == r0:
+                e_r, e_f = x[r0] - dx / 2, x[r0] + dx / 2
+                length[j] += dx
+            else:
+                h1 = clearance[r0 - 1, j] if r0 >= 1 else np.nan
+                h2 = clearance[r0 - 2, j] if r0 >= 2 else np.nan
+                e_r = edge(h1, h2, x[r0] - dx, x[r0])
+                h1 = clearance[r1 + 1, j] if r1 + 1 < nx else np.nan
+                h2 = clearance[r1 + 2, j] if r1 + 2 < nx else np.nan
+                e_f = edge(h1, h2, x[r1] + dx, x[r1])
+                length[j] += e_f - e_r
+            rear[j] = e_r if np.isnan(rear[j]) else min(rear[j], e_r)
+            front[j] = e_f if np.isnan(front[j]) else max(front[j], e_f)
+    return rear, front, length
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_compiled_edge_lengths_are_the_python_loop_bit_for_bit(seed):
+    from solvers.macro import _edge_lengths
+
+    rng = np.random.default_rng(seed)
+    nx, ny = 60, 1 + seed
+    x = -0.1 + 4e-3 * (np.arange(nx) + 0.5)
+    contact = rng.random((nx, ny)) < 0.3
+    contact[:2, 0] = True  # runs at the footprint ends and single pixels
+    contact[-1, -1] = True
+    clearance = np.where(contact, 0.0, rng.lognormal(-12, 1, (nx, ny)))
+    clearance[rng.random((nx, ny)) < 0.05] = np.nan  # outside the footprint
+    clearance[5, 0] = clearance[6, 0] = 1e-6  # h2 == h1: fallback to the midpoint
+    for a, b in ((0, nx), (3, 41), (10, 11)):
+        got = _edge_lengths(contact, clearance, x, a, b)
+        expected = _edge_lengths_python(contact, clearance, x, a, b)
+        for g, e in zip(got, expected, strict=True):
+            assert np.array_equal(g, e, equal_nan=True)
+
+
+@pytest.mark.parametrize("ny", [2, 5, 8])
+def test_coupling_across_the_width_is_the_complex_product_sum(ny):
+    """The compiled coupling sums real and imaginary parts apart; the numbers are those of
+    the complex sum Σ_k K̂[f, j, k] · P̂[f, k] in k order, bit for bit."""
+    rng = np.random.default_rng(ny)
+    nf = 9
+    coupling = rng.normal(size=(nf, ny, ny))
+    ph = rng.normal(size=(nf, ny)) + 1j * rng.normal(size=(nf, ny))
+    expected = np.empty_like(ph)
+    for f in range(nf):
+        for j in range(ny):
+            s = 0j
+            for k in range(ny):
+                s += complex(coupling[f, j, k]) * complex(ph[f, k])
+            expected[f, j] = s
+    assert np.array_equal(_couple_across(coupling, ph), expected)
+
+
+def test_profile_extruder_gives_the_maps_of_extrude_profile_and_interpolate_sides():
+    from solvers.macro import ProfileExtruder
+
+    rng = np.random.default_rng(11)
+    x = np.linspace(-0.9, 1.0, 401)
+    width_x, width = np.array([-0.9, 0.0, 1.0]), np.array([0.044, 0.047, 0.043])
+    ext = ProfileExtruder(x, width, width_positions_m=width_x, pixel_along_m=8e-3, pixels_across=5)
+    for _ in range(3):
+        g, g2 = rng.uniform(-1e-6, 1e-3, x.size), rng.uniform(0, 1e-3, x.size)
+        a = ext(g)
+        b = extrude_profile(
+            x, g, width, width_positions_m=width_x, pixel_along_m=8e-3, pixels_across=5
+        )
+        assert np.array_equal(a.gap_m, b.gap_m, equal_nan=True)
+        assert np.array_equal(a.positions_m, b.positions_m)
+        assert a.pixel_size_m == b.pixel_size_m
+        s = ext.sides(g, g2)
+        t = interpolate_sides(
+            x, g, g2, width, width_positions_m=width_x, pixel_along_m=8e-3, pixels_across=5
+        )
+        assert np.array_equal(s.gap_m, t.gap_m, equal_nan=True)
+    with pytest.raises(InputError, match="equal length"):
+        ext(np.zeros(x.size - 1))
+    with pytest.raises(InputError, match="finite"):
+        ext(np.full(x.size, np.nan))
+    with pytest.raises(InputError, match="increasing"):
+        ProfileExtruder(x[::-1], 0.044)

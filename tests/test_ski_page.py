@@ -16,8 +16,11 @@ from fastapi.testclient import TestClient
 
 from app import service, web
 from app.api import create_app
+from app.profiles import HELD_OUT_ADDED, HELD_OUT_ERRORS, HELD_OUT_STORED
 from app.settings import Settings
+from app.storage.skis import mean_profiles
 from solvers.band import Z90
+from solvers.beam import BeamFlexibility, BeamSki, solve_beam_contact
 
 DEMO = ("ski-a", "ski-b")
 #: a name that would run as script if it were not escaped (the catalogue accepts any name in
@@ -42,6 +45,21 @@ def _rejected(base: service.Ski) -> dict:
     return group
 
 
+def _older(base: service.Ski) -> dict:
+    """ski-a's identification as a file written before the held-out errors were stored."""
+    return {k: v for k, v in base.record.identified.items() if k != HELD_OUT_ERRORS}
+
+
+def _other_cases(base: service.Ski) -> dict:
+    """ski-a's identification whose stored held-out errors name other cases than its held-out
+    draw (a damaged or hand-edited file): they must not be shown as these cases' errors."""
+    group = dict(base.record.identified)
+    errors = dict(group[HELD_OUT_ERRORS])
+    errors["case_index"] = np.asarray(errors["case_index"]) + 1
+    group[HELD_OUT_ERRORS] = errors
+    return group
+
+
 @pytest.fixture(scope="module")
 def client(catalogue, tmp_path_factory):
     a = catalogue.skis["ski-a"]
@@ -50,6 +68,8 @@ def client(catalogue, tmp_path_factory):
     skis["design-only"] = _variant(a, "design-only", identified=None, network=None)
     skis["rejected"] = _variant(a, "rejected", identified=_rejected(a), beam=None)
     skis[NASTY] = _variant(a, NASTY, identified=FAILED)
+    skis["older-file"] = _variant(a, "older-file", identified=_older(a))
+    skis["other-cases"] = _variant(a, "other-cases", identified=_other_cases(a))
     cat = service.Catalogue(tables_dir=catalogue.tables_dir, skis=skis, grinds=catalogue.grinds)
     settings = Settings(data_dir=tmp_path_factory.mktemp("ski-page"), warm_up=False)
     with TestClient(create_app(settings, catalogue=cat), raise_server_exceptions=False) as c:
@@ -188,6 +208,119 @@ def test_plots_and_units(demo):
     ):
         assert text in html
     assert not re.search(r'(src|href)="(https?:)?//', html)
+
+
+@pytest.mark.parametrize("name", DEMO)
+def test_stored_held_out_errors_equal_a_recomputation_from_the_beam(catalogue, name):
+    """The demo skis store each held-out case's error with their identification; it is the
+    identified beam's prediction minus the measured (left/right mean) profile, RMS over X,
+    recomputed here case by case from the stored beam: rounding only."""
+    rec = catalogue.skis[name].record
+    ident = rec.identified
+    stored = ident[HELD_OUT_ERRORS]
+    loads_n, positions_m, profiles_m, _ = mean_profiles(rec.measurements)
+    held = np.sort(np.asarray(ident["held_out_index"], dtype=int))
+    assert held.size == ident["attrs"]["held_out_cases"] == 85
+    assert np.array_equal(stored["case_index"], held)
+    beam = BeamSki(ident["positions_m"], ident["bending_stiffness_nm2"], ident["unloaded_gap_m"])
+    flex = BeamFlexibility(beam)
+    gaps = np.stack(
+        [solve_beam_contact(beam, loads_n[k], positions_m[k], flexibility=flex).gap_m for k in held]
+    )
+    expected = np.sqrt(np.mean((gaps - profiles_m[held]) ** 2, axis=1))
+    assert np.all(expected > 0)
+    np.testing.assert_allclose(stored["rms_error_m"], expected, rtol=1e-12, atol=0)
+    # the overall held-out RMS of the identification's check is their RMS (same nodes per case)
+    overall = math.sqrt(np.mean(np.asarray(stored["rms_error_m"]) ** 2))
+    assert overall == pytest.approx(ident["attrs"]["held_out_rms_m"], rel=1e-12)
+    # provenance: units, how they were stored (the demo skis: added to their identification
+    # without re-identifying, or stored by a later identify-ski --store), when and by what
+    a = stored["attrs"]
+    assert a["units"] == "m"
+    assert a["source"] in (HELD_OUT_STORED, HELD_OUT_ADDED)
+    for key in ("created_utc", "command_line", "code_version", "git_commit"):
+        assert a[key], key
+
+
+def test_the_api_and_page_show_the_stored_held_out_errors(demo, catalogue):
+    name, html, api = demo
+    held = api["beam"]["identification"]["held_out"]
+    stored = catalogue.skis[name].record.identified[HELD_OUT_ERRORS]
+    assert held["error_um"] == service._finite_list(np.asarray(stored["rms_error_m"]), 1e6, 4)
+    origin = held["provenance"]
+    assert origin["source"] == stored["attrs"]["source"]
+    assert origin["created_utc"] == stored["attrs"]["created_utc"]
+    shown = re.search(r'<span id="held-out-source">([^<]*)</span>', html).group(1)
+    assert unescape(shown).startswith(origin["source"])
+
+
+@pytest.mark.parametrize("name", ["older-file", "other-cases"])
+def test_an_older_file_computes_the_held_out_errors_on_read(client, catalogue, name):
+    """A file without stored held-out errors (or with errors of other cases) still shows every
+    held-out case's error: predicted from the stored beam on reading, and said so."""
+    base = catalogue.skis["ski-a"].record.identified[HELD_OUT_ERRORS]
+    ski = client.app.state.catalogue.skis[name]
+    *_, held, error_m, origin = service._identification_cases(ski)
+    assert origin == {"source": service.HELD_OUT_COMPUTED}
+    assert np.array_equal(held, base["case_index"])
+    np.testing.assert_allclose(error_m, base["rms_error_m"], rtol=1e-12, atol=0)
+    api = client.get(f"/v1/skis/{name}").json()["beam"]["identification"]["held_out"]
+    demo = client.get("/v1/skis/ski-a").json()["beam"]["identification"]["held_out"]
+    assert api["provenance"] == {"source": service.HELD_OUT_COMPUTED}
+    assert demo["provenance"]["source"] != service.HELD_OUT_COMPUTED
+    for key in ("load_kg", "position_mm", "error_um"):
+        assert api[key] == demo[key], key
+    html = _page(client, name)
+    assert "computed on read" in re.search(r'<span id="held-out-source">([^<]*)</span>', html)[1]
+    assert len(re.findall(r'<tr class="held-out">', html)) == 85
+
+
+def test_page_figures_are_kept_on_disk_per_ski_file(catalogue, tmp_path, monkeypatch):
+    """The page's figures are drawn once per ski file and read back by another process (a
+    fresh record); other numbers, or a damaged cache file, draw anew."""
+    from app import ski_figures as sf
+
+    a = catalogue.skis["ski-a"]
+    drawn = []
+    draw = sf._draw
+    monkeypatch.setattr(sf, "_draw", lambda *args: drawn.append(1) or draw(*args))
+
+    def fresh() -> service.Ski:  # as read by another process: nothing in memory
+        return service.Ski("ski-a", a.path, a.sha256, dataclasses.replace(a.record, cache={}))
+
+    cache = tmp_path / "cache" / "ski-a.json"
+    first = sf.ski_figures(fresh(), cache)
+    assert set(first) == {"stiffness", "camber", "misfit"} and len(drawn) == 1
+    assert all(svg.startswith("<svg") for svg in first.values())
+    again = fresh()
+    assert sf.ski_figures(again, cache) == first and len(drawn) == 1  # read, not drawn
+    assert sf.ski_figures(again, cache) is sf.ski_figures(again, cache)  # then kept in memory
+    # a ski with other numbers (its design beam, no identification) draws its own figures
+    design = service.Ski(
+        "ski-a", a.path, a.sha256, dataclasses.replace(a.record, identified=None, cache={})
+    )
+    other = sf.ski_figures(design, cache)
+    assert set(other) == {"stiffness", "camber"} and len(drawn) == 2
+    # the entry was replaced: ski-a's figures are drawn anew (matplotlib's SVG ids differ from
+    # one drawing to the next), then read back
+    redrawn = sf.ski_figures(fresh(), cache)
+    assert set(redrawn) == set(first) and len(drawn) == 3
+    assert sf.ski_figures(fresh(), cache) == redrawn and len(drawn) == 3
+    cache.write_text("{not json")
+    redrawn = sf.ski_figures(fresh(), cache)
+    assert set(redrawn) == set(first) and len(drawn) == 4
+    assert sf.ski_figures(fresh(), cache) == redrawn and len(drawn) == 4  # rewritten
+
+
+def test_an_uploads_figure_cache_goes_with_it(tmp_path):
+    from app.uploads import Layout
+
+    layout = Layout(tmp_path)
+    path = layout.ski_figures("item-1")
+    path.parent.mkdir(parents=True)
+    path.write_text("{}")
+    layout.remove_item_files("item-1")
+    assert not path.exists()
 
 
 # ----------------------------------------------------------------------------- no beam

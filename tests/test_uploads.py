@@ -9,6 +9,7 @@ Table and training settings are tiny so that every job takes seconds.
 from __future__ import annotations
 
 import io
+import json
 import re
 import time
 from pathlib import Path
@@ -53,6 +54,10 @@ def npy_bytes(a: np.ndarray) -> bytes:
     buf = io.BytesIO()
     np.save(buf, a)
     return buf.getvalue()
+
+
+#: the arrays of a stored identification that make its beam
+BEAM_ARRAYS = ("positions_m", "bending_stiffness_nm2", "unloaded_gap_m")
 
 
 def make_client(catalogue, data_dir: Path, **overrides) -> TestClient:
@@ -288,8 +293,13 @@ def test_ski_upload_train_and_contact(catalogue, tmp_path, camber_csv):
         assert r.status_code == 200, r.text[:500]
         assert r.json()["provenance"]["ski"]["profile_model"] == profile
         assert r.json()["apparent"]["contact_area_cm2"] > 0
+        # the ski file, its CSV and the figures of its page, drawn by the job
         assert sorted(stored_files(tmp_path)) == sorted(
-            [f"skis/{shown['id']}.h5", f"uploads/{shown['id']}.csv"]
+            [
+                f"skis/{shown['id']}.h5",
+                f"uploads/{shown['id']}.csv",
+                f"cache/ski-figures/{shown['id']}.json",
+            ]
         )
         # the job identified (or failed to identify) the ski's beam, and says which
         beam = shown["beam"]
@@ -299,6 +309,9 @@ def test_ski_upload_train_and_contact(catalogue, tmp_path, camber_csv):
         page = client.get("/skis/my-ski")
         assert page.status_code == 200
         assert f"<code>{profile}</code>" in page.text
+        # its figures are the job's drawing, read from the cache (a new drawing has other ids)
+        drawn = json.loads((tmp_path / "cache" / "ski-figures" / f"{shown['id']}.json").read_text())
+        assert drawn["figures"] and all(svg in page.text for svg in drawn["figures"].values())
         assert f"profile model: {profile}" in client.get("/").text
         # the CSV's 5 loads × 5 positions (camber_csv), less the held-out cases
         assert set(ident["case_load_kg"]) <= {20.0, 35.0, 50.0, 65.0, 80.0}
@@ -310,6 +323,23 @@ def test_ski_upload_train_and_contact(catalogue, tmp_path, camber_csv):
         assert page.text.count('<tr class="held-out">') == len(
             (ident.get("held_out") or {}).get("error_um", [])
         )
+        # the job stored each held-out case's error with the identification: the page and the
+        # API read it (no prediction on read), and it is the stored beam's prediction error
+        from app.profiles import HELD_OUT_ERRORS, HELD_OUT_STORED
+        from app.storage.skis import mean_profiles, read_ski
+        from solvers.identify import predict_gaps
+
+        record = read_ski(tmp_path / "skis" / f"{shown['id']}.h5")
+        stored = record.identified[HELD_OUT_ERRORS]
+        assert ident["held_out"]["provenance"]["source"] == HELD_OUT_STORED
+        assert stored["attrs"]["source"] == HELD_OUT_STORED
+        held = np.sort(record.identified["held_out_index"])
+        assert held.size == 5 and np.array_equal(stored["case_index"], held)
+        f, xf, y, _ = mean_profiles(record.measurements)
+        beam = service.BeamSki(*(record.identified[k] for k in BEAM_ARRAYS))
+        expected = np.sqrt(np.mean((predict_gaps(beam, f[held], xf[held]) - y[held]) ** 2, axis=1))
+        np.testing.assert_allclose(stored["rms_error_m"], expected, rtol=1e-12, atol=0)
+        assert ident["held_out"]["error_um"] == [float(f"{e * 1e6:.4g}") for e in expected]
         body = {"ski": "my-ski", "grind": "tiny-grind", **CONTACT}
         flex = client.post("/v1/contact", json={**body, "ski_model": "flexible"})
         auto = client.post("/v1/contact", json={**body, "ski_model": "auto"}).json()

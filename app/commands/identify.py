@@ -5,7 +5,10 @@ camber CSV), holding out a seeded fraction of the cases, and reports the misfit 
 should come down to the device noise), EI(X) with its 90 % band, and the held-out errors: against
 the held-out measurements, and, for a ski that stores its design beam (the demo skis), against
 that beam's noise-free profiles where H* < 0.2 mm. ``--out`` writes the report as JSON
-(atomically, with provenance).
+(atomically, with provenance). ``--store`` stores the identification in the ski file, with each
+held-out case's error (what ``GET /v1/skis/{name}`` and the ski's page show);
+``--add-held-out-errors`` adds those errors to an identification stored before they were
+(predicted from the stored beam, no re-identification, said in their provenance).
 
 Left/right profiles of one case are averaged into one profile (said in the report); the
 measurements themselves are never changed.
@@ -21,7 +24,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from app.profiles import identification_group
+from app.profiles import HELD_OUT_ERRORS, add_held_out_errors, identification_group
 from app.storage.common import atomic_path, provenance, tables_dir
 from app.storage.skis import (
     SKI_MANIFEST,
@@ -61,6 +64,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         "profile's spread) in the ski file; a passed identification becomes the ski's profile "
         "model and beam (docs/camber-identification.md)",
     )
+    p.add_argument(
+        "--add-held-out-errors",
+        action="store_true",
+        help="with --ski: do not identify; add each held-out case's error, predicted from the "
+        "stored beam, to the identification stored in the ski file (files stored before these "
+        "errors were; the service otherwise computes them on reading)",
+    )
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.set_defaults(func=run)
 
@@ -86,7 +96,9 @@ def identify_report(
     )
     elapsed = time.perf_counter() - t0
     if keep is not None:
-        keep.update(ident=ident, check=check, sides=sides_note, loads_n=f, positions_m=xf)
+        keep.update(
+            ident=ident, check=check, sides=sides_note, loads_n=f, positions_m=xf, profiles_m=y
+        )
     held = np.zeros(f.size, dtype=bool)
     held[check["held_out_index"]] = True
     x = data.positions_m
@@ -141,6 +153,10 @@ def run(args: argparse.Namespace) -> int:
         data, design = read_camber_csv(args.csv), None
     if args.store and not args.ski:
         raise InputError("--store needs --ski (a stored ski file)")
+    if args.add_held_out_errors:
+        if not args.ski or args.store:
+            raise InputError("--add-held-out-errors needs --ski and does not identify (no --store)")
+        return run_add_held_out_errors(path, record, vars_of(args), as_json=args.json)
     keep: dict = {}
     # a progress bar on stderr (the identification takes minutes; shown on a terminal only)
     with tqdm(total=100, desc="identify", unit="%", disable=None, leave=False) as bar:
@@ -189,12 +205,48 @@ def store_identification(path: Path, record, keep: dict, params: dict) -> None:
     """Write the identification into the ski file at ``path`` (atomic; the folder's manifest,
     when there is one, gets the new sha256)."""
     group = identification_group(
-        keep["ident"], keep["check"], keep["sides"], keep["loads_n"], keep["positions_m"], params
+        keep["ident"],
+        keep["check"],
+        keep["sides"],
+        keep["loads_n"],
+        keep["positions_m"],
+        params,
+        keep["profiles_m"],
     )
     replace_ski_group(path, "identified", group)
     record.identified = group
     if (path.parent / SKI_MANIFEST).is_file():
         write_ski_manifest(path.parent)
+
+
+def run_add_held_out_errors(path: Path, record, params: dict, *, as_json: bool) -> int:
+    """Add each held-out case's error to the identification stored in the ski file at ``path``
+    (atomic; the manifest, when there is one, gets the new sha256); prints what was added."""
+    t0 = time.perf_counter()
+    group = add_held_out_errors(record.identified, record.measurements, params)
+    elapsed = time.perf_counter() - t0
+    replace_ski_group(path, "identified", group)
+    record.identified = group
+    if (path.parent / SKI_MANIFEST).is_file():
+        write_ski_manifest(path.parent)
+    error = np.asarray(group[HELD_OUT_ERRORS]["rms_error_m"])
+    rep = {
+        "ski_id": record.measurements.ski_id,
+        "stored_in": str(path),
+        "held_out_cases": int(error.size),
+        "held_out_rms_um": float(np.sqrt(np.mean(error**2))) * 1e6,
+        "held_out_max_um": float(error.max()) * 1e6,
+        "time_s": elapsed,
+    }
+    if as_json:
+        print(json.dumps(rep))
+    else:
+        print(
+            f"ski {rep['ski_id']}: {rep['held_out_cases']} held-out errors added to the stored "
+            f"identification in {path} (RMS {rep['held_out_rms_um']:.3f} µm, max "
+            f"{rep['held_out_max_um']:.3f} µm; {elapsed:.1f} s)"
+        )
+    return 0
 
 
 def vars_of(args: argparse.Namespace) -> dict:
