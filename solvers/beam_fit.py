@@ -291,6 +291,9 @@ class ForwardFit:
         Wall time [s].
     history_m : list of float
         Misfit after each accepted step [m].
+    objective : float
+        The fitted objective at the end, χ²/σ² plus the prior on γ [-]: fits of one data set
+        with the same bases compare by it (the lower is the better local minimum).
     """
 
     beam: BeamSki
@@ -307,6 +310,7 @@ class ForwardFit:
     message: str
     solve_time_s: float = 0.0
     history_m: list = field(default_factory=list)
+    objective: float = float("nan")
 
 
 class _Model:
@@ -647,4 +651,5 @@ def fit_forward(
         message=message if ok else message + "; a contact solve did not converge",
         solve_time_s=time.perf_counter() - t0,
         history_m=history,
+        objective=float(model.objective(ssr, theta)),
     )
