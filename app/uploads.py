@@ -659,7 +659,11 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
         | {"description": f"uploaded ski {item.name}", "item_id": item.id},
     )
     ctx.progress(0.96, "identifying the ski's beam from its camber cases")
-    record.identified, beam_note = _identify(data, item)
+    record.identified, beam_note = _identify(
+        data,
+        item,
+        lambda frac, msg: ctx.progress(0.96 + 0.03 * frac, f"identifying the ski's beam: {msg}"),
+    )
     work = layout.work(item.id)
     work.mkdir(parents=True, exist_ok=True)
     staged = work / "ski.h5"
@@ -696,17 +700,18 @@ def _draw_page_figures(item, path: Path, layout: Layout) -> None:
         )
 
 
-def _identify(data, item) -> tuple[dict, str]:
+def _identify(data, item, callback=None) -> tuple[dict, str]:
     """Identify the beam of an uploaded ski (method.md §4c): the stored ``identified`` group and
     one sentence for the job result. A failure is recorded, never raised: the ski still works
-    with the rigid model and its network."""
+    with the rigid model and its network. ``callback(fraction, message)``: the
+    identification's progress (the job shows it; minutes on a loaded machine)."""
     from app.profiles import identification_group, served_beam_note
     from app.storage.skis import mean_profiles
     from solvers.identify import identify_beam_checked
 
     try:
         f, xf, y, note = mean_profiles(data)
-        ident, check = identify_beam_checked(data.positions_m, f, xf, y)
+        ident, check = identify_beam_checked(data.positions_m, f, xf, y, callback=callback)
     except SkisnowError as exc:
         reason = f"beam not identified: {exc}"
         failed = {"attrs": {"ok": False, "reason": reason, **provenance({"item": item.id})}}
