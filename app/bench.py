@@ -415,10 +415,11 @@ def _micro_md(d: dict) -> list[str]:
     lines = [
         "## Micro scale: one solve (`skisnow bench micro`)",
         "",
-        f"Self-affine surface (H = 0.8, Sq = 2 µm, 1 µm pixels, seeded), E* = 200 MPa. "
-        f"Median of repeats for skisnow; one run per peer. Peers in this run: "
-        f"{', '.join(d.get('peers', [])) or 'none installed'}. Peers are compared with "
-        f"{d.get('default_solver', 'skisnow[scipy]')}, what `solve_micro` uses by default.",
+        "Self-affine surface (H = 0.8, Sq = 2 µm, 1 µm pixels, seeded), E* = 200 MPa. "
+        "Median of repeats, our solver with each FFT backend against the bare FFT floor. "
+        "Peers are compared in the work-precision section (`--work-precision`): single peer "
+        "runs at their own stopping criteria, one cold run each, are not like-for-like "
+        "(issue #13), so any such rows in this file are not shown.",
         "",
         "| N | P [kPa] | solver | median time [s] | iterations (levels) | a_r | "
         "time ratio peer/skisnow | a_r diff | mean-gap diff | finest level: time / FFT floor | "
@@ -427,6 +428,8 @@ def _micro_md(d: dict) -> list[str]:
     ]
     floors = {f["n"]: f for f in d["fft"]}
     for r in d["runs"]:
+        if not r["solver"].startswith("skisnow"):
+            continue  # old peer rows: not like-for-like (issue #13); see the next section
         lv = r.get("level_iterations")
         its = f"{r['iterations']}" + (f" ({'/'.join(map(str, lv))})" if lv else "")
         lines.append(
@@ -467,7 +470,7 @@ def _micro_md(d: dict) -> list[str]:
             f"({t.get('skisnow_best', 'continuation')}).",
             "",
         ]
-        for name, p in t["peers"].items():
+        for name, p in (t["peers"] if d.get("peers_like_for_like") else {}).items():
             lines.append(
                 f"- {name}, cold sweep: {p['cold_sweep_s']:.1f} s — skisnow is "
                 f"{p['speedup_of_skisnow']:.2f}× faster; largest a_r difference "
@@ -750,6 +753,12 @@ def _macro_md(d: dict) -> list[str]:
     return lines
 
 
+def _micro_peers_md(d: dict) -> list[str]:
+    from app.bench_peers import render_md
+
+    return render_md(d)
+
+
 def _accuracy_md(d: dict) -> list[str]:
     from app.bench_accuracy import render_md
 
@@ -762,6 +771,7 @@ STAGE_RENDERERS: dict[str, Callable[[dict], list[str]]] = {
     "accuracy": _accuracy_md,
     "service": _service_md,
     "service-32": _service_md,
+    "micro-peers": _micro_peers_md,
 }
 
 
@@ -806,13 +816,36 @@ def register(sub: argparse._SubParsersAction) -> None:
     m = bsub.add_parser("micro", help="micro-scale solver against installed peers")
     m.add_argument("--sizes", type=int, nargs="+", default=[256, 512, 1024])
     m.add_argument("--repeats", type=int, default=3)
-    m.add_argument("--peers", nargs="*", default=list(PEERS), choices=list(PEERS))
+    m.add_argument(
+        "--peers",
+        nargs="*",
+        default=[],
+        choices=list(PEERS),
+        help="old single-run peer rows (not like-for-like; --work-precision replaces them)",
+    )
+    m.add_argument(
+        "--work-precision",
+        action="store_true",
+        help="the fair peer benchmark instead: work-precision curves of every installed solver "
+        "(app/bench_peers.py), written to docs/bench/micro-peers.json and .png",
+    )
+    m.add_argument("--wp-sizes", type=int, nargs="+", default=[256, 512])
+    m.add_argument("--wp-repeats", type=int, default=5)
+    m.add_argument("--threads", type=int, default=2, help="threads pinned for every solver")
+    m.add_argument("--process-repeats", type=int, default=5)
+    m.add_argument(
+        "--solvers",
+        nargs="*",
+        default=["skisnow", "contactmechanics", "tamaas", "aspher"],
+        choices=["skisnow", "contactmechanics", "tamaas", "aspher"],
+    )
+    m.add_argument("--aspher-probe-size", type=int, default=1024, help="0 skips the ASPHER probe")
     m.add_argument("--table-size", type=int, default=1024)
     m.add_argument("--table-points", type=int, default=12, help="0 skips the table sweep")
     m.add_argument(
         "--table-peers",
         nargs="*",
-        default=["aspher"],
+        default=[],
         choices=list(PEERS),
         help="peers that solve the table sweep cold (slow peers take tens of minutes at 1024²)",
     )
@@ -826,6 +859,24 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _run_micro(args: argparse.Namespace) -> int:
+    if args.work_precision:
+        import tempfile
+
+        from app import bench_peers
+
+        with tempfile.TemporaryDirectory(prefix="skisnow-wp-") as tmp:
+            data = bench_peers.bench_work_precision(
+                args.wp_sizes,
+                args.wp_repeats,
+                args.solvers,
+                args.threads,
+                args.process_repeats,
+                args.aspher_probe_size or None,
+                Path(tmp),
+            )
+        path = _write_stage("micro-peers", data, bench_peers.plot_work_precision)
+        print(f"wrote {path} and {DOCS / 'benchmarks.md'}")
+        return 0
     data = bench_micro(
         args.sizes,
         args.repeats,

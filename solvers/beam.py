@@ -31,6 +31,7 @@ import itertools
 import time
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from .errors import InputError
@@ -168,6 +169,16 @@ class BeamFlexibility:
         #: (N, N) flexibility [m/N]
         self.matrix = w
         self.ski = ski
+        self._columns: np.ndarray | None = None
+
+    @property
+    def columns(self) -> np.ndarray:
+        """``matrix.T`` as a C-contiguous copy [m/N], made on first use: row j is column j of
+        :attr:`matrix` in contiguous memory, so the contact solve reads the columns of its
+        active nodes as streams instead of one cache line per node of the ski."""
+        if self._columns is None:
+            self._columns = np.ascontiguousarray(self.matrix.T)
+        return self._columns
 
     def load_column(self, load_position_m: float) -> np.ndarray:
         """Deflection [m/N] under a unit upward force at x_F (split linearly between nodes)."""
@@ -222,6 +233,30 @@ def solve_beam_contact(
     -------
     BeamResult
     """
+    return _solve_beam_contact(
+        ski,
+        load_n,
+        load_position_m,
+        flexibility,
+        max_iterations,
+        initial_contacts,
+        contact_compliance_m_per_n,
+        compiled=True,
+    )
+
+
+def _solve_beam_contact(
+    ski: BeamSki,
+    load_n: float,
+    load_position_m: float,
+    flexibility: BeamFlexibility | None,
+    max_iterations: int,
+    initial_contacts: np.ndarray | None,
+    contact_compliance_m_per_n: float,
+    *,
+    compiled: bool,
+) -> BeamResult:
+    """:func:`solve_beam_contact`, with the compiled active-set loop or the reference one."""
     t0 = time.perf_counter()
     x, c = ski.positions_m, ski.unloaded_gap_m
     load_n = float(load_n)
@@ -264,13 +299,112 @@ def solve_beam_contact(
     scale_c = max(float(np.ptp(c)), 1e-9)
     tol_gap = 1e-10  # 0.1 nm: rounding of the dense solve, far below any measurable gap
     g_idx = np.arange(n)
+    # start from the lowest node on each side of the load (lever rule gives positive reactions)
+    idx0 = np.array([g_idx[rear][np.argmin(c[rear])], g_idx[front][np.argmin(c[front])]])
+    warm = np.zeros(0, dtype=np.int64)
+    if initial_contacts is not None:
+        w = np.unique(np.asarray(initial_contacts, dtype=np.int64))
+        w = w[(w >= 0) & (w < n)]
+        if w.size >= 2 and rear[w].any() and front[w].any():
+            warm = w
+    args = (g_mat, c, xs, g_load, load_n, float(contact_compliance_m_per_n), idx0, warm)
+    ok = False
+    if compiled:
+        idx, r_idx, a_rigid, b_rigid, z, it, converged, ok = _active_set_compiled(
+            g_mat, flex.columns, *args[1:], int(max_iterations), tol_gap
+        )
+    if not ok:  # reference loop: also when a KKT matrix is singular (least squares there)
+        idx, r_idx, a_rigid, b_rigid, z, it, converged = _active_set_reference(
+            *args, int(max_iterations), tol_gap
+        )
+    r = np.zeros(n)
+    r[idx] = r_idx
+    active = np.zeros(n, dtype=bool)
+    active[idx] = True
+    active |= np.abs(z) <= tol_gap
+    # rigid + elastic displacement from the unloaded shape
+    # columns of the active nodes: contiguous rows of flex.columns (cached by the compiled loop)
+    elastic = r_idx @ flex.columns[idx] if compiled else g_mat[:, idx] @ r_idx
+    u = a_rigid + b_rigid * xs + elastic + g_load
+    gap = np.where(active, 0.0, np.maximum(z, 0.0))
+    force_res = abs(float(r.sum()) - load_n) / load_n
+    moment_res = abs(float(np.sum(r * xs))) / (load_n * length)
+    residual = max(
+        max(0.0, -float(z.min())) / scale_c,
+        max(0.0, -float(r.min())) / load_n,
+        force_res,
+        moment_res,
+    )
+    if converged:
+        message = f"converged in {it} active-set iterations"
+    else:
+        message = f"not converged: {it} iterations reached max_iterations"
+    return BeamResult(
+        positions_m=x,
+        gap_m=gap,
+        reaction_n=r,
+        displacement_m=u,
+        contact=active.copy(),
+        load_n=load_n,
+        load_position_m=load_position_m,
+        force_residual=force_res,
+        moment_residual=moment_res,
+        converged=converged,
+        iterations=it,
+        residual=float(residual),
+        message=message,
+        solve_time_s=time.perf_counter() - t0,
+    )
+
+
+def _solve_beam_contact_reference(
+    ski: BeamSki,
+    load_n: float,
+    load_position_m: float,
+    *,
+    flexibility: BeamFlexibility | None = None,
+    max_iterations: int = 200,
+    initial_contacts: np.ndarray | None = None,
+    contact_compliance_m_per_n: float = 0.0,
+) -> BeamResult:
+    """:func:`solve_beam_contact` with the pure-numpy active-set loop (reference for tests)."""
+    return _solve_beam_contact(
+        ski,
+        load_n,
+        load_position_m,
+        flexibility,
+        max_iterations,
+        initial_contacts,
+        contact_compliance_m_per_n,
+        compiled=False,
+    )
+
+
+def _active_set_reference(
+    g_mat: np.ndarray,
+    c: np.ndarray,
+    xs: np.ndarray,
+    g_load: np.ndarray,
+    load_n: float,
+    compliance: float,
+    idx0: np.ndarray,
+    warm: np.ndarray,
+    max_iterations: int,
+    tol_gap: float,
+) -> tuple[np.ndarray, np.ndarray, float, float, np.ndarray, int, bool]:
+    """Lawson–Hanson-type active set on the reactions, pure numpy (the reference loop).
+
+    Parameters are those of :func:`_active_set_compiled`. Returns the active nodes (sorted), their
+    reactions [N], the rigid motion a [m] and b [-], the last gap z [m] (0 on the active set),
+    the iteration count and whether no node penetrates."""
+    n = c.size
 
     def solve_set(idx: np.ndarray) -> tuple[np.ndarray, float, float]:
         m = idx.size
         kkt = np.zeros((m + 2, m + 2))
         kkt[:m, :m] = g_mat[np.ix_(idx, idx)]
-        if contact_compliance_m_per_n > 0.0:
-            kkt[np.arange(m), np.arange(m)] += contact_compliance_m_per_n
+        if compliance > 0.0:
+            kkt[np.arange(m), np.arange(m)] += compliance
         kkt[:m, m] = 1.0
         kkt[:m, m + 1] = xs[idx]
         kkt[m, :m] = 1.0
@@ -282,18 +416,12 @@ def solve_beam_contact(
             sol = np.linalg.lstsq(kkt, rhs, rcond=None)[0]
         return sol[:m], float(sol[m]), float(sol[m + 1])
 
-    # Lawson–Hanson-type active set on the reactions: start from the lowest node on each side
-    # of the load (lever rule gives positive reactions), add the deepest penetrating node of each
-    # penetrating run, step back along the segment when a reaction would turn negative.
-    idx = np.array([g_idx[rear][np.argmin(c[rear])], g_idx[front][np.argmin(c[front])]], dtype=int)
+    idx = idx0
     r_idx, a_rigid, b_rigid = solve_set(idx)
-    if initial_contacts is not None:
-        warm = np.unique(np.asarray(initial_contacts, dtype=int))
-        warm = warm[(warm >= 0) & (warm < n)]
-        if warm.size >= 2 and rear[warm].any() and front[warm].any():
-            r_w, a_w, b_w = solve_set(warm)
-            if np.all(r_w > 0):
-                idx, r_idx, a_rigid, b_rigid = warm, r_w, a_w, b_w
+    if warm.size:
+        r_w, a_w, b_w = solve_set(warm)
+        if np.all(r_w > 0):
+            idx, r_idx, a_rigid, b_rigid = warm, r_w, a_w, b_w
     converged = False
     it = 0
     z = c.copy()
@@ -342,42 +470,199 @@ def solve_beam_contact(
         if stalled:
             break
         idx, r_idx, a_rigid, b_rigid = cand, r_c, a_c, b_c
-    r = np.zeros(n)
-    r[idx] = r_idx
-    active = np.zeros(n, dtype=bool)
-    active[idx] = True
-    active |= np.abs(z) <= tol_gap
-    # rigid + elastic displacement from the unloaded shape
-    u = a_rigid + b_rigid * xs + g_mat[:, idx] @ r_idx + g_load
-    gap = np.where(active, 0.0, np.maximum(z, 0.0))
-    force_res = abs(float(r.sum()) - load_n) / load_n
-    moment_res = abs(float(np.sum(r * xs))) / (load_n * length)
-    residual = max(
-        max(0.0, -float(z.min())) / scale_c,
-        max(0.0, -float(r.min())) / load_n,
-        force_res,
-        moment_res,
-    )
-    if converged:
-        message = f"converged in {it} active-set iterations"
+    return idx, r_idx, a_rigid, b_rigid, z, it, converged
+
+
+#: largest active set solved with numba's LAPACK (bit-identical to numpy's on the demo skis,
+#: whose rigid-flat sets have ≤ 6 nodes); larger sets call numpy (object mode, ~60 µs a call)
+_COMPILED_SOLVE_MAX_NODES = 8
+
+
+@numba.njit(cache=True)
+def _kkt_solve(g_mat, c, xs, g_load, load_n, compliance, idx):
+    """Reactions [N] on the nodes ``idx`` and the rigid motion (a [m], b [-]) with zero gap there
+    and force and moment equilibrium; ``ok`` False when the KKT matrix is singular."""
+    m = idx.size
+    kkt = np.zeros((m + 2, m + 2))
+    rhs = np.zeros(m + 2)
+    for p in range(m):
+        ip = idx[p]
+        for q in range(m):
+            kkt[p, q] = g_mat[ip, idx[q]]
+        if compliance > 0.0:
+            kkt[p, p] += compliance
+        kkt[p, m] = 1.0
+        kkt[p, m + 1] = xs[ip]
+        kkt[m, p] = 1.0
+        kkt[m + 1, p] = xs[ip]
+        rhs[p] = -c[ip] - g_load[ip]
+    rhs[m] = load_n
+    if m > _COMPILED_SOLVE_MAX_NODES:
+        # numpy's LAPACK, as the reference loop: the LAPACK linked by numba rounds differently
+        # on larger sets (1.9e-10 of the largest reaction at m = 150, cond(KKT) = 1.2e8)
+        with numba.objmode(sol="float64[:]", singular="boolean"):
+            try:
+                sol = np.linalg.solve(kkt, rhs)
+                singular = False
+            except np.linalg.LinAlgError:
+                sol = rhs
+                singular = True
+        if singular:
+            return rhs[:m], 0.0, 0.0, False
     else:
-        message = f"not converged: {it} iterations reached max_iterations"
-    return BeamResult(
-        positions_m=x,
-        gap_m=gap,
-        reaction_n=r,
-        displacement_m=u,
-        contact=active.copy(),
-        load_n=load_n,
-        load_position_m=load_position_m,
-        force_residual=force_res,
-        moment_residual=moment_res,
-        converged=converged,
-        iterations=it,
-        residual=float(residual),
-        message=message,
-        solve_time_s=time.perf_counter() - t0,
-    )
+        try:
+            sol = np.linalg.solve(kkt, rhs)
+        except Exception:
+            return rhs[:m], 0.0, 0.0, False
+    return sol[:m].copy(), sol[m], sol[m + 1], True
+
+
+@numba.njit(cache=True)
+def _insert_sorted(idx, new):
+    """Sorted union of the sorted ``idx`` and the sorted ``new`` (disjoint from ``idx``)."""
+    out = np.empty(idx.size + new.size, dtype=np.int64)
+    a = b = 0
+    for k in range(out.size):
+        if b >= new.size or (a < idx.size and idx[a] < new[b]):
+            out[k] = idx[a]
+            a += 1
+        else:
+            out[k] = new[b]
+            b += 1
+    return out
+
+
+@numba.njit(cache=True)
+def _active_set_compiled(
+    g_mat, g_cols, c, xs, g_load, load_n, compliance, idx0, warm, max_iterations, tol_gap
+):
+    """The loop of :func:`_active_set_reference`, compiled: the same sets in the same order and
+    the same KKT solves (LAPACK gesv), without numpy temporaries or Python overhead.
+
+    Parameters
+    ----------
+    g_mat : ndarray (N, N)
+        Flexibility [m/N] (:class:`BeamFlexibility`).
+    g_cols : ndarray (N, N)
+        Its transpose, C-contiguous (:attr:`BeamFlexibility.columns`).
+    c, xs, g_load : ndarray (N,)
+        Unloaded gap [m], lever arms X − x_F [m], deflection under the load [m].
+    load_n, compliance : float
+        F [N] and the contact compliance [m/N].
+    idx0, warm : ndarray of int64
+        Sorted default start and sorted warm start (size 0: none).
+    max_iterations : int
+    tol_gap : float
+        Penetration tolerance [m].
+
+    Returns
+    -------
+    idx, r_idx, a, b, z, iterations, converged, ok
+        As :func:`_active_set_reference`; ``ok`` False when a KKT matrix was singular (the caller
+        then runs the reference loop, which falls back to least squares).
+    """
+    n = c.size
+    idx = idx0.copy()
+    r_idx, a_rigid, b_rigid, ok = _kkt_solve(g_mat, c, xs, g_load, load_n, compliance, idx)
+    if not ok:
+        return idx, r_idx, a_rigid, b_rigid, c.copy(), 0, False, False
+    if warm.size:
+        r_w, a_w, b_w, ok = _kkt_solve(g_mat, c, xs, g_load, load_n, compliance, warm)
+        if not ok:
+            return idx, r_idx, a_rigid, b_rigid, c.copy(), 0, False, False
+        if np.all(r_w > 0):
+            idx, r_idx, a_rigid, b_rigid = warm.copy(), r_w, a_w, b_w
+    converged = False
+    it = 0
+    z = c.copy()
+    runs = np.empty(n, dtype=np.int64)
+    while it < max_iterations:
+        it += 1
+        # z = c + a + b xs + G[:, idx] r + g_load, summed in numpy's order
+        m = idx.size
+        for i in range(n):
+            gl = 0.0
+            for k in range(m):
+                gl += g_cols[idx[k], i] * r_idx[k]
+            z[i] = c[i] + a_rigid + b_rigid * xs[i] + gl + g_load[i]
+        for k in range(m):
+            z[idx[k]] = 0.0
+        any_pen = False
+        jmin = 0
+        nrun = 0
+        i = 0
+        while i < n:
+            if z[i] < z[jmin]:
+                jmin = i
+            if z[i] < -tol_gap:
+                any_pen = True
+                best = i
+                while i < n and z[i] < -tol_gap:
+                    if z[i] < z[best]:
+                        best = i
+                    if z[i] < z[jmin]:
+                        jmin = i
+                    i += 1
+                runs[nrun] = best
+                nrun += 1
+            else:
+                i += 1
+        if not any_pen:
+            converged = True
+            break
+        # fast path: add the deepest node of each contiguous penetrating run at once
+        cand = _insert_sorted(idx, runs[:nrun])
+        r_c, a_c, b_c, ok = _kkt_solve(g_mat, c, xs, g_load, load_n, compliance, cand)
+        if not ok:
+            return idx, r_idx, a_rigid, b_rigid, z, it, False, False
+        if np.all(r_c > 0):
+            idx, r_idx, a_rigid, b_rigid = cand, r_c, a_c, b_c
+            continue
+        # Lawson–Hanson step: add the single deepest node, step back while reactions go negative
+        j = jmin
+        one = np.empty(1, dtype=np.int64)
+        one[0] = j
+        cand = _insert_sorted(idx, one)
+        ro = np.zeros(cand.size)
+        q = 0
+        for k in range(cand.size):
+            if q < idx.size and cand[k] == idx[q]:
+                ro[k] = r_idx[q]
+                q += 1
+        stalled = False
+        while True:
+            r_c, a_c, b_c, ok = _kkt_solve(g_mat, c, xs, g_load, load_n, compliance, cand)
+            if not ok:
+                return idx, r_idx, a_rigid, b_rigid, z, it, False, False
+            if np.all(r_c > 0):
+                break
+            # a node entering with a zero reaction (0/0) cannot step: ratio 0
+            rmin = np.inf
+            kblock = -1
+            for k in range(cand.size):
+                if r_c[k] <= 0:
+                    den = ro[k] - r_c[k]
+                    ratio = ro[k] / den if den > 0 else 0.0
+                    if ratio < rmin:
+                        rmin = ratio
+                        kblock = k
+            block = cand[kblock]
+            if block == j and rmin == 0.0:
+                stalled = True
+                break
+            nkeep = 0
+            for k in range(cand.size):
+                step = ro[k] + rmin * (r_c[k] - ro[k])
+                if step > 0 and k != kblock:
+                    cand[nkeep] = cand[k]
+                    ro[nkeep] = step
+                    nkeep += 1
+            cand = cand[:nkeep].copy()
+            ro = ro[:nkeep].copy()
+        if stalled:
+            break
+        idx, r_idx, a_rigid, b_rigid = cand, r_c, a_c, b_c
+    return idx, r_idx, a_rigid, b_rigid, z, it, converged, True
 
 
 @dataclass(frozen=True)

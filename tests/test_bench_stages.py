@@ -23,7 +23,10 @@ def test_bench_micro_structure_and_agreement():
     assert table["points"] == 2 and set(table["peers"]) == {"contactmechanics"}
     assert table["peers"]["contactmechanics"]["max_contact_fraction_rel_diff"] < 0.02
     lines = bench._micro_md(data)
-    assert any("contactmechanics" in line for line in lines)
+    # single cold peer runs at their own stopping criteria are not like-for-like (issue #13):
+    # the page shows our rows only and points to the work-precision section for peers
+    assert any(line.startswith("| 32 | 60 | skisnow[scipy] |") for line in lines)
+    assert not any(line.startswith("| 32 |") and "contactmechanics" in line for line in lines)
 
 
 def test_bench_macro_stage_renders():

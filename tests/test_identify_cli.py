@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import shutil
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -17,12 +18,39 @@ from solvers.beam import BeamSki, solve_beam_contact
 REPO = Path(__file__).resolve().parents[1]
 
 
-def test_identify_ski_from_csv(tmp_path, camber_csv, capsys):
+class _Bar:
+    """Records what identify-ski shows on its progress bar (a stand-in for tqdm)."""
+
+    shown: ClassVar[list[tuple[int, str]]] = []
+
+    def __init__(self, **kwargs):
+        self.n = 0
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def set_postfix_str(self, text, refresh=True):
+        _Bar.shown.append((self.n, text))
+
+
+def test_identify_ski_from_csv(tmp_path, camber_csv, capsys, monkeypatch):
+    import app.commands.identify as identify_command
+
+    monkeypatch.setattr(identify_command, "tqdm", _Bar)
+    _Bar.shown = []
     csv_path = tmp_path / "ski.csv"
     csv_path.write_bytes(camber_csv)
     out = tmp_path / "report.json"
     code = main(["identify-ski", "--csv", str(csv_path), "--json", "--out", str(out)])
     rep = json.loads(capsys.readouterr().out)
+    # the identification's progress reached the bar: the start, then forward-fit steps
+    percents = [n for n, _ in _Bar.shown]
+    assert _Bar.shown[0][1].startswith("start:") and len(_Bar.shown) >= 3
+    assert percents == sorted(percents) and 0 <= percents[0] and percents[-1] <= 100
+    assert any("forward fit step" in text for _, text in _Bar.shown)
     assert code == (0 if rep["identified"] else 1)
     assert rep["cases"] == 25 and rep["held_out_cases"] == 5
     assert 2.5 < rep["noise_um"] < 3.5  # the fixture's device noise is 3 µm
