@@ -38,6 +38,7 @@ Units: SI throughout (m, N, N·m²).
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, field
 
@@ -46,7 +47,14 @@ import scipy.linalg
 from scipy.interpolate import BSpline
 
 from .beam import BeamFlexibility, BeamSki, solve_beam_contact
-from .beam_fit import DEFAULT_CAMBER_SPACING_M, camber_basis, camber_on_flat, fit_forward, hats
+from .beam_fit import (
+    DEFAULT_CAMBER_SPACING_M,
+    ForwardFit,
+    camber_basis,
+    camber_on_flat,
+    fit_forward,
+    hats,
+)
 from .beam_fit import double_integral as _double_integral
 from .errors import InputError
 
@@ -784,6 +792,13 @@ START_RETRY_RATIO = 10.0
 START_SMOOTHING_FACTOR = 10.0
 
 
+def _forward_path(job: tuple) -> ForwardFit:
+    """One forward path of :func:`identify_beam` (module level, so a process pool can run
+    it): ``job`` is (the partial :func:`fit_forward`, its coarse spacing [m])."""
+    forward, spacing = job
+    return forward(coarse_spacing_m=spacing)
+
+
 def identify_beam(
     positions_m: np.ndarray,
     loads_n: np.ndarray,
@@ -802,6 +817,7 @@ def identify_beam(
     min_cases: int = 6,
     max_steps: int = 80,
     callback=None,
+    path_map=None,
 ) -> IdentifiedBeam:
     """Identify EI(X) > 0 and c(X) so that the device model reproduces every measured case.
 
@@ -848,6 +864,10 @@ def identify_beam(
         Accepted Levenberg–Marquardt steps of the forward fit at most (per path).
     callback : callable, optional
         ``callback(fraction, message)`` for progress (silent by default).
+    path_map : callable, optional
+        ``map``-like callable (for example a process pool's ``map``) that runs the forward
+        paths side by side; default: one after the other in this process. The result is the
+        same either way (each path is deterministic for its inputs).
 
     Returns
     -------
@@ -936,25 +956,32 @@ def identify_beam(
     # several forward paths from the one start, the lowest objective kept: the forward fit has
     # local minima that the misfit/noise ratio cannot tell apart (ski-b: 677 170 vs 676 259 at
     # 3.0063 / 3.0043 µm, held-out 0.14 vs 0.05 µm; docs/camber-identification.md)
-    candidates = []
-    for i, spacing in enumerate(paths):
-        path[0] = i
-        fit = fit_forward(
-            x,
-            loads,
-            xfs,
-            y,
-            start.beam,
-            noise_m=noise,
-            stiffness_knots_m=start.knots_m,
-            smoothing=smoothing,
-            camber_spacing_m=camber_spacing_m,
-            kinks_m=kinks_m,
-            max_steps=max_steps,
-            coarse_spacing_m=spacing,
-            callback=progress,
-        )
-        candidates.append((float(spacing), fit))
+    forward = functools.partial(
+        fit_forward,
+        x,
+        loads,
+        xfs,
+        y,
+        start.beam,
+        noise_m=noise,
+        stiffness_knots_m=start.knots_m,
+        smoothing=smoothing,
+        camber_spacing_m=camber_spacing_m,
+        kinks_m=kinks_m,
+        max_steps=max_steps,
+    )
+    if path_map is not None and len(paths) > 1:
+        # the paths are independent: side by side (e.g. one process each); a worker's
+        # progress cannot reach this process, so the bar says what runs
+        if callback is not None:
+            callback(0.2, f"{len(paths)} forward fits side by side")
+        fits = list(path_map(_forward_path, [(forward, sp) for sp in paths]))
+    else:
+        fits = []
+        for i, spacing in enumerate(paths):
+            path[0] = i
+            fits.append(forward(coarse_spacing_m=spacing, callback=progress))
+    candidates = [(float(sp), fit) for sp, fit in zip(paths, fits, strict=True)]
     finite = [c for c in candidates if np.isfinite(c[1].objective)] or candidates
     chosen_spacing, fwd = min(finite, key=lambda c: (not c[1].converged, c[1].objective))
     nc = fwd.camber_coefficients.size

@@ -203,3 +203,30 @@ def test_held_out_check_rejects_a_beam_that_does_not_predict():
     bad, check = identify.identify_beam_checked(ski.positions_m, f, xf, y_bad, seed=3, noise_m=3e-6)
     assert not bad.ok and "held-out" in bad.reason
     assert check["held_out_rms_m"] > 6e-6
+
+
+def test_forward_paths_side_by_side_give_the_same_beam():
+    """``path_map`` runs the two forward paths in worker processes (app/path_pool.py): the same
+    candidates, objectives and beam as one after the other in this process (1 mm nodes, so
+    the coarse-to-fine path and the every-node path differ)."""
+    from app.path_pool import path_pool
+
+    ski, f, xf, y = _data(DESIGNS["stiff"], 1e-3, 3e-6, 5)
+    here = identify.identify_beam(ski.positions_m, f, xf, y)
+    with path_pool(2) as pmap:
+        assert pmap is not None
+        pooled = identify.identify_beam(ski.positions_m, f, xf, y, path_map=pmap)
+    assert len(here.extra["forward_candidates"]) == 2
+    assert (
+        here.extra["forward_candidates"][0]["coarse_spacing_m"]
+        != (here.extra["forward_candidates"][1]["coarse_spacing_m"])
+    )
+    for a, b in zip(
+        here.extra["forward_candidates"], pooled.extra["forward_candidates"], strict=True
+    ):
+        assert a["objective"] == pytest.approx(b["objective"], rel=1e-9)
+        assert a["steps"] == b["steps"]
+    np.testing.assert_allclose(
+        pooled.beam.bending_stiffness_nm2, here.beam.bending_stiffness_nm2, rtol=1e-7
+    )
+    np.testing.assert_allclose(pooled.beam.unloaded_gap_m, here.beam.unloaded_gap_m, atol=1e-12)
