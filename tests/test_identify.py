@@ -207,15 +207,26 @@ def test_held_out_check_rejects_a_beam_that_does_not_predict():
 
 def test_forward_paths_side_by_side_give_the_same_beam():
     """``path_map`` runs the two forward paths in worker processes (app/path_pool.py): the same
-    candidates, objectives and beam as one after the other in this process (1 mm nodes, so
-    the coarse-to-fine path and the every-node path differ)."""
+    candidates, objectives and beam as one after the other in this process."""
     from app.path_pool import path_pool
 
-    ski, f, xf, y = _data(DESIGNS["stiff"], 1e-3, 3e-6, 5)
-    here = identify.identify_beam(ski.positions_m, f, xf, y)
+    ski = DESIGNS["stiff"].build(2e-3)
+    f, xf, y = measure_camber(ski, LOADS_N[::3], POSITIONS_M[::2], noise_m=3e-6, rng=5)
+    # a few steps per path (the same steps either way is what is checked, not the fit); on
+    # 2 mm nodes the coarse path sees every 2nd node at 4 mm
+    run = functools.partial(
+        identify.identify_beam,
+        ski.positions_m,
+        f,
+        xf,
+        y,
+        max_steps=3,
+        forward_coarse_spacings_m=(0.004, 0.0),
+    )
+    here = run()
     with path_pool(2) as pmap:
         assert pmap is not None
-        pooled = identify.identify_beam(ski.positions_m, f, xf, y, path_map=pmap)
+        pooled = run(path_map=pmap)
     assert len(here.extra["forward_candidates"]) == 2
     assert (
         here.extra["forward_candidates"][0]["coarse_spacing_m"]
