@@ -705,13 +705,17 @@ def _identify(data, item, callback=None) -> tuple[dict, str]:
     one sentence for the job result. A failure is recorded, never raised: the ski still works
     with the rigid model and its network. ``callback(fraction, message)``: the
     identification's progress (the job shows it; minutes on a loaded machine)."""
+    from app.path_pool import path_pool
     from app.profiles import identification_group, served_beam_note
     from app.storage.skis import mean_profiles
     from solvers.identify import identify_beam_checked
 
     try:
         f, xf, y, note = mean_profiles(data)
-        ident, check = identify_beam_checked(data.positions_m, f, xf, y, callback=callback)
+        with path_pool() as pmap:
+            ident, check = identify_beam_checked(
+                data.positions_m, f, xf, y, callback=callback, path_map=pmap
+            )
     except SkisnowError as exc:
         reason = f"beam not identified: {exc}"
         failed = {"attrs": {"ok": False, "reason": reason, **provenance({"item": item.id})}}

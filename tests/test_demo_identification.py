@@ -72,12 +72,13 @@ def test_held_out_profiles_within_0p3_um_of_the_truth(name):
             "ski-b",
             marks=pytest.mark.xfail(
                 strict=True,
-                reason="83 of 85 held-out loads within 3 % (median 0.12 %): -14.9 % at 98 N, "
-                "+50 mm (profile 0.32 um RMS near contact) and +3.2 % at 164 N (0.09 um). "
-                "The fit is in a local minimum (objective 610 above the design beam's; from the "
-                "design beam: 0.053 um, -8.4 % / +2.8 %), and at 98 N, +50 mm the base is within "
-                "1 um of the flat on 269 nodes: beams the noise cannot tell from the truth give "
-                "-6.2 +- 2.0 % there (scripts/light_load_area_study.py; issue #12)",
+                reason=(
+                    "84 of 85 held-out loads within 3 % (median 0.13 %; profiles 0.13 um RMS "
+                    "from the truth near contact): -14.1 % at 98 N, +50 mm. There the base is "
+                    "within 1 um of the flat on 269 nodes: beams the noise cannot tell from the "
+                    "truth give -6.2 +- 2.0 % (scripts/light_load_area_study.py), an information "
+                    "limit of these data, not of the fit (issue #12)"
+                ),
             ),
         ),
     ],

@@ -203,3 +203,41 @@ def test_held_out_check_rejects_a_beam_that_does_not_predict():
     bad, check = identify.identify_beam_checked(ski.positions_m, f, xf, y_bad, seed=3, noise_m=3e-6)
     assert not bad.ok and "held-out" in bad.reason
     assert check["held_out_rms_m"] > 6e-6
+
+
+def test_forward_paths_side_by_side_give_the_same_beam():
+    """``path_map`` runs the two forward paths in worker processes (app/path_pool.py): the same
+    candidates, objectives and beam as one after the other in this process."""
+    from app.path_pool import path_pool
+
+    ski = DESIGNS["stiff"].build(2e-3)
+    f, xf, y = measure_camber(ski, LOADS_N[::3], POSITIONS_M[::2], noise_m=3e-6, rng=5)
+    # a few steps per path (the same steps either way is what is checked, not the fit); on
+    # 2 mm nodes the coarse path sees every 2nd node at 4 mm
+    run = functools.partial(
+        identify.identify_beam,
+        ski.positions_m,
+        f,
+        xf,
+        y,
+        max_steps=3,
+        forward_coarse_spacings_m=(0.004, 0.0),
+    )
+    here = run()
+    with path_pool(2) as pmap:
+        assert pmap is not None
+        pooled = run(path_map=pmap)
+    assert len(here.extra["forward_candidates"]) == 2
+    assert (
+        here.extra["forward_candidates"][0]["coarse_spacing_m"]
+        != (here.extra["forward_candidates"][1]["coarse_spacing_m"])
+    )
+    for a, b in zip(
+        here.extra["forward_candidates"], pooled.extra["forward_candidates"], strict=True
+    ):
+        assert a["objective"] == pytest.approx(b["objective"], rel=1e-9)
+        assert a["steps"] == b["steps"]
+    np.testing.assert_allclose(
+        pooled.beam.bending_stiffness_nm2, here.beam.bending_stiffness_nm2, rtol=1e-7
+    )
+    np.testing.assert_allclose(pooled.beam.unloaded_gap_m, here.beam.unloaded_gap_m, atol=1e-12)

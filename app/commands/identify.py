@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from app.path_pool import path_pool
 from app.profiles import HELD_OUT_ERRORS, add_held_out_errors, identification_group
 from app.storage.common import atomic_path, provenance, tables_dir
 from app.storage.skis import (
@@ -91,9 +92,10 @@ def identify_report(
         raise InputError(f"--holdout must be in [0, 0.9), got {holdout}")
     f, xf, y, sides_note = mean_profiles(data)
     t0 = time.perf_counter()
-    ident, check = identify_beam_checked(
-        data.positions_m, f, xf, y, holdout=holdout, seed=seed, callback=callback
-    )
+    with path_pool() as pmap:
+        ident, check = identify_beam_checked(
+            data.positions_m, f, xf, y, holdout=holdout, seed=seed, callback=callback, path_map=pmap
+        )
     elapsed = time.perf_counter() - t0
     if keep is not None:
         keep.update(
