@@ -101,8 +101,8 @@ def pressure_svg(results: Sequence[dict]) -> str:
         ax.plot(
             x, _array(d["pressure_kpa"]), color=colour, lw=1.4, label=_label(r, with_grind=False)
         )
-        if "pressure_band_kpa" in d:
-            lo, hi = (_array(v) for v in d["pressure_band_kpa"])
+        if "pressure_band_low_kpa" in d:
+            lo, hi = _array(d["pressure_band_low_kpa"]), _array(d["pressure_band_high_kpa"])
             ax.fill_between(
                 x, lo, hi, color=colour, alpha=0.25, lw=0, label="90 % band (camber model)"
             )

@@ -546,10 +546,9 @@ def contact(
     answer["warnings"] += band_warnings
     if band.pressure_line_band_pa is not None:
         lo, hi = band.pressure_line_band_pa
-        answer["distributions"]["pressure_band_kpa"] = [
-            _finite_list(lo[rows], 1e-3),
-            _finite_list(hi[rows], 1e-3),
-        ]
+        # two columns like every other distribution (one value per position)
+        answer["distributions"]["pressure_band_low_kpa"] = _finite_list(lo[rows], 1e-3)
+        answer["distributions"]["pressure_band_high_kpa"] = _finite_list(hi[rows], 1e-3)
     answer["timing_ms"]["total"] = (time.perf_counter() - t0) * 1e3
     return answer
 

@@ -139,7 +139,8 @@ def test_every_answer_carries_a_band_with_intervals_around_it(shipped):
     for z in ans["apparent"]["zones"]:
         lo, hi = z["load_band_90_n"]
         assert lo < z["load_n"] < hi
-    lo, hi = ans["distributions"]["pressure_band_kpa"]
+    lo = ans["distributions"]["pressure_band_low_kpa"]
+    hi = ans["distributions"]["pressure_band_high_kpa"]
     p = ans["distributions"]["pressure_kpa"]
     assert len(lo) == len(p) == len(hi)
     assert all(a <= c + 1e-9 and c <= b_ + 1e-9 for a, c, b_ in zip(lo, p, hi, strict=True))
