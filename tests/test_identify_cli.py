@@ -46,11 +46,12 @@ def test_identify_ski_from_csv(tmp_path, camber_csv, capsys, monkeypatch):
     out = tmp_path / "report.json"
     code = main(["identify-ski", "--csv", str(csv_path), "--json", "--out", str(out)])
     rep = json.loads(capsys.readouterr().out)
-    # the identification's progress reached the bar: the start, then forward-fit steps
+    # the identification's progress reached the bar: the start, then the forward fits (one
+    # after the other step by step, or side by side in worker processes: app/path_pool.py)
     percents = [n for n, _ in _Bar.shown]
     assert _Bar.shown[0][1].startswith("start:") and len(_Bar.shown) >= 3
     assert percents == sorted(percents) and 0 <= percents[0] and percents[-1] <= 100
-    assert any("forward fit step" in text for _, text in _Bar.shown)
+    assert any("forward fit" in text for _, text in _Bar.shown)
     assert code == (0 if rep["identified"] else 1)
     assert rep["cases"] == 25 and rep["held_out_cases"] == 5
     assert 2.5 < rep["noise_um"] < 3.5  # the fixture's device noise is 3 µm
