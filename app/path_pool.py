@@ -23,18 +23,11 @@ def _one_thread() -> None:
     # load every BLAS first: threadpoolctl limits the libraries loaded when it is called, and
     # scipy's own OpenBLAS loads with scipy.linalg (left at 2 threads it busy-waits against the
     # other process: the two paths took 4x longer side by side than one after the other)
-    import numpy
     import scipy.linalg
-    import scipy.sparse
-    from threadpoolctl import threadpool_info, threadpool_limits
+    import scipy.sparse  # noqa: F401
+    from threadpoolctl import threadpool_limits
 
-    del numpy, scipy
     threadpool_limits(1)
-    global _BLAS
-    _BLAS = threadpool_info()
-
-
-_BLAS: list = []
 
 
 @contextmanager
