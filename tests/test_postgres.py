@@ -98,6 +98,23 @@ def test_catalogue_items_and_names(pg_url):
     db.close()
 
 
+def test_team_queries(pg_url, tmp_path):
+    """The job quota's and the team filter's queries (tests/test_safe_defaults.py) on
+    PostgreSQL, in a database of their own."""
+    import psycopg
+    from test_safe_defaults import check_team_queries
+
+    from app.storage.catalogue import CatalogueDB
+
+    server = pg_url.rsplit("/", 1)[0]
+    with psycopg.connect(server.replace("postgresql+psycopg", "postgresql") + "/postgres") as c:
+        c.autocommit = True
+        c.execute("CREATE DATABASE skisnow_teams")
+    db = CatalogueDB(server + "/skisnow_teams")
+    check_team_queries(db)
+    db.close()
+
+
 def test_a_job_is_claimed_exactly_once_by_competing_processes(pg_url):
     """Two service processes (two connections) race for every queued job: each job has one
     winner."""
@@ -122,6 +139,8 @@ def test_a_job_is_claimed_exactly_once_by_competing_processes(pg_url):
     assert not set(wins["a"]) & set(wins["b"])
     for j in jobs:
         assert a.job(j.id).state == "running"
+        # done: 20 jobs left running would fill the job quota of the next test's uploads
+        a.update_job(j.id, state="done")
     a.close()
     b.close()
 

@@ -313,14 +313,43 @@ class CatalogueDB:
             row = c.execute(JOBS.select().where(JOBS.c.id == job_id)).first()
         return _job(row) if row else None
 
-    def jobs(self, *, item_id: str | None = None, states=None, limit: int = 100) -> list[JobRow]:
+    def jobs(
+        self,
+        *,
+        item_id: str | None = None,
+        states=None,
+        limit: int = 100,
+        by_team: bool = False,
+        team: str | None = None,
+    ) -> list[JobRow]:
+        """The most recent jobs (newest first); with ``by_team``, only those a member of
+        ``team`` may see: jobs of shipped items, of items of no team and of ``team``'s items
+        (``team=None``: a caller of no team)."""
         q = JOBS.select().order_by(JOBS.c.created_at.desc()).limit(limit)
         if item_id is not None:
             q = q.where(JOBS.c.item_id == item_id)
         if states is not None:
             q = q.where(JOBS.c.state.in_(list(states)))
+        if by_team:
+            seen = [ITEMS.c.team.is_(None), ITEMS.c.read_only.is_(True)]
+            if team is not None:
+                seen.append(ITEMS.c.team == team)
+            q = q.select_from(JOBS.outerjoin(ITEMS, JOBS.c.item_id == ITEMS.c.id)).where(
+                sa.or_(*seen)
+            )
         with self.engine.connect() as c:
             return [_job(r) for r in c.execute(q)]
+
+    def active_job_counts(self) -> dict[str | None, int]:
+        """Queued and running jobs per team of their item (``None``: items of no team)."""
+        q = (
+            sa.select(ITEMS.c.team, sa.func.count())
+            .select_from(JOBS.outerjoin(ITEMS, JOBS.c.item_id == ITEMS.c.id))
+            .where(JOBS.c.state.in_(("queued", "running")))
+            .group_by(ITEMS.c.team)
+        )
+        with self.engine.connect() as c:
+            return {team: int(n) for team, n in c.execute(q)}
 
     def update_job(self, job_id: str, **values) -> None:
         now = _now()
