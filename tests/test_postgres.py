@@ -81,6 +81,17 @@ def pg_url():
         shutil.rmtree(root, ignore_errors=True)
 
 
+def new_database(pg_url: str, name: str) -> str:
+    """URL of a new empty database ``name`` on the test cluster."""
+    import psycopg
+
+    port = pg_url.split("@", 1)[1].split("/", 1)[0].split(":")[1]
+    with psycopg.connect(f"host=127.0.0.1 port={port} user=postgres dbname=postgres") as c:
+        c.autocommit = True
+        c.execute(f"CREATE DATABASE {name}")
+    return pg_url.rsplit("/", 1)[0] + "/" + name
+
+
 def test_catalogue_items_and_names(pg_url):
     from app.storage.catalogue import CatalogueDB, NameTakenError
 
@@ -147,16 +158,9 @@ def test_a_job_is_claimed_exactly_once_by_competing_processes(pg_url):
 
 def test_schema_creation_races_are_harmless(pg_url):
     """Several processes opening an empty database at once (the first start of a deployment)."""
-    import psycopg
-
     from app.storage.catalogue import CatalogueDB
 
-    host = pg_url.split("@", 1)[1].split("/", 1)[0]
-    port = host.split(":")[1]
-    with psycopg.connect(f"host=127.0.0.1 port={port} user=postgres dbname=postgres") as c:
-        c.autocommit = True
-        c.execute("CREATE DATABASE empty_race")
-    pg_url = pg_url.rsplit("/", 1)[0] + "/empty_race"
+    pg_url = new_database(pg_url, "empty_race")
 
     dbs = []
     errors = []
@@ -175,6 +179,46 @@ def test_schema_creation_races_are_harmless(pg_url):
     assert not errors, errors
     for db in dbs:
         db.close()
+
+
+def test_schema_upgrade_races_between_processes_are_harmless(pg_url):
+    """Six forked processes upgrade one pre-migration catalogue at once: all come up, the rows
+    are kept, the revision is the head (the advisory lock serialises them)."""
+    import multiprocessing as mp
+
+    import sqlalchemy as sa
+    from test_catalogue_race import _open
+    from test_schema import make_pre_alembic_catalogue, read_rows
+
+    from app.storage.schema import current_revision, head_revision
+
+    url = new_database(pg_url, "upgrade_race")
+    before = make_pre_alembic_catalogue(url)
+    ctx = mp.get_context("fork")
+    barrier, queue = ctx.Barrier(6), ctx.Queue()
+    procs = [ctx.Process(target=_open, args=(url, barrier, queue)) for _ in range(6)]
+    for p in procs:
+        p.start()
+    for p in procs:
+        p.join(timeout=60)
+    assert [queue.get(timeout=10) for _ in procs] == ["ok"] * 6
+    engine = sa.create_engine(url)
+    with engine.connect() as c:
+        assert current_revision(c) == head_revision()
+    assert read_rows(engine) == before
+    engine.dispose()
+
+
+def test_pre_alembic_catalogue_is_upgraded_and_keeps_every_row_on_postgres(pg_url):
+    from test_schema import check_upgrade_keeps_rows
+
+    check_upgrade_keeps_rows(new_database(pg_url, "pre_alembic"))
+
+
+def test_fresh_catalogue_is_created_at_head_on_postgres(pg_url):
+    from test_schema import check_fresh_database
+
+    check_fresh_database(new_database(pg_url, "fresh"))
 
 
 def test_upload_job_and_contact_on_postgres(pg_url, catalogue, tmp_path):
