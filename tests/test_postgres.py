@@ -3,6 +3,10 @@
 A throwaway cluster (``initdb`` + ``pg_ctl``, PostgreSQL 15 on the machine image) on a loopback
 port in a temp folder; as root it runs as the ``postgres`` user (PostgreSQL refuses root). The
 module is skipped, with the reason, only where no ``initdb`` is installed.
+
+Covered: items and names, job claims, schema creation and upgrade races, the Alembic upgrade of
+a pre-migration catalogue with rows in it (tests/test_schema.py has the checks), upload → job →
+contact in-process, and two ``skisnow serve`` subprocesses on one database (about 35 s).
 """
 
 from __future__ import annotations
