@@ -254,6 +254,9 @@ REPLICA_ENV = {
     "SKISNOW_JOB_POLL_S": "0.1",
     "SKISNOW_JOB_STALE_S": "3",
     "SKISNOW_MAX_UPLOAD_BYTES": "1000000",
+    # 20 uploads at once: above the default job quotas (tests/test_safe_defaults.py)
+    "SKISNOW_MAX_JOBS_PER_TEAM": "32",
+    "SKISNOW_MAX_QUEUED_JOBS": "32",
     "OMP_NUM_THREADS": "1",
 }
 REPO = Path(__file__).resolve().parents[1]
