@@ -3,7 +3,8 @@
 Every error a user can cause is a JSON problem body (RFC 9457 shape) with ``status``,
 ``title``, ``detail`` and, for validation errors, ``errors: [{field, reason}]``; unknown skis or
 grinds are 404 with the known names; bodies over the limit are 413; results outside the tables
-or non-converged solves are 422 with what to change.
+or non-converged solves are 422 with what to change. Who may change and see what (tokens, the
+same-origin check of changes, team filtering) is :mod:`app.access`.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from app import api_catalogue, service, web
+from app.access import WriteGuardMiddleware, visible_catalogue
 from app.profiles import profile_model
 from app.schemas import CompareBody, ContactBody
 from app.settings import Settings
@@ -120,6 +122,12 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
         upload_limit=settings.max_upload_bytes,
         upload_paths=api_catalogue.UPLOAD_PATHS,
     )
+    # added last, so it runs first: a refused change never has its body read
+    app.add_middleware(
+        WriteGuardMiddleware,
+        tokens=settings.team_tokens,
+        trusted_origins=settings.trusted_origins,
+    )
 
     @app.exception_handler(RequestValidationError)
     async def _validation(request: Request, exc: RequestValidationError):
@@ -162,19 +170,19 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
         return {"status": "ok"}
 
     @app.get("/readyz", tags=["ops"])
-    def readyz() -> JSONResponse:
+    def readyz(request: Request) -> JSONResponse:
         """Readiness: tables and ski files loaded and verified against their manifests."""
-        cat = app.state.catalogue
-        if cat is None:
+        if app.state.catalogue is None:
             return problem(503, "Not ready", "catalogue not loaded")
+        cat = visible_catalogue(request)
         return JSONResponse(
             {"status": "ready", "skis": sorted(cat.skis), "grinds": sorted(cat.grinds)}
         )
 
     @app.get("/v1/skis", tags=["catalogue"])
-    def list_skis() -> dict:
+    def list_skis(request: Request) -> dict:
         """Skis with their outline, model and file provenance."""
-        cat = app.state.catalogue
+        cat = visible_catalogue(request)
         out = []
         for s in cat.skis.values():
             lo, hi = s.position_range_m
@@ -197,9 +205,9 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
         return {"skis": out}
 
     @app.get("/v1/grinds", tags=["catalogue"])
-    def list_grinds() -> dict:
+    def list_grinds(request: Request) -> dict:
         """Grinds with their ISO 25178 parameters and table provenance."""
-        cat = app.state.catalogue
+        cat = visible_catalogue(request)
         out = []
         for g in cat.grinds.values():
             t = g.table
@@ -228,14 +236,14 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
     # they go out as a JSONResponse: FastAPI's jsonable_encoder would walk their ~10^4 values
     # again (8-10 ms of a ~60 ms request on the benchmark machine) to give the same bytes.
     @app.post("/v1/contact", tags=["contact"], response_model=dict)
-    def post_contact(body: ContactBody) -> JSONResponse:
+    def post_contact(request: Request, body: ContactBody) -> JSONResponse:
         """One ski × grind case: metrics, apparent contact, distributions, provenance."""
         return JSONResponse(
-            service.contact(app.state.catalogue, service.ContactInputs(**body.model_dump()))
+            service.contact(visible_catalogue(request), service.ContactInputs(**body.model_dump()))
         )
 
     @app.post("/v1/compare", tags=["contact"], response_model=dict)
-    def post_compare(body: CompareBody) -> JSONResponse:
+    def post_compare(request: Request, body: CompareBody) -> JSONResponse:
         """Every ski × grind combination for one load and snow."""
         cells = len(body.skis) * len(body.grinds)
         if cells > settings.max_compare_cells:
@@ -245,7 +253,7 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
                 f"skis × grinds = {cells} cases exceeds the limit of {settings.max_compare_cells}",
                 errors=[{"field": "skis", "reason": "too many combinations"}],
             )
-        cat = app.state.catalogue
+        cat = visible_catalogue(request)
         for s in body.skis:
             cat.ski(s)
         for g in body.grinds:

@@ -2,7 +2,10 @@
 
 Mounted by :func:`app.api.create_app`; :func:`start` and :func:`stop` run in the app's
 lifespan (catalogue database, job runner). Thin routes: each checks the request and calls one
-function of :mod:`app.uploads`. See docs/uploads.md.
+function of :mod:`app.uploads`. Who may change and see what is :mod:`app.access`: changes
+pass its write guard first; with team tokens, reads show the caller's team's items and jobs (and
+the shipped ones and those of no team), another team's are 404. Uploads are refused with 429
+beyond the job quotas (``max_jobs_per_team``, ``max_queued_jobs``). See docs/uploads.md.
 """
 
 from __future__ import annotations
@@ -18,7 +21,8 @@ from fastapi import Depends, FastAPI, File, Form, Request, UploadFile
 from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, ConfigDict, Field
 
-from app import uploads
+from app import access, uploads
+from app.access import Caller
 from app.jobs import JobRunner
 from app.service import UnknownItemError, beam_report, profile_report
 from app.storage.catalogue import CatalogueDB, ItemRow, JobRow, NameTakenError
@@ -92,15 +96,17 @@ def _state(request: Request) -> CatalogueState:
 
 
 def _team(request: Request) -> str | None:
-    """The caller's team from ``Authorization: Bearer TOKEN`` (None when teams are off)."""
+    """The changing caller's team from ``Authorization: Bearer TOKEN`` (None when teams are
+    off; the write guard of :mod:`app.access` has refused a missing or bad token already)."""
     tokens = request.app.state.settings.team_tokens
     if not tokens:
         return None
-    auth = request.headers.get("authorization", "")
-    scheme, _, token = auth.partition(" ")
-    if scheme.lower() != "bearer" or token.strip() not in tokens:
-        raise uploads.UnauthorizedError("a valid bearer token is required to change the catalogue")
-    return tokens[token.strip()]
+    return access.bearer_team(request.headers, tokens, required=True)
+
+
+def _limits(request: Request) -> uploads.JobLimits:
+    settings = request.app.state.settings
+    return uploads.JobLimits(settings.max_jobs_per_team, settings.max_queued_jobs)
 
 
 def _multipart(request: Request) -> None:
@@ -112,6 +118,11 @@ def _multipart(request: Request) -> None:
 
 
 Team = Annotated[str | None, Depends(_team)]
+Reader = Annotated[Caller, Depends(access.caller)]
+
+
+def _writer(request: Request, team: str | None) -> Caller:
+    return Caller(team, bool(request.app.state.settings.team_tokens))
 
 
 def _job_view(db: CatalogueDB, job: JobRow) -> dict:
@@ -130,10 +141,11 @@ def _job_view(db: CatalogueDB, job: JobRow) -> dict:
     }
 
 
-def _item_or_404(state: CatalogueState, kind: str, name: str) -> ItemRow:
+def _item_or_404(state: CatalogueState, kind: str, name: str, who: Caller) -> ItemRow:
+    """The item, or 404 naming the items ``who`` may see (another team's is not found)."""
     row = state.db.item_by_name(kind, name)
-    if row is None:
-        known = [i.name for i in state.db.items(kind)]
+    if row is None or not who.sees(row.team, row.read_only):
+        known = [i.name for i in state.db.items(kind) if who.sees(i.team, i.read_only)]
         raise UnknownItemError(kind, name, known)
     return row
 
@@ -217,6 +229,7 @@ def mount(app: FastAPI) -> None:
         uploads.ForbiddenError: (403, "Forbidden"),
         uploads.UnauthorizedError: (401, "Unauthorized"),
         uploads.UploadTooLargeError: (413, "Payload Too Large"),
+        uploads.QuotaError: (429, "Too Many Requests"),
         NameTakenError: (409, "Conflict"),
     }
     for exc_class, (status, title) in statuses.items():
@@ -225,6 +238,8 @@ def mount(app: FastAPI) -> None:
             resp = problem(status, title, str(exc))
             if status == 401:
                 resp.headers["WWW-Authenticate"] = "Bearer"
+            if status == 429:
+                resp.headers["Retry-After"] = str(exc.retry_after_s)
             return resp
 
         app.add_exception_handler(exc_class, _handler)
@@ -261,6 +276,7 @@ def mount(app: FastAPI) -> None:
         the answer); its table is built by a background job (``job`` → ``GET /v1/jobs/{id}``)."""
         state = _state(request)
         settings = request.app.state.settings
+        uploads.check_job_quota(state.db, team, _limits(request))  # before the file is checked
         meta = {
             "shop_code": _text(shop_code, "shop_code"),
             "machine": _text(machine, "machine"),
@@ -284,6 +300,7 @@ def mount(app: FastAPI) -> None:
                 periodic=periodic,
                 detrend=detrend,
                 team=team,
+                limits=_limits(request),
             )
         state.runner.wake()
         return _accepted(item, job_id, iso25178=iso)
@@ -306,6 +323,7 @@ def mount(app: FastAPI) -> None:
         too sparse for the accuracy check are refused); its network is trained by a job."""
         state = _state(request)
         settings = request.app.state.settings
+        uploads.check_job_quota(state.db, team, _limits(request))  # before the file is checked
         meta = {
             "brand_model": _text(brand_model, "brand_model"),
             "style": style,
@@ -324,24 +342,28 @@ def mount(app: FastAPI) -> None:
                 width_mm=width_mm,
                 width_positions_mm=width_positions_mm,
                 team=team,
+                limits=_limits(request),
             )
         state.runner.wake()
         return _accepted(item, job_id, data=figures)
 
     @app.get("/v1/jobs/{job_id}", tags=["catalogue"])
-    def get_job(request: Request, job_id: str) -> dict:
-        """A background job: state (queued, running, done, failed), progress 0..1, errors."""
+    def get_job(request: Request, job_id: str, who: Reader) -> dict:
+        """A background job: state (queued, running, done, failed), progress 0..1, errors
+        (another team's job is 404)."""
         state = _state(request)
         job = state.db.job(job_id)
-        if job is None:
+        item = state.db.item(job.item_id) if job is not None and job.item_id else None
+        if job is None or (item is not None and not who.sees(item.team, item.read_only)):
             return problem(404, "Unknown job", f"no job {job_id!r}")
         return _job_view(state.db, job)
 
     @app.get("/v1/jobs", tags=["catalogue"])
-    def list_jobs(request: Request) -> dict:
-        """The 100 most recent jobs."""
+    def list_jobs(request: Request, who: Reader) -> dict:
+        """The 100 most recent jobs (with team tokens: those the caller's team may see)."""
         state = _state(request)
-        return {"jobs": [_job_view(state.db, j) for j in state.db.jobs()]}
+        jobs = state.db.jobs(by_team=who.teams_on, team=who.team)
+        return {"jobs": [_job_view(state.db, j) for j in jobs]}
 
     for kind, plural in (("ski", "skis"), ("grind", "grinds")):
         _item_routes(app, kind, plural)
@@ -349,12 +371,12 @@ def mount(app: FastAPI) -> None:
 
 def _item_routes(app: FastAPI, kind: str, plural: str) -> None:
     @app.get(f"/v1/{plural}/{{name}}", tags=["catalogue"], name=f"show_{kind}")
-    def show(request: Request, name: str) -> dict:
+    def show(request: Request, name: str, who: Reader) -> dict:
         """One item: state, metadata, file and its jobs; for a usable ski also its profile model
         (name and why) and its beam: EI(X), c(X) with their bands, the misfit per case and the
         held-out check (the ski's page ``/skis/{name}`` shows the same)."""
         state = _state(request)
-        row = _item_or_404(state, kind, name)
+        row = _item_or_404(state, kind, name, who)
         cat = request.app.state.catalogue
         out = {
             **row.public(),
@@ -370,7 +392,7 @@ def _item_routes(app: FastAPI, kind: str, plural: str) -> None:
     def rename(request: Request, name: str, body: RenameBody, team: Team) -> dict:
         """Rename an uploaded item (shipped items are read-only)."""
         state = _state(request)
-        row = _item_or_404(state, kind, name)
+        row = _item_or_404(state, kind, name, _writer(request, team))
         _writable(state, row, team)
         new = uploads.check_name(body.name)
         with state.live.lock:
@@ -382,7 +404,7 @@ def _item_routes(app: FastAPI, kind: str, plural: str) -> None:
     def delete(request: Request, name: str, team: Team) -> Response:
         """Delete an uploaded item and its files (409 while a job uses it)."""
         state = _state(request)
-        row = _item_or_404(state, kind, name)
+        row = _item_or_404(state, kind, name, _writer(request, team))
         _writable(state, row, team)
         _busy(state, row)
         with state.live.lock:

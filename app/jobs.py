@@ -8,6 +8,14 @@ it runs. Handlers report progress through :class:`JobContext`, which also raises
 ``queued`` and resumes in the next process that starts (grind tables from their chunk
 checkpoints, see :mod:`app.build_tables`; ski networks from the start).
 
+A claim is a lease of ``stale_s`` seconds renewed by every heartbeat (each poll). A process
+killed mid-job (``kill -9``, a lost machine) stops beating; once its lease has expired, any
+other process on the same database claims the job and runs it again (a grind table from the
+checkpoints in the shared data directory). Processes on the same host requeue the jobs of dead
+local pids at start without waiting for the lease. A runner that finds its job taken over (its
+own heartbeats lapsed, e.g. a frozen process) stops it with :class:`JobLeaseLost` and writes
+nothing more about it. ``stale_s`` must exceed the longest pause between two polls.
+
 Job states: ``queued`` → ``running`` → ``done`` | ``failed`` (``running`` → ``queued`` when the
 service stops mid-job).
 """
@@ -28,13 +36,18 @@ from dataclasses import dataclass, field
 from app.storage.catalogue import CatalogueDB, ItemRow, JobRow
 from solvers.errors import SkisnowError
 
-__all__ = ["JobContext", "JobInterrupted", "JobRunner"]
+__all__ = ["JobContext", "JobInterrupted", "JobLeaseLost", "JobRunner"]
 
 log = logging.getLogger(__name__)
 
 
 class JobInterrupted(Exception):
     """Raised inside a handler when the runner stops; the job goes back to the queue."""
+
+
+class JobLeaseLost(Exception):
+    """Raised inside a handler whose job another runner took over (this runner's lease
+    expired); the job's row belongs to the new runner and is left alone."""
 
 
 @dataclass
@@ -45,6 +58,7 @@ class JobContext:
     item: ItemRow | None
     db: CatalogueDB
     stop_event: threading.Event
+    runner: str | None = None
     _last_write: float = field(default=0.0, repr=False)
     _last_message: str = field(default="", repr=False)
 
@@ -53,7 +67,8 @@ class JobContext:
             raise JobInterrupted("the service is stopping")
 
     def progress(self, fraction: float, message: str | None = None) -> None:
-        """Record progress in [0, 1] (throttled to a write every 0.25 s); may interrupt."""
+        """Record progress in [0, 1] (throttled to a write every 0.25 s); may interrupt, and
+        raises :class:`JobLeaseLost` when the job is no longer this runner's."""
         self.check_stop()
         fraction = min(max(float(fraction), 0.0), 1.0)
         now = time.monotonic()
@@ -63,7 +78,8 @@ class JobContext:
             if message is not None:
                 values["message"] = message
                 self._last_message = message
-            self.db.update_job(self.job.id, **values)
+            if not self.db.update_job(self.job.id, owner=self.runner, **values):
+                raise JobLeaseLost(f"job {self.job.id} was taken over by another runner")
             self._last_write = now
 
 
@@ -166,8 +182,12 @@ class JobRunner:
                 continue
             if not _pid_alive(pid):
                 log.info("job %s: its process %d is gone; requeued", job.id, pid)
-                self.db.update_job(
-                    job.id, state="queued", runner=None, message="requeued after a crash"
+                self.db.update_job(  # unless another process requeued and claimed it
+                    job.id,
+                    owner=job.runner,
+                    state="queued",
+                    runner=None,
+                    message="requeued after a crash",
                 )
 
     def _loop(self) -> None:
@@ -207,16 +227,22 @@ class JobRunner:
     def _run(self, job_id: str) -> None:
         job = self.db.job(job_id)
         item = self.db.item(job.item_id) if job.item_id else None
-        ctx = JobContext(job, item, self.db, self._stop)
+        ctx = JobContext(job, item, self.db, self._stop, self.runner_id)
+        me = self.runner_id
+        log.info("job %s (%s) started by %s, attempt %d", job_id, job.kind, me, job.attempts)
         t0 = time.perf_counter()
         try:
             if job.item_id and item is None:
                 raise SkisnowError("the job's item was deleted")
             message = self.handlers[job.kind](ctx)
+        except JobLeaseLost:
+            log.warning("job %s: taken over by another runner; %s stops it", job_id, me)
+            return
         except JobInterrupted:
             log.info("job %s interrupted; it resumes at the next start", job_id)
             self.db.update_job(
                 job_id,
+                owner=me,
                 state="queued",
                 runner=None,
                 message="interrupted by a service stop; resumes at the next start",
@@ -228,8 +254,12 @@ class JobRunner:
             else:
                 log.exception("job %s (%s) failed", job_id, job.kind)
                 error = f"internal error ({type(exc).__name__}: {exc}); it was logged"
-            self.db.update_job(job_id, state="failed", error=error, message="failed")
-            if self.on_failure is not None:
+            owned = self.db.update_job(
+                job_id, owner=me, state="failed", error=error, message="failed"
+            )
+            if not owned:  # another runner has it: its files are not ours to remove
+                log.warning("job %s failed in %s after a takeover; left alone", job_id, me)
+            elif self.on_failure is not None:
                 try:
                     self.on_failure(ctx, exc)
                 except Exception:  # pragma: no cover
@@ -237,9 +267,12 @@ class JobRunner:
             if not isinstance(exc, Exception):
                 raise
             return
-        self.db.update_job(
+        finished = self.db.update_job(
             job_id,
+            owner=me,
             state="done",
             progress=1.0,
             message=message or f"done in {time.perf_counter() - t0:.1f} s",
         )
+        if not finished:
+            log.warning("job %s finished in %s after another runner took it over", job_id, me)

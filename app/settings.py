@@ -71,7 +71,28 @@ class Settings(BaseSettings):
     )
     team_tokens: dict[str, str] = Field(
         default_factory=dict,
-        description="bearer token -> team; empty (default): no authentication",
+        description="bearer token -> team; empty (default): no authentication, and changes "
+        "must come from the service's own origin (app/access.py)",
+    )
+    trusted_origins: list[str] = Field(
+        default_factory=list,
+        description="other origins (scheme://host[:port]) whose pages may change the catalogue "
+        "when team_tokens is empty, e.g. a proxy's public address that rewrites Host",
+    )
+    max_jobs_per_team: int = Field(
+        4,
+        ge=1,
+        description="queued + running jobs of one team (no team tokens: of everyone); "
+        "an upload beyond it is 429",
+    )
+    max_queued_jobs: int = Field(
+        16, ge=1, description="queued + running jobs of all teams; an upload beyond it is 429"
+    )
+    max_solve_grid_points: int = Field(
+        1024 * 1024,
+        ge=64,
+        description="largest grid a grind's table is solved on, after periodisation (mirror "
+        "doubles each side: 4x the uploaded points) [points]",
     )
 
     @property

@@ -80,6 +80,47 @@ class UploadTooLargeError(SkisnowError):
     """The uploaded file exceeds ``max_upload_bytes`` (HTTP 413)."""
 
 
+class QuotaError(SkisnowError):
+    """Too many jobs queued or running, for the team or for the service (HTTP 429 with
+    ``Retry-After: retry_after_s``)."""
+
+    #: what the answer's ``Retry-After`` asks [s]: about the time a table build at the default
+    #: settings takes on one worker, so that a retry is likely to find a free slot
+    retry_after_s = 60
+
+
+# -------------------------------------------------------------------------------- quotas
+
+
+@dataclass(frozen=True)
+class JobLimits:
+    """Queued + running jobs allowed per team and in total (``Settings.max_jobs_per_team``,
+    ``Settings.max_queued_jobs``); without team tokens every upload is of one anonymous team."""
+
+    per_team: int
+    total: int
+
+
+def check_job_quota(db: CatalogueDB, team: str | None, limits: JobLimits | None) -> None:
+    """Raise :class:`QuotaError` when ``team`` (None: no team) may not queue another job."""
+    if limits is None:
+        return
+    counts = db.active_job_counts()
+    mine = counts.get(team, 0)
+    who = f"team {team!r}" if team is not None else "the service (no team tokens: one team)"
+    if mine >= limits.per_team:
+        raise QuotaError(
+            f"{who} has {mine} jobs queued or running, the limit max_jobs_per_team "
+            f"(SKISNOW_MAX_JOBS_PER_TEAM) = {limits.per_team}; retry when one has finished"
+        )
+    total = sum(counts.values())
+    if total >= limits.total:
+        raise QuotaError(
+            f"{total} jobs are queued or running, the limit max_queued_jobs "
+            f"(SKISNOW_MAX_QUEUED_JOBS) = {limits.total}; retry when one has finished"
+        )
+
+
 # ------------------------------------------------------------------------------- layout
 
 
@@ -158,6 +199,23 @@ def _npy_shape(path: Path) -> tuple[int, ...]:
     if dtype.hasobject:
         raise UnsupportedContentError(".npy holds Python objects; only numeric arrays are read")
     return shape
+
+
+def check_solve_grid(shape: tuple[int, ...], periodic: str, settings: Settings) -> None:
+    """Refuse a map whose periodised grid, the one its table is solved on, exceeds
+    ``max_solve_grid_points`` (``mirror`` doubles each side: 4× the uploaded points)."""
+    from solvers.texture import periodic_shape
+
+    solve = periodic_shape(shape, periodic)
+    n = math.prod(solve)
+    if n > settings.max_solve_grid_points:
+        raise InputError(
+            f"file: grid {shape[0]}×{shape[1]} with periodic={periodic} is solved on "
+            f"{solve[0]}×{solve[1]} = {n} points, over the limit of "
+            f"{settings.max_solve_grid_points} points (max_solve_grid_points, "
+            "SKISNOW_MAX_SOLVE_GRID_POINTS); crop or resample the map, or choose periodic=window "
+            "or none (solved on the grid as measured)"
+        )
 
 
 def _check_grid_shape(shape: tuple[int, ...], settings: Settings) -> None:
@@ -298,6 +356,7 @@ def accept_grind(
     along_ski: str = "x",
     periodic: str = "mirror",
     detrend: str | None = None,
+    limits: JobLimits | None = None,
 ) -> tuple[ItemRow, str, dict]:
     """Validate and detrend an uploaded grind, store it, and queue its table build.
 
@@ -307,7 +366,8 @@ def accept_grind(
     ``plane``, ``mean`` or ``none``; by default ``plane``, or ``mean`` when the map is declared
     periodic (``periodic="none"``); a skisnow texture file is kept as stored unless it is
     given. The choice is recorded in the item's metadata (``detrend``), the stored texture
-    and the table.
+    and the table. The periodised grid must hold at most ``settings.max_solve_grid_points``
+    (422), and ``team`` must be within the job ``limits`` (:class:`QuotaError`, 429).
 
     Returns
     -------
@@ -333,6 +393,7 @@ def accept_grind(
         along_ski=along_ski,
         detrend=detrend,
     )
+    check_solve_grid(np.shape(texture.heights_m), periodic, settings)
     iso = iso25178_parameters(texture.heights_m, texture.pixel_size_m, periodic=False)
     solve_heights = make_periodic(texture.heights_m, periodic)
     meta = {
@@ -347,6 +408,7 @@ def accept_grind(
         "missing_fraction": float(texture.missing_fraction),
         "iso25178": iso,
     }
+    check_job_quota(db, team, limits)
     item = _add_item(db, "grind", name, meta, team)
     try:
         stored = replace(
@@ -561,8 +623,10 @@ def accept_ski(
     width_mm: str,
     width_positions_mm: str | None,
     team: str | None,
+    limits: JobLimits | None = None,
 ) -> tuple[ItemRow, str, dict]:
-    """Validate a ski upload, store its CSV and queue the network training."""
+    """Validate a ski upload, store its CSV and queue the network training (``team`` within
+    the job ``limits``, else :class:`QuotaError`)."""
     name = check_name(name)
     if db.item_by_name("ski", name) is not None:
         raise ConflictError(f"a ski named {name!r} already exists")
@@ -584,6 +648,7 @@ def accept_ski(
         "original_filename": Path(filename).name,
         "data": figures,
     }
+    check_job_quota(db, team, limits)
     item = _add_item(db, "ski", name, meta, team)
     try:
         with atomic_path(layout.ski_csv(item.id)) as tmp:
@@ -781,7 +846,8 @@ class LiveCatalogue:
         self._get = get_catalogue
         self.db = db
         self.lock = threading.RLock()
-        self.loaded: dict[str, tuple[str, str, str]] = {}  # item id -> (kind, name, sha256)
+        # item id -> (kind, name, sha256, team)
+        self.loaded: dict[str, tuple[str, str, str, str | None]] = {}
 
     def _dicts(self, kind: str) -> tuple[service.Catalogue, str]:
         return self._get(), "grinds" if kind == "grind" else "skis"
@@ -796,7 +862,7 @@ class LiveCatalogue:
             d.pop(old[1], None)
         d[item.name] = obj
         setattr(cat, attr, d)
-        self.loaded[item.id] = (item.kind, item.name, item.sha256)
+        self.loaded[item.id] = (item.kind, item.name, item.sha256, item.team)
 
     @_locked
     def drop(self, item_id: str) -> None:
@@ -819,7 +885,13 @@ class LiveCatalogue:
         if obj is not None:
             d[item.name] = replace(obj, name=item.name)
         setattr(cat, attr, d)
-        self.loaded[item.id] = (item.kind, item.name, item.sha256)
+        self.loaded[item.id] = (item.kind, item.name, item.sha256, item.team)
+
+    @_locked
+    def owned_by_others(self, team: str | None) -> set[tuple[str, str]]:
+        """``(kind, name)`` of the served uploads that belong to a team other than ``team``
+        (items of no team belong to nobody; shipped items are never here)."""
+        return {(k, n) for k, n, _, owner in self.loaded.values() if owner not in (None, team)}
 
     @_locked
     def sync(self) -> None:
@@ -830,7 +902,7 @@ class LiveCatalogue:
                 self.drop(item_id)
         for item in ready.values():
             old = self.loaded.get(item.id)
-            if old == (item.kind, item.name, item.sha256):
+            if old == (item.kind, item.name, item.sha256, item.team):
                 continue
             if old is not None and old[2] == item.sha256:
                 self.rename(item)

@@ -28,7 +28,11 @@ Routes (all ``GET`` so that every result is a link; no multipart, no JavaScript 
 The query is validated with the bounds of :class:`app.schemas.ContactBody`; bad input re-shows
 the form with a message next to the offending field (422; 404 for an unknown ski or grind).
 Each combination is one :func:`app.service.contact` call; answers are kept in a small
-in-memory cache so that the CSV download after a results page costs nothing.
+in-memory cache so that the CSV download after a results page costs nothing. The cache is keyed
+on the inputs and the sha256 of the ski and grind files, so a renamed item, or one deleted and
+uploaded again under its name, is never served an earlier item's answer. With team tokens the
+pages show what :func:`app.access.visible_catalogue` lets the request see (a browser sends no
+bearer token with a page request: the shipped items and those of no team).
 """
 
 from __future__ import annotations
@@ -51,6 +55,7 @@ from fastapi.responses import HTMLResponse, Response
 from pydantic import ValidationError
 
 from app import plots, service, units, uploads
+from app.access import caller, visible_catalogue
 from app.presets import DEFAULT_PRESET
 from app.presets import PRESETS as ACCURACY_PRESETS
 from app.profiles import SERVED_MISFIT_LIMIT
@@ -1298,26 +1303,25 @@ def mount(app: FastAPI) -> None:
     """Add the web-form routes to ``app``."""
     cache = _ResultCache()
 
-    def _query(request: Request) -> Query:
-        return parse_query(
-            request, request.app.state.catalogue, request.app.state.settings.max_compare_cells
-        )
+    def _query(request: Request, cat: service.Catalogue) -> Query:
+        return parse_query(request, cat, request.app.state.settings.max_compare_cells)
 
     @app.get("/", response_class=HTMLResponse, include_in_schema=False)
     def form(request: Request) -> HTMLResponse:
-        q = _query(request)
+        cat = visible_catalogue(request)
+        q = _query(request, cat)
         if not request.query_params:
             q.errors.clear()
         # a pre-filled form shows only the errors of what was given
         elif not q.skis and not q.grinds:
             q.errors.pop("ski", None)
             q.errors.pop("grind", None)
-        return render_form(request.app.state.catalogue, q)
+        return render_form(cat, q)
 
     @app.get("/results", response_class=HTMLResponse, include_in_schema=False)
     def results(request: Request) -> HTMLResponse:
-        cat = request.app.state.catalogue
-        q = _query(request)
+        cat = visible_catalogue(request)
+        q = _query(request, cat)
         if not q.ok:
             return render_form(cat, q, q.status)
         out = compute(cat, q, cache)
@@ -1329,14 +1333,15 @@ def mount(app: FastAPI) -> None:
 
     @app.get("/skis/{name:path}", response_class=HTMLResponse, include_in_schema=False)
     def ski_page(request: Request, name: str) -> HTMLResponse:
-        cat = request.app.state.catalogue
+        cat = visible_catalogue(request)
         ski = cat.skis.get(name)
         if ski is None:
             state = None
             uploads_state = getattr(request.app.state, "uploads", None)
             if uploads_state is not None:
                 row = uploads_state.db.item_by_name("ski", name)
-                state = row.state if row is not None else None
+                if row is not None and caller(request).sees(row.team, row.read_only):
+                    state = row.state
             return render_unknown_ski(cat, name, state)
         settings = getattr(request.app.state, "settings", None)
         cache = None
@@ -1346,12 +1351,12 @@ def mount(app: FastAPI) -> None:
 
     @app.get("/upload", response_class=HTMLResponse, include_in_schema=False)
     def upload(request: Request) -> HTMLResponse:
-        return render_upload(request.app.state.catalogue, request.app.state.settings)
+        return render_upload(visible_catalogue(request), request.app.state.settings)
 
     @app.get("/results.csv", include_in_schema=False)
     def results_csv(request: Request) -> Response:
-        cat = request.app.state.catalogue
-        q = _query(request)
+        cat = visible_catalogue(request)
+        q = _query(request, cat)
         if not q.ok:
             return render_form(cat, q, q.status)
         out = compute(cat, q, cache)

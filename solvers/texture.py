@@ -55,6 +55,7 @@ __all__ = [
     "level_heights",
     "linear_grind",
     "make_periodic",
+    "periodic_shape",
     "self_affine_surface",
     "target_errors",
 ]
@@ -282,6 +283,25 @@ def _tukey(n: int, taper_fraction: float) -> np.ndarray:
     w[:m] = ramp
     w[n - m + 1 :] = ramp[1:][::-1]
     return w
+
+
+def periodic_shape(shape: tuple[int, ...], method: str = "mirror") -> tuple[int, ...]:
+    """Shape of :func:`make_periodic` ``(h, method)`` for a map of ``shape``, without building it.
+
+    The grid the periodic solver works on: ``(2·n0, 2·n1)`` for ``"mirror"``, else ``shape``.
+    Lets a caller check the solve size of a map before it allocates the periodised heights.
+
+    Raises
+    ------
+    InputError
+        Unknown method.
+    """
+    if method not in PERIODISATION_METHODS:
+        raise InputError(
+            f"method must be one of {', '.join(PERIODISATION_METHODS)}, got {method!r}"
+        )
+    shape = tuple(int(n) for n in shape)
+    return tuple(2 * n for n in shape) if method == "mirror" else shape
 
 
 def make_periodic(heights_m, method: str = "mirror", *, taper_fraction: float = 0.1) -> np.ndarray:

@@ -24,6 +24,9 @@ def _open(url: str, barrier, queue) -> None:
 
 @pytest.mark.skipif("fork" not in mp.get_all_start_methods(), reason="needs fork")
 def test_processes_creating_the_catalogue_at_once_all_succeed(tmp_path):
+    # imported before the fork, so that the children race on the schema, not on imports
+    import app.storage.catalogue  # noqa: F401
+
     ctx = mp.get_context("fork")
     for r in range(ROUNDS):
         url = f"sqlite:///{tmp_path / f'round{r}' / 'catalogue.db'}"

@@ -162,6 +162,8 @@ def installed():
             "app/cli.py",
             "app/static/web.js",
             "app/templates/page.html",
+            "app/storage/migrations/env.py",  # the catalogue's schema (app/storage/schema.py)
+            "app/storage/migrations/versions/0001_baseline.py",
             "solvers/__init__.py",
             "skisnow/tables/manifest.json",
             "skisnow/tables/grind-1.h5",

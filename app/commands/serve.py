@@ -114,8 +114,8 @@ def run_serve(args: argparse.Namespace) -> int:
 
     load_catalogue(settings.tables_dir)
     _check_data_dir(Path(settings.data_dir))
-    # the catalogue's schema is created here, once, before the workers start (they would race
-    # on an empty database)
+    # the catalogue's schema is created or upgraded here (Alembic, app.storage.schema), once,
+    # before the workers start; they find it at the head revision
     from app.storage.catalogue import CatalogueDB
 
     CatalogueDB(settings.catalogue_url).close()

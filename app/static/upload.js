@@ -140,7 +140,11 @@
     var failures = 0;
     function poll() {
       if (panel.dataset.job !== jobId) { return; }  // a newer upload took the panel
-      fetch("/v1/jobs/" + encodeURIComponent(jobId), { headers: { accept: "application/json" } })
+      // with team tokens a job is shown only to its team: poll with the form's token
+      var headers = { accept: "application/json" };
+      var token = form.querySelector("[data-token]");
+      if (token && token.value) { headers.authorization = "Bearer " + token.value.trim(); }
+      fetch("/v1/jobs/" + encodeURIComponent(jobId), { headers: headers })
         .then(jsonOf)
         .then(function (r) {
           if (r.status !== 200 || !r.body) {

@@ -1,8 +1,10 @@
 """The persistent catalogue: items (skis, grinds) and background jobs in a SQL database.
 
 SQLAlchemy 2 Core over any URL it knows; SQLite (one file under the data directory) by default,
-PostgreSQL for several replicas sharing one catalogue (untested here). The database holds the
-records; the data themselves are the self-describing HDF5 files it points to.
+PostgreSQL for several replicas sharing one catalogue (tests/test_postgres.py). The database
+holds the records; the data themselves are the self-describing HDF5 files it points to. The
+schema is made and upgraded by the Alembic revisions of :mod:`app.storage.schema`; the tables
+below mirror the head revision (a test compares them).
 
 Tables
 ------
@@ -15,11 +17,14 @@ Tables
 ``jobs``
     ``id`` (hex uuid), ``kind`` (``grind-table`` | ``ski-network``), ``item_id``, ``state``
     (``queued`` | ``running`` | ``done`` | ``failed``), ``progress`` (0..1), ``message``,
-    ``error``, ``runner`` (``host:pid`` of the process running it), ``heartbeat_at``,
-    ``created_at``, ``updated_at``.
+    ``error``, ``runner`` (``host:pid:nonce`` of the runner holding it), ``heartbeat_at``,
+    ``attempts`` (times claimed: 1 for a job run once, 2 after a takeover), ``created_at``,
+    ``updated_at``.
 
-A job is claimed with one conditional ``UPDATE`` (``WHERE state = 'queued'`` or a stale
-heartbeat), so two processes never run the same job.
+A job is claimed with one conditional ``UPDATE`` (``WHERE state = 'queued'`` or a heartbeat
+older than the lease), so two processes never run the same job at once; the runner renews its
+lease by beating ``heartbeat_at``, and writes about a job only while ``runner`` is still its own
+(``owner=``), so a runner whose lease was taken over cannot finish or fail the job.
 """
 
 from __future__ import annotations
@@ -34,6 +39,8 @@ from pathlib import Path
 import sqlalchemy as sa
 
 from solvers.errors import InputError
+
+from .schema import upgrade_schema
 
 __all__ = ["ITEM_KINDS", "JOB_STATES", "CatalogueDB", "ItemRow", "JobRow", "NameTakenError"]
 
@@ -74,6 +81,7 @@ JOBS = sa.Table(
     sa.Column("heartbeat_at", sa.DateTime(timezone=True)),
     sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
     sa.Column("updated_at", sa.DateTime(timezone=True), nullable=False),
+    sa.Column("attempts", sa.Integer, nullable=False, server_default=sa.text("0")),
 )
 
 
@@ -136,6 +144,7 @@ class JobRow:
     heartbeat_at: _dt.datetime | None
     created_at: _dt.datetime
     updated_at: _dt.datetime
+    attempts: int
 
 
 def _item(row) -> ItemRow:
@@ -153,25 +162,6 @@ def _job(row) -> JobRow:
     return JobRow(**d)
 
 
-def _create_schema(engine, attempts: int = 5) -> None:
-    """Create the tables if missing, safe when several processes start at once on an empty
-    database (the uvicorn workers of a first ``docker run``): ``create_all`` checks and then
-    creates, so a process that loses the race sees "already exists" (or, on SQLite, "database
-    is locked" while another process holds the schema lock); it checks again, and finds the
-    winner's tables."""
-    for attempt in range(attempts):
-        try:
-            _meta.create_all(engine)
-            return
-        except (sa.exc.OperationalError, sa.exc.ProgrammingError, sa.exc.IntegrityError) as exc:
-            text = str(exc).lower()
-            if not any(t in text for t in ("already exists", "duplicate", "locked")):
-                raise
-            if attempt == attempts - 1:
-                raise
-            time.sleep(0.05 * (attempt + 1))
-
-
 class CatalogueDB:
     """Items and jobs in one database (thread-safe: one short transaction per call).
 
@@ -179,7 +169,8 @@ class CatalogueDB:
     ----------
     url : str
         SQLAlchemy database URL, e.g. ``sqlite:////var/lib/skisnow/catalogue.db`` or
-        ``postgresql+psycopg://user@host/skisnow``. The tables are created if missing.
+        ``postgresql+psycopg://user@host/skisnow``. The schema is created or upgraded to
+        the newest revision (:func:`app.storage.schema.upgrade_schema`).
     """
 
     def __init__(self, url: str) -> None:
@@ -209,7 +200,7 @@ class CatalogueDB:
                 cur.execute("PRAGMA foreign_keys=ON")
                 cur.close()
 
-        _create_schema(self.engine)
+        upgrade_schema(self.engine)
 
     def close(self) -> None:
         self.engine.dispose()
@@ -313,22 +304,57 @@ class CatalogueDB:
             row = c.execute(JOBS.select().where(JOBS.c.id == job_id)).first()
         return _job(row) if row else None
 
-    def jobs(self, *, item_id: str | None = None, states=None, limit: int = 100) -> list[JobRow]:
+    def jobs(
+        self,
+        *,
+        item_id: str | None = None,
+        states=None,
+        limit: int = 100,
+        by_team: bool = False,
+        team: str | None = None,
+    ) -> list[JobRow]:
+        """The most recent jobs (newest first); with ``by_team``, only those a member of
+        ``team`` may see: jobs of shipped items, of items of no team and of ``team``'s items
+        (``team=None``: a caller of no team)."""
         q = JOBS.select().order_by(JOBS.c.created_at.desc()).limit(limit)
         if item_id is not None:
             q = q.where(JOBS.c.item_id == item_id)
         if states is not None:
             q = q.where(JOBS.c.state.in_(list(states)))
+        if by_team:
+            seen = [ITEMS.c.team.is_(None), ITEMS.c.read_only.is_(True)]
+            if team is not None:
+                seen.append(ITEMS.c.team == team)
+            q = q.select_from(JOBS.outerjoin(ITEMS, JOBS.c.item_id == ITEMS.c.id)).where(
+                sa.or_(*seen)
+            )
         with self.engine.connect() as c:
             return [_job(r) for r in c.execute(q)]
 
-    def update_job(self, job_id: str, **values) -> None:
+    def active_job_counts(self) -> dict[str | None, int]:
+        """Queued and running jobs per team of their item (``None``: items of no team)."""
+        q = (
+            sa.select(ITEMS.c.team, sa.func.count())
+            .select_from(JOBS.outerjoin(ITEMS, JOBS.c.item_id == ITEMS.c.id))
+            .where(JOBS.c.state.in_(("queued", "running")))
+            .group_by(ITEMS.c.team)
+        )
+        with self.engine.connect() as c:
+            return {team: int(n) for team, n in c.execute(q)}
+
+    def update_job(self, job_id: str, *, owner: str | None = None, **values) -> bool:
+        """Update columns of a job; with ``owner``, only while the job's runner is ``owner``
+        (False: another runner took it over, nothing was written)."""
         now = _now()
         values["updated_at"] = now
         if values.get("state") == "running" or "progress" in values:
             values.setdefault("heartbeat_at", now)
+        q = JOBS.update().where(JOBS.c.id == job_id)
+        if owner is not None:
+            q = q.where(JOBS.c.runner == owner)
         with self.engine.begin() as c:
-            c.execute(JOBS.update().where(JOBS.c.id == job_id).values(**values))
+            res = c.execute(q.values(**values))
+        return res.rowcount == 1
 
     def heartbeat(self, job_ids, runner: str) -> None:
         if not job_ids:
@@ -358,7 +384,13 @@ class CatalogueDB:
                         ),
                     ),
                 )
-                .values(state="running", runner=runner, heartbeat_at=now, updated_at=now)
+                .values(
+                    state="running",
+                    runner=runner,
+                    heartbeat_at=now,
+                    updated_at=now,
+                    attempts=JOBS.c.attempts + 1,
+                )
             )
         return res.rowcount == 1
 

@@ -1,0 +1,207 @@
+"""Who may change and see what: the service's access rules (docs/uploads.md, "Access").
+
+Changes
+    Every request with a method in :data:`WRITE_METHODS` (uploads, renames, deletes, and so the
+    jobs they queue) is checked by :class:`WriteGuardMiddleware` before its body is read:
+
+    - with team tokens (``Settings.team_tokens``) it needs ``Authorization: Bearer TOKEN`` of a
+      team, else 401. A browser never adds that header on its own, so another site's page
+      cannot make a technician's browser send it;
+    - without team tokens (the default) it must come from the service's own origin: a request
+      whose ``Origin`` header, or ``Referer`` when it has no ``Origin``, names another origin
+      than its ``Host`` (or one of ``Settings.trusted_origins``) is refused with 403 naming
+      both. Browsers send ``Origin`` with every cross-origin POST, PATCH and DELETE, so a page
+      on another site that posts a form or a ``fetch`` to ``127.0.0.1:8000`` is refused, while
+      the service's own upload page (same origin) and clients that send neither header (curl,
+      scripts, a team's tools) pass.
+
+    ``POST /v1/contact`` and ``POST /v1/compare`` (:data:`READ_ONLY_POSTS`) are computations
+    that change nothing: they are not checked. Another site can make a browser send one, but
+    cannot read its answer (the service sends no CORS headers), and the CPU it costs is open to
+    anyone who reaches the port through those routes anyway (``max_compare_cells`` bounds it).
+
+Reads
+    Without team tokens everyone sees everything. With team tokens a caller (:class:`Caller`,
+    the team of its bearer token; no token: a caller of no team) sees the shipped items, the
+    uploads of no team (made before teams were configured) and its own team's, in every list,
+    item, job, contact computation and web page. Another team's item or job answers 404 as if
+    it did not exist. An invalid token is 401.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from urllib.parse import urlsplit
+
+from starlette.datastructures import Headers
+from starlette.requests import Request
+
+from app import service
+from app.uploads import UnauthorizedError
+
+__all__ = [
+    "READ_ONLY_POSTS",
+    "WRITE_METHODS",
+    "Caller",
+    "WriteGuardMiddleware",
+    "bearer_team",
+    "caller",
+    "cross_origin_reason",
+    "visible_catalogue",
+]
+
+#: methods that change the catalogue (or queue jobs)
+WRITE_METHODS = frozenset({"POST", "PUT", "PATCH", "DELETE"})
+#: POST routes that only compute and change nothing (not checked, see the module docstring)
+READ_ONLY_POSTS = frozenset({"/v1/contact", "/v1/compare"})
+_DEFAULT_PORTS = {"http": 80, "https": 443}
+
+
+# ------------------------------------------------------------------------------ teams
+
+
+def bearer_team(headers: Mapping[str, str], tokens: Mapping[str, str], *, required: bool):
+    """The team of the request's ``Authorization: Bearer TOKEN`` (None: no header and not
+    ``required``).
+
+    Raises
+    ------
+    UnauthorizedError
+        A header with an unknown token or another scheme, or none when ``required``.
+    """
+    auth = headers.get("authorization", "")
+    if not auth and not required:
+        return None
+    scheme, _, token = auth.partition(" ")
+    token = token.strip()
+    if scheme.lower() != "bearer" or token not in tokens:
+        what = "to change the catalogue" if required else "(or no Authorization header)"
+        raise UnauthorizedError(f"a valid bearer token is required {what}")
+    return tokens[token]
+
+
+@dataclass(frozen=True)
+class Caller:
+    """Who is asking: the team (None: no team) and whether teams are configured at all."""
+
+    team: str | None
+    teams_on: bool
+
+    def sees(self, owner: str | None, read_only: bool = False) -> bool:
+        """Whether this caller may see an item of team ``owner`` (shipped: ``read_only``)."""
+        return not self.teams_on or read_only or owner is None or owner == self.team
+
+
+def caller(request: Request) -> Caller:
+    """The :class:`Caller` of a request (a FastAPI dependency; 401 for an invalid token)."""
+    tokens = request.app.state.settings.team_tokens
+    if not tokens:
+        return Caller(None, False)
+    return Caller(bearer_team(request.headers, tokens, required=False), True)
+
+
+def visible_catalogue(request: Request) -> service.Catalogue:
+    """The served catalogue as the request's caller sees it: without another team's uploads
+    (the same object when teams are off or nothing is hidden)."""
+    cat = request.app.state.catalogue
+    who = caller(request)
+    state = getattr(request.app.state, "uploads", None)
+    if not who.teams_on or state is None:
+        return cat
+    hidden = state.live.owned_by_others(who.team)
+    if not hidden:
+        return cat
+    return replace(
+        cat,
+        skis={n: s for n, s in cat.skis.items() if ("ski", n) not in hidden},
+        grinds={n: g for n, g in cat.grinds.items() if ("grind", n) not in hidden},
+    )
+
+
+# ----------------------------------------------------------------------------- origins
+
+
+def _origin(url: str) -> tuple[str, str, int] | None:
+    """(scheme, host, port) of an http(s) URL or origin; None for anything else ("null")."""
+    try:
+        parts = urlsplit(url.strip())
+        port = parts.port
+    except ValueError:
+        return None
+    if parts.scheme not in _DEFAULT_PORTS or not parts.hostname:
+        return None
+    return parts.scheme, parts.hostname.lower(), port or _DEFAULT_PORTS[parts.scheme]
+
+
+def _same_host(origin: tuple[str, str, int], host_header: str) -> bool:
+    """Whether ``origin`` is the origin the request was sent to, by its ``Host`` header (a
+    ``Host`` without a port is the default port of the origin's scheme)."""
+    try:
+        parts = urlsplit("//" + host_header.strip())
+        port = parts.port
+    except ValueError:
+        return False
+    if not parts.hostname:
+        return False
+    return parts.hostname.lower() == origin[1] and (port or _DEFAULT_PORTS[origin[0]]) == origin[2]
+
+
+def cross_origin_reason(headers: Mapping[str, str], trusted=()) -> str | None:
+    """Why a change may not pass the same-origin check, or None when it may.
+
+    The request's origin is its ``Origin`` header, else the origin of its ``Referer``; with
+    neither it passes (not sent by a browser page). It passes when that origin is the
+    request's ``Host`` or one of ``trusted`` (``scheme://host[:port]``).
+    """
+    header, value = "Origin", headers.get("origin")
+    if value is None:
+        header, value = "Referer", headers.get("referer")
+    if value is None:
+        return None
+    origin = _origin(value)
+    host = headers.get("host", "")
+    if origin is not None:
+        if _same_host(origin, host) or origin in {_origin(t) for t in trusted}:
+            return None
+    shown = value if header == "Origin" else f"{value!r} (origin of the Referer)"
+    return (
+        f"cross-origin change refused: {header} {shown} is not this service's origin "
+        f"(Host {host!r}). Without team tokens (SKISNOW_TEAM_TOKENS) uploads, renames and "
+        "deletes must come from the service's own pages, or from a client that sends no Origin "
+        "or Referer (curl, scripts); list a trusted origin in SKISNOW_TRUSTED_ORIGINS"
+    )
+
+
+class WriteGuardMiddleware:
+    """Check every change (:data:`WRITE_METHODS`, minus :data:`READ_ONLY_POSTS`) before its
+    body is read: a team's bearer token when ``tokens`` are set (401), else the same-origin
+    check (403). See the module docstring."""
+
+    def __init__(self, app, tokens: Mapping[str, str], trusted_origins=()) -> None:
+        self.app = app
+        self.tokens = dict(tokens)
+        self.trusted = tuple(trusted_origins)
+
+    async def __call__(self, scope, receive, send):
+        if (
+            scope["type"] != "http"
+            or scope.get("method") not in WRITE_METHODS
+            or scope.get("path") in READ_ONLY_POSTS
+        ):
+            return await self.app(scope, receive, send)
+        from app.api import problem
+
+        headers = Headers(scope=scope)
+        if self.tokens:
+            try:
+                bearer_team(headers, self.tokens, required=True)
+            except UnauthorizedError as exc:
+                resp = problem(401, "Unauthorized", str(exc))
+                resp.headers["WWW-Authenticate"] = "Bearer"
+                return await resp(scope, receive, send)
+        else:
+            reason = cross_origin_reason(headers, self.trusted)
+            if reason is not None:
+                return await problem(403, "Forbidden", reason)(scope, receive, send)
+        return await self.app(scope, receive, send)
