@@ -1,20 +1,49 @@
-# skisnow service image: multi-stage, slim, non-root, tables baked in (inside the installed
-# package: pyproject.toml ships tables/ as package data, found without SKISNOW_TABLES_DIR; set
-# it to serve other tables, e.g. a mounted volume).
+# skisnow service image: multi-stage, slim, non-root (uid and gid 10001), tables baked in and
+# read-only for the service user.
 # Build: docker build -t skisnow .    Run: docker run -p 8000:8000 skisnow
+# CI builds and runs it with scripts/docker_ci.sh (docs/deployment.md).
+#
+# Layers, so that a code edit does not reinstall the dependencies:
+#   reqs     the dependency list, read from pyproject.toml (only its list reaches the next stage:
+#            an edit elsewhere in pyproject.toml keeps the dependency layer cached);
+#   build    /opt/venv: the dependencies alone; /opt/skisnow: app/, solvers/ and the tables
+#            (package data skisnow.tables), installed without dependencies;
+#   runtime  /opt/venv and /opt/skisnow copied as two layers (a code edit changes the small one).
+FROM python:3.11-slim AS reqs
+WORKDIR /src
+COPY pyproject.toml ./
+RUN python -c "import tomllib; p = tomllib.load(open('pyproject.toml', 'rb')); \
+print('\n'.join(p['project']['dependencies'] + p['build-system']['requires']))" \
+    > /requirements.txt
+
 FROM python:3.11-slim AS build
 WORKDIR /src
 ENV PIP_NO_CACHE_DIR=1 PIP_DISABLE_PIP_VERSION_CHECK=1
-COPY pyproject.toml README.md ./
+COPY --from=reqs /requirements.txt /requirements.txt
+# the dependencies (and setuptools/wheel to build the package below without a download); test
+# suites of the largest dependencies removed (about 100 MB, never imported by the service)
+RUN python -m venv /opt/venv \
+    && /opt/venv/bin/pip install -r /requirements.txt \
+    && cd /opt/venv/lib/python3.*/site-packages \
+    && rm -rf numpy/*/tests numpy/tests scipy/*/tests scipy/*/*/tests matplotlib/tests \
+              numba/tests pandas/tests SurfaceTopography/*/tests
+COPY README.md pyproject.toml ./
 COPY app ./app
 COPY solvers ./solvers
 COPY tables ./tables
-RUN python -m venv /opt/venv \
-    && /opt/venv/bin/pip install --upgrade pip \
-    && /opt/venv/bin/pip install .
+RUN /opt/venv/bin/pip install --no-deps --no-build-isolation --target /opt/skisnow . \
+    && rm -rf build *.egg-info
+# numba's compiled kernels, cached once here: every first start of a container (each worker)
+# would otherwise compile them again (a fresh container was ready in 48 s, 8 s with the cache;
+# docs/deployment.md). The cache is keyed on the CPU: another CPU model compiles and re-caches.
+ENV NUMBA_CACHE_DIR=/opt/numba-cache NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1
+RUN cd /tmp && PYTHONPATH=/opt/skisnow /opt/skisnow/bin/skisnow solve --ski ski-a \
+        --grind grind-1 --load-kg 40 --load-position-mm -160 --snow-modulus-mpa 200 \
+        --porosity 0.5 >/dev/null
 
 FROM python:3.11-slim AS runtime
-ENV PATH=/opt/venv/bin:$PATH \
+ENV PATH=/opt/skisnow/bin:/opt/venv/bin:$PATH \
+    PYTHONPATH=/opt/skisnow \
     PYTHONDONTWRITEBYTECODE=1 \
     PYTHONUNBUFFERED=1 \
     SKISNOW_HOST=0.0.0.0 \
@@ -26,12 +55,19 @@ ENV PATH=/opt/venv/bin:$PATH \
     OPENBLAS_NUM_THREADS=1 \
     MKL_NUM_THREADS=1 \
     NUMBA_NUM_THREADS=1 \
-    NUMBA_CACHE_DIR=/tmp/numba-cache \
+    NUMBA_CACHE_DIR=/opt/numba-cache \
     MPLCONFIGDIR=/tmp/matplotlib
-RUN useradd --system --uid 10001 --home-dir /srv/skisnow skisnow \
-    && mkdir -p /srv/skisnow/data && chown skisnow:skisnow /srv/skisnow/data
+# fixed ids (a bind-mounted data folder must be owned by 10001:10001: docs/deployment.md)
+RUN groupadd --gid 10001 skisnow \
+    && useradd --uid 10001 --gid 10001 --no-create-home --home-dir /srv/skisnow \
+               --shell /usr/sbin/nologin skisnow \
+    && mkdir -p /srv/skisnow/data && chown 10001:10001 /srv/skisnow/data
+# owned by root, not writable by the service user
 COPY --from=build /opt/venv /opt/venv
-USER skisnow
+COPY --from=build /opt/skisnow /opt/skisnow
+# the one folder of /opt the service user writes: numba re-caches what the CPU cannot reuse
+COPY --from=build --chown=10001:10001 /opt/numba-cache /opt/numba-cache
+USER 10001:10001
 WORKDIR /srv/skisnow
 EXPOSE 8000
 HEALTHCHECK --interval=30s --timeout=3s --start-period=20s --retries=3 \
