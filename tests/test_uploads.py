@@ -186,6 +186,29 @@ def test_grind_upload_build_contact_rename_delete(catalogue, tmp_path):
     assert stored_files(tmp_path) == []
 
 
+def test_second_lifespan_of_one_app_serves_uploads_as_uploads(catalogue, tmp_path):
+    """A stopped app started again (the same app object: test clients, the fuzz run) must not
+    take the uploads it had loaded for shipped items: before the fix, a grind deleted after
+    the restart was still served, and a re-upload of its name never replaced it (found by the
+    fuzz run, issue #15 point 6)."""
+    client = make_client(catalogue, tmp_path)
+    with client:
+        assert wait_job(client, post_grind(client, name="g1").json()["job"])["state"] == "done"
+        old = client.get("/v1/grinds/g1").json()["sha256"]
+    assert "g1" not in client.app.state.catalogue.grinds  # stop unloads it
+    with client:  # second lifespan of the same app
+        assert client.get("/v1/grinds/g1").json()["read_only"] is False
+        assert client.delete("/v1/grinds/g1").status_code == 204
+        assert "g1" not in {g["name"] for g in client.get("/v1/grinds").json()["grinds"]}
+        is_problem(client.post("/v1/contact", json={"ski": "ski-a", "grind": "g1", **CONTACT}), 404)
+        # a new upload of that name is served, not the deleted one
+        r = post_grind(client, name="g1", content=npy_bytes(heights_um(seed=2)))
+        assert wait_job(client, r.json()["job"])["state"] == "done"
+        listed = {g["name"]: g for g in client.get("/v1/grinds").json()["grinds"]}
+        assert listed["g1"]["sha256"] != old
+        assert listed["g1"]["sha256"] == client.get("/v1/grinds/g1").json()["sha256"]
+
+
 def test_restart_mid_build_resumes_from_checkpoints(catalogue, tmp_path):
     from app.storage.tables import read_table
 
