@@ -420,12 +420,23 @@ def _huge_npy_header() -> bytes:
     return buf.getvalue()
 
 
+def _damaged_npy_header(at: bytes) -> bytes:
+    """A .npy of the 64² test map with a NUL byte in place of the first ``at`` of its header:
+    numpy's header parser raised SyntaxError or tokenize.TokenError, a 500 (found by the fuzz
+    run, issue #15 point 6)."""
+    data = bytearray(npy_bytes(heights_um()))
+    data[data.index(at)] = 0
+    return bytes(data)
+
+
 def _nan_map() -> np.ndarray:
     return np.full((64, 64), np.nan)
 
 
 GRIND_CASES = {
     "truncated npy": (dict(content=npy_bytes(heights_um())[:5000]), 422, "file"),
+    "npy header with a NUL": (dict(content=_damaged_npy_header(b"}")), 422, "npy header"),
+    "npy header unclosed": (dict(content=_damaged_npy_header(b")")), 422, "npy header"),
     "all NaN": (dict(content=npy_bytes(_nan_map())), 422, "valid point"),
     "1-pixel map": (dict(content=npy_bytes(np.ones((1, 1)))), 422, "too small"),
     "huge grid": (dict(content=_huge_npy_header()), 422, "exceeds the limit"),
