@@ -31,10 +31,10 @@ private data directory. Accepted uploads queue real jobs, kept small (:data:`FUZ
 a grind's table has 4 pressures in one chunk (about a second); a ski's network trains one
 epoch and fails its accuracy check, so the beam identification (over a minute) never runs; at
 most 3 jobs may be queued or running, so bursts of uploads are answered 429. Runs are
-derandomized (the same requests every run; what the background jobs have finished when a
-request arrives varies). The default run sends 640 requests (about 60 s on a loaded 2-core
-machine); a ten times longer run (6400 requests) is marked ``slow`` and skipped unless asked
-for::
+derandomized (the same draws every run; which uploaded names and job ids they pick, and what
+the background jobs have finished when a request arrives, vary). The default run sends 640 requests (about 30 s on a loaded 2-core
+machine); a longer run, ten times each test in both modes (8800 requests, about 2.5 min), is
+marked ``slow`` and skipped unless asked for::
 
     SKISNOW_SLOW_TESTS=1 python -m pytest -q -n 0 -m slow tests/test_fuzz.py
 
@@ -66,7 +66,8 @@ from app.api import create_app
 from app.settings import Settings
 from solvers.texture import self_affine_surface
 
-#: requests per test in the default (CI) run, 640 in all; the slow run sends ten times more
+#: requests per test in the default (CI) run, 640 in all; the slow run sends ten times more,
+#: in both modes (8800)
 REQUESTS = 200
 #: schema-valid contact and compare requests (most of them solved: ~0.1 s each)
 SOLVER_REQUESTS = 120
