@@ -72,11 +72,15 @@ def start(app: FastAPI) -> None:
 
 
 def stop(app: FastAPI) -> None:
-    """Stop the job runner (running jobs go back to the queue) and close the database."""
+    """Stop the job runner (running jobs go back to the queue), take the uploads out of the
+    served catalogue and close the database. The app can start again (a second lifespan of
+    the same app object, as test clients do): without the unloading its uploads would be taken
+    for shipped items (read-only names, never replaced or dropped)."""
     state: CatalogueState | None = getattr(app.state, "uploads", None)
     if state is None:
         return
     state.runner.stop()
+    state.live.drop_all()
     state.db.close()
     app.state.uploads = None
 

@@ -875,6 +875,13 @@ class LiveCatalogue:
         setattr(cat, attr, d)
 
     @_locked
+    def drop_all(self) -> None:
+        """Take every loaded upload out of the catalogue (the service stops): the catalogue is
+        the shipped one again, and a new start loads the uploads afresh."""
+        for item_id in list(self.loaded):
+            self.drop(item_id)
+
+    @_locked
     def rename(self, item: ItemRow) -> None:
         old = self.loaded.get(item.id)
         if old is None:

@@ -1,35 +1,58 @@
-"""The HTTP API fuzzed from its own OpenAPI schema (schemathesis 4; issue 6 §3).
+"""The HTTP API fuzzed from its own OpenAPI schema (schemathesis 4; issue 6 §3, issue 15 §6).
 
-Every operation of ``/openapi.json`` (``/healthz``, ``/readyz``, ``/v1/skis``, ``/v1/grinds``,
-``/v1/contact``, ``/v1/compare``) is called in process (schemathesis' ASGI client, one session
-for the module) with:
+Every operation of ``/openapi.json`` (16: ``/healthz``, ``/readyz``, the catalogue lists, the
+uploads ``POST /v1/skis`` and ``POST /v1/grinds`` (multipart), ``GET``/``PATCH``/``DELETE`` of
+``/v1/{skis,grinds}/{name}``, ``/v1/jobs`` and ``/v1/jobs/{job_id}``, ``/v1/contact``,
+``/v1/compare``) is called in process (schemathesis' ASGI client, one session and one app with
+its job runner for the module) with:
 
-- **positive** cases: bodies that fit the schema; three in four of them get the catalogue's
-  ski and grind names, and half of those a load and position inside the camber network's trained
-  range, so the macro and multiscale solvers run on schema-valid extremes (modulus 1 MPa with
-  150 kg, porosity 0.999…, Poisson 0.499…);
+- **positive** cases: bodies that fit the schema; three in four of them get names the service
+  knows (the catalogue's skis and grinds, uploaded items in any state, existing job ids), and
+  half of the contact cases a load and position inside the camber network's trained range, so
+  the macro and multiscale solvers run on schema-valid extremes (modulus 1 MPa with 150 kg,
+  porosity 0.999…, Poisson 0.499…). Uploads get a file name with a suffix (schemathesis sends
+  none, and the service decides on content *and* suffix) and, in five of six cases, a real
+  file instead of the generated text: a valid height map (``.npy``, ``.csv``) or camber CSV,
+  whole, truncated or with bytes overwritten. A quarter of the changes carry an ``Origin`` or
+  ``Referer`` header, foreign or not (the same-origin check of :mod:`app.access`);
 - **negative** cases: bodies, queries and headers that violate the schema (wrong types,
   missing or extra fields, out-of-range numbers, malformed JSON).
 
 Each answer must be below 500, and every error (4xx) must be an RFC 9457 problem body:
 ``application/problem+json`` with ``status`` (equal to the HTTP status), ``title`` and
 ``detail`` strings. Successful answers must be JSON (``allow_nan=False`` in the response
-renderer turns a NaN into a 500, so finiteness is checked on the way).
+renderer turns a NaN into a 500, so finiteness is checked on the way), except the empty 204 of
+a delete. 403 (foreign origin, shipped item), 409 (name taken, item busy) and 429 (job quota)
+are answers like any other.
 
 The app runs on the fast test catalogue (``tests/conftest.py``: the demo skis and a 64 × 64
-synthetic grind ``tiny-grind``), so a solved request takes tens of milliseconds. Runs are
-derandomized (the same requests every run). The default run sends 520 requests (about 60 s on
-a loaded 2-core machine); a ten times longer run is marked ``slow`` and skipped unless asked for::
+synthetic grind ``tiny-grind``), so a solved request takes tens of milliseconds, and with a
+private data directory. Accepted uploads queue real jobs, kept small (:data:`FUZZ_SETTINGS`):
+a grind's table has 4 pressures in one chunk (about a second); a ski's network trains one
+epoch and fails its accuracy check, so the beam identification (over a minute) never runs; at
+most 3 jobs may be queued or running, so bursts of uploads are answered 429. Runs are
+derandomized (the same draws every run; which uploaded names and job ids they pick, and what
+the background jobs have finished when a request arrives, vary). The default run sends 640 requests (about 30 s on a loaded 2-core
+machine); a longer run, ten times each test in both modes (8800 requests, about 2.5 min), is
+marked ``slow`` and skipped unless asked for::
 
-    SKISNOW_SLOW_TESTS=1 python -m pytest -q -m slow tests/test_fuzz.py
+    SKISNOW_SLOW_TESTS=1 python -m pytest -q -n 0 -m slow tests/test_fuzz.py
+
+With ``SKISNOW_FUZZ_COUNTS=path.json`` the run writes its requests per operation and status
+(docs/limits.md, "Fuzzing the API" records the last long run).
 """
 
 from __future__ import annotations
 
+import io
+import itertools
 import json
 import math
 import os
+import time
+from collections import Counter
 
+import numpy as np
 import pytest
 import schemathesis
 from hypothesis import HealthCheck, Phase, given, settings
@@ -38,18 +61,80 @@ from schemathesis import GenerationMode
 from schemathesis.python import asgi
 
 from app import service
+from app.access import READ_ONLY_POSTS, WRITE_METHODS
 from app.api import create_app
 from app.settings import Settings
+from solvers.texture import self_affine_surface
 
-#: requests per test in the default (CI) run, 520 in all; the slow run sends ten times more
+#: requests per test in the default (CI) run, 640 in all; the slow run sends ten times more,
+#: in both modes (8800)
 REQUESTS = 200
 #: schema-valid contact and compare requests (most of them solved: ~0.1 s each)
 SOLVER_REQUESTS = 120
+#: requests to the upload, rename, delete and job operations
+UPLOAD_REQUESTS = 120
 LONG = os.environ.get("SKISNOW_SLOW_TESTS") == "1"
 
 #: load [kg] and position [mm] ranges of the demo skis' camber networks (trained range)
 LOAD_KG = (10.0, 82.0)
 POSITION_MM = (-300.0, 100.0)
+
+#: settings of the fuzz app: small bodies and compare matrices keep each request short; the
+#: jobs that accepted uploads queue are tiny (see the module docstring), and the job quota
+#: turns bursts of uploads into 429
+FUZZ_SETTINGS = {
+    "max_body_bytes": 4096,
+    "max_compare_cells": 4,
+    "warm_up": False,
+    "max_upload_bytes": 400_000,
+    "max_grid_points": 64 * 64,
+    "max_solve_grid_points": 128 * 128,
+    "table_points": 4,
+    "table_chunk_size": 4,
+    "table_processes": False,
+    "job_poll_s": 0.05,
+    "train_epochs": 1,
+    "train_lbfgs_epochs": 0,
+    "train_ensemble": 1,
+    "ski_max_test_rmse_um": 1e-3,
+    "max_jobs_per_team": 3,
+    "max_queued_jobs": 3,
+}
+
+#: file names an upload is sent under (the service checks the suffix against the content)
+UPLOAD_NAMES = ("file", "g.npy", "g.csv", "g.txt", "g.x3p", "g.h5", "g.sur", "ski.csv", "ski.npy")
+#: ``Origin``/``Referer`` headers of changes: the service's own (``testserver``) or foreign
+ORIGIN_HEADERS = (
+    {"Origin": "http://testserver"},
+    {"Origin": "http://evil.example"},
+    {"Origin": "null"},
+    {"Origin": "http://testserver:8000"},
+    {"Referer": "http://testserver/upload"},
+    {"Referer": "https://evil.example/page?x=1"},
+    {"Origin": "http://[::1"},
+)
+
+_FRESH = itertools.count()
+
+#: requests per "operation status" of every test of the module (SKISNOW_FUZZ_COUNTS)
+COUNTS: dict[str, Counter] = {}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _write_counts():
+    """Write the module's requests per operation and status (and seconds per test) to
+    ``SKISNOW_FUZZ_COUNTS`` when it is set."""
+    yield
+    path = os.environ.get("SKISNOW_FUZZ_COUNTS")
+    if path and COUNTS:
+        total = Counter()
+        for c in COUNTS.values():
+            total.update({k: v for k, v in c.items() if not k.startswith("seconds")})
+        out = {"tests": {t: dict(sorted(c.items())) for t, c in COUNTS.items()}}
+        out["total"] = dict(sorted(total.items()))
+        out["requests"] = sum(total.values())
+        with open(path, "w") as fh:
+            json.dump(out, fh, indent=1)
 
 
 @pytest.fixture(scope="module")
@@ -64,10 +149,9 @@ def fuzz_catalogue(catalogue):
 @pytest.fixture(scope="module")
 def app(fuzz_catalogue, tmp_path_factory):
     settings = Settings(
-        max_body_bytes=4096,
-        max_compare_cells=4,  # compare matrices of at most 4 solves keep each request short
-        warm_up=False,
-        data_dir=tmp_path_factory.mktemp("fuzz-data"),  # catalogue database and uploads
+        # catalogue database, uploads and job work of this module only
+        data_dir=tmp_path_factory.mktemp("fuzz-data"),
+        **FUZZ_SETTINGS,
     )
     return create_app(settings, catalogue=fuzz_catalogue)
 
@@ -83,21 +167,65 @@ def session(app):
         yield client
 
 
-def test_schema_lists_every_api_operation(schema):
-    labels = {op.ok().label for op in schema.get_all_operations()}
-    assert labels >= {
-        "GET /healthz",
-        "GET /readyz",
-        "GET /v1/skis",
-        "GET /v1/grinds",
-        "POST /v1/contact",
-        "POST /v1/compare",
+def _npy(a: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.save(buf, a)
+    return buf.getvalue()
+
+
+@pytest.fixture(scope="module")
+def upload_files(camber_csv) -> dict:
+    """Valid files per upload route: (file name, bytes, form fields that make them valid)."""
+    rng = np.random.default_rng(15)
+    maps_um = [
+        self_affine_surface(shape, 1e-6, hurst=0.8, rms_height_m=1e-6, rng=rng) * 1e6
+        for shape in ((16, 16), (24, 20), (32, 32))
+    ]
+    csv = "\n".join(",".join(f"{v:.4f}" for v in row) for row in maps_um[1]).encode()
+    height_map = {"pixel_size_um": 1.0, "height_unit": "um"}
+    return {
+        "/v1/grinds": [
+            ("g.npy", _npy(maps_um[0]), height_map),
+            ("g.csv", csv, height_map),
+            (
+                "g.npy",
+                _npy((maps_um[2] * 1e3).astype(np.float32)),
+                {**height_map, "height_unit": "nm"},
+            ),
+        ],
+        "/v1/skis": [("camber.csv", camber_csv, {"length_mm": 2000.0, "width_mm": "44"})],
     }
 
 
-def _check_answer(case, response) -> None:
-    """No 5xx; errors are problem+json naming status, title and detail; 2xx is JSON."""
-    where = f"{case.operation.label}\n{case.as_curl_command()}"
+def test_schema_lists_every_api_operation(schema):
+    labels = {op.ok().label for op in schema.get_all_operations()}
+    assert labels == ALL_OPERATIONS
+
+
+ALL_OPERATIONS = {
+    "GET /healthz",
+    "GET /readyz",
+    "GET /v1/skis",
+    "POST /v1/skis",
+    "GET /v1/grinds",
+    "POST /v1/grinds",
+    "POST /v1/contact",
+    "POST /v1/compare",
+    "GET /v1/jobs",
+    "GET /v1/jobs/{job_id}",
+    "GET /v1/skis/{name}",
+    "PATCH /v1/skis/{name}",
+    "DELETE /v1/skis/{name}",
+    "GET /v1/grinds/{name}",
+    "PATCH /v1/grinds/{name}",
+    "DELETE /v1/grinds/{name}",
+}
+
+
+def _check_answer(case, response, sent: str = "") -> None:
+    """No 5xx; errors are problem+json naming status, title and detail; 2xx is JSON (a
+    delete's 204 is empty)."""
+    where = f"{case.operation.label}\n{case.as_curl_command()}{sent}"
     status = response.status_code
     assert status < 500, f"{status} on {where}\n{response.text[:500]}"
     ctype = (response.headers.get("content-type") or [""])[0]
@@ -110,42 +238,117 @@ def _check_answer(case, response) -> None:
             assert isinstance(body.get(key), str) and body[key].strip(), (key, body, where)
         if "errors" in body:
             assert all(isinstance(e.get("field"), str) for e in body["errors"]), (body, where)
-    else:
-        assert status == 200, where
-        assert ctype.startswith("application/json"), f"{ctype!r} on {where}"
-        body = json.loads(response.content)  # strict JSON: a NaN would not parse back
-        if case.operation.label == "POST /v1/contact":
-            assert all(math.isfinite(v) for v in body["metrics"].values()), (body, where)
-            assert body["provenance"]["macro"]["converged"] is True, where
+        if status == 429:
+            assert int(response.headers["retry-after"][0]) > 0, where
+        return
+    label = case.operation.label
+    if status == 204:
+        assert case.method == "DELETE" and not response.content, where
+        return
+    assert status == (202 if label in ("POST /v1/skis", "POST /v1/grinds") else 200), where
+    assert ctype.startswith("application/json"), f"{ctype!r} on {where}"
+    body = json.loads(response.content)  # strict JSON: a NaN would not parse back
+    if label == "POST /v1/contact":
+        assert all(math.isfinite(v) for v in body["metrics"].values()), (body, where)
+        assert body["provenance"]["macro"]["converged"] is True, where
+    if status == 202:
+        assert response.headers["location"][0] == f"/v1/jobs/{body['job']}", where
 
 
-def _known_names(draw, case, catalogue) -> None:
-    """Put catalogue names (and sometimes a load in the trained range) into three in four
-    positive cases, so that most of them reach the solvers rather than a 404."""
+def _names(app, kind: str) -> list[str]:
+    """Names of the catalogue database's items of ``kind`` (shipped, and uploads in any
+    state)."""
+    return sorted(i.name for i in app.state.uploads.db.items(kind))
+
+
+def _pick(draw, names: list[str]) -> str | None:
+    """One of ``names`` (None for none). The draw does not depend on ``names``: they change as
+    the background jobs finish, and hypothesis refuses draws whose bounds change between the
+    runs of one example (``FlakyStrategyDefinition``)."""
+    i = draw(st.integers(0, 2**16))
+    return names[i % len(names)] if names else None
+
+
+def _known_names(draw, case, app) -> None:
+    """Put names the service knows (and sometimes a load in the trained range) into three in
+    four positive cases, so that most of them reach the solvers, the items and the jobs rather
+    than a 404."""
     if not draw(st.integers(0, 3)):
         return
-    skis, grinds = sorted(catalogue.skis), sorted(catalogue.grinds)
-    if isinstance(case.path_parameters, dict) and "name" in case.path_parameters:
-        plural = case.operation.path.split("/")[2]
-        case.path_parameters["name"] = draw(st.sampled_from(skis if plural == "skis" else grinds))
+    cat = app.state.catalogue
+    skis, grinds = sorted(cat.skis), sorted(cat.grinds)
+    params = case.path_parameters
+    if isinstance(params, dict) and "name" in params:
+        kind = "ski" if case.operation.path.split("/")[2] == "skis" else "grind"
+        params["name"] = _pick(draw, _names(app, kind)) or params["name"]
+    if isinstance(params, dict) and "job_id" in params:
+        jobs = [j.id for j in app.state.uploads.db.jobs()]
+        params["job_id"] = _pick(draw, jobs) or params["job_id"]
     body = case.body
     if not isinstance(body, dict):
         return
     if "ski" in body:
-        body["ski"] = draw(st.sampled_from(skis))
-        body["grind"] = draw(st.sampled_from(grinds))
+        body["ski"] = _pick(draw, skis)
+        body["grind"] = _pick(draw, grinds)
     if "skis" in body:
-        body["skis"] = draw(st.lists(st.sampled_from(skis), min_size=1, max_size=2))
-        body["grinds"] = draw(st.lists(st.sampled_from(grinds), min_size=1, max_size=2))
+        body["skis"] = [_pick(draw, skis) for _ in range(draw(st.integers(1, 2)))]
+        body["grinds"] = [_pick(draw, grinds) for _ in range(draw(st.integers(1, 2)))]
     if "load_kg" in body and draw(st.booleans()):
         body["load_kg"] = draw(st.floats(*LOAD_KG))
         body["load_position_mm"] = draw(st.floats(*POSITION_MM))
 
 
-def _fuzz(schema, session, catalogue, mode: GenerationMode, examples: int, operations=None) -> dict:
+def _upload_parts(draw, case, app, files: dict) -> tuple[list, str] | None:
+    """The multipart parts of an upload case, with a file name that has a suffix and, in five
+    of six cases, a real file (valid, truncated or with bytes overwritten) in place of the
+    generated text; None for other operations. Returns (parts, description)."""
+    path = case.operation.path
+    body = case.body
+    if case.method != "POST" or path not in files or not isinstance(body, dict):
+        return None
+    hows = ["generated", "valid", "valid", "valid", "truncated", "overwritten"]
+    how = draw(st.sampled_from(hows))
+    if how == "generated":
+        filename = draw(st.sampled_from(UPLOAD_NAMES))
+    else:
+        filename, content, fields = draw(st.sampled_from(files[path]))
+        if how == "truncated":
+            content = content[: draw(st.integers(0, len(content) - 1))]
+        elif how == "overwritten":
+            data = bytearray(content)
+            for i in draw(st.lists(st.integers(0, len(data) - 1), min_size=1, max_size=8)):
+                data[i] = draw(st.integers(0, 255))
+            content = bytes(data)
+        kind = "ski" if path == "/v1/skis" else "grind"
+        fresh = f"fz-{kind}-{next(_FRESH)}"  # not drawn: hypothesis would repeat small numbers
+        taken = _pick(draw, _names(app, kind))
+        in_use = not draw(st.integers(0, 3))  # a quarter: a name in use (409)
+        name = taken if in_use and taken else fresh
+        # generated width positions rarely fit the widths, and a None goes out as "null"
+        for key in [k for k, v in body.items() if v is None or k == "width_positions_mm"]:
+            del body[key]
+        body.update(fields, name=name, file=content)
+    parts = case.as_transport_kwargs()["files"]
+    parts = [(n, (filename, *v[1:])) if n == "file" else (n, v) for n, v in parts]
+    size = len(body["file"]) if isinstance(body.get("file"), bytes | str) else 0
+    return parts, f"\nfile part sent as {filename!r} ({how}, {size} bytes)"
+
+
+def _origin_header(draw, case) -> None:
+    """An ``Origin`` or ``Referer`` header, the service's own or foreign, on a quarter of the
+    changes (the same-origin check answers 403 to foreign ones)."""
+    is_change = case.method in WRITE_METHODS and case.operation.path not in READ_ONLY_POSTS
+    if is_change and not draw(st.integers(0, 3)):
+        case.headers = {**(case.headers or {}), **draw(st.sampled_from(ORIGIN_HEADERS))}
+
+
+def _fuzz(
+    schema, session, app, mode: GenerationMode, examples: int, operations=None, files=None
+) -> Counter:
     """Send ``examples`` generated requests (to every operation, or to ``operations``: a list
-    of (path, method)); return the counts per operation and status."""
-    counts: dict[str, int] = {}
+    of (path, method)); return the counts per "operation status" (also kept in
+    :data:`COUNTS` under the test's name)."""
+    counts: Counter = Counter()
     if operations is None:
         strategy = schema.as_strategy(generation_mode=mode)
     else:
@@ -164,28 +367,44 @@ def _fuzz(schema, session, catalogue, mode: GenerationMode, examples: int, opera
     @given(data=st.data())
     def run(data):
         case = data.draw(strategy, label="case")
+        upload = None
         if mode is GenerationMode.POSITIVE:
-            _known_names(data.draw, case, catalogue)
+            _known_names(data.draw, case, app)
+            upload = _upload_parts(data.draw, case, app, files or {})
+            _origin_header(data.draw, case)
+        extra, sent = ({}, "") if upload is None else ({"files": upload[0]}, upload[1])
         try:
-            response = case.call(session=session)
+            response = case.call(session=session, **extra)
         except Exception as exc:  # the app raised instead of answering
-            pytest.fail(f"{type(exc).__name__}: {exc} on {case.as_curl_command()}")
-        key = f"{case.operation.label} {response.status_code}"
-        counts[key] = counts.get(key, 0) + 1
-        _check_answer(case, response)
+            pytest.fail(f"{type(exc).__name__}: {exc} on {case.as_curl_command()}{sent}")
+        counts[f"{case.operation.label} {response.status_code}"] += 1
+        _check_answer(case, response, sent)
 
+    t0 = time.perf_counter()
     run()
+    test = os.environ.get("PYTEST_CURRENT_TEST", "fuzz").split(" ")[0].split("::")[-1]
+    COUNTS[test] = counts + Counter({"seconds": round(time.perf_counter() - t0)})
     return counts
 
 
 SOLVER_OPERATIONS = [("/v1/contact", "POST"), ("/v1/compare", "POST")]
+UPLOAD_OPERATIONS = [
+    ("/v1/skis", "POST"),
+    ("/v1/grinds", "POST"),
+    ("/v1/skis/{name}", "PATCH"),
+    ("/v1/grinds/{name}", "PATCH"),
+    ("/v1/skis/{name}", "DELETE"),
+    ("/v1/grinds/{name}", "DELETE"),
+    ("/v1/jobs/{job_id}", "GET"),
+    ("/v1/jobs", "GET"),
+]
 
 
 def _assert_coverage(
     counts: dict, examples: int, mode: GenerationMode, min_solved: int | None = None
 ) -> None:
     """``min_solved``: answered contacts (200) required; default ``examples // 40``. Runs over
-    every operation spread their examples over ~15 operations in a way that depends on the
+    every operation spread their examples over 16 operations in a way that depends on the
     hypothesis version, so they only require that the solvers ran at all."""
     assert sum(counts.values()) >= examples, counts
     ops = {k.rsplit(" ", 1)[0] for k in counts}
@@ -199,15 +418,35 @@ def _assert_coverage(
         assert {200, 404} <= statuses, counts
 
 
-def test_fuzz_every_operation_positive(schema, session, fuzz_catalogue):
-    counts = _fuzz(schema, session, fuzz_catalogue, GenerationMode.POSITIVE, REQUESTS)
+def _assert_upload_coverage(counts: dict, examples: int) -> None:
+    """Uploads of both kinds were accepted (202) and refused for their content (415 or 422);
+    items were renamed or deleted; jobs were shown."""
+    assert sum(counts.values()) >= examples, counts
+    for route in ("POST /v1/skis", "POST /v1/grinds"):
+        assert counts.get(f"{route} 202", 0) >= 1, (route, counts)
+        refused = counts.get(f"{route} 415", 0) + counts.get(f"{route} 422", 0)
+        assert refused >= 1, (route, counts)
+    changed = sum(
+        counts.get(f"{m} /v1/{p}/{{name}} {s}", 0)
+        for m, s in (("PATCH", 200), ("DELETE", 204))
+        for p in ("skis", "grinds")
+    )
+    assert changed >= 1, counts
+    assert counts.get("GET /v1/jobs/{job_id} 200", 0) >= 1, counts
+    statuses = {int(k.rsplit(" ", 1)[1]) for k in counts}
+    assert {403, 409} <= statuses, counts
+
+
+def test_fuzz_every_operation_positive(schema, session, app, upload_files):
+    counts = _fuzz(schema, session, app, GenerationMode.POSITIVE, REQUESTS, files=upload_files)
     _assert_coverage(counts, REQUESTS, GenerationMode.POSITIVE, min_solved=1)
+    assert {k.rsplit(" ", 1)[0] for k in counts} == ALL_OPERATIONS, counts
 
 
-def test_fuzz_solver_operations_positive(schema, session, fuzz_catalogue):
+def test_fuzz_solver_operations_positive(schema, session, app):
     """Schema-valid contact and compare bodies: the solvers on the extremes of the schema."""
     counts = _fuzz(
-        schema, session, fuzz_catalogue, GenerationMode.POSITIVE, SOLVER_REQUESTS, SOLVER_OPERATIONS
+        schema, session, app, GenerationMode.POSITIVE, SOLVER_REQUESTS, SOLVER_OPERATIONS
     )
     _assert_coverage(counts, SOLVER_REQUESTS, GenerationMode.POSITIVE)
     # at least a tenth of the requests were solved; contact and compare both run the solvers,
@@ -217,15 +456,41 @@ def test_fuzz_solver_operations_positive(schema, session, fuzz_catalogue):
     assert solved >= SOLVER_REQUESTS // 10, counts
 
 
-def test_fuzz_every_operation_negative(schema, session, fuzz_catalogue):
-    counts = _fuzz(schema, session, fuzz_catalogue, GenerationMode.NEGATIVE, REQUESTS)
+def test_fuzz_upload_operations_positive(schema, session, app, upload_files):
+    """Uploads (real files, whole or damaged), renames, deletes and jobs, with the jobs the
+    accepted uploads queue running in the background."""
+    counts = _fuzz(
+        schema,
+        session,
+        app,
+        GenerationMode.POSITIVE,
+        UPLOAD_REQUESTS,
+        UPLOAD_OPERATIONS,
+        upload_files,
+    )
+    _assert_upload_coverage(counts, UPLOAD_REQUESTS)
+
+
+def test_fuzz_every_operation_negative(schema, session, app):
+    counts = _fuzz(schema, session, app, GenerationMode.NEGATIVE, REQUESTS)
     _assert_coverage(counts, REQUESTS, GenerationMode.NEGATIVE)
 
 
 @pytest.mark.slow
 @pytest.mark.skipif(not LONG, reason="long fuzz run: set SKISNOW_SLOW_TESTS=1")
 @pytest.mark.parametrize("mode", [GenerationMode.POSITIVE, GenerationMode.NEGATIVE])
-@pytest.mark.parametrize("operations", [None, SOLVER_OPERATIONS], ids=["every", "solvers"])
-def test_fuzz_long(schema, session, fuzz_catalogue, mode, operations):
-    counts = _fuzz(schema, session, fuzz_catalogue, mode, 10 * REQUESTS, operations)
-    _assert_coverage(counts, 10 * REQUESTS, mode)
+@pytest.mark.parametrize(
+    ("operations", "examples"),
+    [(None, REQUESTS), (SOLVER_OPERATIONS, SOLVER_REQUESTS), (UPLOAD_OPERATIONS, UPLOAD_REQUESTS)],
+    ids=["every", "solvers", "uploads"],
+)
+def test_fuzz_long(schema, session, app, upload_files, mode, operations, examples):
+    counts = _fuzz(schema, session, app, mode, 10 * examples, operations, upload_files)
+    if operations is UPLOAD_OPERATIONS:
+        assert sum(counts.values()) >= 10 * examples, counts
+        if mode is GenerationMode.POSITIVE:
+            _assert_upload_coverage(counts, 10 * examples)
+    else:
+        _assert_coverage(counts, 10 * examples, mode)
+    if operations is None and mode is GenerationMode.POSITIVE:
+        assert {k.rsplit(" ", 1)[0] for k in counts} == ALL_OPERATIONS, counts

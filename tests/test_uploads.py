@@ -186,6 +186,29 @@ def test_grind_upload_build_contact_rename_delete(catalogue, tmp_path):
     assert stored_files(tmp_path) == []
 
 
+def test_second_lifespan_of_one_app_serves_uploads_as_uploads(catalogue, tmp_path):
+    """A stopped app started again (the same app object: test clients, the fuzz run) must not
+    take the uploads it had loaded for shipped items: before the fix, a grind deleted after
+    the restart was still served, and a re-upload of its name never replaced it (found by the
+    fuzz run, issue #15 point 6)."""
+    client = make_client(catalogue, tmp_path)
+    with client:
+        assert wait_job(client, post_grind(client, name="g1").json()["job"])["state"] == "done"
+        old = client.get("/v1/grinds/g1").json()["sha256"]
+    assert "g1" not in client.app.state.catalogue.grinds  # stop unloads it
+    with client:  # second lifespan of the same app
+        assert client.get("/v1/grinds/g1").json()["read_only"] is False
+        assert client.delete("/v1/grinds/g1").status_code == 204
+        assert "g1" not in {g["name"] for g in client.get("/v1/grinds").json()["grinds"]}
+        is_problem(client.post("/v1/contact", json={"ski": "ski-a", "grind": "g1", **CONTACT}), 404)
+        # a new upload of that name is served, not the deleted one
+        r = post_grind(client, name="g1", content=npy_bytes(heights_um(seed=2)))
+        assert wait_job(client, r.json()["job"])["state"] == "done"
+        listed = {g["name"]: g for g in client.get("/v1/grinds").json()["grinds"]}
+        assert listed["g1"]["sha256"] != old
+        assert listed["g1"]["sha256"] == client.get("/v1/grinds/g1").json()["sha256"]
+
+
 def test_restart_mid_build_resumes_from_checkpoints(catalogue, tmp_path):
     from app.storage.tables import read_table
 
@@ -397,12 +420,23 @@ def _huge_npy_header() -> bytes:
     return buf.getvalue()
 
 
+def _damaged_npy_header(at: bytes) -> bytes:
+    """A .npy of the 64² test map with a NUL byte in place of the first ``at`` of its header:
+    numpy's header parser raised SyntaxError or tokenize.TokenError, a 500 (found by the fuzz
+    run, issue #15 point 6)."""
+    data = bytearray(npy_bytes(heights_um()))
+    data[data.index(at)] = 0
+    return bytes(data)
+
+
 def _nan_map() -> np.ndarray:
     return np.full((64, 64), np.nan)
 
 
 GRIND_CASES = {
     "truncated npy": (dict(content=npy_bytes(heights_um())[:5000]), 422, "file"),
+    "npy header with a NUL": (dict(content=_damaged_npy_header(b"}")), 422, "npy header"),
+    "npy header unclosed": (dict(content=_damaged_npy_header(b")")), 422, "npy header"),
     "all NaN": (dict(content=npy_bytes(_nan_map())), 422, "valid point"),
     "1-pixel map": (dict(content=npy_bytes(np.ones((1, 1)))), 422, "too small"),
     "huge grid": (dict(content=_huge_npy_header()), 422, "exceeds the limit"),

@@ -11,12 +11,14 @@ import shlex
 import subprocess
 import sys
 import tempfile
+import tokenize
 from collections.abc import Iterator
 from pathlib import Path
 
 from solvers import __version__
 
 __all__ = [
+    "NPY_READ_ERRORS",
     "TABLES_DIR_ENV",
     "atomic_path",
     "code_version",
@@ -34,6 +36,11 @@ REPO_ROOT = Path(__file__).resolve().parents[2]
 
 #: environment variable that overrides where the texture tables and demo skis are read from
 TABLES_DIR_ENV = "SKISNOW_TABLES_DIR"
+
+#: what numpy raises on a damaged ``.npy`` (header or body): besides ValueError, OSError and
+#: EOFError, its header parser (tokenize + ``ast.literal_eval``) raises ``SyntaxError`` (e.g. a
+#: NUL byte) and ``tokenize.TokenError`` (an unclosed bracket) on a damaged header dict
+NPY_READ_ERRORS = (ValueError, OSError, EOFError, SyntaxError, tokenize.TokenError)
 
 #: import name of the shipped ``tables/`` folder inside the wheel (pyproject.toml package-dir)
 TABLES_PACKAGE = "skisnow.tables"

@@ -37,7 +37,7 @@ from solvers.texture import (
     level_heights,
 )
 
-from .common import atomic_path, provenance, sha256_file, tables_dir
+from .common import NPY_READ_ERRORS, atomic_path, provenance, sha256_file, tables_dir
 
 __all__ = [
     "HEIGHT_UNITS",
@@ -113,7 +113,7 @@ def parse_csv_grid(text: str, label: str) -> np.ndarray:
 def _read_npy(path: Path) -> np.ndarray:
     try:
         arr = np.load(path, allow_pickle=False)
-    except (OSError, ValueError, EOFError) as exc:
+    except NPY_READ_ERRORS as exc:
         raise DataFileError(f"cannot read height map {path}: {exc}") from exc
     if not np.issubdtype(arr.dtype, np.number) or np.iscomplexobj(arr):
         raise DataFileError(f"height map {path} holds {arr.dtype} values, not real numbers")

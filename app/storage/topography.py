@@ -61,6 +61,8 @@ import numpy as np
 from solvers.errors import DataFileError, InputError
 from solvers.texture import Texture, check_detrend, level_heights
 
+from .common import NPY_READ_ERRORS
+
 __all__ = [
     "DEFAULT_MAX_FILE_BYTES",
     "DEFAULT_MAX_PIXELS",
@@ -351,7 +353,7 @@ def npy_header(fh, label: str) -> tuple[tuple[int, ...], np.dtype]:
             shape, _, dtype = np.lib.format.read_array_header_1_0(fh)
         else:
             shape, _, dtype = np.lib.format.read_array_header_2_0(fh)
-    except (ValueError, OSError, EOFError) as exc:
+    except NPY_READ_ERRORS as exc:
         raise DataFileError(f"{label}: damaged npy header: {exc}") from None
     return tuple(int(v) for v in shape), dtype
 
@@ -365,7 +367,7 @@ def _read_npy(data: bytes, label: str, max_pixels: int, min_side: int) -> np.nda
     _check_grid_size(shape, max_pixels, min_side, label)
     try:
         arr = np.load(io.BytesIO(data), allow_pickle=False)
-    except (ValueError, OSError, EOFError) as exc:
+    except NPY_READ_ERRORS as exc:
         raise DataFileError(f"{label}: damaged or truncated npy file: {exc}") from None
     return np.asarray(arr, dtype=np.float64)
 
