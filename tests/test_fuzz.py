@@ -32,9 +32,9 @@ a grind's table has 4 pressures in one chunk (about a second); a ski's network t
 epoch and fails its accuracy check, so the beam identification (over a minute) never runs; at
 most 3 jobs may be queued or running, so bursts of uploads are answered 429. Runs are
 derandomized (the same draws every run; which uploaded names and job ids they pick, and what
-the background jobs have finished when a request arrives, vary). The default run sends 640 requests (about 30 s on a loaded 2-core
-machine); a longer run, ten times each test in both modes (8800 requests, about 2.5 min), is
-marked ``slow`` and skipped unless asked for::
+the background jobs have finished when a request arrives, vary). The default run sends 640
+requests (about 30 s on a loaded 2-core machine); a longer run, ten times each test in both
+modes (8800 requests, about 2.5 min), is marked ``slow`` and skipped unless asked for::
 
     SKISNOW_SLOW_TESTS=1 python -m pytest -q -n 0 -m slow tests/test_fuzz.py
 
