@@ -791,6 +791,15 @@ START_RETRY_RATIO = 10.0
 #: reactions at candidate contacts leave EI undetermined where few cases bend the ski, and a
 #: wild start there traps the forward fit (ski-b: held-out 8.3 µm RMS at 1×, 0.18 µm at 10×)
 START_SMOOTHING_FACTOR = 10.0
+#: a forward fit whose misfit/noise stays more than this many standard deviations of a fit at
+#: the noise above 1 (SD 1/√(2n) for n data points: 1.0050 for 94 cases of 1.9 m at 1 mm,
+#: 1.0026 for 340 cases) is redone from a second start with the prior
+#: RESTART_SMOOTHING_FACTOR × ``smoothing``. Measured: good fits 0.997-1.003 × (demo skis,
+#: 'stiff', 'soft'); wrong basins of 'soft' from 94 cases 1.007-1.03 ×; on 'soft' with its data
+#: rounded to 0.1 µm the start's prior ×3 gave 4.5 × the noise, ×10 1.007 ×, ×30 0.99995 × and
+#: 0.14 µm held-out
+RESTART_SIGMAS = 3.0
+RESTART_SMOOTHING_FACTOR = 30.0
 
 
 def _forward_path(job: tuple) -> ForwardFit:
@@ -897,36 +906,40 @@ def identify_beam(
     stride = 1
     if start_spacing_m > 0 and x.ndim == 1 and x.size > 1 and x[1] > x[0]:
         stride = max(1, min(round(start_spacing_m / float(x[1] - x[0])), (x.size - 1) // 20))
-    starts = []
-    for level in dict.fromkeys((stride, 1)):
-        start = identify_start(
-            x[::level],
-            loads[sub],
-            xfs[sub],
-            y[sub][:, ::level],
-            min_cases=min(min_cases, sub.size),
-            max_contact_passes=START_PASSES,
-            **kwargs,
-        )
-        if not np.isfinite(start.log_compliance).all():
-            break  # the start could not run (one load only, ...): its reason stands
-        if level > 1:
-            xs = x[::level]
-            start.beam = BeamSki(
-                x,
-                np.interp(x, xs, start.beam.bending_stiffness_nm2),
-                np.interp(x, xs, start.beam.unloaded_gap_m),
+
+    def make_start(start_sm: float) -> IdentifiedBeam:
+        starts = []
+        for level in dict.fromkeys((stride, 1)):
+            start = identify_start(
+                x[::level],
+                loads[sub],
+                xfs[sub],
+                y[sub][:, ::level],
+                min_cases=min(min_cases, sub.size),
+                max_contact_passes=START_PASSES,
+                **{**kwargs, "smoothing": start_sm},
             )
-        miss = float(
-            np.sqrt(np.mean((predict_gaps(start.beam, loads[sub], xfs[sub]) - y[sub]) ** 2))
-        )
-        start.extra["device_misfit_m"] = miss
-        start.extra["start_stride"] = level
-        starts.append(start)
-        if miss <= START_RETRY_RATIO * start.noise_m:
-            break
-    if starts:
-        start = min(starts, key=lambda s: s.extra["device_misfit_m"])
+            if not np.isfinite(start.log_compliance).all():
+                break  # the start could not run (one load only, ...): its reason stands
+            if level > 1:
+                xs = x[::level]
+                start.beam = BeamSki(
+                    x,
+                    np.interp(x, xs, start.beam.bending_stiffness_nm2),
+                    np.interp(x, xs, start.beam.unloaded_gap_m),
+                )
+            miss = float(
+                np.sqrt(np.mean((predict_gaps(start.beam, loads[sub], xfs[sub]) - y[sub]) ** 2))
+            )
+            start.extra["device_misfit_m"] = miss
+            start.extra["start_stride"] = level
+            start.extra["start_smoothing"] = float(start_sm)
+            starts.append(start)
+            if miss <= START_RETRY_RATIO * start.noise_m:
+                break
+        return min(starts, key=lambda s: s.extra["device_misfit_m"]) if starts else start
+
+    start = make_start(sm0)
     if loads.size < min_cases:
         start.reason = (
             f"{loads.size} load cases; at least {min_cases} are needed to identify a beam"
@@ -957,34 +970,65 @@ def identify_beam(
     # several forward paths from the one start, the lowest objective kept: the forward fit has
     # local minima that the misfit/noise ratio cannot tell apart (ski-b: 677 170 vs 676 259 at
     # 3.0063 / 3.0043 µm, held-out 0.14 vs 0.05 µm; docs/camber-identification.md)
-    forward = functools.partial(
-        fit_forward,
-        x,
-        loads,
-        xfs,
-        y,
-        start.beam,
-        noise_m=noise,
-        stiffness_knots_m=start.knots_m,
-        smoothing=smoothing,
-        camber_spacing_m=camber_spacing_m,
-        kinks_m=kinks_m,
-        max_steps=max_steps,
-    )
-    if path_map is not None and len(paths) > 1:
-        # the paths are independent: side by side (e.g. one process each); a worker's
-        # progress cannot reach this process, so the bar says what runs
+    def run_paths(start: IdentifiedBeam) -> list[tuple[float, float, ForwardFit]]:
+        forward = functools.partial(
+            fit_forward,
+            x,
+            loads,
+            xfs,
+            y,
+            start.beam,
+            noise_m=noise,
+            stiffness_knots_m=start.knots_m,
+            smoothing=smoothing,
+            camber_spacing_m=camber_spacing_m,
+            kinks_m=kinks_m,
+            max_steps=max_steps,
+        )
+        if path_map is not None and len(paths) > 1:
+            # the paths are independent: side by side (e.g. one process each); a worker's
+            # progress cannot reach this process, so the bar says what runs
+            if callback is not None:
+                callback(0.2, f"{len(paths)} forward fits side by side")
+            fits = list(path_map(_forward_path, [(forward, sp) for sp in paths]))
+        else:
+            fits = []
+            for i, spacing in enumerate(paths):
+                path[0] = i
+                fits.append(forward(coarse_spacing_m=spacing, callback=progress))
+        sm = float(start.extra.get("start_smoothing", sm0))
+        return [(float(sp), sm, fit) for sp, fit in zip(paths, fits, strict=True)]
+
+    def best(cands: list[tuple[float, float, ForwardFit]]) -> tuple[float, float, ForwardFit]:
+        finite = [c for c in cands if np.isfinite(c[2].objective)] or cands
+        return min(finite, key=lambda c: (not c[2].converged, c[2].objective))
+
+    candidates = run_paths(start)
+    restarted = False
+    # a global step on demand: every path from this start may end in one wrong basin (measured
+    # on the 'soft' test design from 94 cases: 1.007-1.03 x the noise, held-out 0.6-0.95 um,
+    # areas up to 8.6 % off, the basin flipped by rounding the data to 0.1 um). A fit that
+    # stays RESTART_SIGMAS standard deviations above the noise is redone from a start with a stiffer
+    # prior (RESTART_SMOOTHING_FACTOR), and the lowest objective of all paths is kept; fits
+    # at the noise (the demo skis, 'stiff') never pay for it, nor do fits beyond MISFIT_LIMIT
+    # (data that are not one beam: redoing them doubles the time of a failure)
+    if (
+        start_smoothing is None
+        and (1.0 + RESTART_SIGMAS / np.sqrt(2.0 * y.size)) * noise
+        < best(candidates)[2].misfit_m
+        <= MISFIT_LIMIT * noise
+        and RESTART_SMOOTHING_FACTOR * smoothing != sm0
+    ):
         if callback is not None:
-            callback(0.2, f"{len(paths)} forward fits side by side")
-        fits = list(path_map(_forward_path, [(forward, sp) for sp in paths]))
-    else:
-        fits = []
-        for i, spacing in enumerate(paths):
-            path[0] = i
-            fits.append(forward(coarse_spacing_m=spacing, callback=progress))
-    candidates = [(float(sp), fit) for sp, fit in zip(paths, fits, strict=True)]
-    finite = [c for c in candidates if np.isfinite(c[1].objective)] or candidates
-    chosen_spacing, fwd = min(finite, key=lambda c: (not c[1].converged, c[1].objective))
+            callback(0.6, "misfit above the noise: a second start with a stiffer prior")
+        start2 = make_start(RESTART_SMOOTHING_FACTOR * smoothing)
+        if np.isfinite(start2.log_compliance).all():
+            restarted = True
+            more = run_paths(start2)
+            if best(more)[2].objective < best(candidates)[2].objective:
+                start = start2
+            candidates += more
+    chosen_spacing, chosen_sm, fwd = best(candidates)
     nc = fwd.camber_coefficients.size
     cov_g = fwd.covariance[nc:, nc:]
     phi = hats(x, start.knots_m)
@@ -1026,16 +1070,19 @@ def identify_beam(
             "start_device_misfit_m": float(start.extra.get("device_misfit_m", np.nan)),
             "start_stride": int(start.extra.get("start_stride", 1)),
             "forward_coarse_spacing_m": chosen_spacing,
+            "start_smoothing": chosen_sm,
+            "restarted": restarted,
             "forward_candidates": [
                 {
                     "coarse_spacing_m": sp,
+                    "start_smoothing": sm,
                     "objective": float(f.objective),
                     "misfit_m": float(f.misfit_m),
                     "converged": bool(f.converged),
                     "steps": int(f.iterations),
                     "time_s": float(f.solve_time_s),
                 }
-                for sp, f in candidates
+                for sp, sm, f in candidates
             ],
             "forward_steps": int(fwd.iterations),
             "forward_message": fwd.message,

@@ -222,6 +222,7 @@ def test_forward_paths_side_by_side_give_the_same_beam():
         y,
         max_steps=3,
         forward_coarse_spacings_m=(0.004, 0.0),
+        start_smoothing=identify.START_SMOOTHING_FACTOR * identify.DEFAULT_SMOOTHING,
     )
     here = run()
     with path_pool(2) as pmap:
@@ -242,3 +243,34 @@ def test_forward_paths_side_by_side_give_the_same_beam():
         pooled.beam.bending_stiffness_nm2, here.beam.bending_stiffness_nm2, rtol=1e-5
     )
     np.testing.assert_allclose(pooled.beam.unloaded_gap_m, here.beam.unloaded_gap_m, atol=1e-10)
+
+
+def _restart_run(monkeypatch, sigmas):
+    """A small, few-step identification with RESTART_SIGMAS set to ``sigmas``."""
+    monkeypatch.setattr(identify, "RESTART_SIGMAS", sigmas)
+    monkeypatch.setattr(identify, "MISFIT_LIMIT", 1e9)  # 3 steps leave the fit far off
+    ski = DESIGNS["stiff"].build(4e-3)
+    f, xf, y = measure_camber(ski, LOADS_N[::2], POSITIONS_M[::2], noise_m=3e-6, rng=5)
+    return identify.identify_beam(
+        ski.positions_m, f, xf, y, max_steps=3, forward_coarse_spacings_m=(0.0,)
+    )
+
+
+def test_a_fit_above_the_noise_is_redone_from_a_stiffer_start(monkeypatch):
+    """The global step on demand: a forward fit whose misfit stays above the noise (forced
+    here: a threshold below 1) is redone from a second start with the prior
+    RESTART_SMOOTHING_FACTOR × smoothing, and the lowest objective of all paths is kept; a fit
+    under the threshold is not redone."""
+    again = _restart_run(monkeypatch, -1e9)
+    cands = again.extra["forward_candidates"]
+    assert again.extra["restarted"] is True
+    factors = sorted(c["start_smoothing"] / identify.DEFAULT_SMOOTHING for c in cands)
+    assert factors == pytest.approx(
+        [identify.START_SMOOTHING_FACTOR, identify.RESTART_SMOOTHING_FACTOR]
+    )
+    kept = min(cands, key=lambda c: (not c["converged"], c["objective"]))
+    assert again.extra["start_smoothing"] == kept["start_smoothing"]
+    assert again.misfit_m == pytest.approx(kept["misfit_m"], rel=1e-12)
+    once = _restart_run(monkeypatch, 1e9)
+    assert once.extra["restarted"] is False
+    assert len(once.extra["forward_candidates"]) == 1

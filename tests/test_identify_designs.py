@@ -65,15 +65,7 @@ CHEAP_TRAINING = {
 }
 
 
-#: 'soft' from these 117 cases: the forward fit stops in a local minimum (measured)
-_SOFT_XFAIL = pytest.mark.xfail(
-    strict=True,
-    reason="'soft' from 94 kept cases (13 x 9 at 1 mm): the forward fit stops at 1.069 x the "
-    "noise (not served), held-out profiles 1.21 um RMS from the truth near contact, areas up "
-    "to 34 % off (98 N, -100 mm); from 340 kept cases (25 x 17) the same code reaches 1.000 x, "
-    "0.25 um and 84 of 85 areas within 3 % (worst 3.3 %) (issue #12)",
-)
-NAMES = ["stiff", pytest.param("soft", marks=_SOFT_XFAIL)]
+NAMES = ["stiff", "soft"]
 #: 'stiff': served, profiles within 0.3 um, but one light-load area off (measured)
 _STIFF_AREA_XFAIL = pytest.mark.xfail(
     strict=True,
@@ -83,10 +75,7 @@ _STIFF_AREA_XFAIL = pytest.mark.xfail(
     "and one forward path 4.9 % (98 N, -250 mm) and 0.310 um: which local minimum the fit "
     "ends in decides the light-load areas (docs/camber-identification.md; issue #12)",
 )
-AREA_NAMES = [
-    pytest.param("stiff", marks=_STIFF_AREA_XFAIL),
-    pytest.param("soft", marks=_SOFT_XFAIL),
-]
+AREA_NAMES = [pytest.param("stiff", marks=_STIFF_AREA_XFAIL), "soft"]
 
 
 @pytest.fixture(scope="module")
