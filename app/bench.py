@@ -514,6 +514,16 @@ def _service_md(d: dict) -> list[str]:
             else ""
         ),
         "",
+        *(
+            [
+                "Median RSS by minute [MB]: "
+                + ", ".join(f"{v:.0f}" for v in c["server_rss_mb_by_minute"])
+                + f" ({c['wall_s'] / 60:.0f} min).",
+                "",
+            ]
+            if len(c.get("server_rss_mb_by_minute", [])) >= 5
+            else []
+        ),
     ]
 
 
@@ -772,6 +782,7 @@ STAGE_RENDERERS: dict[str, Callable[[dict], list[str]]] = {
     "accuracy": _accuracy_md,
     "service": _service_md,
     "service-32": _service_md,
+    "memory": _service_md,
     "micro-peers": _micro_peers_md,
 }
 

@@ -12,6 +12,7 @@ Results go to ``docs/bench/service.json`` and the section of ``docs/benchmarks.m
 Bounded in count and time; it stops by itself.
 
     python scripts/loadtest.py --clients 8 --requests 1000
+    python scripts/loadtest.py --clients 32 --duration-s 3600 --stage memory  # RSS by minute
 """
 
 from __future__ import annotations
@@ -228,6 +229,10 @@ def main(argv: list[str] | None = None) -> int:
                 # median of each tenth of the run: warm-up growth that levels off vs a leak
                 "server_rss_mb_by_tenth": [
                     float(np.median(part)) for part in np.array_split(samples, 10) if len(part)
+                ],
+                # median of each minute (1 s samples): the memory run of issue #15
+                "server_rss_mb_by_minute": [
+                    float(np.median(samples[i : i + 60])) for i in range(0, len(samples), 60)
                 ],
                 # drift over the second half only (after warm-up): ~0 when memory is flat
                 "server_rss_mb_drift_second_half": (
