@@ -30,7 +30,7 @@ Reads
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, replace
 from urllib.parse import urlsplit
 
@@ -56,6 +56,9 @@ WRITE_METHODS = frozenset({"POST", "PUT", "PATCH", "DELETE"})
 #: POST routes that only compute and change nothing (not checked, see the module docstring)
 READ_ONLY_POSTS = frozenset({"/v1/contact", "/v1/compare"})
 _DEFAULT_PORTS = {"http": 80, "https": 443}
+#: at most this many names of each kind per request are looked up in the database when this
+#: process does not serve them (see :func:`visible_catalogue`)
+_CATCH_UP_MAX = 64
 
 
 # ------------------------------------------------------------------------------ teams
@@ -101,12 +104,23 @@ def caller(request: Request) -> Caller:
     return Caller(bearer_team(request.headers, tokens, required=False), True)
 
 
-def visible_catalogue(request: Request) -> service.Catalogue:
+def visible_catalogue(
+    request: Request, skis: Iterable[str] = (), grinds: Iterable[str] = ()
+) -> service.Catalogue:
     """The served catalogue as the request's caller sees it: without another team's uploads
-    (the same object when teams are off or nothing is hidden)."""
+    (the same object when teams are off or nothing is hidden).
+
+    ``skis`` and ``grinds`` are the names the request asks for. One that this process has not
+    loaded yet but the database holds ready (another process's job finished it; this one's
+    poll would load it within ``job_poll_s``) is loaded now, so that a client who saw the job
+    done can use the item at once, whichever process answers."""
+    state = getattr(request.app.state, "uploads", None)
+    if state is not None:
+        for kind, names in (("ski", skis), ("grind", grinds)):
+            for name in list(names)[:_CATCH_UP_MAX]:
+                state.live.catch_up(kind, name)
     cat = request.app.state.catalogue
     who = caller(request)
-    state = getattr(request.app.state, "uploads", None)
     if not who.teams_on or state is None:
         return cat
     hidden = state.live.owned_by_others(who.team)

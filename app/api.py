@@ -239,7 +239,10 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
     def post_contact(request: Request, body: ContactBody) -> JSONResponse:
         """One ski × grind case: metrics, apparent contact, distributions, provenance."""
         return JSONResponse(
-            service.contact(visible_catalogue(request), service.ContactInputs(**body.model_dump()))
+            service.contact(
+                visible_catalogue(request, skis=[body.ski], grinds=[body.grind]),
+                service.ContactInputs(**body.model_dump()),
+            )
         )
 
     @app.post("/v1/compare", tags=["contact"], response_model=dict)
@@ -253,7 +256,7 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
                 f"skis × grinds = {cells} cases exceeds the limit of {settings.max_compare_cells}",
                 errors=[{"field": "skis", "reason": "too many combinations"}],
             )
-        cat = visible_catalogue(request)
+        cat = visible_catalogue(request, skis=body.skis, grinds=body.grinds)
         for s in body.skis:
             cat.ski(s)
         for g in body.grinds:

@@ -381,6 +381,8 @@ def _item_routes(app: FastAPI, kind: str, plural: str) -> None:
         held-out check (the ski's page ``/skis/{name}`` shows the same)."""
         state = _state(request)
         row = _item_or_404(state, kind, name, who)
+        if row.state == "ready":
+            state.live.catch_up(kind, name)
         cat = request.app.state.catalogue
         out = {
             **row.public(),

@@ -900,6 +900,20 @@ class LiveCatalogue:
         (items of no team belong to nobody; shipped items are never here)."""
         return {(k, n) for k, n, _, owner in self.loaded.values() if owner not in (None, team)}
 
+    def catch_up(self, kind: str, name: str) -> bool:
+        """Load ``name`` now when this process does not serve it and the database holds it
+        ready (another process finished its job before this one's next poll). True when it is
+        served afterwards. Costs nothing for a served name, one query for an unknown one."""
+        cat, attr = self._dicts(kind)
+        if name in getattr(cat, attr):
+            return True
+        row = self.db.item_by_name(kind, name)
+        if row is None or row.state != "ready" or row.read_only:
+            return False
+        self.sync()
+        cat, attr = self._dicts(kind)
+        return name in getattr(cat, attr)
+
     @_locked
     def sync(self) -> None:
         """Load new ready items, drop deleted ones, follow renames (other processes too)."""

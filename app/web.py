@@ -1303,12 +1303,16 @@ def mount(app: FastAPI) -> None:
     """Add the web-form routes to ``app``."""
     cache = _ResultCache()
 
+    def _named_catalogue(request: Request) -> service.Catalogue:
+        qp = request.query_params
+        return visible_catalogue(request, skis=qp.getlist("ski"), grinds=qp.getlist("grind"))
+
     def _query(request: Request, cat: service.Catalogue) -> Query:
         return parse_query(request, cat, request.app.state.settings.max_compare_cells)
 
     @app.get("/", response_class=HTMLResponse, include_in_schema=False)
     def form(request: Request) -> HTMLResponse:
-        cat = visible_catalogue(request)
+        cat = _named_catalogue(request)
         q = _query(request, cat)
         if not request.query_params:
             q.errors.clear()
@@ -1320,7 +1324,7 @@ def mount(app: FastAPI) -> None:
 
     @app.get("/results", response_class=HTMLResponse, include_in_schema=False)
     def results(request: Request) -> HTMLResponse:
-        cat = visible_catalogue(request)
+        cat = _named_catalogue(request)
         q = _query(request, cat)
         if not q.ok:
             return render_form(cat, q, q.status)
@@ -1333,7 +1337,7 @@ def mount(app: FastAPI) -> None:
 
     @app.get("/skis/{name:path}", response_class=HTMLResponse, include_in_schema=False)
     def ski_page(request: Request, name: str) -> HTMLResponse:
-        cat = visible_catalogue(request)
+        cat = visible_catalogue(request, skis=[name])
         ski = cat.skis.get(name)
         if ski is None:
             state = None
@@ -1355,7 +1359,7 @@ def mount(app: FastAPI) -> None:
 
     @app.get("/results.csv", include_in_schema=False)
     def results_csv(request: Request) -> Response:
-        cat = visible_catalogue(request)
+        cat = _named_catalogue(request)
         q = _query(request, cat)
         if not q.ok:
             return render_form(cat, q, q.status)

@@ -289,12 +289,12 @@ check_upload_survives_restart() {
     done
     echo "upload job $job: $state after $((SECONDS - t)) s"
     [ "$state" = done ] || return 1
-    sha=$(curl -fsS "$(url "$PORT" "/v1/grinds/$GRIND")" | json_get "d['sha256'], d['usable']")
+    sha=$(curl -fsS "$(url "$PORT" "/v1/grinds/$GRIND")" | json_get "d['sha256'], d['usable']") || return 1
     t=$SECONDS
     docker restart "$MAIN" >/dev/null
     wait_ready "$PORT" "$MAIN" 180 || return 1
     echo "restarted and ready in $((SECONDS - t)) s"
-    sha2=$(curl -fsS "$(url "$PORT" "/v1/grinds/$GRIND")" | json_get "d['sha256'], d['usable']")
+    sha2=$(curl -fsS "$(url "$PORT" "/v1/grinds/$GRIND")" | json_get "d['sha256'], d['usable']") || return 1
     echo "before: $sha; after: $sha2"
     [ "$sha" = "$sha2" ] && [ "${sha2##* }" = True ] || return 1
     # and the item answers a contact request after the restart

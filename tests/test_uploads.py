@@ -121,6 +121,31 @@ def is_problem(resp, status: int) -> dict:
 # ----------------------------------------------------------------------------- grinds
 
 
+def test_a_finished_upload_is_usable_at_once_on_a_process_that_has_not_polled(catalogue, tmp_path):
+    """Two service processes on one database: the one that did not run the job serves the
+    item as soon as a client asks for it, not only after its next poll (docker CI saw
+    ``usable: false`` from the second uvicorn worker right after the job was done)."""
+    with (
+        make_client(catalogue, tmp_path) as a,
+        make_client(catalogue, tmp_path, job_poll_s=3600.0) as b,
+    ):
+        r = post_grind(a, name="seen-by-b")
+        assert r.status_code == 202, r.text
+        assert wait_job(a, r.json()["job"])["state"] == "done"
+        assert "seen-by-b" not in b.app.state.catalogue.grinds  # b has not polled since
+        shown = b.get("/v1/grinds/seen-by-b").json()
+        assert shown["state"] == "ready" and shown["usable"] is True
+        r = b.post("/v1/contact", json={"ski": "ski-a", "grind": "seen-by-b", **CONTACT})
+        assert r.status_code == 200, r.text[:500]
+        page = b.get("/results", params={"ski": "ski-a", "grind": "seen-by-b", **CONTACT})
+        assert page.status_code == 200, page.text[:500]
+        # an unknown name is still a 404 naming the known ones
+        body = is_problem(
+            b.post("/v1/contact", json={"ski": "ski-a", "grind": "nope", **CONTACT}), 404
+        )
+        assert "seen-by-b" in body["known"]
+
+
 def test_grind_upload_build_contact_rename_delete(catalogue, tmp_path):
     with make_client(catalogue, tmp_path) as client:
         r = post_grind(client, machine="Wintersteiger", temperature_window="-5..0 C")
