@@ -105,7 +105,7 @@ def caller(request: Request) -> Caller:
 
 
 def visible_catalogue(
-    request: Request, skis: Iterable[str] = (), grinds: Iterable[str] = ()
+    request: Request, skis: Iterable[str] = (), grinds: Iterable[str] = (), fresh: bool = False
 ) -> service.Catalogue:
     """The served catalogue as the request's caller sees it: without another team's uploads
     (the same object when teams are off or nothing is hidden).
@@ -113,9 +113,12 @@ def visible_catalogue(
     ``skis`` and ``grinds`` are the names the request asks for. One that this process has not
     loaded yet but the database holds ready (another process's job finished it; this one's
     poll would load it within ``job_poll_s``) is loaded now, so that a client who saw the job
-    done can use the item at once, whichever process answers."""
+    done can use the item at once, whichever process answers. ``fresh`` brings the whole
+    catalogue up to the database first (one query; the lists use it)."""
     state = getattr(request.app.state, "uploads", None)
-    if state is not None:
+    if state is not None and fresh:
+        state.live.sync()
+    elif state is not None:
         for kind, names in (("ski", skis), ("grind", grinds)):
             for name in list(names)[:_CATCH_UP_MAX]:
                 state.live.catch_up(kind, name)

@@ -182,7 +182,7 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
     @app.get("/v1/skis", tags=["catalogue"])
     def list_skis(request: Request) -> dict:
         """Skis with their outline, model and file provenance."""
-        cat = visible_catalogue(request)
+        cat = visible_catalogue(request, fresh=True)
         out = []
         for s in cat.skis.values():
             lo, hi = s.position_range_m
@@ -207,7 +207,7 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
     @app.get("/v1/grinds", tags=["catalogue"])
     def list_grinds(request: Request) -> dict:
         """Grinds with their ISO 25178 parameters and table provenance."""
-        cat = visible_catalogue(request)
+        cat = visible_catalogue(request, fresh=True)
         out = []
         for g in cat.grinds.values():
             t = g.table

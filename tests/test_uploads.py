@@ -133,6 +133,9 @@ def test_a_finished_upload_is_usable_at_once_on_a_process_that_has_not_polled(ca
         assert r.status_code == 202, r.text
         assert wait_job(a, r.json()["job"])["state"] == "done"
         assert "seen-by-b" not in b.app.state.catalogue.grinds  # b has not polled since
+        listed = {g["name"] for g in b.get("/v1/grinds").json()["grinds"]}
+        assert "seen-by-b" in listed
+        b.app.state.uploads.live.drop_all()  # as if b had never loaded it
         shown = b.get("/v1/grinds/seen-by-b").json()
         assert shown["state"] == "ready" and shown["usable"] is True
         r = b.post("/v1/contact", json={"ski": "ski-a", "grind": "seen-by-b", **CONTACT})
