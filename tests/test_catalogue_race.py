@@ -72,3 +72,91 @@ def test_open_writes_on_a_public_address_are_warned_at_start_up(host, tokens, wa
     assert (text is not None) == warned
     if warned:
         assert host in text and "SKISNOW_TEAM_TOKENS" in text
+
+
+#: a sitecustomize for the test below: in a spawned process (a uvicorn worker), the catalogue
+#: points below a plain file (no folder can be made there, not even by root), so the worker
+#: fails before it serves, while the ``skisnow serve`` process itself passes its own checks
+_WORKERS_FAIL = """
+import os, sys
+if any("spawn_main" in a for a in getattr(sys, "orig_argv", [])):
+    os.environ["SKISNOW_DATABASE_URL"] = "sqlite:///{blocker}/catalogue.db"
+"""
+
+
+def test_serve_exits_non_zero_when_a_worker_fails_to_start(tmp_path):
+    """With two workers, a worker that fails at start-up stops ``skisnow serve`` with uvicorn's
+    startup-failure code 3 (it exited 0, so ``--restart on-failure`` did nothing: issue #15)."""
+    import os
+    import socket
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    (tmp_path / "hook").mkdir()
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a folder")
+    (tmp_path / "hook" / "sitecustomize.py").write_text(_WORKERS_FAIL.format(blocker=blocker))
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    repo = Path(__file__).resolve().parents[1]
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(tmp_path / "hook"), str(repo)]),
+        "SKISNOW_DATA_DIR": str(tmp_path / "data"),
+        "SKISNOW_WARM_UP": "false",
+        "OMP_NUM_THREADS": "1",
+    }
+    env.pop("SKISNOW_DATABASE_URL", None)
+    cmd = [sys.executable, "-m", "app.cli", "serve", "--port", str(port), "--workers", "2"]
+    proc = subprocess.run(cmd, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=180)
+    assert proc.returncode == 3, proc.stderr[-2000:]
+    assert "failed to start" in proc.stderr
+    assert (tmp_path / "data" / "catalogue.db").exists()  # the parent's own checks passed
+
+
+def test_serve_with_two_workers_stops_cleanly_with_exit_code_0_on_sigterm(tmp_path):
+    """The other side of the test above: ``docker stop`` (SIGTERM) is a clean stop, exit 0."""
+    import os
+    import signal
+    import socket
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    import httpx
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    repo = Path(__file__).resolve().parents[1]
+    env = {
+        **os.environ,
+        "PYTHONPATH": str(repo),
+        "SKISNOW_DATA_DIR": str(tmp_path / "data"),
+        "SKISNOW_WARM_UP": "false",
+        "OMP_NUM_THREADS": "1",
+    }
+    env.pop("SKISNOW_DATABASE_URL", None)
+    cmd = [sys.executable, "-m", "app.cli", "serve", "--port", str(port), "--workers", "2"]
+    proc = subprocess.Popen(cmd, env=env, cwd=tmp_path, stderr=subprocess.PIPE, text=True)
+    try:
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 120:
+            assert proc.poll() is None, proc.stderr.read()[-2000:]
+            try:
+                if httpx.get(f"http://127.0.0.1:{port}/readyz", timeout=2).status_code == 200:
+                    break
+            except httpx.TransportError:
+                pass
+            time.sleep(0.2)
+        else:
+            raise AssertionError("not ready in 120 s")
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=60) == 0, proc.stderr.read()[-2000:]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()

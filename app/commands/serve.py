@@ -124,13 +124,39 @@ def run_serve(args: argparse.Namespace) -> int:
     warning = open_writes_warning(settings.host, settings.team_tokens)
     if warning:
         print(f"skisnow serve: WARNING: {warning}", file=sys.stderr)
-    uvicorn.run(
-        "app.main:app",
-        host=settings.host,
-        port=settings.port,
-        workers=settings.workers,
-        log_level="info",
-    )
+    if settings.workers == 1:
+        # uvicorn exits with its STARTUP_FAILURE code (3) itself when the one worker fails
+        uvicorn.run("app.main:app", host=settings.host, port=settings.port, log_level="info")
+        return 0
+    return _run_workers(settings.host, settings.port, settings.workers)
+
+
+def _run_workers(host: str, port: int, workers: int) -> int:
+    """Run ``workers`` uvicorn worker processes under uvicorn's supervisor (what
+    ``uvicorn.run(..., workers=n)`` does) and return 3 when a worker failed to start.
+
+    The supervisor restarts a worker that dies while serving, but when one fails before it
+    serves (a broken catalogue, database or port) it stops every worker and returns normally:
+    through ``uvicorn.run`` the command then exited 0, and ``docker run --restart on-failure``
+    or a process manager took the failure for a clean stop (issue #15)."""
+    from uvicorn import Config
+    from uvicorn.config import STARTUP_FAILURE
+    from uvicorn.supervisors import Multiprocess
+
+    config = Config("app.main:app", host=host, port=port, workers=workers, log_level="info")
+    supervisor = Multiprocess(config, sockets=[config.bind_socket()])
+    try:
+        supervisor.run()
+    except KeyboardInterrupt:
+        pass
+    failed = [p.pid for p in supervisor.processes if p.exitcode == STARTUP_FAILURE]
+    if failed:
+        print(
+            f"skisnow serve: worker process {failed[0]} failed to start (its log is above); "
+            f"the service stopped with exit code {STARTUP_FAILURE}",
+            file=sys.stderr,
+        )
+        return STARTUP_FAILURE
     return 0
 
 
