@@ -145,6 +145,7 @@ class JobRunner:
         self._lock = threading.Lock()
         self._pool: ThreadPoolExecutor | None = None
         self._thread: threading.Thread | None = None
+        self._beat_thread: threading.Thread | None = None
 
     # ------------------------------------------------------------------------ control
 
@@ -154,13 +155,18 @@ class JobRunner:
         self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="skisnow-job")
         self._thread = threading.Thread(target=self._loop, name="skisnow-jobs", daemon=True)
         self._thread.start()
+        self._beat_thread = threading.Thread(
+            target=self._beat_loop, name="skisnow-job-heartbeat", daemon=True
+        )
+        self._beat_thread.start()
 
     def stop(self, timeout: float = 60.0) -> None:
         """Interrupt running jobs (they go back to ``queued``) and wait for the threads."""
         self._stop.set()
         self._wake.set()
-        if self._thread is not None:
-            self._thread.join(timeout)
+        for thread in (self._thread, self._beat_thread):
+            if thread is not None:
+                thread.join(timeout)
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
 
@@ -199,13 +205,24 @@ class JobRunner:
             self._wake.wait(self.poll_s)
             self._wake.clear()
 
+    def _beat_loop(self) -> None:
+        """Renew the lease of this runner's jobs every poll interval, in a thread of its own:
+        a slow ``on_poll`` (loading a large new item) or a slow claim never lets a running job's
+        lease expire, which would have another process take it over and redo it."""
+        while not self._stop.wait(self.poll_s):
+            with self._lock:
+                active = [j for j, (_, fut) in self._active.items() if not fut.done()]
+            try:
+                self.db.heartbeat(active, self.runner_id)
+            except Exception:  # pragma: no cover - keep beating through DB hiccups
+                log.exception("job heartbeat failed")
+
     def _poll(self) -> None:
         with self._lock:
             done = [j for j, (_, fut) in self._active.items() if fut.done()]
             for j in done:
                 del self._active[j]
             active = list(self._active)
-        self.db.heartbeat(active, self.runner_id)
         if self.on_poll is not None:
             self.on_poll()
         free = self.workers - len(active)

@@ -54,6 +54,44 @@ def test_a_beating_runner_keeps_its_job_past_the_lease(tmp_path):
     db.close()
 
 
+def test_a_slow_poll_does_not_let_a_running_job_lease_expire(tmp_path):
+    """The heartbeat has its own thread: while ``on_poll`` (the catalogue resync) blocks for
+    several leases, the running job keeps its lease and a second runner does not take it."""
+    db = CatalogueDB(f"sqlite:///{tmp_path / 'c.db'}")
+    job = db.add_job("slow", None)
+    release, polling_slowly = threading.Event(), threading.Event()
+    ran: list[str] = []
+
+    def slow(ctx):
+        ran.append(ctx.runner)
+        release.wait(10)
+        return "ok"
+
+    def slow_poll():
+        if db.job(job.id).state == "running":
+            polling_slowly.set()
+            release.wait(10)  # blocks a's poll thread until the job is released
+
+    lease_s = 0.3
+    a = JobRunner(db, {"slow": slow}, on_poll=slow_poll, poll_s=0.02, stale_s=lease_s)
+    b = JobRunner(db, {"slow": slow}, poll_s=0.02, stale_s=lease_s)
+    a.start()
+    try:
+        assert polling_slowly.wait(10)
+        b.start()
+        time.sleep(4 * lease_s)
+        assert db.job(job.id).runner == a.runner_id
+        release.set()
+        _wait(lambda: db.job(job.id).state == "done")
+    finally:
+        release.set()
+        a.stop()
+        b.stop()
+    assert ran == [a.runner_id]
+    assert db.job(job.id).attempts == 1
+    db.close()
+
+
 def test_an_expired_lease_is_taken_over(tmp_path):
     """A job left running by a runner on another host (no heartbeat since) is run by this one
     once the lease has expired, not before."""
