@@ -307,17 +307,20 @@ def _assemble(
         "pixel_levels": settings.pixel_levels,
     }
     if len(level_jobs) > 1:
-        attrs["pixel_extrapolation_json"] = json.dumps({
-            "method": "Richardson extrapolation to zero pixel size from two levels "
-            "(solvers.lookup.combine_pixel_levels); error estimate = |correction| "
-            "(order None: finest level kept, estimate = last change)",
-            "level_pixel_size_m": [float(j.texture.pixel_size_m) for j in level_jobs],
-            "level_grid_shape": [list(np.shape(j.texture.heights_m)) for j in level_jobs],
-            "level_source": [j.texture.source for j in level_jobs],
-            "refinement": LEVEL_REFINEMENT,
-            "orders": PIXEL_EXTRAPOLATION_ORDERS,
-            "flags_from": "finest level (full_contact, iterations); converged = all levels",
-        }, sort_keys=True)
+        attrs["pixel_extrapolation_json"] = json.dumps(
+            {
+                "method": "Richardson extrapolation to zero pixel size from two levels "
+                "(solvers.lookup.combine_pixel_levels); error estimate = |correction| "
+                "(order None: finest level kept, estimate = last change)",
+                "level_pixel_size_m": [float(j.texture.pixel_size_m) for j in level_jobs],
+                "level_grid_shape": [list(np.shape(j.texture.heights_m)) for j in level_jobs],
+                "level_source": [j.texture.source for j in level_jobs],
+                "refinement": LEVEL_REFINEMENT,
+                "orders": PIXEL_EXTRAPOLATION_ORDERS,
+                "flags_from": "finest level (full_contact, iterations); converged = all levels",
+            },
+            sort_keys=True,
+        )
     table = MicroTable(
         name=texture.name,
         pixel_size_m=float(texture.pixel_size_m),
@@ -501,6 +504,7 @@ def _run(client, jobs, pending, settings, progress, on_chunk_done) -> int:
         for name in {n for n, _ in pending}
     }
     futures = {}
+
     # costly chunks first (finer grids, high ratios), so the last to finish are the short ones
     def cost(item):
         name, index = item

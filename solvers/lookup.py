@@ -48,11 +48,11 @@ from scipy.interpolate import PchipInterpolator
 from .errors import InputError, OutOfRangeError
 
 __all__ = [
+    "ERROR_FIELDS",
+    "PIXEL_EXTRAPOLATION_ORDERS",
     "POINT_FIELDS",
     "TABLE_SCHEMA",
     "MicroTable",
-    "ERROR_FIELDS",
-    "PIXEL_EXTRAPOLATION_ORDERS",
     "chunk_bounds",
     "combine_pixel_levels",
     "mean_gap_m",
@@ -579,13 +579,9 @@ def combine_pixel_levels(
         c = np.asarray(coarse[quantity], dtype=float)
         f = np.asarray(fine[quantity], dtype=float)
         value, err = richardson(c, f, orders.get(quantity), refinement)
-        bad = ~both
+        bad = ~both | (value <= 0)
         if quantity == "real_contact_area_fraction":
-            bad |= (value <= 0) | (value > 1)
-        elif quantity == "mean_gap_m":
-            bad |= value <= 0
-        else:
-            bad |= value <= 0
+            bad |= value > 1
         value = np.where(bad, f, value)
         err = np.where(bad, np.abs(f - c), err)
         exact = fc & ff
