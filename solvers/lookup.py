@@ -100,9 +100,10 @@ ERROR_FIELDS = {
 #: order p of the leading pixel-size error term used to extrapolate each quantity to zero pixel
 #: size (error ∝ Δ^p); ``None``: no clear order, the finest level is kept. Measured on the
 #: shipped grinds (docs/benchmarks.md, micro stage; docs/tables.md, Pixel size): a_r
-#: converges at first order (contact-edge pixels: observed 0.9–1.6 at 0.75–3 µm, 1.1 at
-#: a_r = 0.17 down to 0.375 µm), the mean gap at second order (observed 1.9–2.0), the floored
-#: reciprocal gap has no stable order (CHOICE).
+#: converges at first order (contact-edge pixels: successive changes 1.5 → 0.75 → 0.375 µm
+#: shrink 1.99–2.14× on grind-2 at a_r = 2.5e-3 … 0.17; slower, about 1.5×, only at
+#: a_r < 1e-3), the mean gap at second order (observed 1.7–2.1), the floored reciprocal gap
+#: has no stable order (CHOICE).
 PIXEL_EXTRAPOLATION_ORDERS = {
     "real_contact_area_fraction": 1.0,
     "mean_gap_m": 2.0,
