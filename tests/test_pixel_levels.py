@@ -266,3 +266,54 @@ def test_shipped_estimate_covers_a_finer_solve(name, node):
     limit, _ = L.richardson(finest, a4.real_contact_area_fraction, 1.0)
     stored = table.real_contact_area_fraction[node]
     assert abs(stored - limit) <= table.real_contact_area_fraction_error[node]
+
+
+def test_two_level_build_resumes_to_the_same_table(tmp_path):
+    """A killed two-level build (``coarsen``, any texture) reruns only the missing chunks of
+    each level and writes the table an uninterrupted build writes."""
+    from dask.distributed import Client, LocalCluster
+
+    texture = Texture(linear_grind(SHAPE, PIXEL, _grind_params(), SEED), PIXEL, "strip")
+    settings = BuildSettings(
+        points=6, ratio_min=3e-4, ratio_max=1e-2, chunk_size=3, pixel_levels="coarsen"
+    )
+    done = []
+
+    def interrupt(name, index):
+        done.append((name, index))
+        if len(done) == 2:
+            raise KeyboardInterrupt("simulated kill")
+
+    cluster = LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0"
+    )
+    with Client(cluster) as client:
+        whole = build_tables([texture], tmp_path / "whole", settings, client=client, progress=False)
+        with pytest.raises(KeyboardInterrupt):
+            build_tables(
+                [texture],
+                tmp_path / "cut",
+                settings,
+                client=client,
+                progress=False,
+                on_chunk_done=interrupt,
+            )
+        rerun = []
+        again = build_tables(
+            [texture],
+            tmp_path / "cut",
+            settings,
+            client=client,
+            progress=False,
+            on_chunk_done=lambda n, i: rerun.append((n, i)),
+        )
+    cluster.close()
+    assert {n for n, _ in done + rerun} == {"strip.level0", "strip.level1"}
+    assert len(rerun) == 4 - 2 and not set(rerun) & set(done)
+    a, b = read_table(whole["strip"]), read_table(again["strip"])
+    assert b.has_error_estimates and table_data_sha256(a) == table_data_sha256(b)
+    assert b.attrs["chunks_resumed"] == 2
+    assert json.loads(b.attrs["pixel_extrapolation_json"])["level_pixel_size_m"] == [
+        2 * PIXEL,
+        PIXEL,
+    ]
