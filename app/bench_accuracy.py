@@ -2,10 +2,14 @@
 
 Stages (issue #6 §2), each measured in the same run so that times compare as ratios:
 
-- ``micro``: one texture solve at 256² … 2048² pixels on the **same 1.536 mm patch** (finer
-  pixels on the same area, not a larger area). The grind is the shipped synthetic grind's
-  generator (same parameters and seed) at the finest grid; coarser grids are block averages of
-  it (area-averaged pixels, as an interferometer records them). Reference: the finest grid.
+- ``micro``: one texture solve at 256² … 4096² pixels on the **same 1.536 mm patch** (finer
+  pixels on the same area, not a larger area). The grind is the shipped texture's surface
+  refined to the finest grid (:func:`solvers.texture.linear_grind` with ``refine``: same
+  parameters, seed and random draws); coarser grids are block averages of it (area-averaged
+  pixels, as an interferometer records them), so 1024² is the shipped texture. Reference: the
+  finest grid. The two-level value of the shipped tables (zero-pixel extrapolation from 1024²
+  and 2048², :func:`solvers.lookup.combine_pixel_levels`) is compared with the limit from the
+  finer grids (before: 1024² alone; after: the two-level value).
   Every metric of :class:`solvers.micro.MicroResult` is checked for convergence: the floored
   reciprocal gap should converge, the raw one (no floor) is expected not to (method.md §5).
 - ``table``: PCHIP interpolation of the shipped 72-point tables and of tables thinned to fewer
@@ -40,7 +44,14 @@ from app.presets import DEFAULT_PRESET, PRESETS, Preset
 from app.storage.common import provenance, tables_dir
 from solvers.beam import G_STANDARD, BeamFlexibility, solve_beam_contact
 from solvers.elastic import PeriodicHalfSpace, effective_modulus
-from solvers.lookup import POINT_FIELDS, MicroTable
+from solvers.lookup import (
+    ERROR_FIELDS,
+    PIXEL_EXTRAPOLATION_ORDERS,
+    POINT_FIELDS,
+    MicroTable,
+    relative_error_estimate,
+)
+from solvers.lookup import richardson as richardson_levels
 from solvers.micro import solve_micro
 from solvers.texture import GrindParameters, linear_grind
 
@@ -89,7 +100,7 @@ LOAD_CASES = ((40.0, -160.0, 200.0, 0.5), (70.0, -80.0, 100.0, 0.4), (20.0, -250
 class AccuracyConfig:
     """Sizes of one accuracy run (``--quick`` shrinks every stage to a smoke test)."""
 
-    micro_sizes: tuple[int, ...] = (256, 512, 1024, 2048)
+    micro_sizes: tuple[int, ...] = (256, 512, 1024, 2048, 4096)
     micro_grinds: tuple[str, ...] = ("grind-1", "grind-2")
     #: nominal pressures P_n of the micro study [Pa] (at E' of 200 MPa snow on 0.7 GPa base)
     micro_pressures_pa: tuple[float, ...] = (15e3, 60e3)
@@ -210,6 +221,14 @@ def richardson(values: list[float], order: float) -> float:
     return values[-1] + (values[-1] - values[-2]) / (2**p - 1)
 
 
+def zero_pixel_limit(values: list[float], conv: dict) -> float:
+    """The bench's estimate of the zero-pixel limit: Richardson from the two finest values
+    with the observed order where the sequence converges, else the finest value."""
+    if conv["verdict"] == "converges" and conv["observed_order"] is not None:
+        return float(richardson(values, conv["observed_order"]))
+    return float(values[-1])
+
+
 # --------------------------------------------------------------------------- micro
 
 
@@ -228,13 +247,69 @@ def block_average(h: np.ndarray, n: int) -> np.ndarray:
     return h.reshape(n, k, n, k).mean(axis=(1, 3))
 
 
+#: grid of the shipped textures [-]; levels of the two-level tables (this and twice as fine)
+SHIPPED_N = 1024
+
+
+def _shipped_surface(name: str, n: int) -> np.ndarray:
+    """The shipped texture's surface on an n×n grid of the same patch [m]: refined by its
+    generator when n > 1024 (n/1024 in 2, 4, 8), else the generator on n² (other draws)."""
+    params, seed, _ = grind_generator(name)
+    if n > SHIPPED_N and n % SHIPPED_N == 0 and n // SHIPPED_N in (2, 4, 8):
+        return linear_grind(
+            (SHIPPED_N, SHIPPED_N), MICRO_PATCH_M / SHIPPED_N, params, seed, refine=n // SHIPPED_N
+        )
+    return linear_grind((n, n), MICRO_PATCH_M / n, params, seed)
+
+
+def _two_level(rows: list[dict], limit: dict) -> dict | None:
+    """The shipped tables' two-level value at one pressure (1024², 2048²) against ``limit``."""
+    ns = [r["n"] for r in rows]
+    if SHIPPED_N not in ns or 2 * SHIPPED_N not in ns[:-1]:
+        return None
+    c, f = rows[ns.index(SHIPPED_N)], rows[ns.index(2 * SHIPPED_N)]
+    out = {"value": {}, "estimate_rel": {}, "before_rel_error": {}, "after_rel_error": {}}
+    for m in ERROR_FIELDS:
+        value, err = richardson_levels(c[m], f[m], PIXEL_EXTRAPOLATION_ORDERS[m])
+        out["value"][m] = float(value)
+        out["estimate_rel"][m] = float(err / abs(value))
+        out["before_rel_error"][m] = _rel(c[m], limit[m])
+        out["after_rel_error"][m] = _rel(float(value), limit[m])
+    out["time_s"] = c["median_time_s"] + f["median_time_s"]
+    return out
+
+
+def _shipped_table_at(grind: str, pressure_ratio: float) -> dict | None:
+    """What the shipped table returns at a ratio, with its stored relative estimate."""
+    from app.storage.tables import read_table
+    from solvers import lookup as L
+
+    table = read_table(TABLES / f"{grind}.h5")
+    e = table.effective_modulus_pa
+    p = pressure_ratio * e
+    out = {
+        "pixel_levels": table.attrs.get("pixel_levels", "none"),
+        "real_contact_area_fraction": float(L.real_contact_area_fraction(table, p, e)),
+        "mean_gap_m": float(L.mean_gap_m(table, p, e)),
+        "mean_reciprocal_gap_per_m": float(L.mean_reciprocal_gap_per_m(table, p, e)),
+    }
+    out["estimate_rel"] = {m: relative_error_estimate(table, p, e, m) for m in ERROR_FIELDS}
+    return out
+
+
 def bench_micro_grid(cfg: AccuracyConfig, bar: tqdm) -> dict:
     sizes = sorted(cfg.micro_sizes)
     n_ref = sizes[-1]
-    out = {"sizes": sizes, "patch_mm": MICRO_PATCH_M * 1e3, "series": []}
+    out = {
+        "sizes": sizes,
+        "patch_mm": MICRO_PATCH_M * 1e3,
+        "surface": "shipped texture refined by its generator"
+        if n_ref > SHIPPED_N
+        else "generator at the finest grid",
+        "series": [],
+    }
     for grind in cfg.micro_grinds:
-        params, seed, _ = grind_generator(grind)
-        fine = linear_grind((n_ref, n_ref), MICRO_PATCH_M / n_ref, params, seed)
+        fine = _shipped_surface(grind, n_ref)
         for p_n in cfg.micro_pressures_pa:
             rows = []
             for n in sizes:
@@ -245,7 +320,7 @@ def bench_micro_grid(cfg: AccuracyConfig, bar: tqdm) -> dict:
                     lambda h=h, dx=dx, hs=hs, p_n=p_n: solve_micro(
                         h, dx, p_n, MICRO_E_EFF_PA, halfspace=hs
                     ),
-                    cfg.micro_repeats,
+                    cfg.micro_repeats if n <= 2 * SHIPPED_N else 1,  # the 4096² reference once
                 )
                 # well-posedness: d ln f / d ln P_n from a +0.1 % pressure step (O(1) for a
                 # well-posed metric; huge when a metric hangs on the gaps of a few pixels)
@@ -272,15 +347,22 @@ def bench_micro_grid(cfg: AccuracyConfig, bar: tqdm) -> dict:
             for r in rows:
                 r["rel_error"] = {k: _rel(r[k], ref[k]) for k in MICRO_METRICS}
                 r["time_ratio_vs_reference"] = r["median_time_s"] / ref["median_time_s"]
-            out["series"].append(
-                {
-                    "grind": grind,
-                    "nominal_pressure_kpa": p_n / 1e3,
-                    "pressure_ratio": p_n / MICRO_E_EFF_PA,
-                    "rows": rows,
-                    "convergence": {k: convergence([r[k] for r in rows]) for k in MICRO_METRICS},
-                }
-            )
+            conv = {k: convergence([r[k] for r in rows]) for k in MICRO_METRICS}
+            limit = {k: zero_pixel_limit([r[k] for r in rows], conv[k]) for k in ERROR_FIELDS}
+            series = {
+                "grind": grind,
+                "nominal_pressure_kpa": p_n / 1e3,
+                "pressure_ratio": p_n / MICRO_E_EFF_PA,
+                "rows": rows,
+                "convergence": conv,
+                "zero_pixel_limit": limit,
+                "two_level": _two_level(rows, limit),
+            }
+            try:
+                series["shipped_table"] = _shipped_table_at(grind, p_n / MICRO_E_EFF_PA)
+            except Exception as exc:
+                series["shipped_table"] = {"error": str(exc)}
+            out["series"].append(series)
     return out
 
 
@@ -292,7 +374,11 @@ def thin_table(table: MicroTable, points: int) -> MicroTable:
     n = len(table.pressure_ratio)
     idx = np.unique(np.round(np.linspace(0, n - 1, points)).astype(int))
     arrays = {name: np.asarray(getattr(table, name))[idx] for name in POINT_FIELDS}
-    return replace(table, **arrays)
+    if table.has_error_estimates:
+        arrays.update(
+            {name: np.asarray(getattr(table, name))[idx] for name in ERROR_FIELDS.values()}
+        )
+    return replace(table, **arrays, levels=None)
 
 
 def _lookup(table: MicroTable, ratio: np.ndarray) -> dict[str, np.ndarray]:
@@ -329,26 +415,48 @@ def bench_table(cfg: AccuracyConfig, bar: tqdm) -> dict:
             mids = mids[:0]
         direct = []
         if mids.size:
+            # the reference is computed like the table: one level, or the two pixel levels
+            # extrapolated to zero pixel size (two-level tables)
             h, _ = read_table_heights(path)
+            levels = [(h, table.pixel_size_m)]
+            if table.attrs.get("pixel_levels") == "refine":
+                from app.storage.textures import refined_texture
+
+                fine = refined_texture(grind, 2)
+                levels.append((fine.heights_m, fine.pixel_size_m))
             e = table.effective_modulus_pa
-            hs = PeriodicHalfSpace(h.shape, table.pixel_size_m, e)
+            spaces = [PeriodicHalfSpace(hh.shape, dx, e) for hh, dx in levels]
             for r in mids:
                 t0 = time.perf_counter()
-                res = solve_micro(
-                    h,
-                    table.pixel_size_m,
-                    r * e,
-                    e,
-                    tol=table.tol,
-                    gap_floor_m=table.gap_floor_m,
-                    halfspace=hs,
-                )
+                res = [
+                    solve_micro(
+                        hh,
+                        dx,
+                        r * e,
+                        e,
+                        tol=table.tol,
+                        gap_floor_m=table.gap_floor_m,
+                        halfspace=hs,
+                    )
+                    for (hh, dx), hs in zip(levels, spaces, strict=True)
+                ]
+                values = {k: float(getattr(res[-1], k)) for k in TABLE_METRICS}
+                if len(res) == 2:
+                    for k in TABLE_METRICS:
+                        values[k] = float(
+                            richardson_levels(
+                                getattr(res[0], k),
+                                getattr(res[1], k),
+                                PIXEL_EXTRAPOLATION_ORDERS[k],
+                            )[0]
+                        )
                 direct.append(
                     {
                         "pressure_ratio": float(r),
                         "time_s": time.perf_counter() - t0,
-                        "converged": res.converged,
-                        **{k: float(getattr(res, k)) for k in TABLE_METRICS},
+                        "converged": all(x.converged for x in res),
+                        "levels": len(res),
+                        **values,
                     }
                 )
                 bar.update(1)
@@ -746,6 +854,46 @@ def _floor(v: float) -> float:
     return max(abs(v), 1e-6)
 
 
+def _plot_before_after(mi: dict, path: Path) -> None:
+    """|error| against the zero-pixel limit of the shipped tables' value, before (1024²) and
+    after (two-level extrapolation, with the estimate it stores as an error bar)."""
+    series = [s for s in mi["series"] if s.get("two_level")]
+    if not series:
+        return
+    metrics = list(ERROR_FIELDS)
+    fig, axes = _fig(len(metrics))
+    x = np.arange(len(series))
+    for ax, m in zip(axes, metrics, strict=True):
+        before = [abs(s["two_level"]["before_rel_error"][m]) for s in series]
+        after = [abs(s["two_level"]["after_rel_error"][m]) for s in series]
+        est = [s["two_level"]["estimate_rel"][m] for s in series]
+        ax.bar(x - 0.2, [100 * v for v in before], 0.4, label="before: 1024² (1.5 µm)")
+        ax.bar(x + 0.2, [100 * v for v in after], 0.4, label="after: 1024² + 2048² extrapolated")
+        ax.errorbar(
+            x + 0.2,
+            [0.0] * len(est),
+            yerr=[[0.0] * len(est), [100 * v for v in est]],
+            fmt="none",
+            ecolor="k",
+            capsize=4,
+            label="after: stored estimate",
+        )
+        if m == "real_contact_area_fraction":
+            ax.axhline(3.0, color="r", lw=0.8, ls="--", label="aim: 3 %")
+        ax.set_xticks(x, [f"{s['grind']}\n{s['nominal_pressure_kpa']:g} kPa" for s in series])
+        ax.set_title(MICRO_METRICS[m], fontsize=9)
+        ax.set_ylabel("|rel. error| vs zero-pixel limit [%]")
+        ax.grid(True, axis="y", alpha=0.3)
+    for ax in axes[len(metrics) :]:
+        ax.set_visible(False)
+    axes[0].legend(fontsize=7)
+    fig.suptitle(
+        f"shipped tables before/after; limit from {mi['sizes'][-2]}² and {mi['sizes'][-1]}²",
+        fontsize=10,
+    )
+    _save(fig, path)
+
+
 def plot_accuracy(data: dict, path: Path) -> None:
     """Charts ``accuracy-<stage>.png`` beside ``path`` (the stage's own png is the front)."""
     out = path.parent
@@ -764,6 +912,11 @@ def plot_accuracy(data: dict, path: Path) -> None:
                     ax.annotate(
                         f"{r['n']}²", (r["median_time_s"], _floor(r["rel_error"][m])), fontsize=7
                     )
+                t = s.get("two_level")
+                if t and m in t["value"]:  # after: the two-level table value (vs the finest)
+                    y = _floor(_rel(t["value"][m], s["rows"][-1][m]))
+                    ax.loglog(t["time_s"], y, "*", ms=11, color=ax.lines[-1].get_color())
+                    ax.annotate("1024²+2048² extrap.", (t["time_s"], y), fontsize=6)
             ax.set_title(label, fontsize=9)
             ax.set_xlabel("median solve time [s]")
             ax.set_ylabel(f"|rel. error| vs {data['micro']['sizes'][-1]}²")
@@ -771,6 +924,7 @@ def plot_accuracy(data: dict, path: Path) -> None:
         axes[0].legend(fontsize=7)
         fig.suptitle(f"micro: grid size on a {data['micro']['patch_mm']:.3f} mm patch", fontsize=10)
         _save(fig, out / "accuracy-micro.png")
+        _plot_before_after(data["micro"], out / "accuracy-tables-before-after.png")
     if "table" in data:
         fig, axes = _fig(len(TABLE_METRICS))
         for ax, m in zip(axes, TABLE_METRICS, strict=True):
@@ -912,26 +1066,42 @@ def _apct(v: float | None) -> str:
 
 
 def _micro_error_text(d: dict) -> str:
-    """Range of the micro-scale error of the shipped tables' grid, from the micro stage."""
+    """Range of the micro-scale error of the shipped tables, from the micro stage: the
+    two-level value where the series has it (tables built with ``--pixel-levels refine``),
+    else the 1024² grid."""
     mi = d.get("micro")
     if not mi:
         return "the micro-scale error of the shipped tables (micro stage)"
-    ar, rec = [], []
+    ar, rec, ar_before = [], [], []
     for s_ in mi["series"]:
         rows = s_["rows"]
         ns = [r["n"] for r in rows]
         if 1024 not in ns[:-1]:
             continue
         r1024 = rows[ns.index(1024)]
-        rec.append(r1024["rel_error"]["mean_reciprocal_gap_per_m"])
         c = convergence([r["real_contact_area_fraction"] for r in rows])
         if c["verdict"] == "converges":
             lim = richardson([r["real_contact_area_fraction"] for r in rows], c["observed_order"])
-            ar.append(r1024["real_contact_area_fraction"] / lim - 1)
+            before = r1024["real_contact_area_fraction"] / lim - 1
         else:
-            ar.append(r1024["rel_error"]["real_contact_area_fraction"])
+            before = r1024["rel_error"]["real_contact_area_fraction"]
+        two = s_.get("two_level")
+        shipped = (s_.get("shipped_table") or {}).get("pixel_levels", "none")
+        if two and shipped != "none":
+            ar_before.append(before)
+            ar.append(two["after_rel_error"]["real_contact_area_fraction"])
+            rec.append(two["after_rel_error"]["mean_reciprocal_gap_per_m"])
+        else:
+            ar.append(before)
+            rec.append(r1024["rel_error"]["mean_reciprocal_gap_per_m"])
     if not ar:
         return "the micro-scale error of the shipped tables (micro stage)"
+    if ar_before:
+        return (
+            f"two-level tables: a_r {_pct(min(ar))} … {_pct(max(ar))} against the zero-pixel "
+            f"limit (1.5 µm alone: {_pct(min(ar_before))} … {_pct(max(ar_before))}), floored "
+            f"reciprocal gap {_pct(min(rec))} … {_pct(max(rec))}"
+        )
     return (
         f"a_r {_pct(min(ar))} … {_pct(max(ar))} against the zero-pixel limit, floored "
         f"reciprocal gap {_pct(min(rec))} … {_pct(max(rec))} against 0.75 µm pixels"
@@ -980,7 +1150,7 @@ def _why_default(e2e: dict, micro_text: str = "") -> list[str]:
         )
     text += (
         f". The {tol:g} % line is set by the micro scale: every preset carries the error of the "
-        f"shipped tables' 1.5 µm texture pixels ({micro_text}; micro section above), so a "
+        f"shipped tables' texture pixels ({micro_text}; micro section above), so a "
         "finer macro grid than the default buys little accuracy for its time. The preset "
         "changes only the macro grid."
     )
@@ -1034,6 +1204,51 @@ def _unverified(stage: dict) -> list[str]:
     ]
 
 
+def _before_after_lines(mi: dict) -> list[str]:
+    """Shipped tables before (1024² alone) and after (two-level extrapolation), against the
+    zero-pixel limit of this run's finest grids."""
+    rows = [s for s in mi["series"] if s.get("two_level")]
+    if not rows:
+        return []
+    finest = mi["sizes"][-2:]
+    out = [
+        "",
+        "**Shipped tables, before and after (issue #13 point 3).** Before: one level, 1024² "
+        "(1.5 µm). After: two levels, 1024² and 2048² (0.75 µm) of the same surface, "
+        "extrapolated to zero pixel size (a_r first order, h̄_n second order, (1/h)‾ the "
+        "2048² value; `skisnow build-tables --pixel-levels refine`, docs/tables.md). Both "
+        f"against the zero-pixel limit from {finest[0]}² and {finest[1]}² (observed order of "
+        "the three finest grids where it converges, else the finest value); `estimate` is the "
+        "error the table stores for itself, `table` what the shipped file returns there "
+        "(interpolated).",
+        "",
+        "| series | a_r before | a_r after | a_r estimate | a_r table (estimate) | h̄_n before "
+        "| h̄_n after | (1/h)‾ before | (1/h)‾ after | (1/h)‾ estimate |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    ar, gap, rec = "real_contact_area_fraction", "mean_gap_m", "mean_reciprocal_gap_per_m"
+    for s in rows:
+        t = s["two_level"]
+        shipped = s.get("shipped_table") or {}
+        if ar in shipped:
+            est = (shipped.get("estimate_rel") or {}).get(ar)
+            cell = f"{_pct(_rel(shipped[ar], s['zero_pixel_limit'][ar]))}" + (
+                f" ({_apct(est)})" if est is not None else " (none stored)"
+            )
+        else:
+            cell = "—"
+        out.append(
+            f"| {s['grind']} {s['nominal_pressure_kpa']:g} kPa | "
+            f"{_pct(t['before_rel_error'][ar])} | {_pct(t['after_rel_error'][ar])} | "
+            f"{_apct(t['estimate_rel'][ar])} | {cell} | "
+            f"{_pct(t['before_rel_error'][gap])} | {_pct(t['after_rel_error'][gap])} | "
+            f"{_pct(t['before_rel_error'][rec])} | {_pct(t['after_rel_error'][rec])} | "
+            f"{_apct(t['estimate_rel'][rec])} |"
+        )
+    out += ["", "![shipped tables before and after](bench/accuracy-tables-before-after.png)"]
+    return out
+
+
 def render_md(d: dict) -> list[str]:
     """Section of docs/benchmarks.md for the ``accuracy`` stage."""
     lines = [
@@ -1048,9 +1263,14 @@ def render_md(d: dict) -> list[str]:
         lines += [
             "### Micro scale: grid size",
             "",
-            f"Finer pixels on the **same** {mi['patch_mm']:.3f} mm patch (not a larger area): the "
-            "shipped grind's generator (same parameters and seed) at "
-            f"{mi['sizes'][-1]}², block-averaged to the coarser grids; reference "
+            f"Finer pixels on the **same** {mi['patch_mm']:.3f} mm patch (not a larger area): "
+            + (
+                "the shipped texture's surface refined by its generator (same parameters, "
+                "seed and draws) to "
+                if mi.get("surface", "").startswith("shipped")
+                else "the shipped grind's generator (same parameters and seed) at "
+            )
+            + f"{mi['sizes'][-1]}², block-averaged to the coarser grids; reference "
             f"{mi['sizes'][-1]}² ({mi['series'][0]['rows'][-1]['pixel_um']:g} µm pixels). The "
             "shipped tables use the 1024² grid (1.5 µm). E' = "
             f"{d['micro_effective_modulus_pa'] / 1e6:.0f} MPa (200 MPa snow).",
@@ -1157,6 +1377,7 @@ def render_md(d: dict) -> list[str]:
                 else ""
             ),
         ]
+        lines += _before_after_lines(mi)
         lines += [
             "",
             "The raw reciprocal gap (no floor) is not expected to converge: next to a contact "

@@ -18,6 +18,14 @@ solver source code: a killed job rerun skips the finished chunks and gives the s
 a stale checkpoint is never reused. The table file appears (atomic rename) only once complete;
 then ``OUT/manifest.json`` is rewritten and the texture's checkpoints are removed.
 
+**Pixel levels** (``--pixel-levels``, docs/tables.md "Pixel size"): ``none`` solves the texture
+on its own grid only. ``refine`` also solves the same synthetic surface on a 2× finer grid
+(:func:`app.storage.textures.refined_texture`), ``coarsen`` also solves the texture
+block-averaged onto a 2× coarser grid (any texture). Each level is its own set of chunks and
+checkpoints; the table holds the zero-pixel extrapolation of the two levels
+(:func:`solvers.lookup.combine_pixel_levels`), a per-point error estimate of each quantity and
+the per-level values under ``/levels``.
+
 The texture is solved as periodic, as given. ``--detrend`` says what is removed from a height
 map file's heights first (:func:`solvers.texture.level_heights`: plane, mean or none; default
 plane for a raw or measured map, a stored texture as it is, synthetic ones with their mean
@@ -31,6 +39,7 @@ import argparse
 import contextlib
 import hashlib
 import inspect
+import json
 import logging
 import re
 import shutil
@@ -47,8 +56,11 @@ from solvers import micro as _micro
 from solvers.elastic import PeriodicHalfSpace
 from solvers.errors import InputError
 from solvers.lookup import (
+    ERROR_FIELDS,
+    PIXEL_EXTRAPOLATION_ORDERS,
     MicroTable,
     chunk_bounds,
+    combine_pixel_levels,
     pressure_ratio_grid,
     separated_curve,
     solve_table_chunk,
@@ -65,6 +77,11 @@ __all__ = ["BuildSettings", "build_tables", "checkpoint_key", "register"]
 log = logging.getLogger(__name__)
 
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
+
+#: ``--pixel-levels`` choices
+PIXEL_LEVEL_MODES = ("none", "refine", "coarsen")
+#: pixel-size ratio between the two levels of a two-level table [-]
+LEVEL_REFINEMENT = 2
 
 
 @dataclass(frozen=True)
@@ -91,6 +108,10 @@ class BuildSettings:
         Ends of the log grid of clearances of the separated curve [m].
     clearance_points : int
         Points of the clearance grid [-].
+    pixel_levels : str
+        ``"none"`` (the texture's grid only), ``"refine"`` (plus the same synthetic surface
+        at half the pixel size) or ``"coarsen"`` (plus the texture at twice the pixel size);
+        two levels are extrapolated to zero pixel size with a per-point error estimate.
     """
 
     points: int = 48
@@ -104,8 +125,13 @@ class BuildSettings:
     clearance_min_m: float = 1e-8
     clearance_max_m: float = 1e-2
     clearance_points: int = 64
+    pixel_levels: str = "none"
 
     def __post_init__(self) -> None:
+        if self.pixel_levels not in PIXEL_LEVEL_MODES:
+            raise InputError(
+                f"pixel_levels must be one of {PIXEL_LEVEL_MODES}, got {self.pixel_levels!r}"
+            )
         pressure_ratio_grid(self.ratio_min, self.ratio_max, self.points)
         pressure_ratio_grid(self.clearance_min_m, self.clearance_max_m, self.clearance_points)
         chunk_bounds(self.points, self.chunk_size)
@@ -154,7 +180,7 @@ def checkpoint_key(texture: Texture, settings: BuildSettings) -> str:
 
 @dataclass
 class _Job:
-    texture: Texture
+    texture: Texture  # the level's heights and pixel size
     key: str
     directory: Path
     full_contact_pressure_ratio: float
@@ -165,7 +191,53 @@ class _Job:
         return self.directory / f"chunk-{index:03d}.h5"
 
 
-def _prepare(texture: Texture, settings: BuildSettings, out_dir: Path) -> _Job:
+def _coarsened(texture: Texture) -> Texture:
+    h = np.asarray(texture.heights_m, dtype=float)
+    k = LEVEL_REFINEMENT
+    if h.shape[0] % k or h.shape[1] % k:
+        raise InputError(
+            f"texture {texture.name!r}: --pixel-levels coarsen needs grid sizes divisible by "
+            f"{k}, got {h.shape}"
+        )
+    coarse = h.reshape(h.shape[0] // k, k, h.shape[1] // k, k).mean(axis=(1, 3))
+    return Texture(
+        coarse,
+        texture.pixel_size_m * k,
+        texture.name,
+        texture.missing_fraction,
+        f"{texture.source}; block-averaged {k}x{k}",
+        detrend=texture.detrend,
+    )
+
+
+def _levels(
+    texture: Texture, settings: BuildSettings, refined: dict[str, Texture] | None
+) -> list[Texture]:
+    """The level textures of one table, coarse first (the texture itself is one of them)."""
+    if settings.pixel_levels == "none":
+        return [texture]
+    if settings.pixel_levels == "coarsen":
+        return [_coarsened(texture), texture]
+    fine = (refined or {}).get(texture.name)
+    if fine is None:
+        raise InputError(
+            f"texture {texture.name!r}: --pixel-levels refine needs its refined surface "
+            "(app.storage.textures.refined_texture)"
+        )
+    shape = tuple(np.shape(texture.heights_m))
+    k = LEVEL_REFINEMENT
+    if np.shape(fine.heights_m) != (shape[0] * k, shape[1] * k) or not np.isclose(
+        fine.pixel_size_m * k, texture.pixel_size_m, rtol=1e-12
+    ):
+        raise InputError(f"refined texture of {texture.name!r} is not {k}x finer")
+    return [texture, fine]
+
+
+def _level_name(name: str, index: int, count: int) -> str:
+    return name if count == 1 else f"{name}.level{index}"
+
+
+def _prepare(texture: Texture, settings: BuildSettings, out_dir: Path, job_name: str) -> _Job:
     if not _NAME_RE.match(texture.name or ""):
         raise InputError(f"texture name {texture.name!r} cannot be a file name")
     heights = np.asarray(texture.heights_m, dtype=float)
@@ -178,7 +250,7 @@ def _prepare(texture: Texture, settings: BuildSettings, out_dir: Path) -> _Job:
     job = _Job(
         texture=texture,
         key=key,
-        directory=out_dir / ".checkpoints" / texture.name / key[:16],
+        directory=out_dir / ".checkpoints" / job_name / key[:16],
         full_contact_pressure_ratio=p_fc / e_eff,
         bounds=chunk_bounds(settings.points, settings.chunk_size),
         results={},
@@ -190,41 +262,82 @@ def _prepare(texture: Texture, settings: BuildSettings, out_dir: Path) -> _Job:
     return job
 
 
-def _assemble(job: _Job, settings: BuildSettings) -> tuple[MicroTable, dict]:
-    parts = [job.results[i] for i in range(len(job.bounds))]
-    arrays = {name: np.concatenate([p[name] for p in parts]) for name in parts[0]}
-    diagnostics = {"solve_time_s": arrays.pop("solve_time_s")}
-    heights = np.asarray(job.texture.heights_m, dtype=float)
+def _assemble(
+    texture: Texture, level_jobs: list[_Job], settings: BuildSettings
+) -> tuple[MicroTable, dict]:
+    level_arrays = []
+    for job in level_jobs:
+        parts = [job.results[i] for i in range(len(job.bounds))]
+        level_arrays.append({name: np.concatenate([p[name] for p in parts]) for name in parts[0]})
+    diagnostics = {"solve_time_s": np.sum([a.pop("solve_time_s") for a in level_arrays], axis=0)}
+    extra: dict = {}
+    if len(level_arrays) == 1:
+        arrays = level_arrays[0]
+    else:
+        arrays = combine_pixel_levels(*level_arrays, refinement=LEVEL_REFINEMENT)
+        for name in ERROR_FIELDS.values():
+            extra[name] = arrays.pop(name)
+        extra["levels"] = {
+            "pixel_size_m": np.array([float(j.texture.pixel_size_m) for j in level_jobs]),
+            "full_contact_pressure_ratio": np.array(
+                [j.full_contact_pressure_ratio for j in level_jobs]
+            ),
+            **{
+                name: np.stack([a[name] for a in level_arrays])
+                for name in level_arrays[0]
+                if name != "residual"
+            },
+        }
+    finest = level_jobs[-1]
+    heights = np.asarray(texture.heights_m, dtype=float)
     mean_h0, mean_rec0 = unloaded_statistics(heights, settings.gap_floor_m)
     clearance = settings.clearance_m
     try:
-        iso = iso25178_parameters(heights, job.texture.pixel_size_m, periodic=True)
+        iso = iso25178_parameters(heights, texture.pixel_size_m, periodic=True)
     except InputError as exc:  # pragma: no cover - flat textures are rejected earlier
-        log.warning("no ISO parameters for %s: %s", job.texture.name, exc)
+        log.warning("no ISO parameters for %s: %s", texture.name, exc)
         iso = {}
+    attrs = {
+        "max_iterations": int(settings.max_iterations),
+        "chunk_size": int(settings.chunk_size),
+        "checkpoint_key": ",".join(j.key for j in level_jobs),
+        "solver_source_sha256": _solver_source_sha256(),
+        "points_not_converged": int(np.count_nonzero(~arrays["converged"])),
+        "texture_detrend": texture.detrend,
+        "pixel_levels": settings.pixel_levels,
+    }
+    if len(level_jobs) > 1:
+        attrs["pixel_extrapolation_json"] = json.dumps(
+            {
+                "method": "Richardson extrapolation to zero pixel size from two levels "
+                "(solvers.lookup.combine_pixel_levels); error estimate = |correction| "
+                "(order None: finest level kept, estimate = last change)",
+                "level_pixel_size_m": [float(j.texture.pixel_size_m) for j in level_jobs],
+                "level_grid_shape": [list(np.shape(j.texture.heights_m)) for j in level_jobs],
+                "level_source": [j.texture.source for j in level_jobs],
+                "refinement": LEVEL_REFINEMENT,
+                "orders": PIXEL_EXTRAPOLATION_ORDERS,
+                "flags_from": "finest level (full_contact, iterations); converged = all levels",
+            },
+            sort_keys=True,
+        )
     table = MicroTable(
-        name=job.texture.name,
-        pixel_size_m=float(job.texture.pixel_size_m),
+        name=texture.name,
+        pixel_size_m=float(texture.pixel_size_m),
         grid_shape=tuple(int(v) for v in heights.shape),
         effective_modulus_pa=float(settings.effective_modulus_pa),
         gap_floor_m=float(settings.gap_floor_m),
         tol=float(settings.tol),
         pressure_ratio=settings.pressure_ratio,
-        full_contact_pressure_ratio=float(job.full_contact_pressure_ratio),
+        full_contact_pressure_ratio=float(finest.full_contact_pressure_ratio),
         unloaded_mean_gap_m=mean_h0,
         unloaded_mean_reciprocal_gap_per_m=mean_rec0,
         clearance_m=clearance,
         separated_mean_reciprocal_gap_per_m=separated_curve(heights, clearance),
         iso_parameters=iso,
-        attrs={
-            "max_iterations": int(settings.max_iterations),
-            "chunk_size": int(settings.chunk_size),
-            "checkpoint_key": job.key,
-            "solver_source_sha256": _solver_source_sha256(),
-            "points_not_converged": int(np.count_nonzero(~arrays["converged"])),
-            "texture_detrend": job.texture.detrend,
-        },
+        attrs=attrs,
         **arrays,
+        **extra,
     )
     return table, diagnostics
 
@@ -262,6 +375,7 @@ def build_tables(
     progress: bool = True,
     keep_checkpoints: bool = False,
     on_chunk_done: Callable[[str, int], None] | None = None,
+    refined: dict[str, Texture] | None = None,
 ) -> dict[str, Path]:
     """Build one table file ``OUT/<texture name>.h5`` per texture, and ``OUT/manifest.json``.
 
@@ -285,8 +399,13 @@ def build_tables(
         Show a tqdm progress bar over the chunks (stderr).
     keep_checkpoints : bool
         Keep the chunk checkpoints after a table is written.
-    on_chunk_done : callable(texture_name, chunk_index), optional
-        Called after each computed chunk is checkpointed (tests use it to interrupt a build).
+    on_chunk_done : callable(level_name, chunk_index), optional
+        Called after each computed chunk is checkpointed (tests use it to interrupt a build);
+        the level name is the texture name, or ``<name>.level<i>`` (i = 0 coarse) for two
+        pixel levels.
+    refined : dict of str to Texture, optional
+        For ``settings.pixel_levels == "refine"``: each texture's surface on the 2× finer
+        grid (:func:`app.storage.textures.refined_texture`).
 
     Returns
     -------
@@ -302,7 +421,14 @@ def build_tables(
     if len(set(names)) != len(names):
         raise InputError(f"texture names must be distinct, got {names}")
     t0 = time.perf_counter()
-    jobs = {t.name: _prepare(t, settings, out_dir) for t in textures}
+    levels_of: dict[str, list[str]] = {}
+    jobs: dict[str, _Job] = {}
+    for texture in textures:
+        levels = _levels(texture, settings, refined)
+        names_ = [_level_name(texture.name, i, len(levels)) for i in range(len(levels))]
+        levels_of[texture.name] = names_
+        for level, job_name in zip(levels, names_, strict=True):
+            jobs[job_name] = _prepare(level, settings, out_dir, job_name)
     pending = [
         (name, index)
         for name, job in jobs.items()
@@ -327,27 +453,32 @@ def build_tables(
                     cluster.close()
     paths = {}
     ratio_grid = settings.pressure_ratio
-    for name, job in jobs.items():
-        table, diagnostics = _assemble(job, settings)
+    for texture in textures:
+        name = texture.name
+        level_jobs = [jobs[n] for n in levels_of[name]]
+        table, diagnostics = _assemble(texture, level_jobs, settings)
         table.attrs["build_time_s"] = round(time.perf_counter() - t0, 3)
-        table.attrs["chunks_resumed"] = len(job.bounds) - sum(1 for n, _ in pending if n == name)
+        table.attrs["chunks_resumed"] = sum(len(j.bounds) for j in level_jobs) - sum(
+            1 for n, _ in pending if n in levels_of[name]
+        )
         paths[name] = write_table(
             out_dir / f"{name}.h5",
             table,
-            heights_m=job.texture.heights_m,
+            heights_m=texture.heights_m,
             texture_attrs={
-                "source": job.texture.source,
-                "missing_fraction": float(job.texture.missing_fraction),
-                "detrend": job.texture.detrend,
+                "source": texture.source,
+                "missing_fraction": float(texture.missing_fraction),
+                "detrend": texture.detrend,
             },
             diagnostics=diagnostics,
             parameters={**asdict(settings), "texture": name, "grid_points": ratio_grid.size},
         )
         if not keep_checkpoints:
-            shutil.rmtree(job.directory, ignore_errors=True)
-            for parent in (job.directory.parent, job.directory.parent.parent):
-                with contextlib.suppress(OSError):
-                    parent.rmdir()  # only if empty
+            for job in level_jobs:
+                shutil.rmtree(job.directory, ignore_errors=True)
+                for parent in (job.directory.parent, job.directory.parent.parent):
+                    with contextlib.suppress(OSError):
+                        parent.rmdir()  # only if empty
         bad = int(np.count_nonzero(~table.converged))
         if bad:
             log.warning("%s: %d point(s) did not converge (see /loaded/converged)", name, bad)
@@ -373,8 +504,13 @@ def _run(client, jobs, pending, settings, progress, on_chunk_done) -> int:
         for name in {n for n, _ in pending}
     }
     futures = {}
-    # costly high-ratio chunks first, so the last chunks to finish are the short ones
-    for name, index in sorted(pending, key=lambda item: -item[1]):
+
+    # costly chunks first (finer grids, high ratios), so the last to finish are the short ones
+    def cost(item):
+        name, index = item
+        return -np.size(jobs[name].texture.heights_m), -index
+
+    for name, index in sorted(pending, key=cost):
         job = jobs[name]
         start, stop = job.bounds[index]
         future = client.submit(
@@ -433,8 +569,19 @@ def _command(args: argparse.Namespace) -> int:
         tol=args.tol,
         max_iterations=args.max_iterations,
         gap_floor_m=args.gap_floor_nm * 1e-9,
+        pixel_levels=args.pixel_levels,
     )
     textures = _load_textures(args.textures, args.detrend)
+    refined = None
+    if args.pixel_levels == "refine":
+        from app.storage.textures import refined_texture
+
+        if args.detrend is not None:
+            raise InputError("--pixel-levels refine takes the stored synthetic texture as is")
+        refined = {
+            t.name: refined_texture(spec, LEVEL_REFINEMENT)
+            for t, spec in zip(textures, args.textures, strict=True)
+        }
     t0 = time.perf_counter()
     paths = build_tables(
         textures,
@@ -443,6 +590,7 @@ def _command(args: argparse.Namespace) -> int:
         scheduler=args.scheduler,
         workers=args.workers,
         keep_checkpoints=args.keep_checkpoints,
+        refined=refined,
     )
     for name, path in paths.items():
         print(f"{name}: {path}")
@@ -472,6 +620,16 @@ def register(subparsers) -> None:
         "--gap-floor-nm", type=float, default=d.gap_floor_m * 1e9, help="gap floor h_c [nm]"
     )
     p.add_argument("--keep-checkpoints", action="store_true", help="keep chunk checkpoints")
+    p.add_argument(
+        "--pixel-levels",
+        choices=PIXEL_LEVEL_MODES,
+        default=d.pixel_levels,
+        help=(
+            "none: the texture's grid only; refine: plus the same synthetic surface at half "
+            "the pixel (shipped grinds); coarsen: plus the texture at twice the pixel (any "
+            "map). Two levels: zero-pixel extrapolation with a per-point error estimate"
+        ),
+    )
     p.add_argument(
         "--detrend",
         choices=DETREND_METHODS,

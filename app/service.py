@@ -40,7 +40,7 @@ from solvers.beam import BeamSki
 from solvers.elastic import effective_modulus
 from solvers.errors import DataFileError, NotConvergedError, OutOfRangeError, SkisnowError
 from solvers.flexible import FlexibleModel, prepare_flexible, solve_flexible
-from solvers.lookup import MicroTable
+from solvers.lookup import ERROR_FIELDS, MicroTable, relative_error_estimate
 from solvers.macro import extrude_profile, solve_macro
 from solvers.multiscale import multiscale
 
@@ -514,6 +514,9 @@ def contact(
                 "sha256": grind.sha256,
                 "texture_pixel_size_um": grind.table.pixel_size_m * 1e6,
                 "gap_floor_nm": grind.table.gap_floor_m * 1e9,
+                "pixel_error_estimate": pixel_error_estimate(
+                    grind.table, macro.pressure_pa, ms.real_area_fraction_map, inp.porosity, e_eff
+                ),
             },
             "ski": {
                 "file": ski.path.name,
@@ -551,6 +554,48 @@ def contact(
         answer["distributions"]["pressure_band_high_kpa"] = _finite_list(hi[rows], 1e-3)
     answer["timing_ms"]["total"] = (time.perf_counter() - t0) * 1e3
     return answer
+
+
+def pixel_error_estimate(
+    table: MicroTable, pressure_pa, real_area_fraction_map, porosity: float, e_eff: float
+) -> dict:
+    """The table's error estimate against the zero-pixel limit at this answer's pressures.
+
+    For each loaded macro cell the tabulated relative estimate is interpolated at its
+    ``P_n / E'`` (:func:`solvers.lookup.relative_error_estimate`). Reported: the largest over
+    the cells for a_r (``real_contact_area_fraction_rel_max``), the mean gap and the floored
+    reciprocal gap, and the a_r-weighted mean for a_r, the relative estimate of the total
+    real contact area (equal cells). Tables built on one pixel size: ``estimated`` false.
+    """
+    levels = json.loads(table.attrs.get("pixel_extrapolation_json", "null") or "null")
+    if not table.has_error_estimates or levels is None:
+        return {"estimated": False, "pixel_levels": table.attrs.get("pixel_levels", "none")}
+    p = np.asarray(pressure_pa, dtype=float)
+    loaded = np.isfinite(p) & (p > 0)
+    p_n = p[loaded] * (1 - porosity)
+    out: dict = {
+        "estimated": True,
+        "pixel_levels": table.attrs.get("pixel_levels"),
+        "level_pixel_size_um": [v * 1e6 for v in levels["level_pixel_size_m"]],
+        "orders": levels["orders"],
+    }
+    short = {
+        "real_contact_area_fraction": "real_contact_area_fraction",
+        "mean_gap_m": "mean_gap",
+        "mean_reciprocal_gap_per_m": "mean_reciprocal_gap",
+    }
+    for quantity in ERROR_FIELDS:
+        rel = np.atleast_1d(relative_error_estimate(table, p_n, e_eff, quantity))
+        finite = rel[np.isfinite(rel)]
+        out[f"{short[quantity]}_rel_max"] = float(finite.max()) if finite.size else None
+        if quantity == "real_contact_area_fraction":
+            ar = np.asarray(real_area_fraction_map, dtype=float)[loaded]
+            ok = np.isfinite(rel) & np.isfinite(ar)
+            total = float(np.sum(ar[ok]))
+            out["total_real_contact_area_rel"] = (
+                float(np.sum(ar[ok] * rel[ok]) / total) if total > 0 else None
+            )
+    return out
 
 
 def rigid_minus_flexible(rigid, flex, ms_rigid=None, ms_flex=None) -> dict[str, float]:

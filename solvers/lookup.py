@@ -48,15 +48,20 @@ from scipy.interpolate import PchipInterpolator
 from .errors import InputError, OutOfRangeError
 
 __all__ = [
+    "ERROR_FIELDS",
+    "PIXEL_EXTRAPOLATION_ORDERS",
     "POINT_FIELDS",
     "TABLE_SCHEMA",
     "MicroTable",
     "chunk_bounds",
+    "combine_pixel_levels",
     "mean_gap_m",
     "mean_reciprocal_gap_per_m",
     "nominal_pressure_ratio",
     "pressure_ratio_grid",
     "real_contact_area_fraction",
+    "relative_error_estimate",
+    "richardson",
     "separated_curve",
     "separated_mean_gap_m",
     "separated_reciprocal_gap_per_m",
@@ -83,6 +88,27 @@ POINT_FIELDS = (
     "converged",
     "full_contact",
 )
+
+
+#: per-point error estimate of each extrapolated quantity: (quantity, error array name)
+ERROR_FIELDS = {
+    "real_contact_area_fraction": "real_contact_area_fraction_error",
+    "mean_gap_m": "mean_gap_error_m",
+    "mean_reciprocal_gap_per_m": "mean_reciprocal_gap_error_per_m",
+}
+
+#: order p of the leading pixel-size error term used to extrapolate each quantity to zero pixel
+#: size (error ∝ Δ^p); ``None``: no clear order, the finest level is kept. Measured on the
+#: shipped grinds (docs/benchmarks.md, micro stage; docs/tables.md, Pixel size): a_r
+#: converges at first order (contact-edge pixels: successive changes 1.5 → 0.75 → 0.375 µm
+#: shrink 1.99–2.14× on grind-2 at a_r = 2.5e-3 … 0.17; slower, about 1.5×, only at
+#: a_r < 1e-3), the mean gap at second order (observed 1.7–2.1), the floored reciprocal gap
+#: has no stable order (CHOICE).
+PIXEL_EXTRAPOLATION_ORDERS = {
+    "real_contact_area_fraction": 1.0,
+    "mean_gap_m": 2.0,
+    "mean_reciprocal_gap_per_m": None,
+}
 
 
 @dataclass
@@ -135,6 +161,16 @@ class MicroTable:
         ISO 25178 parameters of the texture (units in the keys), may be empty.
     attrs : dict
         Remaining file attributes (provenance: code version, git commit, command line, ...).
+    real_contact_area_fraction_error : ndarray, shape (N,), optional
+        Estimated error of the tabulated a_r against the zero-pixel limit [-] (two-level
+        tables, :func:`combine_pixel_levels`); ``None`` for tables built on one pixel size.
+    mean_gap_error_m : ndarray, shape (N,), optional
+        The same for the mean gap [m].
+    mean_reciprocal_gap_error_per_m : ndarray, shape (N,), optional
+        The same for the floored mean reciprocal gap [1/m].
+    levels : dict, optional
+        Per-level results of a two-level table: ``{"pixel_size_m": [...], "<quantity>":
+        ndarray (levels, N), ...}``, coarse first; ``None`` for one-level tables.
     """
 
     name: str
@@ -159,6 +195,15 @@ class MicroTable:
     separated_mean_reciprocal_gap_per_m: np.ndarray
     iso_parameters: dict = field(default_factory=dict)
     attrs: dict = field(default_factory=dict)
+    real_contact_area_fraction_error: np.ndarray | None = None
+    mean_gap_error_m: np.ndarray | None = None
+    mean_reciprocal_gap_error_per_m: np.ndarray | None = None
+    levels: dict | None = None
+
+    @property
+    def has_error_estimates(self) -> bool:
+        """True if every point carries its pixel-size error estimate (two-level tables)."""
+        return all(getattr(self, name) is not None for name in ERROR_FIELDS.values())
 
     def __post_init__(self) -> None:
         r = np.asarray(self.pressure_ratio, dtype=float)
@@ -171,6 +216,13 @@ class MicroTable:
             arr = np.asarray(getattr(self, name))
             if arr.shape != (n,):
                 raise InputError(f"{name} has shape {arr.shape}, expected ({n},)")
+        for name in ERROR_FIELDS.values():
+            err = getattr(self, name)
+            if err is None:
+                continue
+            err = np.asarray(err, dtype=float)
+            if err.shape != (n,) or not np.all(np.isfinite(err) & (err >= 0)):
+                raise InputError(f"{name} must be finite, >= 0 and of shape ({n},)")
         h = np.asarray(self.clearance_m, dtype=float)
         if h.ndim != 1 or h.size < 2 or h[0] <= 0 or np.any(np.diff(h) <= 0):
             raise InputError("clearance_m must be 1-D, > 0 and strictly increasing")
@@ -423,6 +475,120 @@ def separated_mean_gap_m(table: MicroTable, clearance_m) -> np.ndarray | float:
     if np.any(h < 0):
         raise InputError(f"clearance_m must be >= 0, got min {np.min(h)!r}")
     return _out(table.unloaded_mean_gap_m + h)
+
+
+def relative_error_estimate(
+    table: MicroTable, nominal_pressure_pa, effective_modulus_pa, quantity: str
+) -> np.ndarray | float | None:
+    """Estimated relative error against the zero-pixel limit at interpolated points [-].
+
+    The tabulated relative error ``error / value`` of ``quantity`` (a key of
+    :data:`ERROR_FIELDS`) is interpolated linearly in ``ln r`` between the table points; 0 at
+    zero load and at or above full contact (exact states); NaN outside the table. ``None`` if
+    the table carries no estimates (tables built on one pixel size).
+    """
+    if quantity not in ERROR_FIELDS:
+        raise InputError(f"quantity must be one of {sorted(ERROR_FIELDS)}, got {quantity!r}")
+    if not table.has_error_estimates:
+        return None
+    p = _finite("nominal_pressure_pa", nominal_pressure_pa)
+    e = _finite("effective_modulus_pa", effective_modulus_pa)
+    ratio = np.asarray(p / e, dtype=float)
+    lo, hi = table.pressure_ratio_range
+    r = _snap(ratio, lo, hi)
+    partial = ~np.asarray(table.full_contact, dtype=bool)
+    value = np.asarray(getattr(table, quantity), dtype=float)[partial]
+    err = np.asarray(getattr(table, ERROR_FIELDS[quantity]), dtype=float)[partial]
+    rel = np.divide(err, np.abs(value), out=np.zeros_like(err), where=value != 0)
+    x = np.log(np.asarray(table.pressure_ratio, dtype=float)[partial])
+    full = table.full_contact_reached & (r >= table.full_contact_pressure_ratio)
+    inside = (r > 0) & (r >= lo) & (r <= hi) & ~full
+    out = np.interp(np.log(np.where(inside, r, lo)), x, rel)
+    out = np.where(inside, out, np.where((r == 0) | full, 0.0, np.nan))
+    return _out(out)
+
+
+# ---------------------------------------------------------------------------- pixel levels
+
+
+def richardson(
+    coarse: np.ndarray, fine: np.ndarray, order: float | None, refinement: float = 2.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Zero-pixel extrapolation of a quantity from two pixel sizes, with its error estimate.
+
+    ``f_0 ≈ f_fine + (f_fine − f_coarse) / (k^p − 1)`` (Richardson), k the pixel-size ratio,
+    p the order of the leading error term. The error estimate is the size of the correction,
+    ``|f_0 − f_fine|``: the extrapolated value is taken to be at least as close to the limit
+    as the finest level is to it (conservative where the order holds; Roache's grid
+    convergence index of the fine level with safety factor 1). ``order=None`` (no clear
+    order): ``f_fine`` is kept and the estimate is the last change ``|f_fine − f_coarse|``.
+
+    Parameters
+    ----------
+    coarse, fine : array_like
+        The quantity at pixel sizes ``k·Δ`` and ``Δ`` [any unit].
+    order : float or None
+        p > 0 [-].
+    refinement : float
+        k > 1 [-].
+
+    Returns
+    -------
+    (ndarray, ndarray)
+        Extrapolated value and error estimate [unit of the input].
+    """
+    c = np.asarray(coarse, dtype=float)
+    f = np.asarray(fine, dtype=float)
+    if not refinement > 1:
+        raise InputError(f"refinement must be > 1, got {refinement!r}")
+    if order is None:
+        return f.copy(), np.abs(f - c)
+    if not order > 0:
+        raise InputError(f"order must be > 0 or None, got {order!r}")
+    correction = (f - c) / (refinement**order - 1)
+    return f + correction, np.abs(correction)
+
+
+def combine_pixel_levels(
+    coarse: dict[str, np.ndarray],
+    fine: dict[str, np.ndarray],
+    refinement: float = 2.0,
+    orders: dict[str, float | None] | None = None,
+) -> dict[str, np.ndarray]:
+    """Table arrays of the zero-pixel limit from two levels of :func:`solve_table_chunk`.
+
+    Points where both levels are in partial contact are extrapolated by :func:`richardson`
+    with the order of each quantity (:data:`PIXEL_EXTRAPOLATION_ORDERS`). Where the levels
+    differ in full contact, or an extrapolated a_r leaves (0, 1] or a mean gap leaves
+    ``(0, ∞)`` (a few contact pixels), the fine level is kept and its estimate is the change
+    ``|fine − coarse|``. Full contact at both levels is exact (estimate 0). Flags
+    (``full_contact``, ``converged`` of both levels) and solver diagnostics follow the fine
+    level; the raw reciprocal gap (diagnosis only) is the fine level's.
+
+    Returns
+    -------
+    dict of ndarray
+        The keys of :func:`solve_table_chunk` plus the error arrays of :data:`ERROR_FIELDS`.
+    """
+    orders = PIXEL_EXTRAPOLATION_ORDERS if orders is None else orders
+    fc = np.asarray(coarse["full_contact"], dtype=bool)
+    ff = np.asarray(fine["full_contact"], dtype=bool)
+    both = ~fc & ~ff
+    out = {k: np.array(v, copy=True) for k, v in fine.items()}
+    out["converged"] = np.asarray(fine["converged"], bool) & np.asarray(coarse["converged"], bool)
+    for quantity, err_name in ERROR_FIELDS.items():
+        c = np.asarray(coarse[quantity], dtype=float)
+        f = np.asarray(fine[quantity], dtype=float)
+        value, err = richardson(c, f, orders.get(quantity), refinement)
+        bad = ~both | (value <= 0)
+        if quantity == "real_contact_area_fraction":
+            bad |= value > 1
+        value = np.where(bad, f, value)
+        err = np.where(bad, np.abs(f - c), err)
+        exact = fc & ff
+        out[quantity] = np.where(exact, f, value)
+        out[err_name] = np.where(exact, 0.0, err)
+    return out
 
 
 # ---------------------------------------------------------------------------- building

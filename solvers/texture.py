@@ -51,6 +51,7 @@ __all__ = [
     "check_detrend",
     "combined_detrend",
     "fit_linear_grind",
+    "fourier_upsample",
     "iso25178_parameters",
     "level_heights",
     "linear_grind",
@@ -598,8 +599,15 @@ class GrindParameters:
 _PROFILE_OVERSAMPLING = 8
 
 
-def _groove_profile(n1: int, pixel_size_m: float, p: GrindParameters, rng) -> np.ndarray:
-    """Periodic profile across the ski [m], pixel-averaged, length n1."""
+def _groove_profile(
+    n1: int, pixel_size_m: float, p: GrindParameters, rng, refine: int = 1
+) -> np.ndarray:
+    """Periodic profile across the ski [m], pixel-averaged, length ``n1 · refine``.
+
+    The profile is sampled at ``_PROFILE_OVERSAMPLING`` points per pixel of the ``n1`` grid; with
+    ``refine > 1`` each of the ``refine`` finer pixels averages its share of the same sample
+    points, so the block average of the refined profile is the unrefined profile.
+    """
     width = n1 * pixel_size_m
     n_grooves = max(1, round(width / p.pitch_m))
     z = rng.standard_normal((2, n_grooves))  # fixed draw order: pitch, then depth
@@ -623,7 +631,47 @@ def _groove_profile(n1: int, pixel_size_m: float, p: GrindParameters, rng) -> np
             for edge in (start, start + g):
                 d = (y - edge + width / 2) % width - width / 2
                 prof += p.lip_height_m * np.exp(-0.5 * (d / p.lip_width_m) ** 2)
-    return prof.reshape(n1, m).mean(axis=1)
+    return prof.reshape(n1 * refine, m // refine).mean(axis=1)
+
+
+def fourier_upsample(heights_m: np.ndarray, refine: int, *, shift_px: float = 0.0) -> np.ndarray:
+    """Trigonometric interpolation of a periodic, band-limited map onto a ``refine``× finer grid.
+
+    The rfft2 spectrum is zero-padded (1/N normalisation of numpy's inverse, so the result is
+    multiplied by ``refine²``). Fine sample ``j`` (each axis) lies at ``(j + shift_px)`` fine
+    pixels from the first input sample: with ``shift_px = 0`` every ``refine``-th sample of the
+    result is the input. Exact for maps without content at the Nyquist rows and columns
+    (checked: that content must be below 1e-12 of the total, else ``InputError``).
+
+    Parameters
+    ----------
+    heights_m : numpy.ndarray
+        Periodic map (even sizes) [m].
+    refine : int
+        Refinement factor >= 1 [-].
+    shift_px : float, optional
+        Offset of the fine samples, in fine pixels [-].
+    """
+    h = np.asarray(heights_m, dtype=float)
+    if refine == 1 and shift_px == 0:
+        return h.copy()
+    n0, n1 = h.shape
+    if n0 % 2 or n1 % 2:
+        raise InputError(f"fourier_upsample needs even grid sizes, got {h.shape}")
+    spec = np.fft.rfft2(h)
+    nyq = np.abs(spec[n0 // 2, :]).sum() + np.abs(spec[:, -1]).sum()
+    if nyq > 1e-12 * max(np.abs(spec).sum(), 1e-300):
+        raise InputError("fourier_upsample: the map has content at the Nyquist frequency")
+    f0, f1 = refine * n0, refine * n1
+    out = np.zeros((f0, f1 // 2 + 1), dtype=complex)
+    half = n0 // 2
+    out[:half, : n1 // 2] = spec[:half, : n1 // 2]
+    out[f0 - half + 1 :, : n1 // 2] = spec[half + 1 :, : n1 // 2]
+    if shift_px:
+        m0 = np.fft.fftfreq(f0, d=1.0 / f0)[:, None]
+        m1 = np.arange(f1 // 2 + 1)[None, :]
+        out *= np.exp(2j * np.pi * shift_px * (m0 / f0 + m1 / f1))
+    return np.fft.irfft2(out, s=(f0, f1)) * refine**2
 
 
 def linear_grind(
@@ -631,6 +679,8 @@ def linear_grind(
     pixel_size_m: float,
     params: GrindParameters,
     rng: np.random.Generator | int,
+    *,
+    refine: int = 1,
 ) -> np.ndarray:
     """Seeded synthetic linear stone grind [m], periodic in both directions.
 
@@ -650,12 +700,27 @@ def linear_grind(
         Groove and roughness parameters.
     rng : numpy.random.Generator or int
         Source of randomness, or a seed for ``numpy.random.default_rng``.
+    refine : int, optional
+        1 (default), 2, 4 or 8: the **same** surface on a ``refine``× finer grid
+        (``shape · refine`` pixels of ``pixel_size_m / refine``, the same patch). The random
+        draws are those of ``shape``; the groove profile is averaged over the finer pixels from
+        the same sub-samples (its block average is the unrefined profile), the band-limited
+        roughness is trigonometrically interpolated (:func:`fourier_upsample`, exact: its
+        short cut-off lies far below the Nyquist frequency) at the points that keep its
+        position against the grooves (on the unrefined grid pixel ``i`` holds the roughness
+        at ``i·Δ`` and the profile averaged over ``[i·Δ, (i + 1)·Δ]``; refined pixels hold the
+        roughness half a coarse pixel before their centres), so the block average of a refined
+        map is the unrefined map up to the second-order difference between a point value and
+        a pixel average of the roughness. Used for pixel-refinement studies and the two-level
+        tables (docs/tables.md).
 
     Returns
     -------
     numpy.ndarray
-        Heights [m], float64, zero mean.
+        Heights [m], float64, zero mean; shape ``shape · refine``.
     """
+    if refine not in (1, 2, 4, 8):
+        raise InputError(f"refine must be 1, 2, 4 or 8, got {refine!r}")
     dx = _check_pixel_size(pixel_size_m)
     try:
         n0, n1 = (int(s) for s in shape)
@@ -667,12 +732,12 @@ def linear_grind(
         raise InputError(f"params must be GrindParameters, got {type(params).__name__}")
     if not isinstance(rng, np.random.Generator):
         rng = np.random.default_rng(rng)
-    prof = _groove_profile(n1, dx, params, rng)
-    h = np.broadcast_to(prof[None, :], (n0, n1)).copy()
+    prof = _groove_profile(n1, dx, params, rng, refine)
+    h = np.broadcast_to(prof[None, :], (n0 * refine, n1 * refine)).copy()
     if params.roughness_rms_m > 0:
         short = max(params.roughness_short_cutoff_m, 2 * dx)
         long = max(params.roughness_long_cutoff_m, short)
-        h += self_affine_surface(
+        rough = self_affine_surface(
             (n0, n1),
             dx,
             hurst=params.roughness_hurst,
@@ -681,6 +746,7 @@ def linear_grind(
             long_cutoff_m=long,
             short_cutoff_m=short,
         )
+        h += fourier_upsample(rough, refine, shift_px=(1 - refine) / 2) if refine > 1 else rough
     h -= h.mean()
     return h
 

@@ -60,6 +60,8 @@ def test_contact_answer(client):
     n = len(dist["position_mm"])
     assert n > 100 and all(len(v) == n for v in dist.values())
     assert d["provenance"]["table"]["gap_floor_nm"] == pytest.approx(10)
+    # the small test table is built on one pixel size: no estimate, said so
+    assert d["provenance"]["table"]["pixel_error_estimate"]["estimated"] is False
     assert d["provenance"]["macro"]["converged"] is True
     assert d["timing_ms"]["total"] > 0
 

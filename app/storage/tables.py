@@ -9,6 +9,9 @@ File layout of a table (schema ``skisnow.table/1``; docs/tables.md has the full 
   creation time, parameters);
 - ``/texture/heights_m`` [m] with the texture's ISO 25178 parameters as attributes;
 - ``/loaded/*``: the table over the pressure ratio ``P_n/E'``;
+- ``/loaded/*_error*``: per-point error estimates against the zero-pixel limit and
+  ``/levels/*``: per-level values (two-level tables only; optional, absent in tables built on
+  one pixel size, which read with ``None`` estimates);
 - ``/separated/*``: ``⟨1/(h_0 + H)⟩`` over the clearance H;
 - ``/diagnostics/solve_time_s``: wall time per point (not part of ``data_sha256``).
 
@@ -70,6 +73,32 @@ LOADED_DATASETS = [
     ("converged", "1", "solver met the tolerance"),
     ("full_contact", "1", "point at or above the full-contact ratio: exact a_r = 1, gap 0"),
 ]
+#: (dataset, units, description) of the optional error estimates in /loaded
+ERROR_DATASETS = [
+    (
+        "real_contact_area_fraction_error",
+        "1",
+        "estimated error of real_contact_area_fraction against the zero-pixel limit",
+    ),
+    ("mean_gap_error_m", "m", "estimated error of mean_gap_m against the zero-pixel limit"),
+    (
+        "mean_reciprocal_gap_error_per_m",
+        "1/m",
+        "estimated error of mean_reciprocal_gap_per_m against the zero-pixel limit",
+    ),
+]
+#: units of the optional per-level datasets in /levels (first axis: level, coarse first)
+LEVEL_UNITS = {
+    "pixel_size_m": "m",
+    "full_contact_pressure_ratio": "1",
+    "real_contact_area_fraction": "1",
+    "mean_gap_m": "m",
+    "mean_reciprocal_gap_per_m": "1/m",
+    "mean_reciprocal_gap_raw_per_m": "1/m",
+    "iterations": "1",
+    "converged": "1",
+    "full_contact": "1",
+}
 SEPARATED_DATASETS = [
     ("clearance_m", "m", "clearance H between the texture's highest point and the snow"),
     (
@@ -113,6 +142,16 @@ def table_data_sha256(table: MicroTable) -> str:
     for name in _SCALAR_FIELDS:
         h.update(f"{name}:{float(getattr(table, name))!r}".encode())
     h.update(f"grid_shape:{tuple(int(v) for v in table.grid_shape)}".encode())
+    # optional two-level data: hashed only when present (one-level tables keep their hash)
+    for name, _, _ in ERROR_DATASETS:
+        if getattr(table, name) is not None:
+            arr = np.ascontiguousarray(getattr(table, name), dtype=np.float64)
+            h.update(f"{name}:{arr.dtype.str}:{arr.shape}".encode())
+            h.update(arr.tobytes())
+    for name, value in sorted((table.levels or {}).items()):
+        arr = np.ascontiguousarray(value, dtype=_dtype(name))
+        h.update(f"levels/{name}:{arr.dtype.str}:{arr.shape}".encode())
+        h.update(arr.tobytes())
     return h.hexdigest()
 
 
@@ -210,6 +249,24 @@ def write_table(
                 )
                 ds.attrs["units"] = units
                 ds.attrs["description"] = description
+        for name, units, description in ERROR_DATASETS:
+            if getattr(table, name) is not None:
+                ds = f["loaded"].create_dataset(
+                    name, data=np.asarray(getattr(table, name), np.float64), track_times=False
+                )
+                ds.attrs["units"] = units
+                ds.attrs["description"] = description
+        if table.levels:
+            g = f.create_group("levels")
+            g.attrs["description"] = (
+                "per-level results of the two-level table (first axis: level, coarse first); "
+                "the /loaded values are their zero-pixel extrapolation"
+            )
+            for name, value in table.levels.items():
+                ds = g.create_dataset(
+                    name, data=np.asarray(value, dtype=_dtype(name)), track_times=False
+                )
+                ds.attrs["units"] = LEVEL_UNITS.get(name, "1")
         f["loaded/mean_reciprocal_gap_per_m"].attrs["gap_floor_m"] = float(table.gap_floor_m)
         f["separated"].attrs["unloaded_mean_gap_m"] = float(table.unloaded_mean_gap_m)
         diag = f.create_group("diagnostics")
@@ -244,6 +301,13 @@ def read_table(path: str | os.PathLike) -> MicroTable:
             }
             for name, _, _ in SEPARATED_DATASETS:
                 fields[name] = np.asarray(f["separated"][name][()], dtype=np.float64)
+            for name, _, _ in ERROR_DATASETS:  # absent in one-level (older) tables
+                if name in f["loaded"]:
+                    fields[name] = np.asarray(f["loaded"][name][()], dtype=np.float64)
+            if "levels" in f:
+                fields["levels"] = {
+                    name: np.asarray(ds[()], dtype=_dtype(name)) for name, ds in f["levels"].items()
+                }
             for name in _SCALAR_FIELDS:
                 fields[name] = float(f.attrs[name])
             iso = {

@@ -49,6 +49,7 @@ __all__ = [
     "parse_csv_grid",
     "read_heightmap",
     "read_texture",
+    "refined_texture",
     "write_texture",
 ]
 
@@ -356,4 +357,60 @@ def detrend_texture(texture: Texture, detrend: str | None) -> Texture:
         texture.missing_fraction,
         f"{texture.source}; detrend={detrend} applied to the stored heights",
         combined_detrend(texture.detrend, detrend),
+    )
+
+
+def refined_texture(spec: str | os.PathLike, refine: int = 2) -> Texture:
+    """The same synthetic surface as a stored texture on a ``refine``× finer grid.
+
+    Reads the generator, its parameters and seed from the texture file (shipped name or
+    ``.h5``; written by ``scripts/make_grinds.py``) and calls
+    :func:`solvers.texture.linear_grind` with ``refine``. Checked: the block average of the
+    refined map reproduces the stored heights to 1e-3 of their RMS, so it is the same patch
+    and the same draws.
+
+    Raises
+    ------
+    InputError
+        The texture is not synthetic (no generator recorded): a measured map cannot be
+        refined, only coarsened (``build-tables --pixel-levels coarsen``).
+    """
+    from solvers.texture import GrindParameters, linear_grind
+
+    spec_str = os.fspath(spec)
+    path = (
+        SHIPPED_TEXTURES_DIR / f"{spec_str}.h5"
+        if spec_str in list_shipped_textures()
+        else Path(spec_str)
+    )
+    base = read_texture(path)
+    with h5py.File(path, "r") as f:
+        generator = f.attrs.get("generator")
+        if generator is None:
+            raise InputError(
+                f"texture {base.name!r} records no generator: only synthetic textures can be "
+                "refined (use --pixel-levels coarsen for a measured map)"
+            )
+        generator = generator.decode() if isinstance(generator, bytes) else str(generator)
+        if generator != "solvers.texture.linear_grind":
+            raise InputError(f"texture {base.name!r}: unknown generator {generator!r}")
+        params = GrindParameters(**json.loads(f.attrs["generator_parameters_json"]))
+        seed = int(f.attrs["generator_seed"])
+    fine = linear_grind(base.heights_m.shape, base.pixel_size_m, params, seed, refine=refine)
+    n0, n1 = base.heights_m.shape
+    coarse = fine.reshape(n0, refine, n1, refine).mean(axis=(1, 3))
+    rms = float(np.sqrt(np.mean(base.heights_m**2)))
+    deviation = float(np.max(np.abs(coarse - base.heights_m)))
+    if deviation > 1e-3 * rms:
+        raise InputError(
+            f"texture {base.name!r}: its generator does not reproduce the stored heights "
+            f"(block average off by {deviation:.3g} m, RMS height {rms:.3g} m)"
+        )
+    return Texture(
+        fine,
+        base.pixel_size_m / refine,
+        base.name,
+        base.missing_fraction,
+        f"{base.source}; refined {refine}x (same generator, parameters and seed)",
+        detrend=base.detrend,
     )

@@ -1,0 +1,92 @@
+"""Check the shipped tables' pixel-size error estimate against finer solves (issue #13 point 3).
+
+At chosen nodes of a shipped two-level table, solve the same surface at 512² (block average of
+the texture), 1024² (the texture), 2048² and 4096² (refined by its generator,
+:func:`app.storage.textures.refined_texture`), and compare the stored value and its estimate
+with the zero-pixel limit from the two finest grids (Richardson, order 1). Writes JSON lines
+(one per node) to stdout; docs/bench/table-pixel-checks.json holds a run, docs/tables.md the
+table made from it.
+
+Usage::
+
+    python scripts/table_pixel_check.py grind-2 --nodes 37 42 46 50 54 60 > out.jsonl
+
+A 4096² solve takes 25–35 s on one core; run it on a quiet machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from app.storage.common import tables_dir
+from app.storage.tables import read_table
+from app.storage.textures import read_texture, refined_texture
+from solvers.lookup import ERROR_FIELDS, richardson
+from solvers.micro import solve_micro
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("grind", help="shipped grind name (grind-1, grind-2)")
+    parser.add_argument("--nodes", type=int, nargs="+", required=True, help="table node indices")
+    parser.add_argument(
+        "--sizes", type=int, nargs="+", default=[512, 1024, 2048, 4096], help="grid sizes"
+    )
+    args = parser.parse_args(argv)
+
+    table = read_table(tables_dir() / f"{args.grind}.h5")
+    e = table.effective_modulus_pa
+    base = read_texture(tables_dir() / "textures" / f"{args.grind}.h5")
+    n = base.heights_m.shape[0]
+    levels = {}
+    for size in args.sizes:
+        if size < n:
+            k = n // size
+            h = base.heights_m.reshape(size, k, size, k).mean(axis=(1, 3))
+            levels[size] = (h, base.pixel_size_m * k)
+        elif size == n:
+            levels[size] = (base.heights_m, base.pixel_size_m)
+        else:
+            t = refined_texture(args.grind, size // n)
+            levels[size] = (t.heights_m, t.pixel_size_m)
+    finest = sorted(levels)[-2:]
+    for node in args.nodes:
+        ratio = float(table.pressure_ratio[node])
+        row = {"grind": args.grind, "node": node, "pressure_ratio": ratio, "levels": {}}
+        for size, (h, dx) in sorted(levels.items()):
+            t0 = time.perf_counter()
+            res = solve_micro(h, dx, ratio * e, e, tol=table.tol, gap_floor_m=table.gap_floor_m)
+            row["levels"][size] = {
+                **{q: float(getattr(res, q)) for q in ERROR_FIELDS},
+                "iterations": res.iterations,
+                "converged": bool(res.converged),
+                "time_s": time.perf_counter() - t0,
+            }
+        a = [row["levels"][s]["real_contact_area_fraction"] for s in finest]
+        limit, _ = richardson(a[0], a[1], 1.0)
+        stored = float(table.real_contact_area_fraction[node])
+        claim = (
+            float(table.real_contact_area_fraction_error[node])
+            if table.has_error_estimates
+            else None
+        )
+        row.update(
+            limit_sizes=finest,
+            limit_real_contact_area_fraction=float(limit),
+            stored_real_contact_area_fraction=stored,
+            stored_estimate_rel=None if claim is None else claim / stored,
+            stored_minus_limit_rel=stored / limit - 1,
+            within_estimate=None if claim is None else bool(abs(stored - limit) <= claim),
+        )
+        print(json.dumps(row), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

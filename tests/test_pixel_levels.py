@@ -1,0 +1,319 @@
+"""Tables converged in the pixel size (issue #13 point 3): the refined generator is the same
+surface, Richardson extrapolation, two-level tables whose stored error estimate covers an
+independent finer solve, the shipped tables' estimate, one-level (older) tables still load."""
+
+from __future__ import annotations
+
+import json
+import os
+
+import h5py
+import numpy as np
+import pytest
+
+from app.build_tables import BuildSettings, build_tables
+from app.service import pixel_error_estimate
+from app.storage.common import tables_dir
+from app.storage.tables import read_table, table_data_sha256
+from solvers import lookup as L
+from solvers.errors import InputError
+from solvers.micro import solve_micro
+from solvers.texture import GrindParameters, Texture, fourier_upsample, linear_grind
+
+SLOW = os.environ.get("SKISNOW_SLOW_TESTS") == "1"
+PIXEL = 1.5e-6  # [m]
+#: a strip of the shipped grind-1 generator: one groove across, 64 rows along [-]
+SHAPE = (64, 256)
+SEED = 7
+#: shipped-table points whose error estimate must stay within 3 % (issue #13 point 3)
+AR_RANGE = (1e-3, 0.9)
+AR_TOLERANCE = 0.03
+
+
+def _grind_params(name: str = "grind-1") -> GrindParameters:
+    with h5py.File(tables_dir() / "textures" / f"{name}.h5", "r") as f:
+        return GrindParameters(**json.loads(f.attrs["generator_parameters_json"]))
+
+
+# ------------------------------------------------------------------- the same surface refined
+
+
+def test_fourier_upsample_is_trigonometric_interpolation():
+    n = 32
+    x = np.arange(n) / n
+    h = np.sin(2 * np.pi * 3 * x)[:, None] * np.cos(2 * np.pi * 5 * x)[None, :]
+    fine = fourier_upsample(h, 4, shift_px=0.5)
+    xf = (np.arange(4 * n) + 0.5) / (4 * n)
+    exact = np.sin(2 * np.pi * 3 * xf)[:, None] * np.cos(2 * np.pi * 5 * xf)[None, :]
+    np.testing.assert_allclose(fine, exact, atol=1e-12)
+    np.testing.assert_allclose(fourier_upsample(h, 2)[::2, ::2], h, atol=1e-14)
+    with pytest.raises(InputError, match="Nyquist"):
+        fourier_upsample(np.cos(np.pi * np.arange(n))[:, None] * np.ones((1, n)), 2)
+
+
+@pytest.mark.parametrize("refine", [2, 4])
+def test_refined_grind_block_averages_to_the_unrefined_grind(refine):
+    params = _grind_params()
+    coarse = linear_grind(SHAPE, PIXEL, params, SEED)
+    fine = linear_grind(SHAPE, PIXEL, params, SEED, refine=refine)
+    assert fine.shape == (SHAPE[0] * refine, SHAPE[1] * refine)
+    back = fine.reshape(SHAPE[0], refine, SHAPE[1], refine).mean(axis=(1, 3))
+    # the groove profile nests exactly; the roughness differs by point value vs pixel mean,
+    # second order in the pixel (its short cut-off is 77 µm against 1.5 µm pixels)
+    rms = np.sqrt(np.mean(coarse**2))
+    assert np.max(np.abs(back - coarse)) < 2e-3 * rms
+    # a different seed is a different surface (the check above can fail)
+    other = linear_grind(SHAPE, PIXEL, params, SEED + 1)
+    assert np.max(np.abs(other - coarse)) > 0.1 * rms
+
+
+def test_shipped_texture_is_reproduced_by_its_generator():
+    from app.storage.textures import read_texture, refined_texture
+
+    base = read_texture(tables_dir() / "textures" / "grind-2.h5")
+    fine = refined_texture("grind-2", 2)
+    assert fine.pixel_size_m == base.pixel_size_m / 2
+    n0, n1 = base.heights_m.shape
+    back = fine.heights_m.reshape(n0, 2, n1, 2).mean(axis=(1, 3))
+    assert np.max(np.abs(back - base.heights_m)) < 1e-3 * np.sqrt(np.mean(base.heights_m**2))
+
+
+# ----------------------------------------------------------------------------- extrapolation
+
+
+def test_richardson_recovers_the_limit_of_a_first_order_sequence():
+    f0, c, d = 0.02, 0.5, 3.0
+    dx = np.array([2e-3, 1e-3])
+    f = f0 + c * dx + d * dx**2  # leading first order, a second-order remainder
+    value, err = L.richardson(f[0], f[1], 1.0)
+    # the remainder of the extrapolation is -2 d dx_fine^2 (exactly, for this sequence)
+    assert value == pytest.approx(f0 - 2 * d * dx[1] ** 2, rel=1e-12)
+    assert abs(value - f0) < err  # the estimate covers the true error
+    kept, last = L.richardson(f[0], f[1], None)
+    assert kept == f[1] and last == pytest.approx(f[0] - f[1])
+    with pytest.raises(InputError):
+        L.richardson(f[0], f[1], 0.0)
+
+
+def test_combine_keeps_exact_full_contact_and_the_fine_level_where_extrapolation_fails():
+    keys = ("real_contact_area_fraction", "mean_gap_m", "mean_reciprocal_gap_per_m")
+    coarse = {k: np.array([3e-5, 0.5, 1.0]) for k in keys}
+    fine = {k: np.array([1e-5, 0.4, 1.0]) for k in keys}
+    for d in (coarse, fine):
+        d["full_contact"] = np.array([False, False, True])
+        d["converged"] = np.array([True, True, True])
+        d["mean_reciprocal_gap_raw_per_m"] = np.ones(3)
+    out = L.combine_pixel_levels(coarse, fine)
+    # 2·1e-5 − 3e-5 < 0: a few contact pixels, no extrapolation, the change is the estimate
+    assert out["real_contact_area_fraction"][0] == 1e-5
+    assert out["real_contact_area_fraction_error"][0] == pytest.approx(2e-5)
+    assert out["real_contact_area_fraction"][1] == pytest.approx(0.3)
+    assert out["mean_gap_m"][1] == pytest.approx(0.4 - 0.1 / 3)
+    assert out["mean_reciprocal_gap_per_m"][1] == 0.4  # no order: the finest level
+    assert out["real_contact_area_fraction_error"][2] == 0.0  # exact full contact
+
+
+# ------------------------------------------------------------------------ two-level tables
+
+
+@pytest.fixture(scope="module")
+def two_level(tmp_path_factory):
+    from dask.distributed import Client, LocalCluster
+
+    params = _grind_params()
+    texture = Texture(linear_grind(SHAPE, PIXEL, params, SEED), PIXEL, "strip", source="test")
+    fine = Texture(
+        linear_grind(SHAPE, PIXEL, params, SEED, refine=2), PIXEL / 2, "strip", source="test"
+    )
+    settings = BuildSettings(
+        points=6, ratio_min=3e-4, ratio_max=1e-2, chunk_size=3, pixel_levels="refine"
+    )
+    out = tmp_path_factory.mktemp("two-level")
+    cluster = LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0"
+    )
+    with Client(cluster) as client:
+        path = build_tables(
+            [texture], out, settings, client=client, progress=False, refined={"strip": fine}
+        )["strip"]
+        again = build_tables(
+            [texture],
+            tmp_path_factory.mktemp("again"),
+            settings,
+            client=client,
+            progress=False,
+            refined={"strip": fine},
+        )["strip"]
+    cluster.close()
+    return read_table(path), read_table(again), params
+
+
+def test_two_level_table_is_reproducible_and_records_its_levels(two_level):
+    table, again, _ = two_level
+    assert table.has_error_estimates
+    assert table_data_sha256(table) == table_data_sha256(again)
+    info = json.loads(table.attrs["pixel_extrapolation_json"])
+    assert info["level_pixel_size_m"] == [PIXEL, PIXEL / 2]
+    assert info["orders"]["real_contact_area_fraction"] == 1.0
+    assert table.levels["real_contact_area_fraction"].shape == (2, 6)
+
+
+def test_stored_error_estimate_covers_an_independent_finer_solve(two_level):
+    """At three table points: the limit from two finer levels (Δ/4, Δ/8; solved here, not by
+    the build) lies within the stored estimate of the stored value, and the stored value is
+    closer to it than the finest level of the table."""
+    table, _, params = two_level
+    e = table.effective_modulus_pa
+    for i in (0, 2, 5):
+        ratio = table.pressure_ratio[i]
+        a = [
+            solve_micro(
+                linear_grind(SHAPE, PIXEL, params, SEED, refine=k), PIXEL / k, ratio * e, e
+            ).real_contact_area_fraction
+            for k in (4, 8)
+        ]
+        limit, _ = L.richardson(a[0], a[1], 1.0)
+        stored = table.real_contact_area_fraction[i]
+        claim = table.real_contact_area_fraction_error[i]
+        finest = table.levels["real_contact_area_fraction"][1, i]
+        assert abs(stored - limit) <= claim, (i, stored, limit, claim)
+        assert abs(stored - limit) < abs(finest - limit), (i, stored, finest, limit)
+
+
+def test_lookup_reports_the_error_estimate_at_interpolated_points(two_level):
+    table, _, _ = two_level
+    e = table.effective_modulus_pa
+    r = table.pressure_ratio
+    rel_nodes = table.real_contact_area_fraction_error / table.real_contact_area_fraction
+    mid = np.sqrt(r[1] * r[2])
+    got = L.relative_error_estimate(
+        table, [r[1] * e, mid * e, 0.0], e, "real_contact_area_fraction"
+    )
+    assert got[0] == pytest.approx(rel_nodes[1])
+    assert min(rel_nodes[1:3]) <= got[1] <= max(rel_nodes[1:3])
+    assert got[2] == 0.0  # zero load is exact
+    pressure = np.array([[r[1] * e, 0.0], [mid * e, np.nan]])
+    ar_map = np.array([[0.1, 0.0], [0.2, np.nan]])
+    info = pixel_error_estimate(table, pressure, ar_map, 0.0, e)
+    assert info["estimated"] and info["level_pixel_size_um"] == [1.5, 0.75]
+    assert info["real_contact_area_fraction_rel_max"] == pytest.approx(max(got[:2]))
+    assert info["total_real_contact_area_rel"] == pytest.approx((0.1 * got[0] + 0.2 * got[1]) / 0.3)
+
+
+def test_one_level_table_still_loads_without_estimates(tmp_path, small_table):
+    """Tables built before the estimates (one pixel size, uploads) read as before."""
+    from app.storage.tables import write_table
+
+    path = write_table(tmp_path / "old.h5", small_table, heights_m=np.zeros((4, 4)))
+    with h5py.File(path, "r") as f:
+        assert "real_contact_area_fraction_error" not in f["loaded"] and "levels" not in f
+    table = read_table(path)
+    assert not table.has_error_estimates and table.levels is None
+    e = table.effective_modulus_pa
+    p = table.pressure_ratio[1] * e
+    assert L.relative_error_estimate(table, p, e, "real_contact_area_fraction") is None
+    assert pixel_error_estimate(table, np.array([[p]]), np.array([[0.1]]), 0.0, e) == {
+        "estimated": False,
+        "pixel_levels": "none",
+    }
+
+
+# ----------------------------------------------------------------------------- shipped tables
+
+
+def _shipped(name: str):
+    return read_table(tables_dir() / f"{name}.h5")
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "grind-1",
+        pytest.param(
+            "grind-2",
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="TABLE-PIXEL-GRIND2-LOWLOAD: with two levels (1.5/0.75 µm) the stored "
+                "estimate (the Richardson correction) reaches 8.7 % below a_r ≈ 0.027; finer "
+                "solves show the values within 0.3 % there (docs/tables.md, Pixel size)",
+            ),
+        ),
+    ],
+)
+def test_shipped_table_area_error_estimate_within_3_percent(name):
+    table = _shipped(name)
+    assert table.has_error_estimates
+    a = table.real_contact_area_fraction
+    sel = ~table.full_contact & (a >= AR_RANGE[0]) & (a <= AR_RANGE[1])
+    assert np.count_nonzero(sel) >= 20
+    rel = table.real_contact_area_fraction_error[sel] / a[sel]
+    assert rel.max() <= AR_TOLERANCE, f"{name}: largest a_r estimate {rel.max():.3%}"
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not SLOW, reason="4096² solves (~1 min): set SKISNOW_SLOW_TESTS=1")
+@pytest.mark.parametrize(("name", "node"), [("grind-2", 37), ("grind-2", 60), ("grind-1", 39)])
+def test_shipped_estimate_covers_a_finer_solve(name, node):
+    """The shipped table's stored a_r against the limit from 0.75 and 0.375 µm pixels."""
+    from app.storage.textures import refined_texture
+
+    table = _shipped(name)
+    e = table.effective_modulus_pa
+    ratio = table.pressure_ratio[node]
+    finest = table.levels["real_contact_area_fraction"][-1, node]
+    t4 = refined_texture(name, 4)
+    a4 = solve_micro(t4.heights_m, t4.pixel_size_m, ratio * e, e, workers=1)
+    limit, _ = L.richardson(finest, a4.real_contact_area_fraction, 1.0)
+    stored = table.real_contact_area_fraction[node]
+    assert abs(stored - limit) <= table.real_contact_area_fraction_error[node]
+
+
+def test_two_level_build_resumes_to_the_same_table(tmp_path):
+    """A killed two-level build (``coarsen``, any texture) reruns only the missing chunks of
+    each level and writes the table an uninterrupted build writes."""
+    from dask.distributed import Client, LocalCluster
+
+    texture = Texture(linear_grind(SHAPE, PIXEL, _grind_params(), SEED), PIXEL, "strip")
+    settings = BuildSettings(
+        points=6, ratio_min=3e-4, ratio_max=1e-2, chunk_size=3, pixel_levels="coarsen"
+    )
+    done = []
+
+    def interrupt(name, index):
+        done.append((name, index))
+        if len(done) == 2:
+            raise KeyboardInterrupt("simulated kill")
+
+    cluster = LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0"
+    )
+    with Client(cluster) as client:
+        whole = build_tables([texture], tmp_path / "whole", settings, client=client, progress=False)
+        with pytest.raises(KeyboardInterrupt):
+            build_tables(
+                [texture],
+                tmp_path / "cut",
+                settings,
+                client=client,
+                progress=False,
+                on_chunk_done=interrupt,
+            )
+        rerun = []
+        again = build_tables(
+            [texture],
+            tmp_path / "cut",
+            settings,
+            client=client,
+            progress=False,
+            on_chunk_done=lambda n, i: rerun.append((n, i)),
+        )
+    cluster.close()
+    assert {n for n, _ in done + rerun} == {"strip.level0", "strip.level1"}
+    assert len(rerun) == 4 - 2 and not set(rerun) & set(done)
+    a, b = read_table(whole["strip"]), read_table(again["strip"])
+    assert b.has_error_estimates and table_data_sha256(a) == table_data_sha256(b)
+    assert b.attrs["chunks_resumed"] == 2
+    assert json.loads(b.attrs["pixel_extrapolation_json"])["level_pixel_size_m"] == [
+        2 * PIXEL,
+        PIXEL,
+    ]
