@@ -20,6 +20,7 @@ COMMAND_MODULES = [
     "app.build_tables",
     "app.bench",
     "app.commands.macro",
+    "app.commands.flex",
     "app.commands.identify",
     "app.train_camber",
     "app.commands.serve",
