@@ -457,6 +457,7 @@ def _answer(req: FlexRequest, out: dict, *, profiles: bool) -> dict:
             "max_load_kg": _num(units.n_to_kg(closing.max_load_n)),
             "tolerance_kg": _num(units.n_to_kg(closing.tolerance_n)),
             "residual_camber_mm": _mm(closing.residual_gap_m),
+            "wax_zone_max_gap_mm": _mm(closing.wax_zone_max_gap_m),
             "draws_not_closing": out["draws_not_closing"],
             "closes_at_full_weight": bool(closing.closes and closing.load_n <= full_w),
             "open_at_half_weight": bool(closing.closes is False or closing.load_n > half_w),

@@ -23,16 +23,18 @@ Wax pocket at threshold t [m]
     The shops' thresholds are :data:`WAX_GAPS_M` (≈ 2 / 3 / 4 / 6 layers of hard wax).
 Wax zone
     The pocket at :data:`CLOSED_GAP_M` (0.10 mm) under half weight at :data:`POCKET_POSITION_M`:
-    where the kick wax goes. The closing load, the kick-zone load share and the glide check
-    refer to this fixed span.
+    where the kick wax goes. The kick-zone load share and the glide check refer to this fixed
+    span.
 Residual camber r(F) [m]
-    The largest loaded gap over the wax zone under F at x_F (the gap under the foot when the
-    wax zone is empty). "Closed" means r ≤ :data:`CLOSED_GAP_M`.
+    The loaded gap under the foot x_F: the pocket at t is open exactly while r ≥ t (a point
+    load bends the ski most under itself, so the gap under the foot is the first to close and
+    falls monotonically with F). "Closed" means r ≤ :data:`CLOSED_GAP_M`.
 Closing load [N]
-    The smallest F at x_F with r(F) ≤ 0.10 mm, by bisection on F (r decreases with F) to
-    ``closing_tol_n`` (default :data:`CLOSING_TOL_N`, 0.05 kg): the answer is the middle of the
-    last bracket, within ``tol/2`` of the discrete model's closing load. NaN when the pocket
-    does not close up to ``max_load_n``.
+    The smallest F at x_F with r(F) ≤ 0.10 mm (the paper under the foot is clamped), by
+    bisection on F to ``closing_tol_n`` (default :data:`CLOSING_TOL_N`, 0.05 kg): the answer
+    is the middle of the last bracket, within ``tol/2`` of the discrete model's closing load.
+    NaN when the pocket does not close up to ``max_load_n``. At that load the wax zone ahead of
+    and behind the foot may still stand open (``wax_zone_max_gap_m``).
 Kick-zone load share [-]
     Contact force on the nodes inside the wax zone (ends included) over the total contact
     force, under full and under half weight at x_F. On the rigid flat it is zero at half
@@ -84,6 +86,7 @@ __all__ = [
     "pocket",
     "residual_camber",
     "span_load_share",
+    "wax_zone_max_gap",
 ]
 
 #: the shops' wax-pocket thresholds [m]: about 2 / 3 / 4 / 6 layers of hard wax
@@ -165,6 +168,9 @@ class ClosingLoad:
     residual_gap_m : float
         Residual camber r at the upper end of the last bracket [m] (≤ the closed gap) or at
         ``max_load_n`` when it does not close.
+    wax_zone_max_gap_m : float
+        Largest gap over the wax zone at the upper end of the last bracket [m] (NaN without a
+        wax zone).
     bracket_n : tuple of float
         Last bracket (open, closed) [N].
     tolerance_n : float
@@ -179,6 +185,7 @@ class ClosingLoad:
 
     load_n: float
     residual_gap_m: float
+    wax_zone_max_gap_m: float
     bracket_n: tuple[float, float]
     tolerance_n: float
     max_load_n: float
@@ -369,12 +376,17 @@ def _span_gaps(x: np.ndarray, g: np.ndarray, span: tuple[float, float]) -> np.nd
     return np.concatenate([[np.interp(a, x, g)], g[inside], [np.interp(b, x, g)]])
 
 
-def residual_camber(profile: FlatProfile, wax_zone: Pocket) -> float:
-    """Residual camber r [m]: the largest gap over the wax zone, or the gap under the foot of
-    ``profile`` when the wax zone is closed (module docstring)."""
+def residual_camber(profile: FlatProfile) -> float:
+    """Residual camber r [m]: the gap under the foot of ``profile`` (module docstring)."""
     x, g = _check_profile(profile.positions_m, profile.gap_m)
+    return float(np.interp(profile.load_position_m, x, g))
+
+
+def wax_zone_max_gap(profile: FlatProfile, wax_zone: Pocket) -> float:
+    """Largest gap [m] of ``profile`` over the wax zone (NaN when the wax zone is closed)."""
     if not wax_zone.is_open:
-        return float(np.interp(profile.load_position_m, x, g))
+        return float("nan")
+    x, g = _check_profile(profile.positions_m, profile.gap_m)
     return float(np.max(_span_gaps(x, g, (wax_zone.start_m, wax_zone.end_m))))
 
 
@@ -480,11 +492,11 @@ def glide_check(profile: FlatProfile, wax_zone: Pocket, closed_gap_m: float = CL
 
 def closing_load(
     profile_fn: ProfileFn,
-    wax_zone: Pocket,
     load_position_m: float,
     *,
     open_load_n: float,
     max_load_n: float,
+    wax_zone: Pocket | None = None,
     closed_gap_m: float = CLOSED_GAP_M,
     tol_n: float = CLOSING_TOL_N,
     max_iterations: int = 60,
@@ -495,13 +507,15 @@ def closing_load(
     ----------
     profile_fn : callable
         (F [N], x_F [m]) → :class:`FlatProfile`.
-    wax_zone : Pocket
-        The span whose residual camber is watched.
+    load_position_m : float
+        Foot position x_F [m].
     open_load_n : float
-        A load known to leave r > closed (the lower end of the first bracket) [N], > 0; when
-        r ≤ closed already there, the search goes down to 0.
+        Where the search starts [N], > 0 (half the body weight): the bracket grows ×2 from there
+        until the pocket is closed, or the search goes down to 0 when it is closed already.
     max_load_n : float
         Largest load to try [N] (the profile model's range).
+    wax_zone : Pocket, optional
+        Reports ``wax_zone_max_gap_m`` at the closing load.
     closed_gap_m, tol_n : float
         Closed gap [m] and bisection tolerance [N].
     """
@@ -509,24 +523,26 @@ def closing_load(
         if not (math.isfinite(v) and v > 0):
             raise InputError(f"{name} must be finite and > 0, got {v!r}")
     solves = 0
+    zone = wax_zone if wax_zone is not None else Pocket(closed_gap_m, math.nan, math.nan, 0, 0)
 
-    def r(f: float) -> float:
+    def solve(f: float) -> tuple[float, float]:
         nonlocal solves
         solves += 1
-        return residual_camber(profile_fn(f, load_position_m), wax_zone)
+        p = profile_fn(f, load_position_m)
+        return residual_camber(p), wax_zone_max_gap(p, zone)
 
     lo = min(open_load_n, max_load_n)
-    r_lo = r(lo)
+    r_lo, z_lo = solve(lo)
     if r_lo <= closed_gap_m:
-        lo, hi, r_hi = 0.0, lo, r_lo
+        lo, hi, r_hi, z_hi = 0.0, lo, r_lo, z_lo
     else:
-        hi = lo
-        r_hi = r_lo
+        hi, r_hi, z_hi = lo, r_lo, z_lo
         while r_hi > closed_gap_m:
             if hi >= max_load_n:
                 return ClosingLoad(
                     float("nan"),
                     r_hi,
+                    z_hi,
                     (hi, float("nan")),
                     tol_n,
                     max_load_n,
@@ -538,13 +554,13 @@ def closing_load(
                 )
             lo = hi
             hi = min(2.0 * hi, max_load_n)
-            r_hi = r(hi)
+            r_hi, z_hi = solve(hi)
     it = 0
     while hi - lo > tol_n and it < max_iterations:
         mid = 0.5 * (lo + hi)
-        r_mid = r(mid) if mid > 0 else math.inf
+        r_mid, z_mid = solve(mid)
         if r_mid <= closed_gap_m:
-            hi, r_hi = mid, r_mid
+            hi, r_hi, z_hi = mid, r_mid, z_mid
         else:
             lo = mid
         it += 1
@@ -552,6 +568,7 @@ def closing_load(
     return ClosingLoad(
         0.5 * (lo + hi),
         r_hi,
+        z_hi,
         (lo, hi),
         tol_n,
         max_load_n,
@@ -624,8 +641,8 @@ def flex_sheet(
     wax = pocket(half.positions_m, half.gap_m, pocket_position_m, closed_gap_m)
     closing = closing_load(
         profile_fn,
-        wax,
         pocket_position_m,
+        wax_zone=wax,
         open_load_n=0.5 * w,
         max_load_n=3.0 * w if max_closing_load_n is None else max_closing_load_n,
         closed_gap_m=closed_gap_m,
