@@ -48,7 +48,7 @@ from app.service import Catalogue, ContactInputs, Ski, UnknownItemError, contact
 from app.storage.common import code_version
 from app.storage.skis import identification_for_sampling
 from solvers.band import Z90, unit_perturbations
-from solvers.beam import BeamFlexibility
+from solvers.beam import BeamFlexibility, BeamSki
 from solvers.elastic import effective_modulus
 from solvers.errors import InputError, NotConvergedError, OutOfRangeError
 from solvers.flex import (
@@ -129,16 +129,32 @@ class FlexRequest:
 
 
 def _beam_fn(ski: Ski):
-    """The flat-profile callable of the beam the ski's profile model answers with (flexibility
-    kept with the record), or None for a network ski."""
+    """The flat-profile callable of the beam the ski's profile model answers with (its
+    flexibility is the profile model's own), or None for a network ski."""
     pm = profile_model(ski.record)
     if pm.beam is None:
         return None
-    store = ski.record.cache.get("flex_nominal")
-    if store is None or store[0] is not pm.beam:
-        store = (pm.beam, BeamFlexibility(pm.beam))
-        ski.record.cache["flex_nominal"] = store
-    return beam_profile(pm.beam, store[1])
+
+    def fn(load_n: float, load_position_m: float) -> FlatProfile:
+        res = pm.beam_result(load_n, load_position_m)
+        return FlatProfile(res.positions_m, res.gap_m, res.reaction_n, load_n, load_position_m)
+
+    return fn
+
+
+#: node spacing of the band's beam draws and of their nominal [m]: twice the served beam's
+#: 1 mm, as the contact band solves its draws on the grid twice as coarse (a 1 mm flexibility
+#: is 32 MB, held per draw and ski)
+BAND_NODE_SPACING_M = 2e-3
+
+
+def _coarse(beam: BeamSki) -> BeamSki:
+    """``beam`` on every k-th node, k = round(:data:`BAND_NODE_SPACING_M` / dx) (≥ 1)."""
+    k = max(1, round(BAND_NODE_SPACING_M / beam.spacing_m))
+    if k == 1:
+        return beam
+    sl = slice(None, None, k)
+    return BeamSki(beam.positions_m[sl], beam.bending_stiffness_nm2[sl], beam.unloaded_gap_m[sl])
 
 
 def _network_fn(record, delta_m: np.ndarray | None = None):
@@ -174,15 +190,18 @@ def _draw_fns(ski: Ski) -> tuple[list, str, float | None]:
                 if ib is None
                 else sample_beams(ib, BEAM_SAMPLES, BAND_SEED, scale=BEAM_SCALE, antithetic=True)
             )
-            store = (rec.identified, [(b, BeamFlexibility(b)) for b in beams])
+            coarse = [_coarse(b) for b in ([pm.beam, *beams] if beams else [])]
+            store = (rec.identified, [(b, BeamFlexibility(b)) for b in coarse])
             rec.cache["flex_draws"] = store
         if not store[1]:
             return [], "identified beam: no covariance stored with the identification", None
+        fns = [beam_profile(b, f) for b, f in store[1]]
         return (
-            [beam_profile(b, f) for b, f in store[1]],
-            f"identified beam: {len(store[1])} plausible beams (EI(X), c(X)) drawn from the "
+            fns,
+            f"identified beam: {len(fns) - 1} plausible beams (EI(X), c(X)) drawn from the "
             f"fit's covariance in antithetic pairs, deviations × {BEAM_SCALE:g}, seed "
-            f"{BAND_SEED}",
+            f"{BAND_SEED}; their spread about the served beam, both on "
+            f"{BAND_NODE_SPACING_M * 1e3:g} mm nodes",
             BEAM_SCALE,
         )
     probe = _network_fn(rec)(float(np.mean(ski.load_range_n)), float(np.mean(ski.position_range_m)))
@@ -290,13 +309,17 @@ def compute_sheet(cat: Catalogue, req: FlexRequest, *, band: bool = True) -> dic
     draw_sheets: list[FlexSheet] = []
     if band:
         draws_fns, band_source, scale = _draw_fns(ski)
+        reference = nominal
+        if scale is not None:  # beam draws: the first is the served beam on their nodes
+            reference = _sheet(ski, w_n, draws_fns[0]).scalars()
+            draws_fns = draws_fns[1:]
         draw_sheets = [_sheet(ski, w_n, fn) for fn in draws_fns]
         exact = profile_model(ski.record).source == "design_beam"
         for k, v in nominal.items():
             if exact:
                 widths[k] = 0.0 if math.isfinite(v) else float("nan")
             else:
-                widths[k] = _half_width(v, [d.scalars()[k] for d in draw_sheets])
+                widths[k] = _half_width(reference[k], [d.scalars()[k] for d in draw_sheets])
     t2 = time.perf_counter()
     snow = None
     if req.snow_modulus_mpa is not None:
