@@ -69,6 +69,7 @@ from solvers.errors import InputError, NotConvergedError
 __all__ = [
     "CLOSED_GAP_M",
     "CLOSING_TOL_N",
+    "CONTACT_GAP_M",
     "GLIDE_POSITION_M",
     "POCKET_POSITION_M",
     "WAX_GAPS_M",
@@ -603,6 +604,7 @@ def flex_sheet(
     closed_gap_m: float = CLOSED_GAP_M,
     closing_tol_n: float = CLOSING_TOL_N,
     max_closing_load_n: float | None = None,
+    contact_gap_m: float = CONTACT_GAP_M,
 ) -> FlexSheet:
     """The flex sheet of one ski on the rigid flat (module docstring).
 
@@ -623,6 +625,9 @@ def flex_sheet(
         Bisection tolerance of the closing load [N].
     max_closing_load_n : float, optional
         Largest load the closing search tries [N]; default 3 W.
+    contact_gap_m : float
+        A node touches when its gap is at most this [m] (wheelbase): 0 for a beam, about the
+        model's error for a profile model whose contact is not exactly 0.
     """
     if not (math.isfinite(body_weight_n) and body_weight_n > 0):
         raise InputError(f"body_weight_n must be finite and > 0, got {body_weight_n!r}")
@@ -665,7 +670,7 @@ def flex_sheet(
         closing=closing,
         kick_share_half=share(half),
         kick_share_full=share(full),
-        zones=contact_zones(full, wax),
+        zones=contact_zones(full, wax, contact_gap_m=contact_gap_m),
         glide=glide_check(glide_p, wax, closed_gap_m),
         half=half,
         full=full,

@@ -442,3 +442,22 @@ def test_cli_flex(capsys):
     assert "closing load" in capsys.readouterr().out
     assert main(["flex", "--ski", "nope", "--body-weight-kg", "75"]) == 2
     assert "unknown ski" in capsys.readouterr().err
+
+
+def test_network_ski_gets_perturbation_band_and_no_flat_reactions(cat):
+    """A ski answered by its camber network: pockets and closing load from the network's
+    profiles with a band from its own error; no reactions, so no kick share on the flat; its
+    closing load agrees with the identified beam's within the two bands combined."""
+    ski = cat.ski("ski-a")
+    c2 = service.Catalogue(tables_dir=cat.tables_dir, grinds=cat.grinds)
+    rec = dataclasses.replace(ski.record, identified=None, cache={})
+    c2.skis["net"] = service.Ski("net", ski.path, ski.sha256, rec)
+    net = flex.flex_sheet_answer(c2, flex.FlexRequest("net", 30.0))
+    assert net["provenance"]["ski"]["profile_model"] == "network"
+    assert net["band"]["draws"] == 8 and net["band"]["beam_deviation_scale"] is None
+    assert net["kick_zone"]["flat"]["full_weight_percent"] is None
+    assert net["wheelbase"]["wheelbase_mm"] is not None
+    beam = flex.flex_sheet_answer(cat, flex.FlexRequest("ski-a", 30.0))
+    a, b = net["closing_load"], beam["closing_load"]
+    assert a["band_kg"] > 0
+    assert abs(a["load_kg"] - b["load_kg"]) <= math.hypot(a["band_kg"], b["band_kg"])
