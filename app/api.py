@@ -17,7 +17,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from app import api_catalogue, api_flex, service, web
+from app import api_catalogue, api_flex, service, web, web_flex
 from app.access import WriteGuardMiddleware, visible_catalogue
 from app.profiles import profile_model
 from app.schemas import CompareBody, ContactBody
@@ -280,4 +280,5 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
     api_flex.mount(app)
     api_catalogue.mount(app)
     web.mount(app)
+    web_flex.mount(app)
     return app
