@@ -25,10 +25,10 @@ Band (90 % half-width, absolute, in the quantity's unit)
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import math
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -113,7 +113,7 @@ def field_error(exc_type, field: str, message: str):
     return exc
 
 
-@dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True)
 class FlexRequest:
     """One flex sheet in technician units (validated by the route)."""
 
@@ -697,7 +697,7 @@ def flex_pair(
     for side, name in (("left", left), ("right", right)):
         try:
             sheets[side] = flex_sheet_answer(
-                cat, FlexRequest(**{**req.__dict__, "ski": name}), profiles=False
+                cat, dataclasses.replace(req, ski=name), profiles=False
             )
         except (InputError, OutOfRangeError) as exc:
             if getattr(exc, "field", None) == "ski":
@@ -793,7 +793,7 @@ def flex_ranking(
     key, larger, why = CRITERIA[criterion]
     left_out, entries = [], []
     for s in skis:
-        sheet = flex_sheet_answer(cat, FlexRequest(**{**req.__dict__, "ski": s}), profiles=False)
+        sheet = flex_sheet_answer(cat, dataclasses.replace(req, ski=s), profiles=False)
         c = sheet["closing_load"]
         reason = None
         if not c["closes_at_full_weight"]:
