@@ -480,3 +480,25 @@ def test_a_ski_paired_with_its_true_beam_is_not_flagged(cat, name):
         assert not out["flagged"], out["flagged_quantities"]
         nonzero += sum(r["difference"] not in (0, None) for r in out["flex_differences"])
     assert nonzero > 0
+
+
+@pytest.mark.parametrize(
+    ("url", "field"),
+    [
+        ("/flex?ski=flex-a&body_weight_kg=abc", "body_weight_kg"),
+        ("/flex?ski=flex-a&body_weight_kg=120", "body_weight_kg"),
+        ("/flex?ski=nope&body_weight_kg=75", "ski"),
+        ("/flex/pair?left=flex-a&right=nope&body_weight_kg=75", "right"),
+        (
+            "/flex/pair?left=flex-a&right=flex-a&body_weight_kg=75&grind=tiny-grind&porosity=",
+            "porosity",
+        ),
+        ("/flex/ranking?grind=tiny-grind&body_weight_kg=75", "skis"),
+        ("/flex/ranking?ski=flex-a&body_weight_kg=75", "grinds"),
+        ("/flex/ranking?ski=flex-a&grind=tiny-grind&body_weight_kg=75&criterion=x", "criterion"),
+    ],
+)
+def test_flex_pages_show_bad_input_next_to_its_field(client, url, field):
+    r = client.get(url)
+    assert r.status_code == 422, r.text[:300]
+    assert f'id="{field}-error"' in r.text
