@@ -291,6 +291,7 @@ def _sheet(ski: Ski, w_n: float, fn=None) -> FlexSheet:
         fn if fn is not None else _profile_fn(ski),
         w_n,
         max_closing_load_n=ski.load_range_n[1],
+        min_closing_load_n=ski.load_range_n[0],
         contact_gap_m=NETWORK_CONTACT_GAP_M if network else CONTACT_GAP_M,
     )
 
@@ -485,13 +486,17 @@ def _answer(req: FlexRequest, out: dict, *, profiles: bool) -> dict:
             "load_kg": _num(c_kg),
             "band_kg": _num(units.n_to_kg(wid.get("closing_load_n", float("nan")))),
             "closes_below_max": closing.closes,
+            "closed_at_min_load": closing.closed_at_min,
+            "min_load_kg": _num(units.n_to_kg(closing.bracket_n[1]))
+            if closing.closed_at_min
+            else None,
             "max_load_kg": _num(units.n_to_kg(closing.max_load_n)),
             "tolerance_kg": _num(units.n_to_kg(closing.tolerance_n)),
             "residual_camber_mm": _mm(closing.residual_gap_m),
             "wax_zone_max_gap_mm": _mm(closing.wax_zone_max_gap_m),
             "draws_not_closing": out["draws_not_closing"],
-            "closes_at_full_weight": bool(closing.closes and closing.load_n <= full_w),
-            "open_at_half_weight": bool(closing.closes is False or closing.load_n > half_w),
+            "closes_at_full_weight": closing.closed_at(full_w),
+            "open_at_half_weight": not closing.closed_at(half_w),
         },
         "kick_zone": {
             "flat": {
@@ -804,9 +809,14 @@ def flex_ranking(
                 else f"the pocket does not close up to {c['max_load_kg']} kg"
             )
         elif not c["open_at_half_weight"]:
+            closing = (
+                f"closed already at {c['min_load_kg']} kg, the lightest load its camber model "
+                "covers"
+                if c["closed_at_min_load"]
+                else f"closing load {c['load_kg']} kg"
+            )
             reason = (
-                f"the pocket is closed at half weight ({0.5 * req.body_weight_kg:g} kg; "
-                f"closing load {c['load_kg']} kg)"
+                f"the pocket is closed at half weight ({0.5 * req.body_weight_kg:g} kg; {closing})"
             )
         if reason:
             left_out.append({"ski": s, "reason": reason, "closing_load_kg": c["load_kg"]})

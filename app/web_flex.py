@@ -117,6 +117,12 @@ def _request(q: dict, errors: dict, ski: str, snow_required: bool) -> flex.FlexR
     return flex.FlexRequest(ski, w, e, n)
 
 
+def _closing_note(c: dict) -> str:
+    if c["closed_at_min_load"]:
+        return f"≤ {_v(c['min_load_kg'])} (closed at the lightest load the camber model covers)"
+    return "" if c["closes_below_max"] else f"(does not close up to {_v(c['max_load_kg'])} kg)"
+
+
 def _sheet_html(ans: dict) -> str:
     rows = "".join(
         f"<tr><td>≥ {p['gap_mm']:.2f} mm</td>"
@@ -148,7 +154,7 @@ def _sheet_html(ans: dict) -> str:
 <table id="flex-numbers">
 <tr data-number="closing_load_kg"><th>Closing load (0.10 mm under the foot) [kg]</th><td><span
 class=value>{_v(c["load_kg"])}</span>{" ± " + _v(c["band_kg"], 2) if c["band_kg"] else ""}
-{"" if c["closes_below_max"] else f"(does not close up to {_v(c['max_load_kg'])} kg)"}</td></tr>
+{_closing_note(c)}</td></tr>
 <tr><th>Open at half weight / closed at full weight</th><td>{_v(c["open_at_half_weight"])} /
 {_v(c["closes_at_full_weight"])}</td></tr>
 <tr><th>Kick-zone load on the flat [%]</th><td>half {_v(k["flat"]["half_weight_percent"])}, full

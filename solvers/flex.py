@@ -33,8 +33,9 @@ Closing load [N]
     The smallest F at x_F with r(F) ≤ 0.10 mm (the paper under the foot is clamped), by
     bisection on F to ``closing_tol_n`` (default :data:`CLOSING_TOL_N`, 0.05 kg): the answer
     is the middle of the last bracket, within ``tol/2`` of the discrete model's closing load.
-    NaN when the pocket does not close up to ``max_load_n``. At that load the wax zone ahead of
-    and behind the foot may still stand open (``wax_zone_max_gap_m``).
+    NaN when the pocket does not close up to ``max_load_n``, or is closed already at
+    ``min_load_n`` (``closed_at_min``; the profile model's range ends there). At the closing load
+    the wax zone ahead of and behind the foot may still stand open (``wax_zone_max_gap_m``).
 Kick-zone load share [-]
     Contact force on the nodes inside the wax zone (ends included) over the total contact
     force, under full and under half weight at x_F. On the rigid flat it is zero at half
@@ -42,8 +43,9 @@ Kick-zone load share [-]
     :mod:`solvers.flexible`) the service passes the row forces to :func:`span_load_share`.
 Wheelbase [m]
     Distance between the rear and the front contact zones under full weight at x_F: from the
-    front end of the last contact run behind the wax zone to the rear end of the first contact
-    run ahead of it (runs: nodes with gap ≤ ``contact_gap_m``). ``centroid_distance_m`` is the
+    front end of the last contact run that starts behind the wax zone to the rear end of the
+    first contact run that ends ahead of it (runs: nodes with gap ≤ ``contact_gap_m``; the foot
+    stands in for a closed wax zone). ``centroid_distance_m`` is the
     distance between the two zones' force centroids (their geometric midpoints without
     reactions).
 Glide check
@@ -180,6 +182,9 @@ class ClosingLoad:
         Largest load tried [N].
     closes : bool
         The pocket closed at or below ``max_load_n``.
+    closed_at_min : bool
+        It is closed already at ``min_load_n``, the smallest load tried: ``load_n`` is NaN and
+        the closing load is somewhere below (the profile model is not asked below its range).
     converged, iterations, message :
         Diagnostics (``iterations``: profile solves).
     """
@@ -191,9 +196,14 @@ class ClosingLoad:
     tolerance_n: float
     max_load_n: float
     closes: bool
+    closed_at_min: bool
     converged: bool
     iterations: int
     message: str
+
+    def closed_at(self, load_n: float) -> bool:
+        """The pocket is closed under ``load_n`` [N] (by the bisection's answer)."""
+        return self.closes and (self.closed_at_min or self.load_n <= load_n)
 
 
 @dataclass(frozen=True)
@@ -432,17 +442,20 @@ def contact_zones(
     profile: FlatProfile, wax_zone: Pocket, *, contact_gap_m: float = CONTACT_GAP_M
 ) -> ContactZones:
     """The contact zones behind and ahead of the wax zone (or of the foot when the wax zone is
-    closed) and the wheelbase between them (module docstring)."""
+    closed) and the wheelbase between them (module docstring). One run reaching from behind
+    the wax zone to ahead of it (the ski touching all along) gives NaN."""
     x, g = _check_profile(profile.positions_m, profile.gap_m)
     if wax_zone.is_open:
         rear_limit, front_limit = wax_zone.start_m, wax_zone.end_m
     else:
         rear_limit = front_limit = profile.load_position_m
     runs = _runs(g <= contact_gap_m)
-    rear = [r for r in runs if x[r[1]] <= rear_limit]
-    front = [r for r in runs if x[r[0]] >= front_limit]
+    # a zone may reach into the wax zone (full weight closes it from its ends): the rear zone
+    # is the last run that starts behind the wax zone, the front one the first that ends ahead
+    rear = [r for r in runs if x[r[0]] < rear_limit]
+    front = [r for r in runs if x[r[1]] > front_limit]
     nan = float("nan")
-    if not rear or not front:
+    if not rear or not front or rear[-1] == front[0]:
         return ContactZones((nan, nan), (nan, nan), nan, nan)
     r, f = rear[-1], front[0]
     rear_m = (float(x[r[0]]), float(x[r[1]]))
@@ -497,6 +510,7 @@ def closing_load(
     *,
     open_load_n: float,
     max_load_n: float,
+    min_load_n: float = 0.0,
     wax_zone: Pocket | None = None,
     closed_gap_m: float = CLOSED_GAP_M,
     tol_n: float = CLOSING_TOL_N,
@@ -515,6 +529,8 @@ def closing_load(
         until the pocket is closed, or the search goes down to 0 when it is closed already.
     max_load_n : float
         Largest load to try [N] (the profile model's range).
+    min_load_n : float
+        Smallest load to try [N], ≥ 0 (the profile model's range).
     wax_zone : Pocket, optional
         Reports ``wax_zone_max_gap_m`` at the closing load.
     closed_gap_m, tol_n : float
@@ -523,6 +539,8 @@ def closing_load(
     for name, v in (("open_load_n", open_load_n), ("max_load_n", max_load_n), ("tol_n", tol_n)):
         if not (math.isfinite(v) and v > 0):
             raise InputError(f"{name} must be finite and > 0, got {v!r}")
+    if not (math.isfinite(min_load_n) and 0 <= min_load_n < max_load_n):
+        raise InputError(f"min_load_n must be in [0, max_load_n), got {min_load_n!r}")
     solves = 0
     zone = wax_zone if wax_zone is not None else Pocket(closed_gap_m, math.nan, math.nan, 0, 0)
 
@@ -532,10 +550,27 @@ def closing_load(
         p = profile_fn(f, load_position_m)
         return residual_camber(p), wax_zone_max_gap(p, zone)
 
-    lo = min(open_load_n, max_load_n)
+    lo = min(max(open_load_n, min_load_n), max_load_n)
     r_lo, z_lo = solve(lo)
     if r_lo <= closed_gap_m:
-        lo, hi, r_hi, z_hi = 0.0, lo, r_lo, z_lo
+        if min_load_n > 0:
+            r_min, z_min = solve(min_load_n) if lo > min_load_n else (r_lo, z_lo)
+            if r_min <= closed_gap_m:
+                return ClosingLoad(
+                    float("nan"),
+                    r_min,
+                    z_min,
+                    (float("nan"), min_load_n),
+                    tol_n,
+                    max_load_n,
+                    True,
+                    True,
+                    True,
+                    solves,
+                    f"closed already at {min_load_n:.4g} N, the smallest load tried "
+                    f"(residual camber {r_min * 1e3:.3f} mm)",
+                )
+        lo, hi, r_hi, z_hi = min_load_n, lo, r_lo, z_lo
     else:
         hi, r_hi, z_hi = lo, r_lo, z_lo
         while r_hi > closed_gap_m:
@@ -547,6 +582,7 @@ def closing_load(
                     (hi, float("nan")),
                     tol_n,
                     max_load_n,
+                    False,
                     False,
                     True,
                     solves,
@@ -574,6 +610,7 @@ def closing_load(
         tol_n,
         max_load_n,
         True,
+        False,
         converged,
         solves,
         "bracket within tolerance" if converged else f"stopped after {it} bisections",
@@ -604,6 +641,7 @@ def flex_sheet(
     closed_gap_m: float = CLOSED_GAP_M,
     closing_tol_n: float = CLOSING_TOL_N,
     max_closing_load_n: float | None = None,
+    min_closing_load_n: float = 0.0,
     contact_gap_m: float = CONTACT_GAP_M,
 ) -> FlexSheet:
     """The flex sheet of one ski on the rigid flat (module docstring).
@@ -625,6 +663,8 @@ def flex_sheet(
         Bisection tolerance of the closing load [N].
     max_closing_load_n : float, optional
         Largest load the closing search tries [N]; default 3 W.
+    min_closing_load_n : float
+        Smallest load the closing search tries [N] (the profile model's range).
     contact_gap_m : float
         A node touches when its gap is at most this [m] (wheelbase): 0 for a beam, about the
         model's error for a profile model whose contact is not exactly 0.
@@ -650,6 +690,7 @@ def flex_sheet(
         wax_zone=wax,
         open_load_n=0.5 * w,
         max_load_n=3.0 * w if max_closing_load_n is None else max_closing_load_n,
+        min_load_n=min_closing_load_n,
         closed_gap_m=closed_gap_m,
         tol_n=closing_tol_n,
     )

@@ -153,6 +153,14 @@ def test_closing_load_of_a_linear_foot_gap():
         assert abs(c.load_n - (c0 - CLOSED_GAP_M) / k) <= tol / 2
     c = closing_load(fn, 0.0, open_load_n=100.0, max_load_n=400.0)
     assert not c.closes and math.isnan(c.load_n) and "does not close" in c.message
+    assert not c.closed_at(400.0)
+    # the profile model's range starts above the closing load: closed at its lightest load
+    c = closing_load(fn, 0.0, open_load_n=700.0, max_load_n=2000.0, min_load_n=600.0)
+    assert c.closes and c.closed_at_min and math.isnan(c.load_n)
+    assert c.closed_at(600.0) and "closed already" in c.message
+    # ... and below it: the bisection runs from there
+    c = closing_load(fn, 0.0, open_load_n=700.0, max_load_n=2000.0, min_load_n=300.0, tol_n=tol)
+    assert not c.closed_at_min and abs(c.load_n - 500.0) <= tol / 2
 
 
 def test_span_share_and_wheelbase_on_a_made_up_profile():
@@ -173,6 +181,14 @@ def test_span_share_and_wheelbase_on_a_made_up_profile():
     assert z.rear_m == pytest.approx((-0.5, -0.4)) and z.front_m == pytest.approx((0.3, 0.35))
     assert z.wheelbase_m == pytest.approx(0.7)
     assert z.centroid_distance_m == pytest.approx(0.32 + 0.45)
+    # the rear zone reaching into the wax zone is still the rear zone
+    g2 = g.copy()
+    g2[(x >= -0.5 - eps) & (x <= -0.1 + eps)] = 0.0
+    z2 = contact_zones(FlatProfile(x, g2, f, 100.0, -0.08), wax)
+    assert z2.rear_m == pytest.approx((-0.5, -0.1)) and z2.wheelbase_m == pytest.approx(0.4)
+    # one run under the whole ski: no wheelbase
+    z3 = contact_zones(FlatProfile(x, np.zeros_like(x), f, 100.0, -0.08), wax)
+    assert math.isnan(z3.wheelbase_m)
 
 
 def test_kernel_kick_share_equals_the_reactions_inside_the_wax_zone():

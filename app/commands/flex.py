@@ -93,8 +93,13 @@ def run(args: argparse.Namespace) -> int:
             f"[{_fmt(f['start_mm'])}, {_fmt(f['end_mm'])}]"
         )
     c = ans["closing_load"]
-    print(f"closing load      {_fmt(c['load_kg'], 'kg', c['band_kg'])}", end="")
-    print("" if c["closes_below_max"] else f" (does not close up to {c['max_load_kg']} kg)")
+    if c["closed_at_min_load"]:
+        closing = f"≤ {c['min_load_kg']:g} kg (closed at the lightest load the camber model covers)"
+    elif not c["closes_below_max"]:
+        closing = f"does not close up to {c['max_load_kg']:g} kg"
+    else:
+        closing = _fmt(c["load_kg"], "kg", c["band_kg"])
+    print(f"closing load      {closing}")
     k = ans["kick_zone"]
     fl = k["flat"]
     print(
