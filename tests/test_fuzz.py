@@ -69,8 +69,7 @@ from app.settings import Settings
 from solvers.texture import self_affine_surface
 
 #: requests per test in the default (CI) run, 640 in all (+ FLEX_REQUESTS); the slow run sends
-#: ten times more,
-#: in both modes (8800)
+#: ten times more, in both modes (8800)
 REQUESTS = 200
 #: schema-valid contact and compare requests (most of them solved: ~0.1 s each)
 SOLVER_REQUESTS = 120
