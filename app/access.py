@@ -35,11 +35,10 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, replace
 from urllib.parse import urlsplit
 
+from skisnow.app import service
+from skisnow.app.uploads import UnauthorizedError
 from starlette.datastructures import Headers
 from starlette.requests import Request
-
-from app import service
-from app.uploads import UnauthorizedError
 
 __all__ = [
     "READ_ONLY_POSTS",
@@ -208,7 +207,7 @@ class WriteGuardMiddleware:
             or scope.get("path") in READ_ONLY_POSTS
         ):
             return await self.app(scope, receive, send)
-        from app.api import problem
+        from skisnow.app.api import problem
 
         headers = Headers(scope=scope)
         if self.tokens:

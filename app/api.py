@@ -15,14 +15,13 @@ from contextlib import asynccontextmanager
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from skisnow.app import api_catalogue, api_flex, service, web, web_flex
+from skisnow.app.access import WriteGuardMiddleware, visible_catalogue
+from skisnow.app.profiles import profile_model
+from skisnow.app.schemas import CompareBody, ContactBody
+from skisnow.app.settings import Settings
+from skisnow.solvers.errors import InputError, NotConvergedError, OutOfRangeError, SkisnowError
 from starlette.exceptions import HTTPException as StarletteHTTPException
-
-from app import api_catalogue, api_flex, service, web, web_flex
-from app.access import WriteGuardMiddleware, visible_catalogue
-from app.profiles import profile_model
-from app.schemas import CompareBody, ContactBody
-from app.settings import Settings
-from solvers.errors import InputError, NotConvergedError, OutOfRangeError, SkisnowError
 
 log = logging.getLogger(__name__)
 

@@ -17,11 +17,10 @@ from typing import Literal
 from fastapi import FastAPI, Query, Request
 from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, ConfigDict, Field
-
-from app import flex
-from app.access import visible_catalogue
-from app.schemas import PresetName, SkiModelName
-from solvers.errors import InputError
+from skisnow.app import flex
+from skisnow.app.access import visible_catalogue
+from skisnow.app.schemas import PresetName, SkiModelName
+from skisnow.solvers.errors import InputError
 
 Format = Literal["json", "csv"]
 Criterion = Literal["real_area", "reciprocal_separation"]

@@ -49,13 +49,12 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
-
-from solvers import elastic as _elastic
-from solvers import lookup as _lookup
-from solvers import micro as _micro
-from solvers.elastic import PeriodicHalfSpace
-from solvers.errors import InputError
-from solvers.lookup import (
+from skisnow.solvers import elastic as _elastic
+from skisnow.solvers import lookup as _lookup
+from skisnow.solvers import micro as _micro
+from skisnow.solvers.elastic import PeriodicHalfSpace
+from skisnow.solvers.errors import InputError
+from skisnow.solvers.lookup import (
     ERROR_FIELDS,
     PIXEL_EXTRAPOLATION_ORDERS,
     MicroTable,
@@ -66,8 +65,8 @@ from solvers.lookup import (
     solve_table_chunk,
     unloaded_statistics,
 )
-from solvers.micro import DEFAULT_GAP_FLOOR_M, full_contact_pressure
-from solvers.texture import DETREND_METHODS, Texture, iso25178_parameters
+from skisnow.solvers.micro import DEFAULT_GAP_FLOOR_M, full_contact_pressure
+from skisnow.solvers.texture import DETREND_METHODS, Texture, iso25178_parameters
 
 from .storage.common import code_version
 from .storage.tables import read_checkpoint, write_checkpoint, write_manifest, write_table
@@ -552,9 +551,9 @@ def _run(client, jobs, pending, settings, progress, on_chunk_done) -> int:
 
 def _load_textures(specs: Sequence[str], detrend: str | None = None) -> list[Texture]:
     try:
-        from app.storage.textures import load_texture
+        from skisnow.app.storage.textures import load_texture
     except ModuleNotFoundError as exc:
-        if exc.name != "app.storage.textures":
+        if exc.name != "skisnow.app.storage.textures":
             raise
         raise InputError("texture loading is not available (app.storage.textures missing)") from exc
     return [load_texture(spec, detrend=detrend) for spec in specs]
@@ -574,7 +573,7 @@ def _command(args: argparse.Namespace) -> int:
     textures = _load_textures(args.textures, args.detrend)
     refined = None
     if args.pixel_levels == "refine":
-        from app.storage.textures import refined_texture
+        from skisnow.app.storage.textures import refined_texture
 
         if args.detrend is not None:
             raise InputError("--pixel-levels refine takes the stored synthetic texture as is")

@@ -31,9 +31,8 @@ import math
 import time
 
 import numpy as np
-
-from app import units
-from app.band import (
+from skisnow.app import units
+from skisnow.app.band import (
     BAND_SEED,
     BEAM_SAMPLES,
     BEAM_SCALE,
@@ -42,16 +41,16 @@ from app.band import (
     beam_models,
     camber_sigma_m,
 )
-from app.presets import DEFAULT_PRESET, get_preset
-from app.profiles import profile_model
-from app.service import Catalogue, ContactInputs, Ski, UnknownItemError, contact
-from app.storage.common import code_version
-from app.storage.skis import identification_for_sampling
-from solvers.band import Z90, unit_perturbations
-from solvers.beam import BeamFlexibility, BeamSki
-from solvers.elastic import effective_modulus
-from solvers.errors import InputError, NotConvergedError, OutOfRangeError
-from solvers.flex import (
+from skisnow.app.presets import DEFAULT_PRESET, get_preset
+from skisnow.app.profiles import profile_model
+from skisnow.app.service import Catalogue, ContactInputs, Ski, UnknownItemError, contact
+from skisnow.app.storage.common import code_version
+from skisnow.app.storage.skis import identification_for_sampling
+from skisnow.solvers.band import Z90, unit_perturbations
+from skisnow.solvers.beam import BeamFlexibility, BeamSki
+from skisnow.solvers.elastic import effective_modulus
+from skisnow.solvers.errors import InputError, NotConvergedError, OutOfRangeError
+from skisnow.solvers.flex import (
     CLOSED_GAP_M,
     CONTACT_GAP_M,
     GLIDE_POSITION_M,
@@ -62,8 +61,8 @@ from solvers.flex import (
     flex_sheet,
     span_load_share,
 )
-from solvers.flexible import solve_flexible
-from solvers.identify import sample_beams
+from skisnow.solvers.flexible import solve_flexible
+from skisnow.solvers.identify import sample_beams
 
 __all__ = [
     "CRITERIA",
@@ -159,7 +158,7 @@ def _coarse(beam: BeamSki) -> BeamSki:
 
 
 def _network_fn(record, delta_m: np.ndarray | None = None):
-    from solvers import camber
+    from skisnow.solvers import camber
 
     def fn(load_n: float, load_position_m: float) -> FlatProfile:
         x, g = camber.predict_profile(record.network, load_n, load_position_m)

@@ -20,18 +20,17 @@ Three profile models, in the order a ski uses them (``source`` names the one tha
 from __future__ import annotations
 
 import numpy as np
-
-from app.storage.common import provenance
-from app.storage.skis import (
+from skisnow.app.storage.common import provenance
+from skisnow.app.storage.skis import (
     CamberData,
     SkiRecord,
     identified_beam,
     identified_to_dict,
     mean_profiles,
 )
-from solvers.beam import BeamFlexibility, BeamResult, BeamSki, solve_beam_contact
-from solvers.errors import DataFileError, InputError, NotConvergedError, SkisnowError
-from solvers.identify import predict_gaps, profile_sigma
+from skisnow.solvers.beam import BeamFlexibility, BeamResult, BeamSki, solve_beam_contact
+from skisnow.solvers.errors import DataFileError, InputError, NotConvergedError, SkisnowError
+from skisnow.solvers.identify import predict_gaps, profile_sigma
 
 __all__ = [
     "HELD_OUT_ADDED",
@@ -156,7 +155,7 @@ class ProfileModel:
     def __call__(self, load_n: float, load_position_m: float) -> tuple[np.ndarray, np.ndarray]:
         """Positions X [m] and loaded gap H*(X) [m] under F [N] at x_F [m] on the rigid flat."""
         if self.beam is None:
-            from solvers import camber
+            from skisnow.solvers import camber
 
             return camber.predict_profile(self.record.network, load_n, load_position_m)
         res = self.beam_result(load_n, load_position_m)

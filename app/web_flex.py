@@ -18,13 +18,12 @@ from urllib.parse import urlencode
 
 from fastapi import FastAPI, Request
 from fastapi.responses import HTMLResponse
-
-from app import flex
-from app.access import visible_catalogue
-from app.plots import flex_profile_svg
-from app.service import UnknownItemError
-from app.web import _page
-from solvers.errors import SkisnowError
+from skisnow.app import flex
+from skisnow.app.access import visible_catalogue
+from skisnow.app.plots import flex_profile_svg
+from skisnow.app.service import UnknownItemError
+from skisnow.app.web import _page
+from skisnow.solvers.errors import SkisnowError
 
 TABS = (("/flex", "Flex sheet"), ("/flex/pair", "Pair"), ("/flex/ranking", "Ranking"))
 DEFAULTS = {"body_weight_kg": "75", "snow_modulus_mpa": "20", "porosity": "0.5"}

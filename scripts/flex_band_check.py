@@ -17,11 +17,11 @@ import argparse
 import json
 import math
 
-from app import flex
-from app.service import load_catalogue
-from app.storage.common import tables_dir
-from solvers.beam import G_STANDARD
-from solvers.flex import beam_profile, flex_sheet
+from skisnow.app import flex
+from skisnow.app.service import load_catalogue
+from skisnow.app.storage.common import tables_dir
+from skisnow.solvers.beam import G_STANDARD
+from skisnow.solvers.flex import beam_profile, flex_sheet
 
 
 def main(argv: list[str] | None = None) -> dict:

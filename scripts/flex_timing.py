@@ -18,9 +18,8 @@ import time
 
 import numpy as np
 from fastapi.testclient import TestClient
-
-from app.api import create_app
-from app.settings import Settings
+from skisnow.app.api import create_app
+from skisnow.app.settings import Settings
 
 
 def main(argv: list[str] | None = None) -> dict:

@@ -64,9 +64,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-
-from solvers.beam import G_STANDARD, BeamFlexibility, BeamSki, solve_beam_contact
-from solvers.errors import InputError, NotConvergedError
+from skisnow.solvers.beam import G_STANDARD, BeamFlexibility, BeamSki, solve_beam_contact
+from skisnow.solvers.errors import InputError, NotConvergedError
 
 __all__ = [
     "CLOSED_GAP_M",

@@ -71,8 +71,8 @@ def _serve(app):
 
 @pytest.fixture(scope="module")
 def server(catalogue):
-    from app.api import create_app
-    from app.settings import Settings
+    from skisnow.app.api import create_app
+    from skisnow.app.settings import Settings
 
     with _serve(create_app(Settings(), catalogue=catalogue)) as url:
         yield url
@@ -82,9 +82,9 @@ def server(catalogue):
 def upload_server(catalogue, tmp_path_factory):
     """The app on its own data directory and a copy of the catalogue, with table settings so
     small that a grind's table builds in seconds (as tests/test_uploads.py)."""
-    from app import service
-    from app.api import create_app
-    from app.settings import Settings
+    from skisnow.app import service
+    from skisnow.app.api import create_app
+    from skisnow.app.settings import Settings
 
     cat = service.Catalogue(
         tables_dir=catalogue.tables_dir, skis=dict(catalogue.skis), grinds=dict(catalogue.grinds)
@@ -216,8 +216,7 @@ def _npy_bytes(a) -> bytes:
 
 def test_upload_a_grind_then_compute_with_it(upload_server, page, tmp_path):
     import numpy as np
-
-    from solvers.texture import self_affine_surface
+    from skisnow.solvers.texture import self_affine_surface
 
     errors: list[str] = []
     page.on("pageerror", lambda exc: errors.append(str(exc)))
@@ -294,11 +293,10 @@ def flex_server(catalogue):
     """The test catalogue plus the flex sheet's design skis of tests/test_flex.py."""
     import dataclasses
 
+    from skisnow.app import service
+    from skisnow.app.api import create_app
+    from skisnow.app.settings import Settings
     from test_flex import DESIGNS
-
-    from app import service
-    from app.api import create_app
-    from app.settings import Settings
 
     rec = catalogue.ski("ski-a").record
     cat = service.Catalogue(

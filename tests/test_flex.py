@@ -16,22 +16,21 @@ import math
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-
-from app import flex, service
-from app.api import create_app
-from app.presets import get_preset
-from app.profiles import profile_model
-from app.settings import Settings
-from solvers.beam import (
+from skisnow.app import flex, service
+from skisnow.app.api import create_app
+from skisnow.app.presets import get_preset
+from skisnow.app.profiles import profile_model
+from skisnow.app.settings import Settings
+from skisnow.solvers.beam import (
     G_STANDARD,
     OTHER_DESIGNS,
     BeamFlexibility,
     ClassicSkiDesign,
     solve_beam_contact,
 )
-from solvers.elastic import effective_modulus
-from solvers.errors import InputError
-from solvers.flex import (
+from skisnow.solvers.elastic import effective_modulus
+from skisnow.solvers.errors import InputError
+from skisnow.solvers.flex import (
     CLOSED_GAP_M,
     FlatProfile,
     beam_profile,
@@ -41,7 +40,7 @@ from solvers.flex import (
     pocket,
     span_load_share,
 )
-from solvers.flexible import prepare_flexible, solve_flexible
+from skisnow.solvers.flexible import prepare_flexible, solve_flexible
 
 W_KG = 75.0
 FOOT_M = -0.08
@@ -450,7 +449,7 @@ def test_bad_input_is_a_named_4xx(client, method, path, params, status, field):
 
 
 def test_cli_flex(capsys):
-    from app.cli import main
+    from skisnow.app.cli import main
 
     assert main(["flex", "--ski", "ski-b", "--body-weight-kg", "75", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)

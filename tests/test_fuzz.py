@@ -62,12 +62,11 @@ from hypothesis import strategies as st
 from hypothesis.errors import Unsatisfiable
 from schemathesis import GenerationMode
 from schemathesis.python import asgi
-
-from app import service
-from app.access import READ_ONLY_POSTS, WRITE_METHODS
-from app.api import create_app
-from app.settings import Settings
-from solvers.texture import self_affine_surface
+from skisnow.app import service
+from skisnow.app.access import READ_ONLY_POSTS, WRITE_METHODS
+from skisnow.app.api import create_app
+from skisnow.app.settings import Settings
+from skisnow.solvers.texture import self_affine_surface
 
 #: requests per test in the default (CI) run, 640 in all (+ FLEX_REQUESTS); the slow run sends
 #: ten times more, in both modes (8800)

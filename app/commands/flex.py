@@ -9,10 +9,10 @@ from __future__ import annotations
 import argparse
 import json
 
-from app import flex, service
-from app.storage.common import sha256_file, tables_dir
-from app.storage.skis import read_ski
-from solvers.errors import InputError
+from skisnow.app import flex, service
+from skisnow.app.storage.common import sha256_file, tables_dir
+from skisnow.app.storage.skis import read_ski
+from skisnow.solvers.errors import InputError
 
 __all__ = ["register", "run"]
 
