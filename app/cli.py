@@ -20,6 +20,7 @@ COMMAND_MODULES = [
     "skisnow.app.build_tables",
     "skisnow.app.bench",
     "skisnow.app.commands.macro",
+    "skisnow.app.commands.flex",
     "skisnow.app.commands.identify",
     "skisnow.app.train_camber",
     "skisnow.app.commands.serve",

@@ -405,3 +405,51 @@ def misfit_svg(identification: dict) -> str:
     # the axis is not cut at 0: the spread about the noise is what the plot is for
     fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=3)
     return _svg(fig)
+
+
+#: wax-layer lines of the flex sheet's profile plot: gap [mm] and hard-wax layers
+FLEX_WAX_LINES = ((0.10, "2 layers"), (0.15, "3 layers"), (0.20, "4 layers"), (0.30, "6 layers"))
+
+
+def flex_profile_svg(answer: dict) -> str:
+    """The loaded gap H*(X) on the rigid flat under half and full body weight at the pocket's
+    foot position (an answer of :func:`app.flex.flex_sheet_answer` with ``profiles``), the
+    wax-layer lines (0.10/0.15/0.20/0.30 mm) and the wax zone (the 0.10 mm pocket under half
+    weight) shaded; the foot is a vertical line. Units: mm on both axes."""
+    prof = answer["profiles"]
+    x = _array(prof["positions_mm"])
+    half = _array(prof["half_weight_gap_mm"])
+    full = _array(prof["full_weight_gap_mm"])
+    w = answer["inputs"]["body_weight_kg"]
+    fig, ax = _figure(
+        f"{answer['inputs']['ski']}: loaded camber on the flat, foot at "
+        f"{answer['inputs']['pocket_position_mm']:g} mm",
+        "gap H*(X) [mm]",
+    )
+    ax.plot(x, half, color=_COLOURS[0], lw=1.4, label=f"half weight ({0.5 * w:g} kg)")
+    ax.plot(x, full, color=_COLOURS[1], lw=1.4, label=f"full weight ({w:g} kg)")
+    for gap, layers in FLEX_WAX_LINES:
+        ax.axhline(gap, color="0.4", lw=0.7, ls="--")
+        ax.annotate(
+            f"{gap:.2f} mm ({layers})",
+            (x[0], gap),
+            textcoords="offset points",
+            xytext=(2, 2),
+            fontsize=7,
+            color="0.3",
+        )
+    wax = answer["wax_zone"]
+    if wax["start_mm"] is not None:
+        ax.axvspan(
+            wax["start_mm"],
+            wax["end_mm"],
+            color=_COLOURS[2],
+            alpha=0.15,
+            label=f"wax zone {wax['length_mm']:.0f} mm (≥ 0.10 mm at half weight)",
+        )
+    ax.axvline(answer["inputs"]["pocket_position_mm"], color="k", lw=0.8, ls=":", label="foot")
+    mid = np.abs(x) < 600
+    top = np.nanmax(half[mid]) if np.any(mid) else np.nanmax(half)
+    ax.set_ylim(0, float(np.clip(1.15 * top, 0.4, 3.0)))
+    ax.legend(fontsize=8, loc="upper right")
+    return _svg(fig)

@@ -1,0 +1,929 @@
+"""The technician's flex sheet, pair matching and a skier's best ski (issue #14; docs/flex.md).
+
+Service functions over :mod:`solvers.flex`: they pick the ski's profile model (the one every
+contact answer uses, :mod:`app.profiles`), check the request against the model's range, add the
+kick-zone load share on snow (the bending ski of :mod:`solvers.flexible` on the preset's grid)
+and the band from the camber model, and shape JSON in technician units (unit in every key).
+
+Band (90 % half-width, absolute, in the quantity's unit)
+    The sheet is computed again for plausible camber models and ``Z90 · rms(draw − nominal)``
+    is the band (:data:`solvers.band.Z90`), as the contact answers' band does
+    (:mod:`app.band`):
+
+    - identified beam: :data:`app.band.BEAM_SAMPLES` beams drawn from the identification's
+      covariance in antithetic pairs, deviations × :data:`app.band.BEAM_SCALE`, seed
+      :data:`app.band.BAND_SEED` (:func:`app.band.beam_models` on snow, the same draws on the
+      flat);
+    - camber network: :data:`app.band.PROFILE_SAMPLES` smooth profile perturbations of the
+      network's own error (:func:`app.band.camber_sigma_m`), the same field at every load;
+    - design beam: taken as exact (band 0), as in every answer.
+
+    On snow the kick-zone share's band adds the difference between the preset's grid and the
+    grid twice as coarse in quadrature.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import math
+import time
+
+import numpy as np
+from skisnow.app import units
+from skisnow.app.band import (
+    BAND_SEED,
+    BEAM_SAMPLES,
+    BEAM_SCALE,
+    PROFILE_CORRELATION_M,
+    PROFILE_SAMPLES,
+    beam_models,
+    camber_sigma_m,
+)
+from skisnow.app.presets import DEFAULT_PRESET, get_preset
+from skisnow.app.profiles import profile_model
+from skisnow.app.service import Catalogue, ContactInputs, Ski, UnknownItemError, contact
+from skisnow.app.storage.common import code_version
+from skisnow.app.storage.skis import identification_for_sampling
+from skisnow.solvers.band import Z90, unit_perturbations
+from skisnow.solvers.beam import BeamFlexibility, BeamSki
+from skisnow.solvers.elastic import effective_modulus
+from skisnow.solvers.errors import InputError, NotConvergedError, OutOfRangeError
+from skisnow.solvers.flex import (
+    CLOSED_GAP_M,
+    CONTACT_GAP_M,
+    GLIDE_POSITION_M,
+    POCKET_POSITION_M,
+    FlatProfile,
+    FlexSheet,
+    beam_profile,
+    flex_sheet,
+    span_load_share,
+)
+from skisnow.solvers.flexible import solve_flexible
+from skisnow.solvers.identify import sample_beams
+
+__all__ = [
+    "CRITERIA",
+    "PAIR_LOAD_POSITION_MM",
+    "FlexRequest",
+    "field_error",
+    "flex_pair",
+    "flex_ranking",
+    "flex_sheet_answer",
+    "pair_csv",
+    "ranking_csv",
+    "sheet_csv",
+]
+
+#: where the pair's and the ranking's contact metrics load the ski: full weight at the glide
+#: check's foot position (gliding on one ski) [mm]
+PAIR_LOAD_POSITION_MM = GLIDE_POSITION_M * 1e3
+#: resolution floors of a pair difference, per kind of number (below these a difference is
+#: not resolved by the sheet itself): lengths and positions one node spacing (set per ski),
+#: loads the bisection tolerance, shares 0.1 percentage point, gaps 1 µm
+SHARE_FLOOR_PERCENT = 0.1
+GAP_FLOOR_MM = 1e-3
+
+#: ranking criteria: (metric key of the contact answer, larger is better, why; method.md §1)
+CRITERIA = {
+    "real_area": (
+        "total_real_contact_area_mm2",
+        True,
+        "largest real contact area: cold, abrasive snow, where friction is dry and a larger "
+        "real area spreads the load over more asperities (lower real pressure, less "
+        "ploughing and wear; method.md §1)",
+    ),
+    "reciprocal_separation": (
+        "total_reciprocal_separation_m",
+        False,
+        "smallest total reciprocal separation: wet snow, where the melt-water film's viscous "
+        "shear and capillary bridges grow with 1/separation (method.md §1)",
+    ),
+}
+
+
+def field_error(exc_type, field: str, message: str):
+    """``exc_type(message)`` that names the request field it comes from (the API puts it in the
+    problem body's ``errors``)."""
+    exc = exc_type(message)
+    exc.field = field
+    return exc
+
+
+@dataclasses.dataclass(frozen=True)
+class FlexRequest:
+    """One flex sheet in technician units (validated by the route)."""
+
+    ski: str
+    body_weight_kg: float
+    snow_modulus_mpa: float | None = None
+    porosity: float | None = None
+    base_modulus_mpa: float = 700.0
+    poisson_ratio: float = 0.3
+    preset: str = DEFAULT_PRESET
+
+
+# ----------------------------------------------------------------------------- profile models
+
+
+def _beam_fn(ski: Ski):
+    """The flat-profile callable of the beam the ski's profile model answers with (its
+    flexibility is the profile model's own), or None for a network ski."""
+    pm = profile_model(ski.record)
+    if pm.beam is None:
+        return None
+
+    def fn(load_n: float, load_position_m: float) -> FlatProfile:
+        res = pm.beam_result(load_n, load_position_m)
+        return FlatProfile(res.positions_m, res.gap_m, res.reaction_n, load_n, load_position_m)
+
+    return fn
+
+
+#: node spacing of the band's beam draws and of their nominal [m]: twice the served beam's
+#: 1 mm, as the contact band solves its draws on the grid twice as coarse (a 1 mm flexibility
+#: is 32 MB, held per draw and ski)
+BAND_NODE_SPACING_M = 2e-3
+
+
+def _coarse(beam: BeamSki) -> BeamSki:
+    """``beam`` on every k-th node, k = round(:data:`BAND_NODE_SPACING_M` / dx) (≥ 1)."""
+    k = max(1, round(BAND_NODE_SPACING_M / beam.spacing_m))
+    if k == 1:
+        return beam
+    sl = slice(None, None, k)
+    return BeamSki(beam.positions_m[sl], beam.bending_stiffness_nm2[sl], beam.unloaded_gap_m[sl])
+
+
+def _network_fn(record, delta_m: np.ndarray | None = None):
+    from skisnow.solvers import camber
+
+    def fn(load_n: float, load_position_m: float) -> FlatProfile:
+        x, g = camber.predict_profile(record.network, load_n, load_position_m)
+        if delta_m is not None:
+            g = np.maximum(g + delta_m, 0.0)
+        return FlatProfile(x, g, None, load_n, load_position_m)
+
+    return fn
+
+
+def _profile_fn(ski: Ski):
+    fn = _beam_fn(ski)
+    return fn if fn is not None else _network_fn(ski.record)
+
+
+def _draw_fns(ski: Ski) -> tuple[list, str, float | None]:
+    """Profile callables of the plausible camber models (module docstring), the band's words and
+    the deviation scale (None for profile perturbations)."""
+    rec = ski.record
+    pm = profile_model(rec)
+    if pm.source == "design_beam":
+        return [], "design beam stored with the ski, taken as exact", None
+    if pm.source == "identified_beam":
+        store = rec.cache.get("flex_draws")
+        if store is None or store[0] is not rec.identified:
+            ib = identification_for_sampling(rec.identified)
+            beams = (
+                []
+                if ib is None
+                else sample_beams(ib, BEAM_SAMPLES, BAND_SEED, scale=BEAM_SCALE, antithetic=True)
+            )
+            coarse = [_coarse(b) for b in ([pm.beam, *beams] if beams else [])]
+            store = (rec.identified, [(b, BeamFlexibility(b)) for b in coarse])
+            rec.cache["flex_draws"] = store
+        if not store[1]:
+            return [], "identified beam: no covariance stored with the identification", None
+        fns = [beam_profile(b, f) for b, f in store[1]]
+        return (
+            fns,
+            f"identified beam: {len(fns) - 1} plausible beams (EI(X), c(X)) drawn from the "
+            f"fit's covariance in antithetic pairs, deviations × {BEAM_SCALE:g}, seed "
+            f"{BAND_SEED}; their spread about the served beam, both on "
+            f"{BAND_NODE_SPACING_M * 1e3:g} mm nodes",
+            BEAM_SCALE,
+        )
+    probe = _network_fn(rec)(float(np.mean(ski.load_range_n)), float(np.mean(ski.position_range_m)))
+    x_net = probe.positions_m
+    sigma, source = camber_sigma_m(rec, x_net)
+    if sigma is None:
+        return [], "camber network: " + source, None
+    unit = unit_perturbations(x_net, PROFILE_CORRELATION_M, PROFILE_SAMPLES, BAND_SEED)
+    return (
+        [_network_fn(rec, u * sigma) for u in unit],
+        f"{source}; {PROFILE_SAMPLES} smooth perturbations (ℓ = "
+        f"{PROFILE_CORRELATION_M * 1e3:g} mm, seed {BAND_SEED}), the same at every load",
+        None,
+    )
+
+
+def _half_width(nominal: float, samples: list[float]) -> float:
+    """Absolute 90 % half-width ``Z90 · rms(sample − nominal)`` over the finite samples; NaN
+    with fewer than two or a non-finite nominal (as :func:`solvers.band.sampled_half_width`)."""
+    v = np.asarray(samples, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size < 2 or not math.isfinite(nominal):
+        return float("nan")
+    return float(Z90 * np.sqrt(np.mean((v - nominal) ** 2)))
+
+
+# ----------------------------------------------------------------------------- the sheet
+
+
+def _check_request(ski: Ski, req: FlexRequest) -> float:
+    """Body weight [N] after the range checks (named fields)."""
+    w = req.body_weight_kg
+    if not (isinstance(w, (int, float)) and math.isfinite(w) and w > 0):
+        raise field_error(InputError, "body_weight_kg", f"body_weight_kg must be > 0, got {w!r}")
+    w_n = units.kg_to_n(w)
+    lo, hi = ski.load_range_n
+    if not (lo * (1 - 1e-9) <= 0.5 * w_n and w_n <= hi * (1 + 1e-9)):
+        raise field_error(
+            OutOfRangeError,
+            "body_weight_kg",
+            f"body_weight_kg {w:g}: half and full weight must lie in the loads the ski "
+            f"{ski.name!r} covers ({units.n_to_kg(lo):.4g} … {units.n_to_kg(hi):.4g} kg), "
+            f"i.e. {2 * units.n_to_kg(lo):.4g} … {units.n_to_kg(hi):.4g} kg; its camber model is "
+            "not extrapolated",
+        )
+    p_lo, p_hi = ski.position_range_m
+    for x in (POCKET_POSITION_M, GLIDE_POSITION_M):
+        if not (p_lo - 1e-12 <= x <= p_hi + 1e-12):
+            raise field_error(
+                OutOfRangeError,
+                "ski",
+                f"the ski {ski.name!r} covers load positions {p_lo * 1e3:g} … {p_hi * 1e3:g} mm, "
+                f"not the flex sheet's {x * 1e3:g} mm",
+            )
+    if req.snow_modulus_mpa is not None:
+        e = req.snow_modulus_mpa
+        if not (math.isfinite(e) and 1 <= e <= 2000):
+            raise field_error(
+                InputError, "snow_modulus_mpa", f"snow_modulus_mpa must be in [1, 2000], got {e}"
+            )
+    if req.porosity is not None and not (0 <= req.porosity < 1):
+        raise field_error(InputError, "porosity", f"porosity must be in [0, 1), got {req.porosity}")
+    return w_n
+
+
+def _snow_shares(ski: Ski, model, sheet: FlexSheet, e_eff: float, *, tol: float = 1e-8):
+    """Kick-zone load share on snow under W/2 and W at the pocket position (bending ski)."""
+    span = (sheet.wax_zone.start_m, sheet.wax_zone.end_m)
+    out = []
+    for f in (0.5 * sheet.body_weight_n, sheet.body_weight_n):
+        res = solve_flexible(model, f, sheet.pocket_position_m, e_eff, tol=tol)
+        if not res.converged:
+            raise NotConvergedError(f"the bending ski on snow did not converge: {res.message}")
+        out.append(span_load_share(model.positions_m, res.extra["beam_reaction_row_n"], span))
+    return out
+
+
+#: contact threshold of a camber network's profile [m]: its contact zones are 0 to about its
+#: own error (1.1 µm RMS on the demo skis), not exactly 0 as a beam's
+NETWORK_CONTACT_GAP_M = 2e-6
+
+
+def _sheet(ski: Ski, w_n: float, fn=None) -> FlexSheet:
+    network = profile_model(ski.record).beam is None
+    return flex_sheet(
+        fn if fn is not None else _profile_fn(ski),
+        w_n,
+        max_closing_load_n=ski.load_range_n[1],
+        min_closing_load_n=ski.load_range_n[0],
+        contact_gap_m=NETWORK_CONTACT_GAP_M if network else CONTACT_GAP_M,
+    )
+
+
+def _mm(v: float, digits: int = 6) -> float | None:
+    return None if not math.isfinite(v) else float(f"{v * 1e3:.{digits}g}")
+
+
+def _num(v: float, digits: int = 6) -> float | None:
+    return None if v is None or not math.isfinite(v) else float(f"{v:.{digits}g}")
+
+
+def compute_sheet(cat: Catalogue, req: FlexRequest, *, band: bool = True) -> dict:
+    """The flex sheet of ``req`` as plain numbers in SI (the nominal :class:`FlexSheet`, its
+    bands, the snow shares); :func:`flex_sheet_answer` shapes it."""
+    ski = cat.ski(req.ski)
+    w_n = _check_request(ski, req)
+    t0 = time.perf_counter()
+    sheet = _sheet(ski, w_n)
+    t1 = time.perf_counter()
+    nominal = sheet.scalars()
+    widths: dict[str, float] = {}
+    draws_fns, band_source, scale = ([], "not computed", None)
+    draw_sheets: list[FlexSheet] = []
+    if band:
+        draws_fns, band_source, scale = _draw_fns(ski)
+        reference = nominal
+        if scale is not None:  # beam draws: the first is the served beam on their nodes
+            reference = _sheet(ski, w_n, draws_fns[0]).scalars()
+            draws_fns = draws_fns[1:]
+        draw_sheets = [_sheet(ski, w_n, fn) for fn in draws_fns]
+        exact = profile_model(ski.record).source == "design_beam"
+        for k, v in nominal.items():
+            if exact:
+                widths[k] = 0.0 if math.isfinite(v) else float("nan")
+            else:
+                widths[k] = _half_width(reference[k], [d.scalars()[k] for d in draw_sheets])
+    t2 = time.perf_counter()
+    snow = None
+    if req.snow_modulus_mpa is not None:
+        snow = _snow_part(ski, req, sheet, band)
+    t3 = time.perf_counter()
+    return {
+        "ski": ski,
+        "sheet": sheet,
+        "nominal": nominal,
+        "widths": widths,
+        "band_source": band_source,
+        "band_scale": scale,
+        "draws": len(draw_sheets),
+        "draws_not_closing": sum(not d.closing.closes for d in draw_sheets),
+        "snow": snow,
+        "timing_ms": {
+            "sheet": (t1 - t0) * 1e3,
+            "band": (t2 - t1) * 1e3,
+            "snow": (t3 - t2) * 1e3,
+            "total": (t3 - t0) * 1e3,
+        },
+    }
+
+
+def _snow_part(ski: Ski, req: FlexRequest, sheet: FlexSheet, band: bool) -> dict:
+    e_eff = effective_modulus(
+        units.mpa_to_pa(req.snow_modulus_mpa),
+        units.mpa_to_pa(req.base_modulus_mpa),
+        req.poisson_ratio,
+    )
+    beam, why = ski.beam()
+    if beam is None:
+        return {"available": False, "reason": why}
+    preset = get_preset(req.preset)
+    model = ski.flexible_model(preset.pixel_along_m, preset.pixels_across)
+    half, full = _snow_shares(ski, model, sheet, e_eff)
+    widths = [float("nan"), float("nan")]
+    if band:
+        models = beam_models(
+            ski.record, preset, samples=BEAM_SAMPLES, seed=BAND_SEED, scale=BEAM_SCALE
+        )
+        coarse, drawn = models
+        tol = 1e-6
+        c_half, c_full = _snow_shares(ski, coarse, sheet, e_eff, tol=tol)
+        d = [_snow_shares(ski, m, sheet, e_eff, tol=tol) for m in drawn]
+        for i, (nom, c) in enumerate(((half, c_half), (full, c_full))):
+            grid = abs(c - nom)
+            camber = 0.0 if not d else _half_width([c_half, c_full][i], [s[i] for s in d])
+            widths[i] = math.hypot(grid, camber) if math.isfinite(camber) else grid
+    return {
+        "available": True,
+        "reason": why,
+        "effective_modulus_pa": e_eff,
+        "shares": (half, full),
+        "widths": widths,
+        "pixel_along_m": preset.pixel_along_m,
+    }
+
+
+def _pocket_json(p, nominal: dict, widths: dict, tag: str) -> dict:
+    key = f"pocket_{tag}_{p.threshold_m * 1e3:.2f}mm"
+    return {
+        "start_mm": _mm(p.start_m),
+        "end_mm": _mm(p.end_m),
+        "length_mm": _mm(p.length_m),
+        "length_band_mm": _mm(widths.get(f"{key}_length_m", float("nan"))),
+        "start_band_mm": _mm(widths.get(f"{key}_start_m", float("nan"))),
+        "end_band_mm": _mm(widths.get(f"{key}_end_m", float("nan"))),
+    }
+
+
+def _profile_json(sheet: FlexSheet, step_m: float = 5e-3) -> dict:
+    x = sheet.half.positions_m
+    stride = max(1, round(step_m / float(x[1] - x[0])))
+    sel = slice(None, None, stride)
+    return {
+        "positions_mm": [round(v * 1e3, 3) for v in x[sel].tolist()],
+        "half_weight_gap_mm": [round(v * 1e3, 5) for v in sheet.half.gap_m[sel].tolist()],
+        "full_weight_gap_mm": [round(v * 1e3, 5) for v in sheet.full.gap_m[sel].tolist()],
+    }
+
+
+def flex_sheet_answer(cat: Catalogue, req: FlexRequest, *, profiles: bool = True) -> dict:
+    """The flex sheet of ``GET /v1/skis/{name}/flex`` and ``skisnow flex``: numbers in mm, kg
+    and percent with their 90 % bands (module docstring, docs/flex.md).
+
+    Raises
+    ------
+    UnknownItemError, InputError, OutOfRangeError (with ``field``), NotConvergedError
+    """
+    out = compute_sheet(cat, req)
+    return _answer(req, out, profiles=profiles)
+
+
+def _answer(req: FlexRequest, out: dict, *, profiles: bool) -> dict:
+    ski, sheet, nom, wid = out["ski"], out["sheet"], out["nominal"], out["widths"]
+    w_kg = req.body_weight_kg
+    half_w, full_w = 0.5 * sheet.body_weight_n, sheet.body_weight_n
+    closing = sheet.closing
+    c_kg = units.n_to_kg(closing.load_n)
+
+    def pct(v: float) -> float | None:
+        return _num(100.0 * v) if v is not None and math.isfinite(v) else None
+
+    snow = out["snow"]
+    if snow is None:
+        snow_json = None
+    elif not snow["available"]:
+        snow_json = {"available": False, "reason": snow["reason"]}
+    else:
+        snow_json = {
+            "available": True,
+            "snow_modulus_mpa": req.snow_modulus_mpa,
+            "effective_modulus_mpa": _num(snow["effective_modulus_pa"] / 1e6),
+            "half_weight_percent": pct(snow["shares"][0]),
+            "full_weight_percent": pct(snow["shares"][1]),
+            "half_weight_band_percent": pct(snow["widths"][0]),
+            "full_weight_band_percent": pct(snow["widths"][1]),
+            "macro_pixel_along_mm": snow["pixel_along_m"] * 1e3,
+            "beam_source": snow["reason"],
+        }
+    wax = sheet.wax_zone
+    g = sheet.glide
+    answer = {
+        "inputs": {
+            "ski": ski.name,
+            "body_weight_kg": w_kg,
+            "half_weight_kg": 0.5 * w_kg,
+            "snow_modulus_mpa": req.snow_modulus_mpa,
+            "porosity": req.porosity,
+            "base_modulus_mpa": req.base_modulus_mpa,
+            "poisson_ratio": req.poisson_ratio,
+            "preset": req.preset,
+            "pocket_position_mm": POCKET_POSITION_M * 1e3,
+            "glide_position_mm": GLIDE_POSITION_M * 1e3,
+            "closed_gap_mm": CLOSED_GAP_M * 1e3,
+        },
+        "pockets": [
+            {
+                "gap_mm": round(ph.threshold_m * 1e3, 6),
+                "half_weight": _pocket_json(ph, nom, wid, "half"),
+                "full_weight": _pocket_json(pf, nom, wid, "full"),
+            }
+            for ph, pf in zip(sheet.pockets_half, sheet.pockets_full, strict=True)
+        ],
+        "foot_gap_half_weight_mm": _mm(wax.foot_gap_m),
+        "foot_gap_half_weight_band_mm": _mm(wid.get("foot_gap_half_m", float("nan"))),
+        "wax_zone": {
+            "start_mm": _mm(wax.start_m),
+            "end_mm": _mm(wax.end_m),
+            "length_mm": _mm(wax.length_m),
+            "definition": f"pocket at {CLOSED_GAP_M * 1e3:g} mm under half weight",
+        },
+        "closing_load": {
+            "load_kg": _num(c_kg),
+            "band_kg": _num(units.n_to_kg(wid.get("closing_load_n", float("nan")))),
+            "closes_below_max": closing.closes,
+            "closed_at_min_load": closing.closed_at_min,
+            "min_load_kg": _num(units.n_to_kg(closing.bracket_n[1]))
+            if closing.closed_at_min
+            else None,
+            "max_load_kg": _num(units.n_to_kg(closing.max_load_n)),
+            "tolerance_kg": _num(units.n_to_kg(closing.tolerance_n)),
+            "residual_camber_mm": _mm(closing.residual_gap_m),
+            "wax_zone_max_gap_mm": _mm(closing.wax_zone_max_gap_m),
+            "draws_not_closing": out["draws_not_closing"],
+            "closes_at_full_weight": closing.closed_at(full_w),
+            "open_at_half_weight": not closing.closed_at(half_w),
+        },
+        "kick_zone": {
+            "flat": {
+                "half_weight_percent": pct(sheet.kick_share_half),
+                "full_weight_percent": pct(sheet.kick_share_full),
+                "half_weight_band_percent": pct(wid.get("kick_share_half", float("nan"))),
+                "full_weight_band_percent": pct(wid.get("kick_share_full", float("nan"))),
+            },
+            "snow": snow_json,
+            "target_full_weight_percent": [33, 50],
+        },
+        "wheelbase": {
+            "wheelbase_mm": _mm(sheet.zones.wheelbase_m),
+            "band_mm": _mm(wid.get("wheelbase_m", float("nan"))),
+            "rear_zone_mm": [_mm(v) for v in sheet.zones.rear_m],
+            "front_zone_mm": [_mm(v) for v in sheet.zones.front_m],
+            "centroid_distance_mm": _mm(sheet.zones.centroid_distance_m),
+        },
+        "glide_check": {
+            "passed": g.passed,
+            "load_kg": w_kg,
+            "load_position_mm": GLIDE_POSITION_M * 1e3,
+            "span_mm": [_mm(v) for v in g.span_m],
+            "min_gap_mm": _mm(g.min_gap_m),
+            "min_gap_band_mm": _mm(wid.get("glide_min_gap_m", float("nan"))),
+            "open_length_mm": _mm(g.open_length_m),
+            "open_length_band_mm": _mm(wid.get("glide_open_length_m", float("nan"))),
+        },
+        "band": {
+            "level": 0.9,
+            "kind": "absolute half-width in the quantity's unit",
+            "source": out["band_source"],
+            "draws": out["draws"],
+            "beam_deviation_scale": out["band_scale"],
+            "seed": BAND_SEED,
+        },
+        "provenance": {
+            "code_version": code_version(),
+            "ski": {
+                "file": ski.path.name,
+                "sha256": ski.sha256,
+                "profile_model": profile_model(ski.record).source,
+            },
+            "node_spacing_mm": _num(
+                float(sheet.half.positions_m[1] - sheet.half.positions_m[0]) * 1e3
+            ),
+            "closing_solves": closing.iterations,
+            "closing_converged": closing.converged,
+        },
+        "timing_ms": out["timing_ms"],
+    }
+    if profiles:
+        answer["profiles"] = _profile_json(sheet)
+    return answer
+
+
+# ----------------------------------------------------------------------------- pair
+
+
+def _flat_numbers(ans: dict) -> dict[str, tuple[float | None, float | None, str]]:
+    """(value, band, floor kind) of every flex-sheet number of an answer, by a flat name."""
+    out = {}
+    for p in ans["pockets"]:
+        tag = f"{p['gap_mm']:.2f}mm"
+        for weight in ("half_weight", "full_weight"):
+            q = p[weight]
+            for part in ("start", "end", "length"):
+                out[f"pocket_{weight}_{tag}_{part}_mm"] = (
+                    q[f"{part}_mm"],
+                    q[f"{part}_band_mm"],
+                    "length",
+                )
+    out["foot_gap_half_weight_mm"] = (
+        ans["foot_gap_half_weight_mm"],
+        ans["foot_gap_half_weight_band_mm"],
+        "gap",
+    )
+    c = ans["closing_load"]
+    out["closing_load_kg"] = (c["load_kg"], c["band_kg"], "load")
+    k = ans["kick_zone"]["flat"]
+    out["kick_zone_flat_half_weight_percent"] = (
+        k["half_weight_percent"],
+        k["half_weight_band_percent"],
+        "share",
+    )
+    out["kick_zone_flat_full_weight_percent"] = (
+        k["full_weight_percent"],
+        k["full_weight_band_percent"],
+        "share",
+    )
+    s = ans["kick_zone"]["snow"]
+    if s and s.get("available"):
+        out["kick_zone_snow_half_weight_percent"] = (
+            s["half_weight_percent"],
+            s["half_weight_band_percent"],
+            "share",
+        )
+        out["kick_zone_snow_full_weight_percent"] = (
+            s["full_weight_percent"],
+            s["full_weight_band_percent"],
+            "share",
+        )
+    wb = ans["wheelbase"]
+    out["wheelbase_mm"] = (wb["wheelbase_mm"], wb["band_mm"], "length")
+    g = ans["glide_check"]
+    out["glide_min_gap_mm"] = (g["min_gap_mm"], g["min_gap_band_mm"], "gap")
+    out["glide_open_length_mm"] = (g["open_length_mm"], g["open_length_band_mm"], "length")
+    return out
+
+
+def _floor(kind: str, node_mm: float, tol_kg: float) -> float:
+    return {"length": node_mm, "load": tol_kg, "share": SHARE_FLOOR_PERCENT, "gap": GAP_FLOOR_MM}[
+        kind
+    ]
+
+
+def _difference(name, lv, lb, rv, rb, floor) -> dict:
+    """One row of the pair: difference left − right and whether it exceeds the combined band
+    ``hypot(band_left, band_right)`` or, where the bands are 0 or unknown, the floor."""
+    if lv is None or rv is None:
+        # one side closed (NaN ends) or missing: different when exactly one side has a value
+        flagged = (lv is None) != (rv is None)
+        return {
+            "quantity": name,
+            "left": lv,
+            "right": rv,
+            "difference": None,
+            "allowed": None,
+            "flagged": flagged,
+        }
+    band = math.hypot(lb or 0.0, rb or 0.0)
+    allowed = max(band, floor)
+    diff = lv - rv
+    return {
+        "quantity": name,
+        "left": lv,
+        "right": rv,
+        "difference": _num(diff),
+        "allowed": _num(allowed),
+        "flagged": bool(abs(diff) > allowed),
+    }
+
+
+def _metrics(cat, ski, grind, body_weight_kg, req: FlexRequest, ski_model: str) -> dict:
+    ans = contact(
+        cat,
+        ContactInputs(
+            ski=ski,
+            grind=grind,
+            load_kg=body_weight_kg,
+            load_position_mm=PAIR_LOAD_POSITION_MM,
+            snow_modulus_mpa=req.snow_modulus_mpa,
+            porosity=req.porosity,
+            base_modulus_mpa=req.base_modulus_mpa,
+            poisson_ratio=req.poisson_ratio,
+            preset=req.preset,
+            ski_model=ski_model,
+        ),
+    )
+    return ans
+
+
+_METRIC_BAND_KEYS = {
+    "total_real_contact_area_mm2": "total_real_contact_area",
+    "average_real_contact_pressure_mpa": "average_real_contact_pressure",
+    "min_average_separation_um": "min_average_separation",
+    "total_reciprocal_separation_m": "total_reciprocal_separation",
+}
+
+
+def _camber_abs_band(ans: dict, key: str) -> float:
+    """Absolute camber-model part of a contact metric's band (the other sources, grid and
+    table, are common to two skis on one grid and one table)."""
+    rel = ans["band"]["components"].get("camber_model", {}).get(_METRIC_BAND_KEYS[key])
+    v = ans["metrics"][key]
+    return 0.0 if rel is None or v is None else abs(rel * v)
+
+
+def flex_pair(
+    cat: Catalogue,
+    left: str,
+    right: str,
+    req: FlexRequest,
+    *,
+    grind: str | None = None,
+    ski_model: str = "auto",
+) -> dict:
+    """Two skis side by side (``GET /v1/flex/pair``): both sheets, the difference in every
+    flex-sheet number and (with a grind and a snow) in the four contact metrics under full
+    weight at :data:`PAIR_LOAD_POSITION_MM`, each flagged when it exceeds the camber model's
+    band of the two skis combined in quadrature (or the resolution floor where the band is 0)."""
+    for fld, name in (("left", left), ("right", right)):
+        if name not in cat.skis:
+            exc = UnknownItemError("ski", name, sorted(cat.skis))
+            exc.field = fld
+            raise exc
+    if grind is not None:
+        cat.grind(grind)
+        if req.snow_modulus_mpa is None or req.porosity is None:
+            missing = "snow_modulus_mpa" if req.snow_modulus_mpa is None else "porosity"
+            raise field_error(InputError, missing, f"{missing} is needed with a grind")
+    sheets = {}
+    for side, name in (("left", left), ("right", right)):
+        try:
+            sheets[side] = flex_sheet_answer(
+                cat, dataclasses.replace(req, ski=name), profiles=False
+            )
+        except (InputError, OutOfRangeError) as exc:
+            if getattr(exc, "field", None) == "ski":
+                exc.field = side
+            raise
+    node_mm = max(s["provenance"]["node_spacing_mm"] for s in sheets.values())
+    tol_kg = sheets["left"]["closing_load"]["tolerance_kg"]
+    ln, rn = _flat_numbers(sheets["left"]), _flat_numbers(sheets["right"])
+    rows = [
+        _difference(k, *ln[k][:2], *rn[k][:2], _floor(ln[k][2], node_mm, tol_kg))
+        for k in ln
+        if k in rn
+    ]
+    metrics = None
+    if grind is not None:
+        la = _metrics(cat, left, grind, req.body_weight_kg, req, ski_model)
+        ra = _metrics(cat, right, grind, req.body_weight_kg, req, ski_model)
+        metrics = []
+        for key in _METRIC_BAND_KEYS:
+            lv, rv = la["metrics"][key], ra["metrics"][key]
+            floor = 0.0
+            metrics.append(
+                _difference(
+                    key, lv, _camber_abs_band(la, key), rv, _camber_abs_band(ra, key), floor
+                )
+            )
+    flagged = [r["quantity"] for r in rows + (metrics or []) if r["flagged"]]
+    return {
+        "inputs": {
+            "left": left,
+            "right": right,
+            "body_weight_kg": req.body_weight_kg,
+            "snow_modulus_mpa": req.snow_modulus_mpa,
+            "porosity": req.porosity,
+            "grind": grind,
+            "preset": req.preset,
+            "ski_model": ski_model,
+            "metrics_load_position_mm": PAIR_LOAD_POSITION_MM,
+        },
+        "flagged": bool(flagged),
+        "flagged_quantities": flagged,
+        "flex_differences": rows,
+        "metric_differences": metrics,
+        "rule": "a difference is flagged when |left − right| exceeds hypot(band_left, "
+        "band_right) of the camber model (90 %), or where both bands are 0 (design beams) a "
+        f"resolution floor: one node spacing ({node_mm:g} mm) for lengths, the closing-load "
+        f"tolerance ({tol_kg:g} kg), {SHARE_FLOOR_PERCENT:g} percentage points for shares, "
+        f"{GAP_FLOOR_MM * 1e3:g} µm for gaps; a number that exists on one side only (a "
+        "closed pocket) is flagged",
+        "left": sheets["left"],
+        "right": sheets["right"],
+    }
+
+
+# ----------------------------------------------------------------------------- ranking
+
+
+def flex_ranking(
+    cat: Catalogue,
+    skis: list[str],
+    grinds: list[str],
+    req: FlexRequest,
+    *,
+    criterion: str = "real_area",
+    ski_model: str = "auto",
+) -> dict:
+    """Rank ski × grind combinations for a skier (``POST /v1/flex/ranking``).
+
+    Skis whose pocket does not close at full weight, or is closed at half weight, are left out
+    (with the reason). The rest are ranked by ``criterion`` (:data:`CRITERIA`) on the contact
+    answer under full weight at :data:`PAIR_LOAD_POSITION_MM`; each entry carries the metric's
+    90 % band (the contact answer's full band); neighbours whose bands overlap are marked "not
+    distinguishable"."""
+    if criterion not in CRITERIA:
+        raise field_error(
+            InputError,
+            "criterion",
+            f"criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}",
+        )
+    if req.snow_modulus_mpa is None or req.porosity is None:
+        missing = "snow_modulus_mpa" if req.snow_modulus_mpa is None else "porosity"
+        raise field_error(InputError, missing, f"{missing} is needed for a ranking")
+    for s in skis:
+        if s not in cat.skis:
+            exc = UnknownItemError("ski", s, sorted(cat.skis))
+            exc.field = "skis"
+            raise exc
+    for g in grinds:
+        if g not in cat.grinds:
+            exc = UnknownItemError("grind", g, sorted(cat.grinds))
+            exc.field = "grinds"
+            raise exc
+    key, larger, why = CRITERIA[criterion]
+    left_out, entries = [], []
+    for s in skis:
+        sheet = flex_sheet_answer(cat, dataclasses.replace(req, ski=s), profiles=False)
+        c = sheet["closing_load"]
+        reason = None
+        if not c["closes_at_full_weight"]:
+            reason = (
+                f"the pocket does not close at full weight ({req.body_weight_kg:g} kg; closing "
+                f"load {c['load_kg']} kg)"
+                if c["closes_below_max"]
+                else f"the pocket does not close up to {c['max_load_kg']} kg"
+            )
+        elif not c["open_at_half_weight"]:
+            closing = (
+                f"closed already at {c['min_load_kg']} kg, the lightest load its camber model "
+                "covers"
+                if c["closed_at_min_load"]
+                else f"closing load {c['load_kg']} kg"
+            )
+            reason = (
+                f"the pocket is closed at half weight ({0.5 * req.body_weight_kg:g} kg; {closing})"
+            )
+        if reason:
+            left_out.append({"ski": s, "reason": reason, "closing_load_kg": c["load_kg"]})
+            continue
+        for g in grinds:
+            ans = _metrics(cat, s, g, req.body_weight_kg, req, ski_model)
+            v = ans["metrics"][key]
+            interval = ans["band"]["intervals"].get(key)
+            entries.append(
+                {
+                    "ski": s,
+                    "grind": g,
+                    key: v,
+                    "band_low": interval[0] if interval else None,
+                    "band_high": interval[1] if interval else None,
+                    "closing_load_kg": c["load_kg"],
+                    "kick_zone_snow_full_weight_percent": (sheet["kick_zone"]["snow"] or {}).get(
+                        "full_weight_percent"
+                    ),
+                    "ski_model_used": ans["provenance"]["ski_model"]["used"],
+                }
+            )
+    entries.sort(key=lambda e: -e[key] if larger else e[key])
+    for i, e in enumerate(entries):
+        e["rank"] = i + 1
+        e["not_distinguishable_from"] = [
+            j + 1 for j, o in enumerate(entries) if o is not e and _overlap(e, o)
+        ]
+    return {
+        "inputs": {
+            "skis": skis,
+            "grinds": grinds,
+            "body_weight_kg": req.body_weight_kg,
+            "snow_modulus_mpa": req.snow_modulus_mpa,
+            "porosity": req.porosity,
+            "preset": req.preset,
+            "ski_model": ski_model,
+            "load_position_mm": PAIR_LOAD_POSITION_MM,
+        },
+        "criterion": {
+            "name": criterion,
+            "metric": key,
+            "better": "larger" if larger else "smaller",
+            "mechanism": why,
+            "choices": {k: v[2] for k, v in CRITERIA.items()},
+        },
+        "ranking": entries,
+        "left_out": left_out,
+        "rule": "ranks whose 90 % bands (band_low … band_high) overlap are not distinguishable",
+    }
+
+
+def _overlap(a: dict, b: dict) -> bool:
+    if None in (a["band_low"], a["band_high"], b["band_low"], b["band_high"]):
+        return True
+    return a["band_low"] <= b["band_high"] and b["band_low"] <= a["band_high"]
+
+
+# ----------------------------------------------------------------------------- CSV
+
+
+def _csv(rows: list[dict], columns: list[str]) -> str:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=columns, extrasaction="ignore", lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: ("" if r.get(k) is None else r.get(k)) for k in columns})
+    return buf.getvalue()
+
+
+def sheet_csv(answer: dict) -> str:
+    """The sheet's numbers as ``quantity,value,band`` rows (units in the quantity names)."""
+    rows = [
+        {"quantity": k, "value": v, "band": b} for k, (v, b, _) in _flat_numbers(answer).items()
+    ]
+    rows.append({"quantity": "glide_check_passed", "value": answer["glide_check"]["passed"]})
+    return _csv(rows, ["quantity", "value", "band"])
+
+
+def pair_csv(answer: dict) -> str:
+    """The pair's differences, flex numbers then contact metrics."""
+    rows = answer["flex_differences"] + (answer["metric_differences"] or [])
+    return _csv(rows, ["quantity", "left", "right", "difference", "allowed", "flagged"])
+
+
+def ranking_csv(answer: dict) -> str:
+    """The ranking (left-out skis as rows without a rank, with the reason)."""
+    key = answer["criterion"]["metric"]
+    rows = [
+        {
+            **e,
+            "value": e[key],
+            "not_distinguishable_from": " ".join(map(str, e["not_distinguishable_from"])),
+        }
+        for e in answer["ranking"]
+    ]
+    rows += [{"ski": o["ski"], "left_out": o["reason"]} for o in answer["left_out"]]
+    return _csv(
+        rows,
+        [
+            "rank",
+            "ski",
+            "grind",
+            "value",
+            "band_low",
+            "band_high",
+            "not_distinguishable_from",
+            "closing_load_kg",
+            "left_out",
+        ],
+    )
