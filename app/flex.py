@@ -858,6 +858,8 @@ def flex_ranking(
         "criterion": {
             "name": criterion,
             "metric": key,
+            # the unit of the metric and of each entry's band_low / band_high (the key's suffix)
+            "unit": key.rsplit("_", 1)[-1],
             "better": "larger" if larger else "smaller",
             "mechanism": why,
             "choices": {k: v[2] for k, v in CRITERIA.items()},

@@ -331,6 +331,7 @@ def test_ranking_leaves_out_and_orders(cat):
     ranked = out["ranking"]
     assert [e["ski"] for e in ranked] and {e["ski"] for e in ranked} == {"flex-a", "flex-lower"}
     key = out["criterion"]["metric"]
+    assert (key, out["criterion"]["unit"]) == ("total_real_contact_area_mm2", "mm2")
     assert ranked[0][key] >= ranked[1][key]
     for e in ranked:
         assert e["band_low"] <= e[key] <= e["band_high"]
@@ -340,7 +341,7 @@ def test_ranking_leaves_out_and_orders(cat):
             assert e["rank"] in o["not_distinguishable_from"]
     wet = flex.flex_ranking(cat, skis, ["tiny-grind"], req, criterion="reciprocal_separation")
     k2 = wet["criterion"]["metric"]
-    assert wet["criterion"]["better"] == "smaller"
+    assert wet["criterion"]["better"] == "smaller" and wet["criterion"]["unit"] == "m"
     assert wet["ranking"][0][k2] <= wet["ranking"][-1][k2]
     rows = list(csv.DictReader(io.StringIO(flex.ranking_csv(out))))
     assert [r["ski"] for r in rows[:2]] == [e["ski"] for e in ranked]
