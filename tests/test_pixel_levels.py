@@ -299,6 +299,7 @@ def test_three_level_build_resumes_reproducibly_and_records_its_method(three_lev
     p = table.pressure_ratio[1] * e
     info = pixel_error_estimate(table, np.array([[p]]), np.array([[0.1]]), 0.0, e)
     assert info["level_pixel_size_um"] == pytest.approx([1.5, 0.75, 0.375])
+    assert info["estimate_rule"] == "successive_extrapolants"
 
 
 # ------------------------------------------------------------------------ two-level tables
@@ -384,6 +385,7 @@ def test_lookup_reports_the_error_estimate_at_interpolated_points(two_level):
     ar_map = np.array([[0.1, 0.0], [0.2, np.nan]])
     info = pixel_error_estimate(table, pressure, ar_map, 0.0, e)
     assert info["estimated"] and info["level_pixel_size_um"] == [1.5, 0.75]
+    assert info["estimate_rule"] == "richardson_correction"
     assert info["real_contact_area_fraction_rel_max"] == pytest.approx(max(got[:2]))
     assert info["total_real_contact_area_rel"] == pytest.approx((0.1 * got[0] + 0.2 * got[1]) / 0.3)
 
