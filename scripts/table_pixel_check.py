@@ -11,7 +11,7 @@ docs/bench/table-pixel-checks.json holds runs, docs/tables.md the tables made fr
 Usage::
 
     python scripts/table_pixel_check.py grind-2 --nodes 37 42 46 50 54 60 > out.jsonl
-    python scripts/table_pixel_check.py grind-2 --nodes 38 --sizes 4096 8192  # 3-level check
+    python scripts/table_pixel_check.py grind-2 --nodes 38 --sizes 4096 8192 --table-levels
 
 A 4096² solve takes 25–35 s on one core, an 8192² solve a few minutes and ~6 GB; run them on
 a quiet machine.
@@ -41,6 +41,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--sizes", type=int, nargs="+", default=[512, 1024, 2048, 4096], help="grid sizes"
     )
+    parser.add_argument(
+        "--table-levels",
+        action="store_true",
+        help="take the table's own value at sizes it stores as a level instead of solving",
+    )
     args = parser.parse_args(argv)
 
     table = read_table(tables_dir() / f"{args.grind}.h5")
@@ -59,10 +64,21 @@ def main(argv: list[str] | None = None) -> int:
             t = refined_texture(args.grind, size // n)
             levels[size] = (t.heights_m, t.pixel_size_m)
     finest = sorted(levels)[-2:]
+    stored_levels = {}
+    if args.table_levels and table.levels is not None:
+        for i, dx in enumerate(table.levels["pixel_size_m"]):
+            stored_levels[round(n * base.pixel_size_m / float(dx))] = i
     for node in args.nodes:
         ratio = float(table.pressure_ratio[node])
         row = {"grind": args.grind, "node": node, "pressure_ratio": ratio, "levels": {}}
         for size, (h, dx) in sorted(levels.items()):
+            if size in stored_levels:
+                i = stored_levels[size]
+                row["levels"][size] = {
+                    **{q: float(table.levels[q][i, node]) for q in ERROR_FIELDS},
+                    "from_table": True,
+                }
+                continue
             t0 = time.perf_counter()
             res = solve_micro(h, dx, ratio * e, e, tol=table.tol, gap_floor_m=table.gap_floor_m)
             row["levels"][size] = {
