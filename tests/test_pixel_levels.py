@@ -164,7 +164,7 @@ def test_three_levels_estimate_is_the_difference_of_successive_extrapolants():
         }
     )
     out, info = L.combine_three_pixel_levels(*levels)
-    # R(2,1) = A + c2·(2·1 − 4)/(2 − 1)·… : exact values of the two extrapolants
+    # order-1 extrapolants of the two finest and the two coarsest levels
     r21 = a[2] + (a[2] - a[1])
     r42 = a[1] + (a[1] - a[0])
     assert out["real_contact_area_fraction"][0] == pytest.approx(r21, rel=1e-13)
