@@ -15,10 +15,11 @@ Changes
       the service's own upload page (same origin) and clients that send neither header (curl,
       scripts, a team's tools) pass.
 
-    ``POST /v1/contact`` and ``POST /v1/compare`` (:data:`READ_ONLY_POSTS`) are computations
-    that change nothing: they are not checked. Another site can make a browser send one, but
-    cannot read its answer (the service sends no CORS headers), and the CPU it costs is open to
-    anyone who reaches the port through those routes anyway (``max_compare_cells`` bounds it).
+    ``POST /v1/contact``, ``POST /v1/compare`` and ``POST /v1/flex/ranking``
+    (:data:`READ_ONLY_POSTS`) are computations that change nothing: they are not checked.
+    Another site can make a browser send one, but cannot read its answer (the service sends no
+    CORS headers), and the CPU it costs is open to anyone who reaches the port through those
+    routes anyway (``max_compare_cells`` bounds it).
 
 Reads
     Without team tokens everyone sees everything. With team tokens a caller (:class:`Caller`,
@@ -34,11 +35,10 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, replace
 from urllib.parse import urlsplit
 
+from skisnow.app import service
+from skisnow.app.uploads import UnauthorizedError
 from starlette.datastructures import Headers
 from starlette.requests import Request
-
-from app import service
-from app.uploads import UnauthorizedError
 
 __all__ = [
     "READ_ONLY_POSTS",
@@ -54,7 +54,7 @@ __all__ = [
 #: methods that change the catalogue (or queue jobs)
 WRITE_METHODS = frozenset({"POST", "PUT", "PATCH", "DELETE"})
 #: POST routes that only compute and change nothing (not checked, see the module docstring)
-READ_ONLY_POSTS = frozenset({"/v1/contact", "/v1/compare"})
+READ_ONLY_POSTS = frozenset({"/v1/contact", "/v1/compare", "/v1/flex/ranking"})
 _DEFAULT_PORTS = {"http": 80, "https": 443}
 #: at most this many names of each kind per request are looked up in the database when this
 #: process does not serve them (see :func:`visible_catalogue`)
@@ -207,7 +207,7 @@ class WriteGuardMiddleware:
             or scope.get("path") in READ_ONLY_POSTS
         ):
             return await self.app(scope, receive, send)
-        from app.api import problem
+        from skisnow.app.api import problem
 
         headers = Headers(scope=scope)
         if self.tokens:

@@ -15,14 +15,13 @@ from contextlib import asynccontextmanager
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from skisnow.app import api_catalogue, api_flex, service, web, web_flex
+from skisnow.app.access import WriteGuardMiddleware, visible_catalogue
+from skisnow.app.profiles import profile_model
+from skisnow.app.schemas import CompareBody, ContactBody
+from skisnow.app.settings import Settings
+from skisnow.solvers.errors import InputError, NotConvergedError, OutOfRangeError, SkisnowError
 from starlette.exceptions import HTTPException as StarletteHTTPException
-
-from app import api_catalogue, service, web
-from app.access import WriteGuardMiddleware, visible_catalogue
-from app.profiles import profile_model
-from app.schemas import CompareBody, ContactBody
-from app.settings import Settings
-from solvers.errors import InputError, NotConvergedError, OutOfRangeError, SkisnowError
 
 log = logging.getLogger(__name__)
 
@@ -78,6 +77,12 @@ class BodyLimitMiddleware:
 
 class _BodyTooLarge(Exception):
     pass
+
+
+def _named(exc: Exception) -> dict:
+    """``errors: [{field, reason}]`` for a service error that names its request field."""
+    field = getattr(exc, "field", None)
+    return {"errors": [{"field": field, "reason": str(exc)}]} if field else {}
 
 
 def _field_errors(exc: RequestValidationError) -> list[dict]:
@@ -141,11 +146,12 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
 
     @app.exception_handler(service.UnknownItemError)
     async def _unknown(request: Request, exc: service.UnknownItemError):
-        return problem(404, f"Unknown {exc.kind}", str(exc), field=exc.kind, known=exc.known)
+        field = getattr(exc, "field", exc.kind)
+        return problem(404, f"Unknown {exc.kind}", str(exc), field=field, known=exc.known)
 
     @app.exception_handler(OutOfRangeError)
     async def _range(request: Request, exc: OutOfRangeError):
-        return problem(422, "Outside the model's range", str(exc))
+        return problem(422, "Outside the model's range", str(exc), **_named(exc))
 
     @app.exception_handler(NotConvergedError)
     async def _nc(request: Request, exc: NotConvergedError):
@@ -153,7 +159,7 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
 
     @app.exception_handler(InputError)
     async def _input(request: Request, exc: InputError):
-        return problem(422, "Invalid input", str(exc))
+        return problem(422, "Invalid input", str(exc), **_named(exc))
 
     @app.exception_handler(SkisnowError)
     async def _other(request: Request, exc: SkisnowError):
@@ -270,6 +276,8 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
                 )
         return JSONResponse({"results": results})
 
+    api_flex.mount(app)
     api_catalogue.mount(app)
     web.mount(app)
+    web_flex.mount(app)
     return app

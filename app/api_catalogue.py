@@ -20,13 +20,12 @@ from typing import Annotated, Literal
 from fastapi import Depends, FastAPI, File, Form, Request, UploadFile
 from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, ConfigDict, Field
-
-from app import access, uploads
-from app.access import Caller
-from app.jobs import JobRunner
-from app.service import UnknownItemError, beam_report, profile_report
-from app.storage.catalogue import CatalogueDB, ItemRow, JobRow, NameTakenError
-from solvers.errors import DataFileError, InputError
+from skisnow.app import access, uploads
+from skisnow.app.access import Caller
+from skisnow.app.jobs import JobRunner
+from skisnow.app.service import UnknownItemError, beam_report, profile_report
+from skisnow.app.storage.catalogue import CatalogueDB, ItemRow, JobRow, NameTakenError
+from skisnow.solvers.errors import DataFileError, InputError
 
 __all__ = ["UPLOAD_PATHS", "mount", "start", "stop"]
 
@@ -225,7 +224,7 @@ def _accepted(item, job_id: str, **extra) -> JSONResponse:
 
 def mount(app: FastAPI) -> None:
     """Add the catalogue routes and the status codes of :mod:`app.uploads` errors."""
-    from app.api import problem
+    from skisnow.app.api import problem
 
     statuses = {
         uploads.UnsupportedContentError: (415, "Unsupported Media Type"),

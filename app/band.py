@@ -43,11 +43,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
-from app.presets import Preset
-from app.profiles import served_beam
-from app.storage.skis import identification_for_sampling
-from solvers.band import (
+from skisnow.app.presets import Preset
+from skisnow.app.profiles import served_beam
+from skisnow.app.storage.skis import identification_for_sampling
+from skisnow.solvers.band import (
     Z90,
     combine,
     end_pixel_share,
@@ -56,12 +55,12 @@ from solvers.band import (
     table_interpolation_error,
     unit_perturbations,
 )
-from solvers.errors import InputError, SkisnowError
-from solvers.flexible import FlexibleModel, prepare_flexible, solve_flexible
-from solvers.identify import estimate_noise, sample_beams
-from solvers.lookup import MicroTable
-from solvers.macro import ProfileExtruder, solve_macro
-from solvers.multiscale import multiscale
+from skisnow.solvers.errors import InputError, SkisnowError
+from skisnow.solvers.flexible import FlexibleModel, prepare_flexible, solve_flexible
+from skisnow.solvers.identify import estimate_noise, sample_beams
+from skisnow.solvers.lookup import MicroTable
+from skisnow.solvers.macro import ProfileExtruder, solve_macro
+from skisnow.solvers.multiscale import multiscale
 
 __all__ = [
     "BAND_SEED",
@@ -168,7 +167,7 @@ def camber_sigma_m(record, positions_m: np.ndarray) -> tuple[np.ndarray | float 
 
 
 def _network_sigma(record):
-    from solvers import camber
+    from skisnow.solvers import camber
 
     net, meas = record.network, record.measurements
     f = np.asarray(net.get("split_test_loads_n", np.empty(0)), dtype=float)

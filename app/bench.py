@@ -20,12 +20,11 @@ from pathlib import Path
 
 import numpy as np
 import scipy.fft
-
-from app.storage.common import atomic_path, provenance
-from app.storage.common import docs_dir as _docs_dir
-from solvers.elastic import FFTBackend, PeriodicHalfSpace, resolve_backend
-from solvers.micro import solve_micro
-from solvers.texture import self_affine_surface
+from skisnow.app.storage.common import atomic_path, provenance
+from skisnow.app.storage.common import docs_dir as _docs_dir
+from skisnow.solvers.elastic import FFTBackend, PeriodicHalfSpace, resolve_backend
+from skisnow.solvers.micro import solve_micro
+from skisnow.solvers.texture import self_affine_surface
 
 log = logging.getLogger(__name__)
 
@@ -534,10 +533,10 @@ def bench_macro_stage(
     fine reference (``app.commands.macro.bench_macro``), the bending ski, the network inference
     time and (``identification``) the beam identification of both demo skis (about 1.5–2 min
     each on 2 cores; the tests leave it out, tests/test_identify*.py cover it)."""
-    from app.commands.macro import SKI_DIR, bench_macro
-    from app.storage.skis import read_ski
-    from solvers import camber
-    from solvers.beam import G_STANDARD
+    from skisnow.app.commands.macro import SKI_DIR, bench_macro
+    from skisnow.app.storage.skis import read_ski
+    from skisnow.solvers import camber
+    from skisnow.solvers.beam import G_STANDARD
 
     out = {"skis": bench_macro(repeats=repeats), "inference": {}}
     out["flexible"] = bench_flexible(repeats=repeats)
@@ -561,9 +560,9 @@ def bench_identification(skis: tuple[str, ...] = ("ski-a", "ski-b")) -> dict:
     """Beam identification of each demo ski from its shipped measurements, as ``skisnow
     identify-ski`` runs it (20 % held out, seed 0): wall time, misfit, held-out errors against
     the measurements and against the design beam near contact (one run each; target ≤ 2 min)."""
-    from app.commands.identify import identify_report
-    from app.commands.macro import SKI_DIR
-    from app.storage.skis import read_ski
+    from skisnow.app.commands.identify import identify_report
+    from skisnow.app.commands.macro import SKI_DIR
+    from skisnow.app.storage.skis import read_ski
 
     out = {}
     for name in skis:
@@ -618,13 +617,13 @@ def bench_flexible(repeats: int = 7, skis: tuple[str, ...] = ("ski-a", "ski-b"))
     its own row-level start, as the service calls it; and warm-started from the rigid pressure),
     and one whole ``/v1/contact`` computation (``service.contact``) with ``ski_model`` rigid and
     auto. Medians [s]."""
-    from app import service
-    from app.commands.macro import SKI_DIR
-    from app.profiles import profile_model
-    from solvers.beam import G_STANDARD
-    from solvers.elastic import effective_modulus
-    from solvers.flexible import prepare_flexible, solve_flexible
-    from solvers.macro import extrude_profile, solve_macro
+    from skisnow.app import service
+    from skisnow.app.commands.macro import SKI_DIR
+    from skisnow.app.profiles import profile_model
+    from skisnow.solvers.beam import G_STANDARD
+    from skisnow.solvers.elastic import effective_modulus
+    from skisnow.solvers.flexible import prepare_flexible, solve_flexible
+    from skisnow.solvers.macro import extrude_profile, solve_macro
 
     e_eff = effective_modulus(200e6, 0.7e9, 0.3)
     load_n, xf = 40.0 * G_STANDARD, -0.160
@@ -765,13 +764,13 @@ def _macro_md(d: dict) -> list[str]:
 
 
 def _micro_peers_md(d: dict) -> list[str]:
-    from app.bench_peers import render_md
+    from skisnow.app.bench_peers import render_md
 
     return render_md(d)
 
 
 def _accuracy_md(d: dict) -> list[str]:
-    from app.bench_accuracy import render_md
+    from skisnow.app.bench_accuracy import render_md
 
     return render_md(d)
 
@@ -865,7 +864,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     mac = bsub.add_parser("macro", help="macro BEM per demo ski: default grid vs fine reference")
     mac.add_argument("--repeats", type=int, default=7)
     mac.set_defaults(func=_run_macro)
-    from app import bench_accuracy
+    from skisnow.app import bench_accuracy
 
     bench_accuracy.register(bsub)
 
@@ -874,7 +873,7 @@ def _run_micro(args: argparse.Namespace) -> int:
     if args.work_precision:
         import tempfile
 
-        from app import bench_peers
+        from skisnow.app import bench_peers
 
         with tempfile.TemporaryDirectory(prefix="skisnow-wp-") as tmp:
             data = bench_peers.bench_work_precision(

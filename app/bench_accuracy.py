@@ -38,23 +38,22 @@ from pathlib import Path
 
 import h5py
 import numpy as np
-from tqdm import tqdm
-
-from app.build_tables import refinements
-from app.presets import DEFAULT_PRESET, PRESETS, Preset
-from app.storage.common import provenance, tables_dir
-from solvers.beam import G_STANDARD, BeamFlexibility, solve_beam_contact
-from solvers.elastic import PeriodicHalfSpace, effective_modulus
-from solvers.lookup import (
+from skisnow.app.build_tables import refinements
+from skisnow.app.presets import DEFAULT_PRESET, PRESETS, Preset
+from skisnow.app.storage.common import provenance, tables_dir
+from skisnow.solvers.beam import G_STANDARD, BeamFlexibility, solve_beam_contact
+from skisnow.solvers.elastic import PeriodicHalfSpace, effective_modulus
+from skisnow.solvers.lookup import (
     ERROR_FIELDS,
     PIXEL_EXTRAPOLATION_ORDERS,
     POINT_FIELDS,
     MicroTable,
     relative_error_estimate,
 )
-from solvers.lookup import richardson as richardson_levels
-from solvers.micro import solve_micro
-from solvers.texture import GrindParameters, linear_grind
+from skisnow.solvers.lookup import richardson as richardson_levels
+from skisnow.solvers.micro import solve_micro
+from skisnow.solvers.texture import GrindParameters, linear_grind
+from tqdm import tqdm
 
 TABLES = tables_dir()
 log = logging.getLogger(__name__)
@@ -282,8 +281,8 @@ def _two_level(rows: list[dict], limit: dict) -> dict | None:
 
 def _shipped_table_at(grind: str, pressure_ratio: float) -> dict | None:
     """What the shipped table returns at a ratio, with its stored relative estimate."""
-    from app.storage.tables import read_table
-    from solvers import lookup as L
+    from skisnow.app.storage.tables import read_table
+    from skisnow.solvers import lookup as L
 
     table = read_table(TABLES / f"{grind}.h5")
     e = table.effective_modulus_pa
@@ -383,7 +382,7 @@ def thin_table(table: MicroTable, points: int) -> MicroTable:
 
 
 def _lookup(table: MicroTable, ratio: np.ndarray) -> dict[str, np.ndarray]:
-    from solvers import lookup as L
+    from skisnow.solvers import lookup as L
 
     return {
         "real_contact_area_fraction": np.asarray(L.real_contact_area_fraction(table, ratio, 1.0)),
@@ -393,7 +392,7 @@ def _lookup(table: MicroTable, ratio: np.ndarray) -> dict[str, np.ndarray]:
 
 
 def bench_table(cfg: AccuracyConfig, bar: tqdm) -> dict:
-    from app.storage.tables import read_table, read_table_heights
+    from skisnow.app.storage.tables import read_table, read_table_heights
 
     out = {"points": list(cfg.table_points), "grinds": []}
     for grind in cfg.table_grinds:
@@ -422,7 +421,7 @@ def bench_table(cfg: AccuracyConfig, bar: tqdm) -> dict:
             levels = [(h, table.pixel_size_m)]
             factors = refinements(table.attrs.get("pixel_levels", "none"))
             if factors:
-                from app.storage.textures import refined_texture
+                from skisnow.app.storage.textures import refined_texture
 
                 for k in factors:
                     fine = refined_texture(grind, k)
@@ -548,11 +547,11 @@ def _catalogue():
     benchmark runs; then the files are read as they are, unverified, and the stage records
     the sha256 of every file it used (``catalogue``) instead of failing.
     """
-    from app import service
-    from app.storage.common import sha256_file
-    from app.storage.skis import read_ski
-    from app.storage.tables import read_table
-    from solvers.errors import DataFileError
+    from skisnow.app import service
+    from skisnow.app.storage.common import sha256_file
+    from skisnow.app.storage.skis import read_ski
+    from skisnow.app.storage.tables import read_table
+    from skisnow.solvers.errors import DataFileError
 
     try:
         cat = service.load_catalogue(TABLES)
@@ -608,7 +607,7 @@ def pareto_front(points: list[tuple[float, float, str]]) -> list[str]:
 
 
 def bench_end_to_end(cfg: AccuracyConfig, bar: tqdm) -> dict:
-    from app import service
+    from skisnow.app import service
 
     cat, verified = _catalogue()
     cands = candidate_presets(cfg)
@@ -698,9 +697,9 @@ def bench_end_to_end(cfg: AccuracyConfig, bar: tqdm) -> dict:
 
 
 def bench_network(cfg: AccuracyConfig, bar: tqdm) -> dict:
-    from solvers import camber
-    from solvers.macro import extrude_profile, solve_macro
-    from solvers.multiscale import multiscale
+    from skisnow.solvers import camber
+    from skisnow.solvers.macro import extrude_profile, solve_macro
+    from skisnow.solvers.multiscale import multiscale
 
     cat, verified = _catalogue()
     grind = cat.grind(cfg.network_grind)
@@ -847,7 +846,7 @@ def _fig(n: int):
 
 
 def _save(fig, path: Path) -> None:
-    from app.storage.common import atomic_path
+    from skisnow.app.storage.common import atomic_path
 
     fig.tight_layout()
     with atomic_path(path) as tmp:
@@ -1608,7 +1607,7 @@ def register(bsub: argparse._SubParsersAction) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from app import bench
+    from skisnow.app import bench
 
     cfg = QUICK if args.quick else AccuracyConfig()
     if args.stages:

@@ -10,7 +10,7 @@ equal error, whatever their stopping criteria mean.
 Rules, the same for every solver:
 
 - **Own process, pinned threads.** Each solver runs in a fresh worker process
-  (``python -m app.bench_peers worker``) whose environment sets ``OMP_NUM_THREADS``,
+  (``python -m skisnow.app.bench_peers worker``) whose environment sets ``OMP_NUM_THREADS``,
   ``OPENBLAS_NUM_THREADS``, ``MKL_NUM_THREADS``, ``NUMBA_NUM_THREADS`` and
   ``VECLIB_MAXIMUM_THREADS`` to ``threads`` before anything is imported; our FFTs get
   ``workers=threads``. The worker records the environment, ``threadpoolctl``'s view of the
@@ -28,11 +28,11 @@ Rules, the same for every solver:
   tolerance; ASPHER ``solve_nested(backend="periodic")`` in its quick start's scaled units
   (E* = 1, domain side = 1).
 
-Whole-process times: ``python -m app.bench_peers once ...`` run ``repeats`` times, timed from
-outside (interpreter start, imports, surface, solve, exit), side by side with the in-process
-median. ``aspher_probe`` measures ASPHER under the conditions the old benchmark mixed (inside
-a process that had already run our solver, unpinned threads, SI against scaled units, our
-surface against ASPHER's own generator).
+Whole-process times: ``python -m skisnow.app.bench_peers once ...`` run ``repeats`` times,
+timed from outside (interpreter start, imports, surface, solve, exit), side by side with the
+in-process median. ``aspher_probe`` measures ASPHER under the conditions the old benchmark
+mixed (inside a process that had already run our solver, unpinned threads, SI against scaled
+units, our surface against ASPHER's own generator).
 """
 
 from __future__ import annotations
@@ -92,7 +92,7 @@ PACKAGES = {
 
 def bench_surface(n: int, seed: int = 2026) -> np.ndarray:
     """The benchmark surface: self-affine, H = 0.8, Sq 2 µm, 1 µm pixels, seeded [m]."""
-    from solvers.texture import self_affine_surface
+    from skisnow.solvers.texture import self_affine_surface
 
     rng = np.random.default_rng(seed)
     return self_affine_surface((n, n), PIXEL_M, hurst=0.8, rms_height_m=SQ_M, rng=rng)
@@ -104,7 +104,7 @@ def bench_surface(n: int, seed: int = 2026) -> np.ndarray:
 
 
 def _solve_skisnow(h: np.ndarray, p: float, e_eff: float, tol: float, threads: int) -> dict:
-    from solvers.micro import solve_micro
+    from skisnow.solvers.micro import solve_micro
 
     res = solve_micro(h, PIXEL_M, p, e_eff, tol=tol, max_iterations=20000, workers=threads)
     return {
@@ -206,7 +206,7 @@ ADAPTERS: dict[str, Callable[..., dict]] = {
     "aspher": _solve_aspher,
 }
 IMPORT_NAME = {
-    "skisnow": "solvers.micro",
+    "skisnow": "skisnow.solvers.micro",
     "contactmechanics": "ContactMechanics",
     "tamaas": "tamaas",
     "aspher": "aspher",
@@ -317,7 +317,7 @@ def pinned_env(threads: int | None) -> dict[str, str]:
 
 
 def _spawn(args: list[str], threads: int | None, timeout_s: float = 3600) -> dict:
-    cmd = [sys.executable, "-m", "app.bench_peers", *args]
+    cmd = [sys.executable, "-m", "skisnow.app.bench_peers", *args]
     proc = subprocess.run(
         cmd, env=pinned_env(threads), capture_output=True, text=True, timeout=timeout_s
     )
@@ -591,8 +591,7 @@ ERROR_KEYS = (
 def plot_work_precision(data: dict, path: Path) -> None:
     """One panel per (size, error measure): median time against relative error."""
     from matplotlib.figure import Figure
-
-    from app.storage.common import atomic_path
+    from skisnow.app.storage.common import atomic_path
 
     blocks = data["sizes"]
     fig = Figure(figsize=(4 * len(ERROR_KEYS), 3.4 * len(blocks)))

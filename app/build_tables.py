@@ -51,13 +51,12 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
-
-from solvers import elastic as _elastic
-from solvers import lookup as _lookup
-from solvers import micro as _micro
-from solvers.elastic import PeriodicHalfSpace
-from solvers.errors import InputError
-from solvers.lookup import (
+from skisnow.solvers import elastic as _elastic
+from skisnow.solvers import lookup as _lookup
+from skisnow.solvers import micro as _micro
+from skisnow.solvers.elastic import PeriodicHalfSpace
+from skisnow.solvers.errors import InputError
+from skisnow.solvers.lookup import (
     ERROR_FIELDS,
     ORDER_TOLERANCE,
     PIXEL_EXTRAPOLATION_ORDERS,
@@ -70,8 +69,8 @@ from solvers.lookup import (
     solve_table_chunk,
     unloaded_statistics,
 )
-from solvers.micro import DEFAULT_GAP_FLOOR_M, full_contact_pressure
-from solvers.texture import DETREND_METHODS, Texture, iso25178_parameters
+from skisnow.solvers.micro import DEFAULT_GAP_FLOOR_M, full_contact_pressure
+from skisnow.solvers.texture import DETREND_METHODS, Texture, iso25178_parameters
 
 from .storage.common import code_version
 from .storage.tables import read_checkpoint, write_checkpoint, write_manifest, write_table
@@ -590,9 +589,9 @@ def _run(client, jobs, pending, settings, progress, on_chunk_done) -> int:
 
 def _load_textures(specs: Sequence[str], detrend: str | None = None) -> list[Texture]:
     try:
-        from app.storage.textures import load_texture
+        from skisnow.app.storage.textures import load_texture
     except ModuleNotFoundError as exc:
-        if exc.name != "app.storage.textures":
+        if exc.name != "skisnow.app.storage.textures":
             raise
         raise InputError("texture loading is not available (app.storage.textures missing)") from exc
     return [load_texture(spec, detrend=detrend) for spec in specs]
@@ -613,7 +612,7 @@ def _command(args: argparse.Namespace) -> int:
     refined = None
     factors = refinements(args.pixel_levels)
     if factors:
-        from app.storage.textures import refined_texture
+        from skisnow.app.storage.textures import refined_texture
 
         if args.detrend is not None:
             raise InputError(

@@ -12,18 +12,19 @@ import importlib
 import logging
 import sys
 
-from solvers.errors import SkisnowError
+from skisnow.solvers.errors import SkisnowError
 
 #: modules that provide ``register(subparsers)``; a module missing here is simply not offered
 COMMAND_MODULES = [
-    "app.commands.micro",
-    "app.build_tables",
-    "app.bench",
-    "app.commands.macro",
-    "app.commands.identify",
-    "app.train_camber",
-    "app.commands.serve",
-    "app.report",
+    "skisnow.app.commands.micro",
+    "skisnow.app.build_tables",
+    "skisnow.app.bench",
+    "skisnow.app.commands.macro",
+    "skisnow.app.commands.flex",
+    "skisnow.app.commands.identify",
+    "skisnow.app.train_camber",
+    "skisnow.app.commands.serve",
+    "skisnow.app.report",
 ]
 
 

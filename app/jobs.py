@@ -33,8 +33,8 @@ from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 
-from app.storage.catalogue import CatalogueDB, ItemRow, JobRow
-from solvers.errors import SkisnowError
+from skisnow.app.storage.catalogue import CatalogueDB, ItemRow, JobRow
+from skisnow.solvers.errors import SkisnowError
 
 __all__ = ["JobContext", "JobInterrupted", "JobLeaseLost", "JobRunner"]
 

@@ -1,5 +1,5 @@
 """ASGI entry point for uvicorn workers: ``app.main:app`` (settings from SKISNOW_* env)."""
 
-from app.api import create_app
+from skisnow.app.api import create_app
 
 app = create_app()

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from solvers.macro import DEFAULT_PIXEL_ACROSS, DEFAULT_PIXEL_ALONG_M
+from skisnow.solvers.macro import DEFAULT_PIXEL_ACROSS, DEFAULT_PIXEL_ALONG_M
 
 __all__ = ["DEFAULT_PRESET", "PRESETS", "Preset", "get_preset"]
 
@@ -121,7 +121,7 @@ def get_preset(name: str, presets: dict[str, Preset] | None = None) -> Preset:
     solvers.errors.InputError
         Unknown name; the message names the field and the known presets.
     """
-    from solvers.errors import InputError
+    from skisnow.solvers.errors import InputError
 
     table = PRESETS if presets is None else presets
     try:

@@ -20,18 +20,17 @@ Three profile models, in the order a ski uses them (``source`` names the one tha
 from __future__ import annotations
 
 import numpy as np
-
-from app.storage.common import provenance
-from app.storage.skis import (
+from skisnow.app.storage.common import provenance
+from skisnow.app.storage.skis import (
     CamberData,
     SkiRecord,
     identified_beam,
     identified_to_dict,
     mean_profiles,
 )
-from solvers.beam import BeamFlexibility, BeamSki, solve_beam_contact
-from solvers.errors import DataFileError, InputError, NotConvergedError, SkisnowError
-from solvers.identify import predict_gaps, profile_sigma
+from skisnow.solvers.beam import BeamFlexibility, BeamResult, BeamSki, solve_beam_contact
+from skisnow.solvers.errors import DataFileError, InputError, NotConvergedError, SkisnowError
+from skisnow.solvers.identify import predict_gaps, profile_sigma
 
 __all__ = [
     "HELD_OUT_ADDED",
@@ -156,18 +155,33 @@ class ProfileModel:
     def __call__(self, load_n: float, load_position_m: float) -> tuple[np.ndarray, np.ndarray]:
         """Positions X [m] and loaded gap H*(X) [m] under F [N] at x_F [m] on the rigid flat."""
         if self.beam is None:
-            from solvers import camber
+            from skisnow.solvers import camber
 
             return camber.predict_profile(self.record.network, load_n, load_position_m)
+        res = self.beam_result(load_n, load_position_m)
+        return res.positions_m, res.gap_m
+
+    @property
+    def flexibility(self) -> BeamFlexibility | None:
+        """The beam's flexibility, built on first use and kept (None for a network)."""
+        if self.beam is None:
+            return None
         if self._flex is None:
             self._flex = BeamFlexibility(self.beam)
+        return self._flex
+
+    def beam_result(self, load_n: float, load_position_m: float) -> BeamResult:
+        """The beam's full solve on the rigid flat (gap and nodal reactions; the flex sheet of
+        :mod:`app.flex` needs the reactions). Raises :class:`InputError` for a network."""
+        if self.beam is None:
+            raise InputError("the camber network has no beam: no reactions on the flat")
         # no warm start from earlier requests: the answer must not depend on what this process
         # solved before (a warm start gives the same contact set up to rounding, and rounding
         # moved 3 of 1000 answers of the load test)
-        res = solve_beam_contact(self.beam, load_n, load_position_m, flexibility=self._flex)
+        res = solve_beam_contact(self.beam, load_n, load_position_m, flexibility=self.flexibility)
         if not res.converged:
             raise NotConvergedError(f"the ski's beam on the flat did not converge: {res.message}")
-        return res.positions_m, res.gap_m
+        return res
 
 
 def profile_model(record: SkiRecord) -> ProfileModel:

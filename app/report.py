@@ -28,14 +28,13 @@ from pathlib import Path
 import numpy as np
 from matplotlib import rc_context
 from matplotlib.figure import Figure
-
-from app import plots, units
-from app.profiles import profile_model
-from app.service import Catalogue, ContactInputs, contact, load_catalogue
-from app.storage.common import atomic_path, docs_dir, provenance
-from solvers import lookup
-from solvers.elastic import effective_modulus
-from solvers.errors import InputError, NotConvergedError, OutOfRangeError, SkisnowError
+from skisnow.app import plots, units
+from skisnow.app.profiles import profile_model
+from skisnow.app.service import Catalogue, ContactInputs, contact, load_catalogue
+from skisnow.app.storage.common import atomic_path, docs_dir, provenance
+from skisnow.solvers import lookup
+from skisnow.solvers.elastic import effective_modulus
+from skisnow.solvers.errors import InputError, NotConvergedError, OutOfRangeError, SkisnowError
 
 log = logging.getLogger(__name__)
 
@@ -1134,7 +1133,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     tables_dir = args.tables_dir
     if tables_dir is None:
-        from app.settings import Settings
+        from skisnow.app.settings import Settings
 
         tables_dir = Settings().tables_dir
     t0 = time.perf_counter()

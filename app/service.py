@@ -14,11 +14,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-
-from app import units
-from app.band import answer_band, band_json, min_separation_unresolved, touches_profile_end
-from app.presets import DEFAULT_PRESET, Preset, get_preset
-from app.profiles import (
+from skisnow.app import units
+from skisnow.app.band import answer_band, band_json, min_separation_unresolved, touches_profile_end
+from skisnow.app.presets import DEFAULT_PRESET, Preset, get_preset
+from skisnow.app.profiles import (
     held_out_case_errors,
     held_out_mask,
     no_beam_reason,
@@ -26,23 +25,23 @@ from app.profiles import (
     served_beam,
     stored_held_out_errors,
 )
-from app.storage.common import code_version, sha256_file
-from app.storage.skis import (
+from skisnow.app.storage.common import code_version, sha256_file
+from skisnow.app.storage.skis import (
     SKI_MANIFEST,
     SkiRecord,
     mean_profiles,
     read_ski,
     read_ski_manifest,
 )
-from app.storage.tables import read_manifest, read_table
-from solvers.band import Z90
-from solvers.beam import BeamSki
-from solvers.elastic import effective_modulus
-from solvers.errors import DataFileError, NotConvergedError, OutOfRangeError, SkisnowError
-from solvers.flexible import FlexibleModel, prepare_flexible, solve_flexible
-from solvers.lookup import ERROR_FIELDS, MicroTable, relative_error_estimate
-from solvers.macro import extrude_profile, solve_macro
-from solvers.multiscale import multiscale
+from skisnow.app.storage.tables import read_manifest, read_table
+from skisnow.solvers.band import Z90
+from skisnow.solvers.beam import BeamSki
+from skisnow.solvers.elastic import effective_modulus
+from skisnow.solvers.errors import DataFileError, NotConvergedError, OutOfRangeError, SkisnowError
+from skisnow.solvers.flexible import FlexibleModel, prepare_flexible, solve_flexible
+from skisnow.solvers.lookup import ERROR_FIELDS, MicroTable, relative_error_estimate
+from skisnow.solvers.macro import extrude_profile, solve_macro
+from skisnow.solvers.multiscale import multiscale
 
 log = logging.getLogger(__name__)
 

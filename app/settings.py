@@ -7,8 +7,7 @@ from pathlib import Path
 
 from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
-
-from app.storage.common import tables_dir as default_tables_dir
+from skisnow.app.storage.common import tables_dir as default_tables_dir
 
 
 class Settings(BaseSettings):

@@ -25,9 +25,8 @@ import logging
 from pathlib import Path
 
 import matplotlib
-
-from app import plots, service
-from app.storage.common import atomic_path
+from skisnow.app import plots, service
+from skisnow.app.storage.common import atomic_path
 
 log = logging.getLogger(__name__)
 

@@ -50,10 +50,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-
-from app.storage.skis import replace_ski_group
-from solvers import camber
-from solvers.errors import DataFileError, InputError
+from skisnow.app.storage.skis import replace_ski_group
+from skisnow.solvers import camber
+from skisnow.solvers.errors import DataFileError, InputError
 
 __all__ = [
     "TrainingResult",
@@ -812,7 +811,7 @@ def contact_area_check(
         ``area_pred_m2``, ``area_true_m2``, ``relative_error`` (arrays over cases),
         ``max_abs_relative_error`` and ``converged`` (all BEM solves converged).
     """
-    from solvers.macro import extrude_profile, solve_macro
+    from skisnow.solvers.macro import extrude_profile, solve_macro
 
     pred = camber.predict_profiles(network, loads_n, load_positions_m)
     x = pred.positions_m
@@ -946,7 +945,7 @@ def _resolve_ski_path(name: str) -> Path:
     p = Path(name)
     if p.suffix in (".h5", ".hdf5") or p.exists():
         return p
-    from app.storage.common import tables_dir
+    from skisnow.app.storage.common import tables_dir
 
     return tables_dir() / "skis" / f"{name}.h5"
 
@@ -999,7 +998,7 @@ def beam_truth_profiles(
 ) -> np.ndarray:
     """Noise-free loaded gaps H*(X) [m] of a beam ski at load cases (F [N], x_F [m]), shape
     (K, M), interpolated onto ``positions_m`` (:func:`solvers.beam.solve_beam_contact`)."""
-    from solvers.beam import BeamFlexibility, solve_beam_contact
+    from skisnow.solvers.beam import BeamFlexibility, solve_beam_contact
 
     flex = BeamFlexibility(beam)
     x = np.asarray(positions_m, dtype=float)
@@ -1090,10 +1089,10 @@ def truth_check(
 
 def run(args: argparse.Namespace) -> int:
     """Entry point of ``skisnow train-camber``."""
-    from app.storage import skis
-    from app.storage.common import provenance
-    from solvers.beam import G_STANDARD
-    from solvers.elastic import effective_modulus
+    from skisnow.app.storage import skis
+    from skisnow.app.storage.common import provenance
+    from skisnow.solvers.beam import G_STANDARD
+    from skisnow.solvers.elastic import effective_modulus
 
     ski_path = _resolve_ski_path(args.ski)
     if not ski_path.is_file():

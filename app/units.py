@@ -5,8 +5,8 @@ Every function names its input unit; unknown unit strings raise :class:`InputErr
 
 from __future__ import annotations
 
-from solvers.beam import G_STANDARD
-from solvers.errors import InputError
+from skisnow.solvers.beam import G_STANDARD
+from skisnow.solvers.errors import InputError
 
 _LENGTH_TO_M = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "μm": 1e-6, "nm": 1e-9}
 

@@ -32,13 +32,12 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-
-from app import service
-from app.jobs import JobContext
-from app.settings import Settings
-from app.storage.catalogue import CatalogueDB, ItemRow
-from app.storage.common import atomic_path, provenance, sha256_file
-from solvers.errors import DataFileError, InputError, SkisnowError
+from skisnow.app import service
+from skisnow.app.jobs import JobContext
+from skisnow.app.settings import Settings
+from skisnow.app.storage.catalogue import CatalogueDB, ItemRow
+from skisnow.app.storage.common import atomic_path, provenance, sha256_file
+from skisnow.solvers.errors import DataFileError, InputError, SkisnowError
 
 log = logging.getLogger(__name__)
 
@@ -182,9 +181,9 @@ def check_name(name: str, field: str = "name") -> str:
 def _topography():
     """The module :mod:`app.storage.topography` (instrument formats) if it is installed."""
     try:
-        from app.storage import topography
+        from skisnow.app.storage import topography
     except ModuleNotFoundError as exc:
-        if exc.name != "app.storage.topography":
+        if exc.name != "skisnow.app.storage.topography":
             raise
         return None
     return topography if hasattr(topography, "read_topography") else None
@@ -192,7 +191,7 @@ def _topography():
 
 def _npy_shape(path: Path) -> tuple[int, ...]:
     """Shape declared in a .npy header (read before any array is allocated)."""
-    from app.storage.topography import npy_header
+    from skisnow.app.storage.topography import npy_header
 
     with open(path, "rb") as fh:
         shape, dtype = npy_header(fh, "file")
@@ -204,7 +203,7 @@ def _npy_shape(path: Path) -> tuple[int, ...]:
 def check_solve_grid(shape: tuple[int, ...], periodic: str, settings: Settings) -> None:
     """Refuse a map whose periodised grid, the one its table is solved on, exceeds
     ``max_solve_grid_points`` (``mirror`` doubles each side: 4× the uploaded points)."""
-    from solvers.texture import periodic_shape
+    from skisnow.solvers.texture import periodic_shape
 
     solve = periodic_shape(shape, periodic)
     n = math.prod(solve)
@@ -265,8 +264,8 @@ def read_grind_upload(
     ------
     UnsupportedContentError, InputError, DataFileError
     """
-    from app.storage.textures import detrend_texture, read_heightmap, read_texture
-    from solvers.texture import check_detrend
+    from skisnow.app.storage.textures import detrend_texture, read_heightmap, read_texture
+    from skisnow.solvers.texture import check_detrend
 
     if detrend is not None:
         check_detrend(detrend)
@@ -376,8 +375,8 @@ def accept_grind(
         parameters (SI, unit in each name; gradients not wrapped: measured maps are not
         periodic).
     """
-    from app.storage.textures import write_texture
-    from solvers.texture import iso25178_parameters, make_periodic
+    from skisnow.app.storage.textures import write_texture
+    from skisnow.solvers.texture import iso25178_parameters, make_periodic
 
     name = check_name(name)
     if detrend is None and periodic == "none":  # declared periodic: no plane to remove
@@ -434,7 +433,7 @@ def accept_grind(
 
 
 def _add_item(db: CatalogueDB, kind: str, name: str, meta: dict, team: str | None) -> ItemRow:
-    from app.storage.catalogue import NameTakenError
+    from skisnow.app.storage.catalogue import NameTakenError
 
     try:
         return db.add_item(kind, name, metadata=meta, team=team)
@@ -443,7 +442,7 @@ def _add_item(db: CatalogueDB, kind: str, name: str, meta: dict, team: str | Non
 
 
 def build_settings(settings: Settings):
-    from app.build_tables import BuildSettings
+    from skisnow.app.build_tables import BuildSettings
 
     return BuildSettings(points=settings.table_points, chunk_size=settings.table_chunk_size)
 
@@ -455,10 +454,10 @@ def run_grind_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready)
     computes only the missing chunks. The finished table is moved into ``grinds/`` with one
     ``os.replace``.
     """
-    from app.build_tables import build_tables
-    from app.storage.tables import read_table
-    from app.storage.textures import read_texture
-    from solvers.lookup import chunk_bounds
+    from skisnow.app.build_tables import build_tables
+    from skisnow.app.storage.tables import read_table
+    from skisnow.app.storage.textures import read_texture
+    from skisnow.solvers.lookup import chunk_bounds
 
     item = ctx.item
     texture = read_texture(layout.grind_texture(item.id))
@@ -542,8 +541,8 @@ def check_ski_upload(
     CamberData, SkiOutline, dict
         The measurements, the outline and figures of the data (cases, spacing, side used).
     """
-    from app.storage.skis import SkiOutline, read_camber_csv
-    from app.train_camber import camber_training_arrays, split_load_cases
+    from skisnow.app.storage.skis import SkiOutline, read_camber_csv
+    from skisnow.app.train_camber import camber_training_arrays, split_load_cases
 
     if Path(filename).suffix.lower() not in (".csv", ".txt"):
         raise UnsupportedContentError(
@@ -663,8 +662,8 @@ def accept_ski(
 
 def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -> str:
     """Job ``ski-network``: train the camber network, check it, write the ski file."""
-    from app.storage.skis import SkiOutline, SkiRecord, read_camber_csv, read_ski, write_ski
-    from app.train_camber import (
+    from skisnow.app.storage.skis import SkiOutline, SkiRecord, read_camber_csv, read_ski, write_ski
+    from skisnow.app.train_camber import (
         camber_training_arrays,
         train_camber_network,
         write_network_to_ski,
@@ -753,8 +752,8 @@ def _draw_page_figures(item, path: Path, layout: Layout) -> None:
     """Draw the figures of the ski's page into its figure cache (:mod:`app.ski_figures`), so
     that its first view is fast. A failure is logged, never fails the job: the page then draws
     them on its first view."""
-    from app.ski_figures import ski_figures
-    from app.storage.skis import read_ski
+    from skisnow.app.ski_figures import ski_figures
+    from skisnow.app.storage.skis import read_ski
 
     try:
         ski = service.Ski(item.name, path, sha256_file(path), read_ski(path))
@@ -770,10 +769,10 @@ def _identify(data, item, callback=None) -> tuple[dict, str]:
     one sentence for the job result. A failure is recorded, never raised: the ski still works
     with the rigid model and its network. ``callback(fraction, message)``: the
     identification's progress (the job shows it; minutes on a loaded machine)."""
-    from app.path_pool import path_pool
-    from app.profiles import identification_group, served_beam_note
-    from app.storage.skis import mean_profiles
-    from solvers.identify import identify_beam_checked
+    from skisnow.app.path_pool import path_pool
+    from skisnow.app.profiles import identification_group, served_beam_note
+    from skisnow.app.storage.skis import mean_profiles
+    from skisnow.solvers.identify import identify_beam_checked
 
     try:
         f, xf, y, note = mean_profiles(data)
@@ -812,8 +811,8 @@ def on_job_failure(ctx: JobContext, layout: Layout) -> None:
 
 def load_live(item: ItemRow):
     """The :mod:`app.service` object of a ready item (file verified against its sha256)."""
-    from app.storage.skis import read_ski
-    from app.storage.tables import read_table
+    from skisnow.app.storage.skis import read_ski
+    from skisnow.app.storage.tables import read_table
 
     path = Path(item.file_path)
     if not path.is_file():

@@ -53,17 +53,16 @@ from urllib.parse import quote, urlencode
 from fastapi import FastAPI, Request
 from fastapi.responses import HTMLResponse, Response
 from pydantic import ValidationError
-
-from app import plots, service, units, uploads
-from app.access import caller, visible_catalogue
-from app.presets import DEFAULT_PRESET
-from app.presets import PRESETS as ACCURACY_PRESETS
-from app.profiles import SERVED_MISFIT_LIMIT
-from app.schemas import ContactBody
-from app.ski_figures import ski_figures
-from solvers.band import Z90
-from solvers.errors import SkisnowError
-from solvers.identify import HELD_OUT_LIMIT
+from skisnow.app import plots, service, units, uploads
+from skisnow.app.access import caller, visible_catalogue
+from skisnow.app.presets import DEFAULT_PRESET
+from skisnow.app.presets import PRESETS as ACCURACY_PRESETS
+from skisnow.app.profiles import SERVED_MISFIT_LIMIT
+from skisnow.app.schemas import ContactBody
+from skisnow.app.ski_figures import ski_figures
+from skisnow.solvers.band import Z90
+from skisnow.solvers.errors import SkisnowError
+from skisnow.solvers.identify import HELD_OUT_LIMIT
 
 #: density of ice used to turn snow density into porosity, n = 1 − ρ/ρ_ice [kg/m³]
 ICE_DENSITY_KG_M3 = 917.0
@@ -342,11 +341,11 @@ def _failure_field(message: str) -> str:
 # ----------------------------------------------------------------------------- HTML
 
 
-_PAGE = Template(resources.files("app").joinpath("templates/page.html").read_text("utf-8"))
-_CSS = resources.files("app").joinpath("static/web.css").read_text("utf-8")
-_JS = resources.files("app").joinpath("static/web.js").read_text("utf-8")
-_UPLOAD_CSS = resources.files("app").joinpath("static/upload.css").read_text("utf-8")
-_UPLOAD_JS = resources.files("app").joinpath("static/upload.js").read_text("utf-8")
+_PAGE = Template(resources.files("skisnow.app").joinpath("templates/page.html").read_text("utf-8"))
+_CSS = resources.files("skisnow.app").joinpath("static/web.css").read_text("utf-8")
+_JS = resources.files("skisnow.app").joinpath("static/web.js").read_text("utf-8")
+_UPLOAD_CSS = resources.files("skisnow.app").joinpath("static/upload.css").read_text("utf-8")
+_UPLOAD_JS = resources.files("skisnow.app").joinpath("static/upload.js").read_text("utf-8")
 
 
 def _page(

@@ -48,14 +48,14 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from app import band, service  # noqa: E402
-from app.presets import PRESETS  # noqa: E402
-from app.storage.skis import read_ski  # noqa: E402
-from app.storage.tables import read_table  # noqa: E402
-from solvers.beam import OTHER_DESIGNS, solve_beam_contact  # noqa: E402
-from solvers.elastic import effective_modulus  # noqa: E402
-from solvers.macro import extrude_profile, solve_macro  # noqa: E402
-from solvers.multiscale import multiscale  # noqa: E402
+from skisnow.app import band, service  # noqa: E402
+from skisnow.app.presets import PRESETS  # noqa: E402
+from skisnow.app.storage.skis import read_ski  # noqa: E402
+from skisnow.app.storage.tables import read_table  # noqa: E402
+from skisnow.solvers.beam import OTHER_DESIGNS, solve_beam_contact  # noqa: E402
+from skisnow.solvers.elastic import effective_modulus  # noqa: E402
+from skisnow.solvers.macro import extrude_profile, solve_macro  # noqa: E402
+from skisnow.solvers.multiscale import multiscale  # noqa: E402
 
 TABLES = REPO / "tables"
 #: the two designs unlike the demo skis (also used by tests/test_identify.py)

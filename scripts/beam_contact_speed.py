@@ -17,8 +17,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from app.storage.skis import identified_beam, read_ski
-from solvers.beam import (
+from skisnow.app.storage.skis import identified_beam, read_ski
+from skisnow.solvers.beam import (
     G_STANDARD,
     BeamFlexibility,
     _solve_beam_contact_reference,

@@ -50,9 +50,9 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from app import train_camber as tc  # noqa: E402
-from app.storage import common, skis  # noqa: E402
-from solvers import beam, elastic  # noqa: E402
+from skisnow.app import train_camber as tc  # noqa: E402
+from skisnow.app.storage import common, skis  # noqa: E402
+from skisnow.solvers import beam, elastic  # noqa: E402
 
 log = logging.getLogger("camber_floor_study")
 
@@ -109,8 +109,7 @@ def residual_stage(
     last layer), exactly like the ensemble fold.
     """
     import torch
-
-    from solvers import camber
+    from skisnow.solvers import camber
 
     x = np.asarray(network["positions_m"])
     node_idx = camber.select_nodes(x, float(network["attrs"]["node_spacing_m"]))

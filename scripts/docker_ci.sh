@@ -262,7 +262,7 @@ check_non_root() { # every process of the container runs as uid 10001 and gid 10
 check_tables_read_only() { # the service user can change no shipped table, ski or texture
     docker exec "$MAIN" python -c "
 import os, sys
-from app.storage.common import tables_dir
+from skisnow.app.storage.common import tables_dir
 d = tables_dir()
 files = [os.path.join(r, f) for r, _, fs in os.walk(d) for f in fs]
 dirs = [r for r, _, _ in os.walk(d)]

@@ -39,7 +39,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from app import band, service  # noqa: E402
+from skisnow.app import band, service  # noqa: E402
 
 VARIANTS = ("no_band", "before", "coarse", "draws2", "draws4", "draws8")
 

@@ -61,16 +61,16 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from app import band  # noqa: E402
-from app.presets import PRESETS  # noqa: E402
-from app.profiles import served_beam  # noqa: E402
-from app.storage.skis import identification_for_sampling, read_ski  # noqa: E402
-from app.storage.tables import read_table  # noqa: E402
-from solvers.beam import BeamSki  # noqa: E402
-from solvers.elastic import effective_modulus  # noqa: E402
-from solvers.flexible import prepare_flexible, solve_flexible  # noqa: E402
-from solvers.identify import sample_beams  # noqa: E402
-from solvers.multiscale import multiscale  # noqa: E402
+from skisnow.app import band  # noqa: E402
+from skisnow.app.presets import PRESETS  # noqa: E402
+from skisnow.app.profiles import served_beam  # noqa: E402
+from skisnow.app.storage.skis import identification_for_sampling, read_ski  # noqa: E402
+from skisnow.app.storage.tables import read_table  # noqa: E402
+from skisnow.solvers.beam import BeamSki  # noqa: E402
+from skisnow.solvers.elastic import effective_modulus  # noqa: E402
+from skisnow.solvers.flexible import prepare_flexible, solve_flexible  # noqa: E402
+from skisnow.solvers.identify import sample_beams  # noqa: E402
+from skisnow.solvers.multiscale import multiscale  # noqa: E402
 
 TABLES = REPO / "tables"
 #: the truth's grid: the reference of ``skisnow bench accuracy`` (as tests/test_band.py)

@@ -20,13 +20,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from app import service
-from app.commands.macro import SKI_DIR
-from app.profiles import profile_model
-from solvers.beam import G_STANDARD
-from solvers.elastic import effective_modulus
-from solvers.flexible import prepare_flexible, solve_flexible
-from solvers.macro import extrude_profile, solve_macro
+from skisnow.app import service
+from skisnow.app.commands.macro import SKI_DIR
+from skisnow.app.profiles import profile_model
+from skisnow.solvers.beam import G_STANDARD
+from skisnow.solvers.elastic import effective_modulus
+from skisnow.solvers.flexible import prepare_flexible, solve_flexible
+from skisnow.solvers.macro import extrude_profile, solve_macro
 
 #: (load [kg], position [mm], snow modulus [MPa]); the papers' case first
 CASES = {

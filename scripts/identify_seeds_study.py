@@ -36,6 +36,11 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "tests"))
 
+from skisnow.app.storage.common import atomic_path, provenance  # noqa: E402
+from skisnow.solvers.beam import measure_camber  # noqa: E402
+from skisnow.solvers.elastic import effective_modulus  # noqa: E402
+from skisnow.solvers.identify import identify_beam_checked, predict_gaps  # noqa: E402
+from skisnow.solvers.macro import extrude_profile, solve_macro  # noqa: E402
 from test_identify_designs import (  # noqa: E402
     DESIGNS,
     LOADS_N,
@@ -44,12 +49,6 @@ from test_identify_designs import (  # noqa: E402
     POSITIONS_M,
     SPACING_M,
 )
-
-from app.storage.common import atomic_path, provenance  # noqa: E402
-from solvers.beam import measure_camber  # noqa: E402
-from solvers.elastic import effective_modulus  # noqa: E402
-from solvers.identify import identify_beam_checked, predict_gaps  # noqa: E402
-from solvers.macro import extrude_profile, solve_macro  # noqa: E402
 
 WIDTH_M = 0.045
 E_SNOW_PA = 200e6

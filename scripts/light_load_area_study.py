@@ -42,13 +42,13 @@ from scipy.interpolate import BSpline
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from app.storage.common import atomic_path, provenance  # noqa: E402
-from app.storage.skis import identified_beam, read_ski  # noqa: E402
-from solvers.beam import BeamSki  # noqa: E402
-from solvers.beam_fit import _Model, camber_on_flat, hats  # noqa: E402
-from solvers.elastic import effective_modulus  # noqa: E402
-from solvers.identify import DEFAULT_SMOOTHING, predict_gaps  # noqa: E402
-from solvers.macro import extrude_profile, solve_macro  # noqa: E402
+from skisnow.app.storage.common import atomic_path, provenance  # noqa: E402
+from skisnow.app.storage.skis import identified_beam, read_ski  # noqa: E402
+from skisnow.solvers.beam import BeamSki  # noqa: E402
+from skisnow.solvers.beam_fit import _Model, camber_on_flat, hats  # noqa: E402
+from skisnow.solvers.elastic import effective_modulus  # noqa: E402
+from skisnow.solvers.identify import DEFAULT_SMOOTHING, predict_gaps  # noqa: E402
+from skisnow.solvers.macro import extrude_profile, solve_macro  # noqa: E402
 
 NEAR_CONTACT_M = 2e-4
 

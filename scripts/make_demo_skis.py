@@ -36,15 +36,15 @@ import scipy.optimize
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from app.storage.skis import CamberData, SkiOutline, SkiRecord, read_ski, write_ski
-from solvers.beam import (
+from skisnow.app.storage.skis import CamberData, SkiOutline, SkiRecord, read_ski, write_ski
+from skisnow.solvers.beam import (
     G_STANDARD,
     ClassicSkiDesign,
     measure_camber,
     solve_beam_contact,
 )
-from solvers.elastic import effective_modulus
-from solvers.macro import extrude_profile, solve_macro
+from skisnow.solvers.elastic import effective_modulus
+from skisnow.solvers.macro import extrude_profile, solve_macro
 
 log = logging.getLogger("make_demo_skis")
 

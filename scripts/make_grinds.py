@@ -21,8 +21,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from app.storage.textures import write_texture
-from solvers.texture import (
+from skisnow.app.storage.textures import write_texture
+from skisnow.solvers.texture import (
     GRIND_TARGETS,
     GRIND_TOLERANCES,
     GrindParameters,

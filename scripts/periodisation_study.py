@@ -28,16 +28,16 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from app.storage.common import atomic_path  # noqa: E402
-from solvers.elastic import effective_modulus  # noqa: E402
-from solvers.micro import solve_micro  # noqa: E402
-from solvers.texture import (  # noqa: E402
+from skisnow.app.storage.common import atomic_path  # noqa: E402
+from skisnow.solvers.elastic import effective_modulus  # noqa: E402
+from skisnow.solvers.micro import solve_micro  # noqa: E402
+from skisnow.solvers.texture import (  # noqa: E402
     PERIODISATION_METHODS,
     GrindParameters,
     level_heights,
     linear_grind,
 )
-from solvers.texture import make_periodic as periodise  # noqa: E402
+from skisnow.solvers.texture import make_periodic as periodise  # noqa: E402
 
 START = "<!-- periodisation-table:start -->"
 END = "<!-- periodisation-table:end -->"

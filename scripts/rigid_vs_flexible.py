@@ -31,8 +31,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from app.service import ContactInputs, contact, load_catalogue  # noqa: E402
-from app.storage import common  # noqa: E402
+from skisnow.app.service import ContactInputs, contact, load_catalogue  # noqa: E402
+from skisnow.app.storage import common  # noqa: E402
 
 E_SNOW_MPA = [2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000]
 LOADS = [(20.0, -80.0), (40.0, -160.0), (80.0, -150.0)]  # (kg, mm); 40 kg at −160 mm: papers

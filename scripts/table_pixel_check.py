@@ -27,11 +27,11 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from app.storage.common import tables_dir
-from app.storage.tables import read_table
-from app.storage.textures import read_texture, refined_texture
-from solvers.lookup import ERROR_FIELDS, richardson
-from solvers.micro import solve_micro
+from skisnow.app.storage.common import tables_dir
+from skisnow.app.storage.tables import read_table
+from skisnow.app.storage.textures import read_texture, refined_texture
+from skisnow.solvers.lookup import ERROR_FIELDS, richardson
+from skisnow.solvers.micro import solve_micro
 
 
 def main(argv: list[str] | None = None) -> int:

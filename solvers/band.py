@@ -22,8 +22,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
-from solvers.errors import InputError
+from skisnow.solvers.errors import InputError
 
 __all__ = [
     "Z90",

@@ -6,11 +6,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from solvers import lookup as L
-from solvers.elastic import PeriodicHalfSpace
-from solvers.micro import full_contact_pressure
-from solvers.texture import self_affine_surface
+from skisnow.solvers import lookup as L
+from skisnow.solvers.elastic import PeriodicHalfSpace
+from skisnow.solvers.micro import full_contact_pressure
+from skisnow.solvers.texture import self_affine_surface
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -95,9 +94,9 @@ CONTACT_BODY = {
 @pytest.fixture(scope="session")
 def catalogue(small_table):
     """Demo skis from tables/skis plus the small synthetic table as grind ``tiny-grind``."""
-    from app import service
-    from app.storage.common import sha256_file
-    from app.storage.skis import read_ski
+    from skisnow.app import service
+    from skisnow.app.storage.common import sha256_file
+    from skisnow.app.storage.skis import read_ski
 
     cat = service.Catalogue(tables_dir=REPO / "tables")
     for path in sorted((REPO / "tables" / "skis").glob("ski-*.h5")):
@@ -111,8 +110,8 @@ def catalogue(small_table):
 @pytest.fixture(scope="module")
 def camber_csv(tmp_path_factory) -> bytes:
     """A valid camber CSV: demo ski A's beam model, 5 loads × 5 positions, 5 mm sampling."""
-    from app.storage.skis import CamberData, read_ski, write_camber_csv
-    from solvers.beam import G_STANDARD, measure_camber
+    from skisnow.app.storage.skis import CamberData, read_ski, write_camber_csv
+    from skisnow.solvers.beam import G_STANDARD, measure_camber
 
     rec = read_ski(REPO / "tables" / "skis" / "ski-a.h5")
     loads = np.array([20.0, 35.0, 50.0, 65.0, 80.0]) * G_STANDARD

@@ -5,9 +5,8 @@ from __future__ import annotations
 import pytest
 from conftest import CONTACT_BODY
 from fastapi.testclient import TestClient
-
-from app.api import create_app
-from app.settings import Settings
+from skisnow.app.api import create_app
+from skisnow.app.settings import Settings
 
 BODY = CONTACT_BODY
 
@@ -139,7 +138,7 @@ def test_unknown_route_is_problem_404(client):
 
 
 def test_warm_up_solves_once_and_never_raises(catalogue, caplog):
-    from app import service
+    from skisnow.app import service
 
     assert service.warm_up(catalogue) > 0
     empty = service.Catalogue(tables_dir=catalogue.tables_dir)

@@ -10,12 +10,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from app import band, service
-from app.presets import PRESETS
-from app.storage.skis import read_ski
-from app.storage.tables import read_table
-from solvers.band import (
+from skisnow.app import band, service
+from skisnow.app.presets import PRESETS
+from skisnow.app.storage.skis import read_ski
+from skisnow.app.storage.tables import read_table
+from skisnow.solvers.band import (
     combine,
     end_pixel_share,
     model_error_sigma,
@@ -24,11 +23,11 @@ from solvers.band import (
     table_interpolation_error,
     unit_perturbations,
 )
-from solvers.beam import solve_beam_contact
-from solvers.elastic import effective_modulus
-from solvers.errors import InputError
-from solvers.macro import extrude_profile, solve_macro
-from solvers.multiscale import multiscale
+from skisnow.solvers.beam import solve_beam_contact
+from skisnow.solvers.elastic import effective_modulus
+from skisnow.solvers.errors import InputError
+from skisnow.solvers.macro import extrude_profile, solve_macro
+from skisnow.solvers.multiscale import multiscale
 
 ROOT = Path(__file__).resolve().parents[1]
 TABLES = ROOT / "tables"
@@ -68,7 +67,7 @@ def test_perturbations_have_the_asked_spread_and_correlation():
 def test_unit_fields_times_sigma_are_the_perturbations_and_are_kept_per_grid():
     """The service keeps the unit fields per profile grid; × σ they are the perturbations of
     profile_perturbations bit for bit, so the band does not depend on what was cached."""
-    from app import band
+    from skisnow.app import band
 
     x = np.linspace(-0.9, 1.0, 2001)
     sigma = np.where(x < 0, 1e-6, 2.5e-6)
@@ -225,8 +224,8 @@ def test_flexible_answers_carry_the_identified_beams_uncertainty(shipped):
 def test_beam_draws_are_antithetic_scaled_and_kept_per_ski():
     """The beams of a bending-ski band: pairs (d, −d) of parameter deviations, × the scale
     (× 0 is the identified beam itself), seeded; their models prepared once per record."""
-    from app.storage.skis import identification_for_sampling
-    from solvers.identify import sample_beams
+    from skisnow.app.storage.skis import identification_for_sampling
+    from skisnow.solvers.identify import sample_beams
 
     rec = read_ski(TABLES / "skis" / "ski-b.h5")
     ident = identification_for_sampling(rec.identified)
@@ -402,8 +401,8 @@ def _flexible_calibration_rows() -> list[dict]:
     and 2000 MPa, answered by ``POST /v1/contact``'s computation with ``ski_model`` flexible
     (the identified beam, default preset) with its band, against the truth: the ski's own
     design beam (no device noise) bending on the snow on the reference grid (0.5 mm × 64)."""
-    from app import units
-    from solvers.flexible import prepare_flexible, solve_flexible
+    from skisnow.app import units
+    from skisnow.solvers.flexible import prepare_flexible, solve_flexible
 
     cat = service.load_catalogue(TABLES)
     table = cat.grind("grind-1").table

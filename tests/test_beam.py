@@ -2,9 +2,8 @@
 
 import numpy as np
 import pytest
-
-from solvers.beam import BeamSki, ClassicSkiDesign, measure_camber, solve_beam_contact
-from solvers.errors import InputError
+from skisnow.solvers.beam import BeamSki, ClassicSkiDesign, measure_camber, solve_beam_contact
+from skisnow.solvers.errors import InputError
 
 
 @pytest.mark.parametrize("n", [1001, 1000])

@@ -11,9 +11,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from app.storage.skis import identified_beam, read_ski
-from solvers.beam import (
+from skisnow.app.storage.skis import identified_beam, read_ski
+from skisnow.solvers.beam import (
     G_STANDARD,
     BeamFlexibility,
     BeamSki,

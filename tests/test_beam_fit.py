@@ -3,9 +3,8 @@ implicit-differentiation gradient of the exact device model against finite diffe
 
 import numpy as np
 import pytest
-
-from solvers import beam_fit
-from solvers.beam import BeamSki, ClassicSkiDesign, measure_camber
+from skisnow.solvers import beam_fit
+from skisnow.solvers.beam import BeamSki, ClassicSkiDesign, measure_camber
 
 LOADS_N = np.linspace(10, 90, 7) * 9.82
 POSITIONS_M = np.linspace(-0.30, 0.10, 6)

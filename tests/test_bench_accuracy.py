@@ -6,9 +6,8 @@ import json
 
 import numpy as np
 import pytest
-
-from app import bench
-from app import bench_accuracy as BA
+from skisnow.app import bench
+from skisnow.app import bench_accuracy as BA
 
 
 @pytest.fixture(scope="module")

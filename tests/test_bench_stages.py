@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import pytest
-
-from app import bench
+from skisnow.app import bench
 
 
 def test_bench_micro_structure_and_agreement():

@@ -71,8 +71,8 @@ def _serve(app):
 
 @pytest.fixture(scope="module")
 def server(catalogue):
-    from app.api import create_app
-    from app.settings import Settings
+    from skisnow.app.api import create_app
+    from skisnow.app.settings import Settings
 
     with _serve(create_app(Settings(), catalogue=catalogue)) as url:
         yield url
@@ -82,9 +82,9 @@ def server(catalogue):
 def upload_server(catalogue, tmp_path_factory):
     """The app on its own data directory and a copy of the catalogue, with table settings so
     small that a grind's table builds in seconds (as tests/test_uploads.py)."""
-    from app import service
-    from app.api import create_app
-    from app.settings import Settings
+    from skisnow.app import service
+    from skisnow.app.api import create_app
+    from skisnow.app.settings import Settings
 
     cat = service.Catalogue(
         tables_dir=catalogue.tables_dir, skis=dict(catalogue.skis), grinds=dict(catalogue.grinds)
@@ -216,8 +216,7 @@ def _npy_bytes(a) -> bytes:
 
 def test_upload_a_grind_then_compute_with_it(upload_server, page, tmp_path):
     import numpy as np
-
-    from solvers.texture import self_affine_surface
+    from skisnow.solvers.texture import self_affine_surface
 
     errors: list[str] = []
     page.on("pageerror", lambda exc: errors.append(str(exc)))
@@ -286,4 +285,80 @@ def test_upload_a_grind_then_compute_with_it(upload_server, page, tmp_path):
     expect(page.locator("#comparison")).to_contain_text("shop7-fine")
     metric = page.locator('[data-metric="total_real_contact_area_mm2"] .value').first
     assert float(metric.inner_text()) > 0
+    assert errors == []
+
+
+@pytest.fixture(scope="module")
+def flex_server(catalogue):
+    """The test catalogue plus the flex sheet's design skis of tests/test_flex.py."""
+    import dataclasses
+
+    from skisnow.app import service
+    from skisnow.app.api import create_app
+    from skisnow.app.settings import Settings
+    from test_flex import DESIGNS
+
+    rec = catalogue.ski("ski-a").record
+    cat = service.Catalogue(
+        tables_dir=catalogue.tables_dir, skis=dict(catalogue.skis), grinds=catalogue.grinds
+    )
+    for name, design in DESIGNS.items():
+        r = dataclasses.replace(rec, beam=design.build(), identified=None, network=None, cache={})
+        cat.skis[name] = service.Ski(name, catalogue.ski("ski-a").path, "0" * 64, r)
+    with _serve(create_app(Settings(), catalogue=cat)) as url:
+        yield url
+
+
+def test_flex_sheet_pair_ranking(flex_server, page, tmp_path):
+    """A technician walks through the flex tab: a ski's flex sheet (with its plot and CSV), the
+    pair with its twin of 0.05 mm less pocket height (flagged), and the ranking for the skier
+    (skis whose pocket is closed at half weight left out)."""
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    page.goto(flex_server + "/")
+    page.click("#nav-flex")
+    expect(page.locator("h1")).to_have_text("Flex sheet")
+    page.select_option("#ski", "flex-a")
+    page.fill("#body_weight_kg", "75")
+    page.fill("#snow_modulus_mpa", "20")
+    page.click("#submit")
+    page.wait_for_url("**/flex?**")
+    expect(page.locator("#pockets")).to_contain_text("0.10 mm")
+    closing = page.locator('[data-number="closing_load_kg"] .value')
+    assert 37.5 < float(closing.inner_text()) < 75  # open at half weight, closed at full
+    svg = page.locator("#plot-flex-profile svg")
+    expect(svg).to_be_visible()
+    assert svg.bounding_box()["width"] > 300
+    page.screenshot(path=str(tmp_path / "flex-sheet.png"), full_page=True)
+    with page.expect_download() as info:
+        page.click("#csv")
+    lines = Path(info.value.path()).read_text().splitlines()
+    assert lines[0] == "quantity,value,band" and any("closing_load_kg" in x for x in lines)
+
+    page.get_by_role("link", name="Pair").click()
+    expect(page.locator("h1")).to_have_text("Pair matching")
+    page.select_option("#left", "flex-a")
+    page.select_option("#right", "flex-lower")
+    page.click("#submit")
+    page.wait_for_url("**/flex/pair?**")
+    expect(page.locator("#pair-verdict")).to_contain_text("flagged: ")
+    assert page.locator('#pair tr[data-flagged="true"]').count() >= 2
+    page.screenshot(path=str(tmp_path / "flex-pair.png"), full_page=True)
+
+    page.get_by_role("link", name="Ranking").click()
+    expect(page.locator("h1")).to_have_text("A skier's best ski")
+    for ski in ("flex-a", "flex-lower", "flex-soft"):
+        page.check(f"input[name=ski][value={ski}]")
+    page.check("input[name=grind][value=tiny-grind]")
+    page.fill("#snow_modulus_mpa", "20")
+    page.fill("#porosity", "0.5")
+    page.click("#submit")
+    page.wait_for_url("**/flex/ranking?**")
+    expect(page.locator("#ranking")).to_contain_text("flex-a")
+    assert page.locator("#ranking tr").count() == 3  # header + two ranked skis
+    expect(page.locator("#left-out")).to_contain_text("flex-soft")
+    page.screenshot(path=str(tmp_path / "flex-ranking.png"), full_page=True)
+    SCREENSHOTS.mkdir(parents=True, exist_ok=True)
+    for name in ("flex-sheet.png", "flex-pair.png", "flex-ranking.png"):
+        shutil.copyfile(tmp_path / name, SCREENSHOTS / name)
     assert errors == []

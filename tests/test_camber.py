@@ -14,9 +14,9 @@ import pytest
 
 torch = pytest.importorskip("torch", reason="torch is a test dependency (skisnow[test])")
 
-from app import train_camber  # noqa: E402
-from solvers import camber  # noqa: E402
-from solvers.errors import DataFileError, InputError, OutOfRangeError  # noqa: E402
+from skisnow.app import train_camber  # noqa: E402
+from skisnow.solvers import camber  # noqa: E402
+from skisnow.solvers.errors import DataFileError, InputError, OutOfRangeError  # noqa: E402
 
 LOADS_N = np.linspace(100.0, 700.0, 7)
 POSITIONS_M = np.linspace(-0.25, 0.05, 5)
@@ -201,7 +201,7 @@ def test_hdf5_round_trip(trained, tmp_path):
 
 def test_round_trip_through_ski_storage(trained, tmp_path):
     """The network survives write_ski/read_ski of app.storage.skis unchanged."""
-    skis = pytest.importorskip("app.storage.skis")
+    skis = pytest.importorskip("skisnow.app.storage.skis")
     net = trained[0].network
     f, xf = _cases()
     data = skis.CamberData(
@@ -365,7 +365,7 @@ def test_relu_ensemble_numpy_matches_torch():
 
 def test_contact_area_check_reports_errors(trained):
     """Macro-BEM check: zero error against the network's own profiles, large against a shift."""
-    pytest.importorskip("solvers.macro")
+    pytest.importorskip("skisnow.solvers.macro")
     net = trained[0].network
     loads, pos = np.array([392.8]), np.array([-0.16])
     own = camber.predict_profiles(net, loads, pos).gaps_m
@@ -381,8 +381,8 @@ def test_contact_area_check_reports_errors(trained):
 
 def test_cli_trains_and_writes_network(tmp_path, capsys):
     """skisnow train-camber on a small ski file: network group written, metrics printed."""
-    skis = pytest.importorskip("app.storage.skis")
-    from app import cli
+    skis = pytest.importorskip("skisnow.app.storage.skis")
+    from skisnow.app import cli
 
     f, xf = _cases()
     data = skis.CamberData(
@@ -441,8 +441,8 @@ DEMO_SKIS = ("ski-a", "ski-b")
 
 def _demo_ski(name: str):
     """The shipped demo ski record and its network dict."""
-    from app.storage.common import REPO_ROOT
-    from app.storage.skis import read_ski
+    from skisnow.app.storage.common import REPO_ROOT
+    from skisnow.app.storage.skis import read_ski
 
     record = read_ski(REPO_ROOT / "tables" / "skis" / f"{name}.h5")
     return record, camber.network_to_dict(record.network)
@@ -476,8 +476,8 @@ def _demo_area_errors(name: str, n_random: int = 12) -> tuple[np.ndarray, np.nda
     Cases: the papers' 40 kg at −160 mm first, then ``n_random`` loads drawn uniformly (seed 11)
     from the trained range; E_snow = 200 MPa, default macro grid, tilt on.
     """
-    from solvers.beam import G_STANDARD
-    from solvers.elastic import effective_modulus
+    from skisnow.solvers.beam import G_STANDARD
+    from skisnow.solvers.elastic import effective_modulus
 
     record, net = _demo_ski(name)
     a = net["attrs"]
@@ -531,8 +531,8 @@ def test_remeasure_keeps_the_calibrated_beam(tmp_path, monkeypatch):
     """make_demo_skis --remeasure changes only the measurements, never the ski's beam model."""
     import importlib.util
 
-    from app.storage.common import REPO_ROOT
-    from app.storage.skis import read_ski
+    from skisnow.app.storage.common import REPO_ROOT
+    from skisnow.app.storage.skis import read_ski
 
     spec = importlib.util.spec_from_file_location(
         "make_demo_skis", REPO_ROOT / "scripts" / "make_demo_skis.py"

@@ -12,7 +12,7 @@ ROUNDS = 8  # before the fix, 9 of 15 rounds had a process fail with "table item
 
 
 def _open(url: str, barrier, queue) -> None:
-    from app.storage.catalogue import CatalogueDB
+    from skisnow.app.storage.catalogue import CatalogueDB
 
     barrier.wait()
     try:
@@ -25,7 +25,7 @@ def _open(url: str, barrier, queue) -> None:
 @pytest.mark.skipif("fork" not in mp.get_all_start_methods(), reason="needs fork")
 def test_processes_creating_the_catalogue_at_once_all_succeed(tmp_path):
     # imported before the fork, so that the children race on the schema, not on imports
-    import app.storage.catalogue  # noqa: F401
+    import skisnow.app.storage.catalogue  # noqa: F401
 
     ctx = mp.get_context("fork")
     for r in range(ROUNDS):
@@ -44,7 +44,7 @@ def test_serve_refuses_an_unwritable_data_dir_naming_the_setting(tmp_path, monke
     """A data folder the service cannot write (a bind mount owned by another uid in Docker)
     stops ``skisnow serve`` before it binds, with exit code 2 and the setting named (it used to
     exit 0 from inside a worker with ``unable to open database file``)."""
-    from app.cli import main
+    from skisnow.app.cli import main
 
     blocker = tmp_path / "a-file"
     blocker.write_text("not a folder")
@@ -66,7 +66,7 @@ def test_serve_refuses_an_unwritable_data_dir_naming_the_setting(tmp_path, monke
     ],
 )
 def test_open_writes_on_a_public_address_are_warned_at_start_up(host, tokens, warned):
-    from app.commands.serve import open_writes_warning
+    from skisnow.app.commands.serve import open_writes_warning
 
     text = open_writes_warning(host, tokens)
     assert (text is not None) == warned
@@ -109,7 +109,7 @@ def test_serve_exits_non_zero_when_a_worker_fails_to_start(tmp_path):
         "OMP_NUM_THREADS": "1",
     }
     env.pop("SKISNOW_DATABASE_URL", None)
-    cmd = [sys.executable, "-m", "app.cli", "serve", "--port", str(port), "--workers", "2"]
+    cmd = [sys.executable, "-m", "skisnow.app.cli", "serve", "--port", str(port), "--workers", "2"]
     proc = subprocess.run(cmd, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=180)
     assert proc.returncode == 3, proc.stderr[-2000:]
     assert "failed to start" in proc.stderr
@@ -140,7 +140,7 @@ def test_serve_with_two_workers_stops_cleanly_with_exit_code_0_on_sigterm(tmp_pa
         "OMP_NUM_THREADS": "1",
     }
     env.pop("SKISNOW_DATABASE_URL", None)
-    cmd = [sys.executable, "-m", "app.cli", "serve", "--port", str(port), "--workers", "2"]
+    cmd = [sys.executable, "-m", "skisnow.app.cli", "serve", "--port", str(port), "--workers", "2"]
     proc = subprocess.Popen(cmd, env=env, cwd=tmp_path, stderr=subprocess.PIPE, text=True)
     try:
         t0 = time.monotonic()

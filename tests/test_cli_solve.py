@@ -5,9 +5,8 @@ from __future__ import annotations
 import json
 
 import pytest
-
-from app import service
-from app.cli import main
+from skisnow.app import service
+from skisnow.app.cli import main
 
 CASE = [
     "solve",
@@ -28,7 +27,7 @@ CASE = [
 
 @pytest.fixture(scope="module")
 def shipped():
-    from app.settings import Settings
+    from skisnow.app.settings import Settings
 
     return service.load_catalogue(Settings().tables_dir)
 

@@ -17,17 +17,16 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-
-from app.build_tables import BuildSettings, build_tables
-from app.storage.textures import write_texture
-from solvers.texture import Texture, self_affine_surface
+from skisnow.app.build_tables import BuildSettings, build_tables
+from skisnow.app.storage.textures import write_texture
+from skisnow.solvers.texture import Texture, self_affine_surface
 
 PIXEL_M = 1e-6
 POINTS, CHUNK = 16, 1
 ARGS = ["--points", str(POINTS), "--chunk-size", str(CHUNK), "--ratio-min", "1e-5"]
 ARGS += ["--ratio-max", "0.05"]
 WORKER_ARGS = ["--nthreads", "1", "--nworkers", "1", "--no-dashboard", "--death-timeout", "60"]
-SKISNOW = [sys.executable, "-m", "app.cli"]
+SKISNOW = [sys.executable, "-m", "skisnow.app.cli"]
 DASK = shutil.which("dask") or str(Path(sys.executable).with_name("dask"))
 
 

@@ -11,15 +11,14 @@ import numpy as np
 import pytest
 from conftest import REPO
 from fastapi.testclient import TestClient
-
-from app import service
-from app.api import create_app
-from app.profiles import profile_model
-from app.settings import Settings
-from app.storage.skis import identified_beam, read_ski
-from solvers.elastic import effective_modulus
-from solvers.identify import predict_gaps
-from solvers.macro import extrude_profile, solve_macro
+from skisnow.app import service
+from skisnow.app.api import create_app
+from skisnow.app.profiles import profile_model
+from skisnow.app.settings import Settings
+from skisnow.app.storage.skis import identified_beam, read_ski
+from skisnow.solvers.elastic import effective_modulus
+from skisnow.solvers.identify import predict_gaps
+from skisnow.solvers.macro import extrude_profile, solve_macro
 
 DEMO_SKIS = ("ski-a", "ski-b")
 

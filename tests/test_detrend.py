@@ -15,12 +15,11 @@ import json
 import h5py
 import numpy as np
 import pytest
-
-from app.cli import main
-from app.storage.textures import read_texture, write_texture
-from solvers.elastic import effective_modulus
-from solvers.errors import InputError
-from solvers.texture import (
+from skisnow.app.cli import main
+from skisnow.app.storage.textures import read_texture, write_texture
+from skisnow.solvers.elastic import effective_modulus
+from skisnow.solvers.errors import InputError
+from skisnow.solvers.texture import (
     DETREND_METHODS,
     GrindParameters,
     Texture,

@@ -2,11 +2,10 @@
 
 import numpy as np
 import pytest
-
-from solvers.elastic import FFTBackend, PeriodicHalfSpace, pyfftw_available, resolve_backend
-from solvers.errors import InputError
-from solvers.micro import solve_micro
-from solvers.texture import self_affine_surface
+from skisnow.solvers.elastic import FFTBackend, PeriodicHalfSpace, pyfftw_available, resolve_backend
+from skisnow.solvers.errors import InputError
+from skisnow.solvers.micro import solve_micro
+from skisnow.solvers.texture import self_affine_surface
 
 needs_pyfftw = pytest.mark.skipif(not pyfftw_available(), reason="pyFFTW not installed")
 

@@ -25,16 +25,15 @@ import h5py
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-
-from app import cli, service
-from app.api import create_app
-from app.build_tables import BuildSettings, build_tables
-from app.settings import Settings
-from app.storage.common import sha256_file
-from app.storage.skis import read_ski, write_ski_manifest
-from app.storage.tables import read_table, table_data_sha256, write_manifest, write_table
-from solvers.errors import DataFileError
-from solvers.texture import Texture, self_affine_surface
+from skisnow.app import cli, service
+from skisnow.app.api import create_app
+from skisnow.app.build_tables import BuildSettings, build_tables
+from skisnow.app.settings import Settings
+from skisnow.app.storage.common import sha256_file
+from skisnow.app.storage.skis import read_ski, write_ski_manifest
+from skisnow.app.storage.tables import read_table, table_data_sha256, write_manifest, write_table
+from skisnow.solvers.errors import DataFileError
+from skisnow.solvers.texture import Texture, self_affine_surface
 
 REPO = Path(__file__).resolve().parents[1]
 SKI = REPO / "tables" / "skis" / "ski-a.h5"
@@ -408,7 +407,7 @@ def test_atomic_writes_get_normal_file_permissions(tmp_path):
     import os
     import stat
 
-    from app.storage.common import atomic_path
+    from skisnow.app.storage.common import atomic_path
 
     target = tmp_path / "out.txt"
     with atomic_path(target) as tmp:

@@ -5,13 +5,16 @@ import numpy as np
 import pytest
 import scipy.linalg
 import scipy.optimize
-
-from app.storage.skis import read_ski
-from solvers import flexible, macro
-from solvers.beam import G_STANDARD, BeamSki, ClassicSkiDesign, solve_beam_contact
-from solvers.elastic import NonPeriodicHalfSpace, effective_modulus, love_rectangle_influence
-from solvers.errors import InputError
-from solvers.flexible import FlexibleModel, prepare_flexible, solve_flexible
+from skisnow.app.storage.skis import read_ski
+from skisnow.solvers import flexible, macro
+from skisnow.solvers.beam import G_STANDARD, BeamSki, ClassicSkiDesign, solve_beam_contact
+from skisnow.solvers.elastic import (
+    NonPeriodicHalfSpace,
+    effective_modulus,
+    love_rectangle_influence,
+)
+from skisnow.solvers.errors import InputError
+from skisnow.solvers.flexible import FlexibleModel, prepare_flexible, solve_flexible
 
 #: the papers' case (method.md §4): 40 kg at −160 mm, E_snow = 200 MPa
 PAPER_LOAD_N = 40 * G_STANDARD

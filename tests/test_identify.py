@@ -5,10 +5,9 @@ import functools
 
 import numpy as np
 import pytest
-
-from solvers import identify
-from solvers.beam import OTHER_DESIGNS, measure_camber, solve_beam_contact
-from solvers.errors import InputError
+from skisnow.solvers import identify
+from skisnow.solvers.beam import OTHER_DESIGNS, measure_camber, solve_beam_contact
+from skisnow.solvers.errors import InputError
 
 LOADS_N = np.linspace(10, 90, 7) * 9.82
 POSITIONS_M = np.linspace(-0.30, 0.10, 6)
@@ -208,7 +207,7 @@ def test_held_out_check_rejects_a_beam_that_does_not_predict():
 def test_forward_paths_side_by_side_give_the_same_beam():
     """``path_map`` runs the two forward paths in worker processes (app/path_pool.py): the same
     candidates, objectives and beam as one after the other in this process."""
-    from app.path_pool import path_pool
+    from skisnow.app.path_pool import path_pool
 
     ski = DESIGNS["stiff"].build(2e-3)
     f, xf, y = measure_camber(ski, LOADS_N[::3], POSITIONS_M[::2], noise_m=3e-6, rng=5)

@@ -10,10 +10,9 @@ from typing import ClassVar
 
 import numpy as np
 import pytest
-
-from app.cli import main
-from app.storage.skis import mean_profiles
-from solvers.beam import BeamSki, solve_beam_contact
+from skisnow.app.cli import main
+from skisnow.app.storage.skis import mean_profiles
+from skisnow.solvers.beam import BeamSki, solve_beam_contact
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -37,7 +36,7 @@ class _Bar:
 
 
 def test_identify_ski_from_csv(tmp_path, camber_csv, capsys, monkeypatch):
-    import app.commands.identify as identify_command
+    import skisnow.app.commands.identify as identify_command
 
     monkeypatch.setattr(identify_command, "tqdm", _Bar)
     _Bar.shown = []
@@ -73,7 +72,7 @@ def test_identify_ski_bad_holdout(tmp_path, camber_csv, capsys):
 
 def _small_ski_file(tmp_path, camber_csv) -> Path:
     """A ski file with the fixture's 25 camber cases (no identification yet)."""
-    from app.storage.skis import SkiRecord, read_camber_csv, read_ski, write_ski
+    from skisnow.app.storage.skis import SkiRecord, read_camber_csv, read_ski, write_ski
 
     csv_path = tmp_path / "ski.csv"
     csv_path.write_bytes(camber_csv)
@@ -97,8 +96,8 @@ def _recomputed_held_out_errors(record) -> tuple[np.ndarray, np.ndarray]:
 def test_store_keeps_the_held_out_errors(tmp_path, camber_csv, capsys):
     """``--store`` writes each held-out case's error with the identification (what the ski's
     page shows), equal to a recomputation from the stored beam."""
-    from app.profiles import HELD_OUT_ERRORS, HELD_OUT_STORED
-    from app.storage.skis import read_ski
+    from skisnow.app.profiles import HELD_OUT_ERRORS, HELD_OUT_STORED
+    from skisnow.app.storage.skis import read_ski
 
     path = _small_ski_file(tmp_path, camber_csv)
     main(["identify-ski", "--ski", str(path), "--store", "--json"])
@@ -116,8 +115,8 @@ def test_add_held_out_errors_to_an_older_file(tmp_path, capsys):
     """``--add-held-out-errors`` adds to an identification stored without them (here: a demo
     ski's, stripped) the errors the shipped file stores, changing nothing else, and says so in
     their provenance."""
-    from app.profiles import HELD_OUT_ADDED, HELD_OUT_ERRORS
-    from app.storage.skis import read_ski, replace_ski_group
+    from skisnow.app.profiles import HELD_OUT_ADDED, HELD_OUT_ERRORS
+    from skisnow.app.storage.skis import read_ski, replace_ski_group
 
     path = tmp_path / "ski-a.h5"
     shutil.copyfile(REPO / "tables" / "skis" / "ski-a.h5", path)

@@ -18,13 +18,18 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from skisnow.app.storage.skis import (
+    CamberData,
+    identified_beam,
+    mean_profiles,
+    read_ski,
+    write_camber_csv,
+)
+from skisnow.solvers.beam import G_STANDARD, ClassicSkiDesign, measure_camber
+from skisnow.solvers.elastic import effective_modulus
+from skisnow.solvers.identify import predict_gaps
+from skisnow.solvers.macro import extrude_profile, solve_macro
 from test_uploads import CONTACT, make_client, post_ski, wait_job
-
-from app.storage.skis import CamberData, identified_beam, mean_profiles, read_ski, write_camber_csv
-from solvers.beam import G_STANDARD, ClassicSkiDesign, measure_camber
-from solvers.elastic import effective_modulus
-from solvers.identify import predict_gaps
-from solvers.macro import extrude_profile, solve_macro
 
 #: designs unlike the demo skis (pocket, stiffness, contact points; tests/test_identify.py)
 DESIGNS = {

@@ -23,11 +23,10 @@ import zipfile
 from pathlib import Path
 
 import pytest
-
-from app.settings import Settings
-from app.storage import common
-from app.storage.tables import read_manifest
-from solvers.errors import DataFileError
+from skisnow.app.settings import Settings
+from skisnow.app.storage import common
+from skisnow.app.storage.tables import read_manifest
+from skisnow.solvers.errors import DataFileError
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -47,18 +46,45 @@ SOLVE_ARGS = (
 
 
 def test_every_package_is_listed_in_pyproject():
-    """pyproject.toml lists the packages (find cannot map tables/ to skisnow.tables)."""
+    """pyproject.toml lists the packages, all under the one import name ``skisnow`` (the
+    folders app/, solvers/ and tables/ are mapped to skisnow.app, skisnow.solvers and
+    skisnow.tables: generic top-level names such as ``app`` clash with other distributions)."""
     config = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
     listed = set(config["packages"])
     on_disk = {
-        ".".join(d.relative_to(REPO).parts)
+        ".".join(("skisnow", *d.relative_to(REPO).parts))
         for top in ("app", "solvers")
         for d in [REPO / top, *(REPO / top).rglob("*")]
         if d.is_dir() and d.name != "__pycache__" and any(d.glob("*.py"))
     }
     assert on_disk - listed == set(), "add these to [tool.setuptools] packages in pyproject.toml"
-    assert config["package-dir"]["skisnow.tables"] == "tables"
+    assert {p.split(".")[0] for p in listed} == {"skisnow"}
+    for folder in ("app", "solvers", "tables"):
+        assert config["package-dir"][f"skisnow.{folder}"] == folder
     assert "skisnow.tables" in listed
+
+
+def test_code_imports_only_the_skisnow_names():
+    """No module imports the bare folder names ``app`` or ``solvers``: they resolve in a clone
+    (its root is on ``sys.path`` under ``python -m pytest``) but not after an install."""
+    import ast
+
+    bare = []
+    for top in ("app", "solvers", "scripts", "tests"):
+        for path in (REPO / top).rglob("*.py"):
+            for node in ast.walk(ast.parse(path.read_text(), str(path))):
+                if isinstance(node, ast.Import):
+                    names = [a.name for a in node.names]
+                elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                    names = [node.module]
+                else:
+                    continue
+                bare += [
+                    f"{path.relative_to(REPO)}:{node.lineno} {n}"
+                    for n in names
+                    if n.split(".")[0] in ("app", "solvers")
+                ]
+    assert bare == [], "import skisnow.app / skisnow.solvers instead:\n" + "\n".join(bare)
 
 
 def test_tables_dir_order(monkeypatch, tmp_path):
@@ -159,19 +185,23 @@ def installed():
         with zipfile.ZipFile(wheel) as zf:
             names = set(zf.namelist())
         for needed in [
-            "app/cli.py",
-            "app/static/web.js",
-            "app/templates/page.html",
-            "app/storage/migrations/env.py",  # the catalogue's schema (app/storage/schema.py)
-            "app/storage/migrations/versions/0001_baseline.py",
-            "solvers/__init__.py",
+            "skisnow/app/cli.py",
+            "skisnow/app/static/web.js",
+            "skisnow/app/templates/page.html",
+            # the catalogue's schema (app/storage/schema.py)
+            "skisnow/app/storage/migrations/env.py",
+            "skisnow/app/storage/migrations/versions/0001_baseline.py",
+            "skisnow/solvers/__init__.py",
             "skisnow/tables/manifest.json",
             "skisnow/tables/grind-1.h5",
             "skisnow/tables/skis/manifest.json",
             "skisnow/tables/skis/ski-a.h5",
         ]:
             assert needed in names, f"{needed} missing from {wheel.name}"
-        assert not any(n.startswith("tables/") for n in names), "tables/ as a top-level name"
+        # one top-level import name: pip would silently overwrite another distribution's
+        # `app` or `solvers` (and they ours)
+        tops = {n.split("/")[0] for n in names if not n.split("/")[0].endswith(".dist-info")}
+        assert tops == {"skisnow"}, f"top-level names in the wheel: {sorted(tops)}"
 
         venv = tmp / "venv"
         _run([sys.executable, "-m", "venv", venv], timeout=120, what="python -m venv")
@@ -206,7 +236,7 @@ def installed():
 def test_wheel_install_resolves_paths(installed):
     bindir, env, work = installed
     probe = (
-        "import json, app, skisnow.tables, app.storage.common as c; "
+        "import json, skisnow.app as app, skisnow.tables, skisnow.app.storage.common as c; "
         "print(json.dumps({'app': app.__file__, 'tables': str(c.tables_dir()), "
         "'checkout': c.is_source_checkout(), 'docs': str(c.docs_dir()), "
         "'commit': c.git_commit()}))"

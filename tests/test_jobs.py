@@ -9,10 +9,9 @@ import threading
 import time
 
 import pytest
-
-from app.jobs import JobRunner
-from app.storage.catalogue import CatalogueDB
-from solvers.errors import SkisnowError
+from skisnow.app.jobs import JobRunner
+from skisnow.app.storage.catalogue import CatalogueDB
+from skisnow.solvers.errors import SkisnowError
 
 
 def _wait(predicate, timeout_s: float = 10.0) -> None:

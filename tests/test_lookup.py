@@ -6,11 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import make_table
-
-from solvers import lookup as L
-from solvers.errors import InputError, OutOfRangeError
-from solvers.micro import solve_micro
-from solvers.texture import self_affine_surface
+from skisnow.solvers import lookup as L
+from skisnow.solvers.errors import InputError, OutOfRangeError
+from skisnow.solvers.micro import solve_micro
+from skisnow.solvers.texture import self_affine_surface
 
 E_EFF = 1e8  # [Pa]
 PIXEL = 1e-6  # [m]

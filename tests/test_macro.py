@@ -2,14 +2,13 @@
 
 import numpy as np
 import pytest
-
-from app.commands.macro import SKI_DIR, loaded_profile
-from app.storage.skis import read_ski
-from solvers import reference
-from solvers.beam import G_STANDARD, solve_beam_contact
-from solvers.elastic import NonPeriodicHalfSpace, effective_modulus
-from solvers.errors import InputError
-from solvers.macro import (
+from skisnow.app.commands.macro import SKI_DIR, loaded_profile
+from skisnow.app.storage.skis import read_ski
+from skisnow.solvers import reference
+from skisnow.solvers.beam import G_STANDARD, solve_beam_contact
+from skisnow.solvers.elastic import NonPeriodicHalfSpace, effective_modulus
+from skisnow.solvers.errors import InputError
+from skisnow.solvers.macro import (
     DEFAULT_PIXEL_ACROSS,
     DEFAULT_PIXEL_ALONG_M,
     GapMap,
@@ -298,7 +297,7 @@ def _edge_lengths_python(contact, clearance, x, a, b):
 
 @pytest.mark.parametrize("seed", range(6))
 def test_compiled_edge_lengths_are_the_python_loop_bit_for_bit(seed):
-    from solvers.macro import _edge_lengths
+    from skisnow.solvers.macro import _edge_lengths
 
     rng = np.random.default_rng(seed)
     nx, ny = 60, 1 + seed
@@ -335,7 +334,7 @@ def test_coupling_across_the_width_is_the_complex_product_sum(ny):
 
 
 def test_profile_extruder_gives_the_maps_of_extrude_profile_and_interpolate_sides():
-    from solvers.macro import ProfileExtruder
+    from skisnow.solvers.macro import ProfileExtruder
 
     rng = np.random.default_rng(11)
     x = np.linspace(-0.9, 1.0, 401)

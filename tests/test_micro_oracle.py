@@ -3,9 +3,8 @@ small-load proportionality of self-affine surfaces."""
 
 import numpy as np
 import pytest
-
-from solvers.micro import solve_micro
-from solvers.texture import self_affine_surface
+from skisnow.solvers.micro import solve_micro
+from skisnow.solvers.texture import self_affine_surface
 
 E_EFF = 4.0e8  # E' [Pa], E* = 200 MPa
 

@@ -2,10 +2,9 @@
 
 import numpy as np
 import pytest
-
-from solvers import reference
-from solvers.errors import InputError
-from solvers.micro import full_contact_pressure, solve_micro
+from skisnow.solvers import reference
+from skisnow.solvers.errors import InputError
+from skisnow.solvers.micro import full_contact_pressure, solve_micro
 
 E_EFF = 2.0e8  # E' [Pa]
 
@@ -105,7 +104,7 @@ def test_iteration_cap_is_reported_not_hidden():
 @pytest.mark.parametrize("shape", [(64, 64), (63, 65)])
 def test_nine_decades_monotone(shape):
     rng = np.random.default_rng(3)
-    from solvers.texture import self_affine_surface
+    from skisnow.solvers.texture import self_affine_surface
 
     h = self_affine_surface(shape, 1e-6, hurst=0.8, rms_height_m=1e-6, rng=rng)
     fractions, gaps = [], []

@@ -5,13 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import make_table
-
-from solvers import lookup as L
-from solvers.elastic import effective_modulus
-from solvers.errors import InputError, OutOfRangeError
-from solvers.macro import extrude_profile, solve_macro
-from solvers.multiscale import multiscale
-from solvers.texture import self_affine_surface
+from skisnow.solvers import lookup as L
+from skisnow.solvers.elastic import effective_modulus
+from skisnow.solvers.errors import InputError, OutOfRangeError
+from skisnow.solvers.macro import extrude_profile, solve_macro
+from skisnow.solvers.multiscale import multiscale
+from skisnow.solvers.texture import self_affine_surface
 
 PIXEL = 1e-6
 E_TABLE = 1e8

@@ -5,7 +5,7 @@ worker and the two forward paths took 4x longer side by side than one after the 
 import subprocess
 import sys
 
-from app.path_pool import path_pool
+from skisnow.app.path_pool import path_pool
 
 #: the initialiser, then everything the identification loads; every BLAS then at one thread
 _CHECK = (

@@ -10,15 +10,14 @@ import os
 import h5py
 import numpy as np
 import pytest
-
-from app.build_tables import BuildSettings, build_tables
-from app.service import pixel_error_estimate
-from app.storage.common import tables_dir
-from app.storage.tables import read_table, table_data_sha256
-from solvers import lookup as L
-from solvers.errors import InputError
-from solvers.micro import solve_micro
-from solvers.texture import GrindParameters, Texture, fourier_upsample, linear_grind
+from skisnow.app.build_tables import BuildSettings, build_tables
+from skisnow.app.service import pixel_error_estimate
+from skisnow.app.storage.common import tables_dir
+from skisnow.app.storage.tables import read_table, table_data_sha256
+from skisnow.solvers import lookup as L
+from skisnow.solvers.errors import InputError
+from skisnow.solvers.micro import solve_micro
+from skisnow.solvers.texture import GrindParameters, Texture, fourier_upsample, linear_grind
 
 SLOW = os.environ.get("SKISNOW_SLOW_TESTS") == "1"
 PIXEL = 1.5e-6  # [m]
@@ -68,7 +67,7 @@ def test_refined_grind_block_averages_to_the_unrefined_grind(refine):
 
 
 def test_shipped_texture_is_reproduced_by_its_generator():
-    from app.storage.textures import read_texture, refined_texture
+    from skisnow.app.storage.textures import read_texture, refined_texture
 
     base = read_texture(tables_dir() / "textures" / "grind-2.h5")
     fine = refined_texture("grind-2", 2)
@@ -392,7 +391,7 @@ def test_lookup_reports_the_error_estimate_at_interpolated_points(two_level):
 
 def test_one_level_table_still_loads_without_estimates(tmp_path, small_table):
     """Tables built before the estimates (one pixel size, uploads) read as before."""
-    from app.storage.tables import write_table
+    from skisnow.app.storage.tables import write_table
 
     path = write_table(tmp_path / "old.h5", small_table, heights_m=np.zeros((4, 4)))
     with h5py.File(path, "r") as f:
@@ -451,7 +450,7 @@ def test_shipped_table_area_error_estimate_within_3_percent(name):
 def test_shipped_estimate_covers_a_finer_solve(name, node):
     """The shipped table's stored a_r against the limit from its finest level and one solve
     on half its pixel (0.75/0.375 µm for two-level tables, 0.375/0.1875 µm for three)."""
-    from app.storage.textures import refined_texture
+    from skisnow.app.storage.textures import refined_texture
 
     table = _shipped(name)
     e = table.effective_modulus_pa

@@ -97,7 +97,7 @@ def new_database(pg_url: str, name: str) -> str:
 
 
 def test_catalogue_items_and_names(pg_url):
-    from app.storage.catalogue import CatalogueDB, NameTakenError
+    from skisnow.app.storage.catalogue import CatalogueDB, NameTakenError
 
     db = CatalogueDB(pg_url)
     item = db.add_item("grind", "pg-grind", metadata={"pixel_size_um": 1.0})
@@ -117,9 +117,8 @@ def test_team_queries(pg_url, tmp_path):
     """The job quota's and the team filter's queries (tests/test_safe_defaults.py) on
     PostgreSQL, in a database of their own."""
     import psycopg
+    from skisnow.app.storage.catalogue import CatalogueDB
     from test_safe_defaults import check_team_queries
-
-    from app.storage.catalogue import CatalogueDB
 
     server = pg_url.rsplit("/", 1)[0]
     with psycopg.connect(server.replace("postgresql+psycopg", "postgresql") + "/postgres") as c:
@@ -133,7 +132,7 @@ def test_team_queries(pg_url, tmp_path):
 def test_a_job_is_claimed_exactly_once_by_competing_processes(pg_url):
     """Two service processes (two connections) race for every queued job: each job has one
     winner."""
-    from app.storage.catalogue import CatalogueDB
+    from skisnow.app.storage.catalogue import CatalogueDB
 
     a, b = CatalogueDB(pg_url), CatalogueDB(pg_url)
     jobs = [a.add_job("grind-table", None) for _ in range(20)]
@@ -162,7 +161,7 @@ def test_a_job_is_claimed_exactly_once_by_competing_processes(pg_url):
 
 def test_schema_creation_races_are_harmless(pg_url):
     """Several processes opening an empty database at once (the first start of a deployment)."""
-    from app.storage.catalogue import CatalogueDB
+    from skisnow.app.storage.catalogue import CatalogueDB
 
     pg_url = new_database(pg_url, "empty_race")
 
@@ -191,10 +190,9 @@ def test_schema_upgrade_races_between_processes_are_harmless(pg_url):
     import multiprocessing as mp
 
     import sqlalchemy as sa
+    from skisnow.app.storage.schema import current_revision, head_revision
     from test_catalogue_race import _open
     from test_schema import make_pre_alembic_catalogue, read_rows
-
-    from app.storage.schema import current_revision, head_revision
 
     url = new_database(pg_url, "upgrade_race")
     before = make_pre_alembic_catalogue(url)
@@ -273,7 +271,7 @@ def _start_replica(url: str, data_dir: Path, log: Path) -> tuple[subprocess.Pope
         "SKISNOW_DATA_DIR": str(data_dir),
         "PYTHONPATH": str(REPO),
     }
-    cmd = [sys.executable, "-m", "app.cli", "serve", "--port", str(port)]
+    cmd = [sys.executable, "-m", "skisnow.app.cli", "serve", "--port", str(port)]
     with open(log, "ab") as out:
         proc = subprocess.Popen(cmd, env=env, cwd=REPO, stdout=out, stderr=subprocess.STDOUT)
     return proc, f"http://127.0.0.1:{port}"
@@ -363,9 +361,8 @@ def test_two_replicas_share_jobs_take_over_a_killed_build_and_see_every_item(pg_
     import signal
     import time
 
+    from skisnow.app.storage.catalogue import CatalogueDB
     from test_uploads import heights_um
-
-    from app.storage.catalogue import CatalogueDB
 
     url = new_database(pg_url, "replicas")
     data_dir = tmp_path / "data"

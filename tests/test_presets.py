@@ -9,14 +9,13 @@ from pathlib import Path
 import pytest
 from conftest import CONTACT_BODY
 from fastapi.testclient import TestClient
-
-from app import service
-from app.api import create_app
-from app.presets import DEFAULT_PRESET, PRESETS, get_preset
-from app.schemas import PresetName
-from app.settings import Settings
-from solvers.errors import InputError
-from solvers.macro import DEFAULT_PIXEL_ACROSS, DEFAULT_PIXEL_ALONG_M
+from skisnow.app import service
+from skisnow.app.api import create_app
+from skisnow.app.presets import DEFAULT_PRESET, PRESETS, get_preset
+from skisnow.app.schemas import PresetName
+from skisnow.app.settings import Settings
+from skisnow.solvers.errors import InputError
+from skisnow.solvers.macro import DEFAULT_PIXEL_ACROSS, DEFAULT_PIXEL_ALONG_M
 
 BODY = CONTACT_BODY
 #: the metrics the presets' documented errors cover (the minimum average separation does not
@@ -98,7 +97,7 @@ def test_no_preset_means_default(client):
 @pytest.fixture(scope="module")
 def shipped_catalogue(catalogue):
     """The fixture skis with the shipped grind-1 table (the documented errors are for it)."""
-    from app.storage.tables import read_table
+    from skisnow.app.storage.tables import read_table
 
     path = Path(catalogue.tables_dir) / "grind-1.h5"
     cat = replace(catalogue, grinds=dict(catalogue.grinds))

@@ -6,11 +6,10 @@ import dataclasses
 import numpy as np
 import pytest
 from conftest import REPO
-
-from app.profiles import ProfileModel, profile_model, served_beam, served_beam_note
-from app.storage.skis import read_ski
-from solvers.beam import solve_beam_contact
-from solvers.errors import DataFileError
+from skisnow.app.profiles import ProfileModel, profile_model, served_beam, served_beam_note
+from skisnow.app.storage.skis import read_ski
+from skisnow.solvers.beam import solve_beam_contact
+from skisnow.solvers.errors import DataFileError
 
 SKI = REPO / "tables" / "skis" / "ski-a.h5"
 

@@ -31,11 +31,10 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
-
-from solvers.elastic import NonPeriodicHalfSpace, PeriodicHalfSpace
-from solvers.macro import extrude_profile, solve_macro
-from solvers.micro import full_contact_pressure, solve_micro
-from solvers.texture import self_affine_surface
+from skisnow.solvers.elastic import NonPeriodicHalfSpace, PeriodicHalfSpace
+from skisnow.solvers.macro import extrude_profile, solve_macro
+from skisnow.solvers.micro import full_contact_pressure, solve_micro
+from skisnow.solvers.texture import self_affine_surface
 
 settings.register_profile(
     "solver-properties",

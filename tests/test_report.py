@@ -6,12 +6,11 @@ import json
 import math
 
 import pytest
-
-from app import report
-from app.cli import build_parser
-from app.service import ContactInputs, contact, load_catalogue
-from app.settings import Settings
-from solvers.errors import InputError, NotConvergedError
+from skisnow.app import report
+from skisnow.app.cli import build_parser
+from skisnow.app.service import ContactInputs, contact, load_catalogue
+from skisnow.app.settings import Settings
+from skisnow.solvers.errors import InputError, NotConvergedError
 
 SWEEP = (100.0, 200.0)  # reduced E_snow sweep [MPa]
 LOADS = (20.0, 40.0)  # reduced load checks [kg]

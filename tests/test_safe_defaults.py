@@ -9,6 +9,8 @@ import io
 
 import numpy as np
 import pytest
+from skisnow.app.access import cross_origin_reason
+from skisnow.solvers.texture import PERIODISATION_METHODS, make_periodic, periodic_shape
 from test_uploads import (
     CONTACT,
     heights_um,
@@ -20,9 +22,6 @@ from test_uploads import (
     stored_files,
     wait_job,
 )
-
-from app.access import cross_origin_reason
-from solvers.texture import PERIODISATION_METHODS, make_periodic, periodic_shape
 
 TOKENS = {"token-a": "team-a", "token-b": "team-b"}
 A = {"authorization": "Bearer token-a"}
@@ -177,9 +176,9 @@ def test_without_tokens_everyone_is_one_team(catalogue, tmp_path):
 def test_defaults_refuse_the_mirror_of_the_largest_upload():
     """The issue's case: a 1 M-point upload (the largest by default) mirrored to 4 M points is
     refused by the default limits; as measured, or a quarter of it mirrored, it passes."""
-    from app.settings import Settings
-    from app.uploads import check_solve_grid
-    from solvers.errors import InputError
+    from skisnow.app.settings import Settings
+    from skisnow.app.uploads import check_solve_grid
+    from skisnow.solvers.errors import InputError
 
     s = Settings()
     assert 1 <= s.max_jobs_per_team <= s.max_queued_jobs
@@ -296,7 +295,7 @@ def check_team_queries(db) -> None:
 
 
 def test_team_queries_on_sqlite(tmp_path):
-    from app.storage.catalogue import CatalogueDB
+    from skisnow.app.storage.catalogue import CatalogueDB
 
     db = CatalogueDB(f"sqlite:///{tmp_path / 'c.db'}")
     check_team_queries(db)
@@ -307,7 +306,7 @@ def test_upload_page_polls_its_job_with_the_token():
     """With team tokens a job is shown only to its team: the page's poll sends the token."""
     from importlib import resources
 
-    js = resources.files("app").joinpath("static/upload.js").read_text("utf-8")
+    js = resources.files("skisnow.app").joinpath("static/upload.js").read_text("utf-8")
     poll = js[js.index("function poll()") : js.index("function poll()") + 600]
     assert "authorization" in poll and '"/v1/jobs/"' in poll
 

@@ -117,8 +117,7 @@ def schema_diff(engine) -> list:
     """Differences between the database and the tables the code uses (empty: they agree)."""
     from alembic.autogenerate import compare_metadata
     from alembic.runtime.migration import MigrationContext
-
-    from app.storage.catalogue import _meta
+    from skisnow.app.storage.catalogue import _meta
 
     with engine.connect() as c:
         return compare_metadata(MigrationContext.configure(c), _meta)
@@ -141,8 +140,8 @@ def statements_of(engine, fn) -> list[str]:
 
 def check_upgrade_keeps_rows(url: str) -> None:
     """The migration checks shared with tests/test_postgres.py."""
-    from app.storage.catalogue import CatalogueDB
-    from app.storage.schema import BASELINE_REVISION, current_revision, head_revision
+    from skisnow.app.storage.catalogue import CatalogueDB
+    from skisnow.app.storage.schema import BASELINE_REVISION, current_revision, head_revision
 
     before = make_pre_alembic_catalogue(url)
     head = head_revision()
@@ -160,7 +159,7 @@ def check_upgrade_keeps_rows(url: str) -> None:
     assert item.created_at == T0 + dt.timedelta(minutes=3)
 
     # a second upgrade (another process starting) reads the revision and writes nothing
-    from app.storage.schema import upgrade_schema
+    from skisnow.app.storage.schema import upgrade_schema
 
     sql = statements_of(db.engine, lambda: upgrade_schema(db.engine))
     writes = [s for s in sql if s.split(None, 1)[0].upper() in ("CREATE", "ALTER", "INSERT")]
@@ -174,8 +173,8 @@ def check_upgrade_keeps_rows(url: str) -> None:
 
 
 def check_fresh_database(url: str) -> None:
-    from app.storage.catalogue import CatalogueDB
-    from app.storage.schema import current_revision, head_revision
+    from skisnow.app.storage.catalogue import CatalogueDB
+    from skisnow.app.storage.schema import current_revision, head_revision
 
     db = CatalogueDB(url)
     with db.engine.connect() as c:
@@ -197,9 +196,8 @@ def test_fresh_sqlite_catalogue_is_created_at_head(tmp_path):
 
 def test_sqlite_catalogue_at_an_old_revision_is_upgraded(tmp_path):
     from alembic import command
-
-    from app.storage.catalogue import CatalogueDB
-    from app.storage.schema import _config, current_revision, head_revision
+    from skisnow.app.storage.catalogue import CatalogueDB
+    from skisnow.app.storage.schema import _config, current_revision, head_revision
 
     url = f"sqlite:///{tmp_path / 'catalogue.db'}"
     engine = sa.create_engine(url)
@@ -214,8 +212,8 @@ def test_sqlite_catalogue_at_an_old_revision_is_upgraded(tmp_path):
 
 
 def test_a_catalogue_from_a_newer_skisnow_is_refused(tmp_path):
-    from app.storage.catalogue import CatalogueDB
-    from solvers.errors import DataFileError
+    from skisnow.app.storage.catalogue import CatalogueDB
+    from skisnow.solvers.errors import DataFileError
 
     url = f"sqlite:///{tmp_path / 'catalogue.db'}"
     CatalogueDB(url).close()
@@ -228,8 +226,8 @@ def test_a_catalogue_from_a_newer_skisnow_is_refused(tmp_path):
 
 
 def test_a_database_with_part_of_the_tables_is_refused(tmp_path):
-    from app.storage.catalogue import CatalogueDB
-    from solvers.errors import DataFileError
+    from skisnow.app.storage.catalogue import CatalogueDB
+    from skisnow.solvers.errors import DataFileError
 
     url = f"sqlite:///{tmp_path / 'catalogue.db'}"
     engine = sa.create_engine(url)
@@ -245,12 +243,12 @@ def test_the_migration_scripts_are_package_data():
     import tomllib
     from pathlib import Path
 
-    from app.storage.schema import MIGRATIONS_DIR
+    from skisnow.app.storage.schema import MIGRATIONS_DIR
 
     repo = Path(__file__).resolve().parents[1]
     config = tomllib.loads((repo / "pyproject.toml").read_text())["tool"]["setuptools"]
-    assert "app.storage.migrations.versions" in config["packages"]
-    assert "script.py.mako" in config["package-data"]["app.storage.migrations"]
+    assert "skisnow.app.storage.migrations.versions" in config["packages"]
+    assert "script.py.mako" in config["package-data"]["skisnow.app.storage.migrations"]
     assert sorted(p.name for p in (MIGRATIONS_DIR / "versions").glob("0*.py")) == [
         "0001_baseline.py",
         "0002_job_attempts.py",

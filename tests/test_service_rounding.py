@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from app.service import _finite_list
+from skisnow.app.service import _finite_list
 
 
 def _by_text(a, scale=1.0, digits=6):

@@ -7,10 +7,9 @@ import dataclasses
 import pytest
 from conftest import CONTACT_BODY
 from fastapi.testclient import TestClient
-
-from app import service
-from app.api import create_app
-from app.settings import Settings
+from skisnow.app import service
+from skisnow.app.api import create_app
+from skisnow.app.settings import Settings
 
 #: papers' apparent areas (method.md §4) [cm²]
 PAPERS_AREA_CM2 = {"ski-a": 63.98, "ski-b": 121.84}
@@ -114,7 +113,7 @@ def test_macro_command_ski_model(capsys, tmp_path):
     """``skisnow macro``: the service's rule and beam sources; a bare profile has no beam."""
     import json
 
-    from app.cli import main
+    from skisnow.app.cli import main
 
     base = ["macro", "--ski", "ski-b", "--load-kg", "40", "--load-position-mm", "-160"]
     base += ["--snow-modulus-mpa", "200", "--json"]
@@ -140,7 +139,7 @@ def test_macro_command_ski_model(capsys, tmp_path):
 
 def test_macro_command_speaks_the_users_units_outside_the_camber_range(capsys):
     """A 1 g load is refused in kg (it was ``loads_n = 0.00982 N`` from the network)."""
-    from app.cli import main
+    from skisnow.app.cli import main
 
     base = ["macro", "--ski", "ski-a", "--load-position-mm", "-160", "--snow-modulus-mpa", "200"]
     assert main([*base, "--load-kg", "0.001"]) == 2

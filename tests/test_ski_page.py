@@ -13,14 +13,13 @@ from urllib.parse import quote
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-
-from app import service, web
-from app.api import create_app
-from app.profiles import HELD_OUT_ADDED, HELD_OUT_ERRORS, HELD_OUT_STORED
-from app.settings import Settings
-from app.storage.skis import mean_profiles
-from solvers.band import Z90
-from solvers.beam import BeamFlexibility, BeamSki, solve_beam_contact
+from skisnow.app import service, web
+from skisnow.app.api import create_app
+from skisnow.app.profiles import HELD_OUT_ADDED, HELD_OUT_ERRORS, HELD_OUT_STORED
+from skisnow.app.settings import Settings
+from skisnow.app.storage.skis import mean_profiles
+from skisnow.solvers.band import Z90
+from skisnow.solvers.beam import BeamFlexibility, BeamSki, solve_beam_contact
 
 DEMO = ("ski-a", "ski-b")
 #: a name that would run as script if it were not escaped (the catalogue accepts any name in
@@ -278,7 +277,7 @@ def test_an_older_file_computes_the_held_out_errors_on_read(client, catalogue, n
 def test_page_figures_are_kept_on_disk_per_ski_file(catalogue, tmp_path, monkeypatch):
     """The page's figures are drawn once per ski file and read back by another process (a
     fresh record); other numbers, or a damaged cache file, draw anew."""
-    from app import ski_figures as sf
+    from skisnow.app import ski_figures as sf
 
     a = catalogue.skis["ski-a"]
     drawn = []
@@ -313,7 +312,7 @@ def test_page_figures_are_kept_on_disk_per_ski_file(catalogue, tmp_path, monkeyp
 
 
 def test_an_uploads_figure_cache_goes_with_it(tmp_path):
-    from app.uploads import Layout
+    from skisnow.app.uploads import Layout
 
     layout = Layout(tmp_path)
     path = layout.ski_figures("item-1")

@@ -2,8 +2,7 @@
 
 import numpy as np
 import pytest
-
-from app.storage.skis import (
+from skisnow.app.storage.skis import (
     CamberData,
     SkiOutline,
     SkiRecord,
@@ -12,8 +11,8 @@ from app.storage.skis import (
     write_camber_csv,
     write_ski,
 )
-from solvers.beam import ClassicSkiDesign
-from solvers.errors import DataFileError, InputError
+from skisnow.solvers.beam import ClassicSkiDesign
+from skisnow.solvers.errors import DataFileError, InputError
 
 HEADER = "ski_id,side,load_kg,load_position_mm,position_mm,gap_mm\n"
 

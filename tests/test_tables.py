@@ -8,9 +8,8 @@ import json
 import h5py
 import numpy as np
 import pytest
-
-from app.build_tables import BuildSettings, build_tables, checkpoint_key, register
-from app.storage.tables import (
+from skisnow.app.build_tables import BuildSettings, build_tables, checkpoint_key, register
+from skisnow.app.storage.tables import (
     LOADED_DATASETS,
     SEPARATED_DATASETS,
     read_manifest,
@@ -20,9 +19,9 @@ from app.storage.tables import (
     verify_manifest,
     write_manifest,
 )
-from solvers.errors import DataFileError, InputError
-from solvers.lookup import TABLE_SCHEMA
-from solvers.texture import Texture, self_affine_surface
+from skisnow.solvers.errors import DataFileError, InputError
+from skisnow.solvers.lookup import TABLE_SCHEMA
+from skisnow.solvers.texture import Texture, self_affine_surface
 
 PIXEL = 1e-6  # [m]
 #: small grid for job tests: 12 points in 4 chunks of 3
@@ -237,7 +236,7 @@ def test_cli_registers_build_tables():
 
 
 def test_cli_reports_a_missing_texture_as_an_error(tmp_path, capsys):
-    from app.cli import main
+    from skisnow.app.cli import main
 
     status = main(["build-tables", str(tmp_path / "no-such-texture.h5"), "--out", str(tmp_path)])
     assert status == 2

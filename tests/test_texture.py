@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from solvers.errors import InputError
-from solvers.texture import (
+from skisnow.solvers.errors import InputError
+from skisnow.solvers.texture import (
     GRIND_TARGETS,
     GrindParameters,
     iso25178_parameters,
@@ -281,7 +280,7 @@ def test_target_errors_units_of_tolerance():
 
 def test_fit_recovers_a_known_grind():
     """Fit targets taken from a grind of the model itself: all within tolerance, quickly."""
-    from solvers.texture import fit_linear_grind
+    from skisnow.solvers.texture import fit_linear_grind
 
     shape = (32, 300)
     truth = linear_grind(shape, DX, GRIND, 3)

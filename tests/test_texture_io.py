@@ -7,8 +7,7 @@ import json
 import h5py
 import numpy as np
 import pytest
-
-from app.storage.textures import (
+from skisnow.app.storage.textures import (
     SCHEMA,
     SHIPPED_TEXTURES_DIR,
     list_shipped_textures,
@@ -17,8 +16,8 @@ from app.storage.textures import (
     read_texture,
     write_texture,
 )
-from solvers.errors import DataFileError, InputError
-from solvers.texture import (
+from skisnow.solvers.errors import DataFileError, InputError
+from skisnow.solvers.texture import (
     GRIND_TARGETS,
     Texture,
     iso25178_parameters,

@@ -16,10 +16,9 @@ import zipfile
 import numpy as np
 import pytest
 import x3pio
-
-from app.storage.topography import detect_format, read_raw_topography, read_topography
-from solvers.errors import DataFileError, InputError
-from solvers.texture import PERIODISATION_METHODS, make_periodic
+from skisnow.app.storage.topography import detect_format, read_raw_topography, read_topography
+from skisnow.solvers.errors import DataFileError, InputError
+from skisnow.solvers.texture import PERIODISATION_METHODS, make_periodic
 
 N_X, N_Y = 12, 7  # points along x (file axis x) and y
 DX_M = 2e-6
@@ -221,7 +220,7 @@ def test_sur_axis_order_units_and_errors(tmp_path):
 
 
 def test_cli_reads_instrument_files_with_periodisation(tmp_path, capsys):
-    from app.cli import main
+    from skisnow.app.cli import main
 
     rng = np.random.default_rng(3)
     h = np.cumsum(rng.normal(size=(24, 20)), axis=0) * 2e-8  # rough, non-periodic
@@ -272,7 +271,7 @@ def test_make_periodic_methods():
 
 def test_mirror_solve_equals_the_patch_statistics():
     """A mirror-tiled solve is symmetric: its quarter carries the same area and mean gap."""
-    from solvers.micro import solve_micro
+    from skisnow.solvers.micro import solve_micro
 
     rng = np.random.default_rng(5)
     h = np.cumsum(rng.normal(size=(32, 24)), axis=1) * 5e-8

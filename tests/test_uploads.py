@@ -18,12 +18,11 @@ import h5py
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-
-from app import service
-from app.api import create_app
-from app.settings import Settings
-from app.storage.catalogue import CatalogueDB
-from solvers.texture import iso25178_parameters, level_heights, self_affine_surface
+from skisnow.app import service
+from skisnow.app.api import create_app
+from skisnow.app.settings import Settings
+from skisnow.app.storage.catalogue import CatalogueDB
+from skisnow.solvers.texture import iso25178_parameters, level_heights, self_affine_surface
 
 REPO = Path(__file__).resolve().parents[1]
 CONTACT = {"load_kg": 40, "load_position_mm": -160, "snow_modulus_mpa": 200, "porosity": 0.5}
@@ -238,7 +237,7 @@ def test_second_lifespan_of_one_app_serves_uploads_as_uploads(catalogue, tmp_pat
 
 
 def test_restart_mid_build_resumes_from_checkpoints(catalogue, tmp_path):
-    from app.storage.tables import read_table
+    from skisnow.app.storage.tables import read_table
 
     slow = {"table_points": 12, "table_chunk_size": 1}
     with make_client(catalogue, tmp_path, **slow) as client:
@@ -296,7 +295,7 @@ def test_grind_upload_detrend_field_is_honoured_and_recorded(catalogue, tmp_path
 def test_job_of_a_crashed_process_is_requeued(tmp_path):
     import socket
 
-    from app.jobs import JobRunner
+    from skisnow.app.jobs import JobRunner
 
     db = CatalogueDB(f"sqlite:///{tmp_path / 'c.db'}")
     item = db.add_item("grind", "g")
@@ -376,9 +375,9 @@ def test_ski_upload_train_and_contact(catalogue, tmp_path, camber_csv):
         )
         # the job stored each held-out case's error with the identification: the page and the
         # API read it (no prediction on read), and it is the stored beam's prediction error
-        from app.profiles import HELD_OUT_ERRORS, HELD_OUT_STORED
-        from app.storage.skis import mean_profiles, read_ski
-        from solvers.identify import predict_gaps
+        from skisnow.app.profiles import HELD_OUT_ERRORS, HELD_OUT_STORED
+        from skisnow.app.storage.skis import mean_profiles, read_ski
+        from skisnow.solvers.identify import predict_gaps
 
         record = read_ski(tmp_path / "skis" / f"{shown['id']}.h5")
         stored = record.identified[HELD_OUT_ERRORS]

@@ -6,8 +6,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-
-from app import service
+from skisnow.app import service
 
 
 def _case(**kw):

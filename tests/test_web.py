@@ -9,10 +9,9 @@ from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
-
-from app import web
-from app.api import create_app
-from app.settings import Settings
+from skisnow.app import web
+from skisnow.app.api import create_app
+from skisnow.app.settings import Settings
 
 REPO = Path(__file__).resolve().parents[1]
 QUERY = {
@@ -96,7 +95,7 @@ def test_results_page_has_metrics_plots_and_provenance(results_page, catalogue):
 
 
 def test_results_metrics_match_the_service(client, catalogue):
-    from app import service
+    from skisnow.app import service
 
     r = client.get("/results", params=_q(ski="ski-a"))
     ref = service.contact(
@@ -262,8 +261,7 @@ def _npy(a) -> bytes:
 
 def _heights_um(shape=(64, 64)):
     import numpy as np
-
-    from solvers.texture import self_affine_surface
+    from skisnow.solvers.texture import self_affine_surface
 
     h = self_affine_surface(shape, 1e-6, hurst=0.8, rms_height_m=1e-6, rng=np.random.default_rng(1))
     return h * 1e6
@@ -272,7 +270,7 @@ def _heights_um(shape=(64, 64)):
 @pytest.fixture(scope="module")
 def upload_client(catalogue, tmp_path_factory):
     """An app on its own data directory and a copy of the catalogue: nothing leaks."""
-    from app import service
+    from skisnow.app import service
 
     cat = service.Catalogue(
         tables_dir=catalogue.tables_dir, skis=dict(catalogue.skis), grinds=dict(catalogue.grinds)
@@ -488,7 +486,7 @@ def test_result_cache_is_keyed_on_content_not_names(catalogue):
     ski's cached answer (issue #15: the cache was keyed by names only)."""
     from dataclasses import replace
 
-    from app import service
+    from skisnow.app import service
 
     cat = replace(catalogue, skis=dict(catalogue.skis))
     cache = web._ResultCache()

@@ -22,12 +22,10 @@ import time
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
-
-from app.path_pool import path_pool
-from app.profiles import HELD_OUT_ERRORS, add_held_out_errors, identification_group
-from app.storage.common import atomic_path, provenance, tables_dir
-from app.storage.skis import (
+from skisnow.app.path_pool import path_pool
+from skisnow.app.profiles import HELD_OUT_ERRORS, add_held_out_errors, identification_group
+from skisnow.app.storage.common import atomic_path, provenance, tables_dir
+from skisnow.app.storage.skis import (
     SKI_MANIFEST,
     CamberData,
     mean_profiles,
@@ -36,8 +34,9 @@ from app.storage.skis import (
     replace_ski_group,
     write_ski_manifest,
 )
-from solvers.errors import InputError
-from solvers.identify import identify_beam_checked, predict_gaps
+from skisnow.solvers.errors import InputError
+from skisnow.solvers.identify import identify_beam_checked, predict_gaps
+from tqdm import tqdm
 
 SKI_DIR = tables_dir() / "skis"
 #: where held-out profiles are compared with a design beam: near contact [m]

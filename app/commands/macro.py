@@ -11,15 +11,14 @@ import time
 from pathlib import Path
 
 import numpy as np
-
-from app import service
-from app.profiles import profile_model
-from app.storage.common import tables_dir
-from app.storage.skis import read_camber_csv, read_ski
-from solvers.beam import G_STANDARD
-from solvers.elastic import effective_modulus
-from solvers.errors import DataFileError, InputError, OutOfRangeError
-from solvers.macro import (
+from skisnow.app import service
+from skisnow.app.profiles import profile_model
+from skisnow.app.storage.common import tables_dir
+from skisnow.app.storage.skis import read_camber_csv, read_ski
+from skisnow.solvers.beam import G_STANDARD
+from skisnow.solvers.elastic import effective_modulus
+from skisnow.solvers.errors import DataFileError, InputError, OutOfRangeError
+from skisnow.solvers.macro import (
     DEFAULT_PIXEL_ACROSS,
     DEFAULT_PIXEL_ALONG_M,
     GapMap,
@@ -111,7 +110,7 @@ def loaded_profile(ski, load_n: float, load_position_m: float) -> tuple[np.ndarr
 def _flexible_choice(args: argparse.Namespace, si: dict, rigid):
     """The flexible solve of a stored ski with a beam, and which model answers (the service's
     rule and beam sources; without a grind, auto compares apparent area and rear load share)."""
-    from solvers.flexible import prepare_flexible, solve_flexible
+    from skisnow.solvers.flexible import prepare_flexible, solve_flexible
 
     record = read_ski(_ski_path(args.ski))
     beam, why = service.Ski(record.ski_id, _ski_path(args.ski), "", record).beam()

@@ -5,11 +5,11 @@ from __future__ import annotations
 import argparse
 import json
 
-from app import units
-from solvers.elastic import effective_modulus
-from solvers.errors import InputError
-from solvers.micro import solve_micro
-from solvers.texture import DETREND_METHODS, PERIODISATION_METHODS, make_periodic
+from skisnow.app import units
+from skisnow.solvers.elastic import effective_modulus
+from skisnow.solvers.errors import InputError
+from skisnow.solvers.micro import solve_micro
+from skisnow.solvers.texture import DETREND_METHODS, PERIODISATION_METHODS, make_periodic
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -87,7 +87,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from app.storage.textures import load_texture
+    from skisnow.app.storage.textures import load_texture
 
     if args.nominal_pressure_kpa is None or not args.nominal_pressure_kpa >= 0:
         raise InputError(f"--nominal-pressure-kpa must be >= 0, got {args.nominal_pressure_kpa}")

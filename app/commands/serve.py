@@ -8,8 +8,8 @@ import os
 import sys
 from pathlib import Path
 
-from app.presets import DEFAULT_PRESET, PRESETS
-from solvers.errors import DataFileError
+from skisnow.app.presets import DEFAULT_PRESET, PRESETS
+from skisnow.solvers.errors import DataFileError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -91,7 +91,7 @@ def open_writes_warning(host: str, team_tokens: dict) -> str | None:
 
 
 def run_serve(args: argparse.Namespace) -> int:
-    from app.settings import Settings
+    from skisnow.app.settings import Settings
 
     # BLAS/OpenMP thread count per worker (worker processes inherit it). NUMBA_NUM_THREADS
     # is not touched here: numba is already imported and refuses a change after import.
@@ -110,13 +110,13 @@ def run_serve(args: argparse.Namespace) -> int:
     }
     settings = Settings(**overrides)
     # fail fast, before binding, with a message naming a missing or corrupt file
-    from app.service import load_catalogue
+    from skisnow.app.service import load_catalogue
 
     load_catalogue(settings.tables_dir)
     _check_data_dir(Path(settings.data_dir))
     # the catalogue's schema is created or upgraded here (Alembic, app.storage.schema), once,
     # before the workers start; they find it at the head revision
-    from app.storage.catalogue import CatalogueDB
+    from skisnow.app.storage.catalogue import CatalogueDB
 
     CatalogueDB(settings.catalogue_url).close()
     for key, value in overrides.items():
@@ -126,7 +126,9 @@ def run_serve(args: argparse.Namespace) -> int:
         print(f"skisnow serve: WARNING: {warning}", file=sys.stderr)
     if settings.workers == 1:
         # uvicorn exits with its STARTUP_FAILURE code (3) itself when the one worker fails
-        uvicorn.run("app.main:app", host=settings.host, port=settings.port, log_level="info")
+        uvicorn.run(
+            "skisnow.app.main:app", host=settings.host, port=settings.port, log_level="info"
+        )
         return 0
     return _run_workers(settings.host, settings.port, settings.workers)
 
@@ -143,7 +145,7 @@ def _run_workers(host: str, port: int, workers: int) -> int:
     from uvicorn.config import STARTUP_FAILURE
     from uvicorn.supervisors import Multiprocess
 
-    config = Config("app.main:app", host=host, port=port, workers=workers, log_level="info")
+    config = Config("skisnow.app.main:app", host=host, port=port, workers=workers, log_level="info")
     supervisor = Multiprocess(config, sockets=[config.bind_socket()])
     try:
         supervisor.run()
@@ -162,11 +164,10 @@ def _run_workers(host: str, port: int, workers: int) -> int:
 
 def run_solve(args: argparse.Namespace) -> int:
     from pydantic import ValidationError
-
-    from app import service
-    from app.schemas import ContactBody
-    from app.settings import Settings
-    from solvers.errors import InputError
+    from skisnow.app import service
+    from skisnow.app.schemas import ContactBody
+    from skisnow.app.settings import Settings
+    from skisnow.solvers.errors import InputError
 
     try:
         body = ContactBody(

@@ -37,8 +37,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import sqlalchemy as sa
-
-from solvers.errors import InputError
+from skisnow.solvers.errors import InputError
 
 from .schema import upgrade_schema
 

@@ -15,7 +15,7 @@ import tokenize
 from collections.abc import Iterator
 from pathlib import Path
 
-from solvers import __version__
+from skisnow.solvers import __version__
 
 __all__ = [
     "NPY_READ_ERRORS",
@@ -202,7 +202,7 @@ def read_json_manifest(
     DataFileError
         Missing, unreadable, another schema, or no ``files`` mapping; the message names the file.
     """
-    from solvers.errors import DataFileError
+    from skisnow.solvers.errors import DataFileError
 
     path = Path(path)
     try:

@@ -33,8 +33,7 @@ from alembic import command
 from alembic.config import Config
 from alembic.runtime.migration import MigrationContext
 from alembic.script import ScriptDirectory
-
-from solvers.errors import DataFileError
+from skisnow.solvers.errors import DataFileError
 
 __all__ = [
     "BASELINE_REVISION",

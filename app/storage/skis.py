@@ -29,9 +29,8 @@ from pathlib import Path
 
 import h5py
 import numpy as np
-
-from solvers.beam import G_STANDARD, BeamSki
-from solvers.errors import DataFileError, InputError
+from skisnow.solvers.beam import G_STANDARD, BeamSki
+from skisnow.solvers.errors import DataFileError, InputError
 
 from .common import atomic_path, provenance, read_json_manifest, sha256_file
 
@@ -497,7 +496,7 @@ def identification_for_sampling(identified: dict | None):
 
     The file does not store the variable-projection fallback's ``camber_sensitivity`` and
     ``camber_sd_m``; they are NaN here, so a draw that would need them cannot pass unnoticed."""
-    from solvers.identify import IdentifiedBeam
+    from skisnow.solvers.identify import IdentifiedBeam
 
     beam = identified_beam(identified)
     keys = ("parameter_covariance", "camber_knots_m", "camber_coefficients_m", "knots_m")

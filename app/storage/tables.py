@@ -31,9 +31,8 @@ from pathlib import Path
 
 import h5py
 import numpy as np
-
-from solvers.errors import DataFileError
-from solvers.lookup import ERROR_FIELDS, TABLE_SCHEMA, MicroTable
+from skisnow.solvers.errors import DataFileError
+from skisnow.solvers.lookup import ERROR_FIELDS, TABLE_SCHEMA, MicroTable
 
 from .common import atomic_path, provenance, read_json_manifest, sha256_file
 

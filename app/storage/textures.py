@@ -27,9 +27,8 @@ from pathlib import Path
 
 import h5py
 import numpy as np
-
-from solvers.errors import DataFileError, InputError
-from solvers.texture import (
+from skisnow.solvers.errors import DataFileError, InputError
+from skisnow.solvers.texture import (
     Texture,
     check_detrend,
     combined_detrend,
@@ -375,7 +374,7 @@ def refined_texture(spec: str | os.PathLike, refine: int = 2) -> Texture:
         The texture is not synthetic (no generator recorded): a measured map cannot be
         refined, only coarsened (``build-tables --pixel-levels coarsen``).
     """
-    from solvers.texture import GrindParameters, linear_grind
+    from skisnow.solvers.texture import GrindParameters, linear_grind
 
     spec_str = os.fspath(spec)
     path = (
@@ -392,7 +391,12 @@ def refined_texture(spec: str | os.PathLike, refine: int = 2) -> Texture:
                 "refined (use --pixel-levels coarsen for a measured map)"
             )
         generator = generator.decode() if isinstance(generator, bytes) else str(generator)
-        if generator != "solvers.texture.linear_grind":
+        # the name files record (scripts/make_grinds.py), and the import path since the one
+        # `skisnow` namespace
+        if generator not in (
+            "solvers.texture.linear_grind",
+            "skisnow.solvers.texture.linear_grind",
+        ):
             raise InputError(f"texture {base.name!r}: unknown generator {generator!r}")
         params = GrindParameters(**json.loads(f.attrs["generator_parameters_json"]))
         seed = int(f.attrs["generator_seed"])

@@ -57,9 +57,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-
-from solvers.errors import DataFileError, InputError
-from solvers.texture import Texture, check_detrend, level_heights
+from skisnow.solvers.errors import DataFileError, InputError
+from skisnow.solvers.texture import Texture, check_detrend, level_heights
 
 from .common import NPY_READ_ERRORS
 
