@@ -38,6 +38,7 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+from skisnow.app.build_tables import refinements
 from skisnow.app.presets import DEFAULT_PRESET, PRESETS, Preset
 from skisnow.app.storage.common import provenance, tables_dir
 from skisnow.solvers.beam import G_STANDARD, BeamFlexibility, solve_beam_contact
@@ -414,15 +415,18 @@ def bench_table(cfg: AccuracyConfig, bar: tqdm) -> dict:
             mids = mids[:0]
         direct = []
         if mids.size:
-            # the reference is computed like the table: one level, or the two pixel levels
-            # extrapolated to zero pixel size (two-level tables)
+            # the reference is computed like the table's value: one level, or the two finest
+            # pixel levels extrapolated to zero pixel size (two- and three-level tables)
             h, _ = read_table_heights(path)
             levels = [(h, table.pixel_size_m)]
-            if table.attrs.get("pixel_levels") == "refine":
+            factors = refinements(table.attrs.get("pixel_levels", "none"))
+            if factors:
                 from skisnow.app.storage.textures import refined_texture
 
-                fine = refined_texture(grind, 2)
-                levels.append((fine.heights_m, fine.pixel_size_m))
+                for k in factors:
+                    fine = refined_texture(grind, k)
+                    levels.append((fine.heights_m, fine.pixel_size_m))
+                levels = levels[-2:]
             e = table.effective_modulus_pa
             spaces = [PeriodicHalfSpace(hh.shape, dx, e) for hh, dx in levels]
             for r in mids:

@@ -20,11 +20,13 @@ then ``OUT/manifest.json`` is rewritten and the texture's checkpoints are remove
 
 **Pixel levels** (``--pixel-levels``, docs/tables.md "Pixel size"): ``none`` solves the texture
 on its own grid only. ``refine`` also solves the same synthetic surface on a 2× finer grid
-(:func:`app.storage.textures.refined_texture`), ``coarsen`` also solves the texture
-block-averaged onto a 2× coarser grid (any texture). Each level is its own set of chunks and
-checkpoints; the table holds the zero-pixel extrapolation of the two levels
-(:func:`solvers.lookup.combine_pixel_levels`), a per-point error estimate of each quantity and
-the per-level values under ``/levels``.
+(:func:`app.storage.textures.refined_texture`), ``refine3`` on a 2× and a 4× finer grid,
+``coarsen`` also solves the texture block-averaged onto a 2× coarser grid (any texture). Each
+level is its own set of chunks and checkpoints; the table holds the zero-pixel extrapolation of
+the two finest levels (:func:`solvers.lookup.combine_pixel_levels`), a per-point error estimate
+of each quantity (three levels: from the successive extrapolants where the observed order is
+stable, :func:`solvers.lookup.combine_three_pixel_levels`) and the per-level values under
+``/levels``.
 
 The texture is solved as periodic, as given. ``--detrend`` says what is removed from a height
 map file's heights first (:func:`solvers.texture.level_heights`: plane, mean or none; default
@@ -56,10 +58,12 @@ from skisnow.solvers.elastic import PeriodicHalfSpace
 from skisnow.solvers.errors import InputError
 from skisnow.solvers.lookup import (
     ERROR_FIELDS,
+    ORDER_TOLERANCE,
     PIXEL_EXTRAPOLATION_ORDERS,
     MicroTable,
     chunk_bounds,
     combine_pixel_levels,
+    combine_three_pixel_levels,
     pressure_ratio_grid,
     separated_curve,
     solve_table_chunk,
@@ -78,9 +82,16 @@ log = logging.getLogger(__name__)
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 
 #: ``--pixel-levels`` choices
-PIXEL_LEVEL_MODES = ("none", "refine", "coarsen")
-#: pixel-size ratio between the two levels of a two-level table [-]
+PIXEL_LEVEL_MODES = ("none", "refine", "refine3", "coarsen")
+#: pixel-size ratio between successive levels of a table [-]
 LEVEL_REFINEMENT = 2
+
+
+def refinements(pixel_levels: str) -> list[int]:
+    """Refinement factors of the finer levels of ``--pixel-levels`` (``refine3``: [2, 4])."""
+    return {"refine": [LEVEL_REFINEMENT], "refine3": [LEVEL_REFINEMENT, LEVEL_REFINEMENT**2]}.get(
+        pixel_levels, []
+    )
 
 
 @dataclass(frozen=True)
@@ -109,8 +120,9 @@ class BuildSettings:
         Points of the clearance grid [-].
     pixel_levels : str
         ``"none"`` (the texture's grid only), ``"refine"`` (plus the same synthetic surface
-        at half the pixel size) or ``"coarsen"`` (plus the texture at twice the pixel size);
-        two levels are extrapolated to zero pixel size with a per-point error estimate.
+        at half the pixel size), ``"refine3"`` (plus the surface at a half and a quarter of
+        the pixel size) or ``"coarsen"`` (plus the texture at twice the pixel size); the
+        levels are extrapolated to zero pixel size with a per-point error estimate.
     """
 
     points: int = 48
@@ -218,18 +230,21 @@ def _levels(
     if settings.pixel_levels == "coarsen":
         return [_coarsened(texture), texture]
     fine = (refined or {}).get(texture.name)
-    if fine is None:
+    finer = [fine] if isinstance(fine, Texture) else list(fine or [])
+    factors = refinements(settings.pixel_levels)
+    if len(finer) != len(factors):
         raise InputError(
-            f"texture {texture.name!r}: --pixel-levels refine needs its refined surface "
-            "(app.storage.textures.refined_texture)"
+            f"texture {texture.name!r}: --pixel-levels {settings.pixel_levels} needs its "
+            f"surface refined {factors}x (app.storage.textures.refined_texture), got "
+            f"{len(finer)} refined texture(s)"
         )
     shape = tuple(np.shape(texture.heights_m))
-    k = LEVEL_REFINEMENT
-    if np.shape(fine.heights_m) != (shape[0] * k, shape[1] * k) or not np.isclose(
-        fine.pixel_size_m * k, texture.pixel_size_m, rtol=1e-12
-    ):
-        raise InputError(f"refined texture of {texture.name!r} is not {k}x finer")
-    return [texture, fine]
+    for k, level in zip(factors, finer, strict=True):
+        if np.shape(level.heights_m) != (shape[0] * k, shape[1] * k) or not np.isclose(
+            level.pixel_size_m * k, texture.pixel_size_m, rtol=1e-12
+        ):
+            raise InputError(f"refined texture of {texture.name!r} is not {k}x finer")
+    return [texture, *finer]
 
 
 def _level_name(name: str, index: int, count: int) -> str:
@@ -270,13 +285,20 @@ def _assemble(
         level_arrays.append({name: np.concatenate([p[name] for p in parts]) for name in parts[0]})
     diagnostics = {"solve_time_s": np.sum([a.pop("solve_time_s") for a in level_arrays], axis=0)}
     extra: dict = {}
+    order_info: dict = {}
     if len(level_arrays) == 1:
         arrays = level_arrays[0]
     else:
-        arrays = combine_pixel_levels(*level_arrays, refinement=LEVEL_REFINEMENT)
+        if len(level_arrays) == 2:
+            arrays = combine_pixel_levels(*level_arrays, refinement=LEVEL_REFINEMENT)
+        else:
+            arrays, order_info = combine_three_pixel_levels(
+                *level_arrays, refinement=LEVEL_REFINEMENT
+            )
         for name in ERROR_FIELDS.values():
             extra[name] = arrays.pop(name)
         extra["levels"] = {
+            **order_info,
             "pixel_size_m": np.array([float(j.texture.pixel_size_m) for j in level_jobs]),
             "full_contact_pressure_ratio": np.array(
                 [j.full_contact_pressure_ratio for j in level_jobs]
@@ -305,12 +327,27 @@ def _assemble(
         "texture_detrend": texture.detrend,
         "pixel_levels": settings.pixel_levels,
     }
+    if len(level_jobs) == 2:
+        method = (
+            "Richardson extrapolation to zero pixel size from two levels "
+            "(solvers.lookup.combine_pixel_levels); error estimate = |correction| "
+            "(order None: finest level kept, estimate = last change)"
+        )
+    else:
+        method = (
+            "Richardson extrapolation to zero pixel size from the two finest of three levels "
+            "(solvers.lookup.combine_three_pixel_levels); error estimate = |difference of the "
+            "successive extrapolants| where the observed order is within order_tolerance of "
+            "the assumed one (/levels/three_level_estimate_* = 1), else the larger of that and "
+            "the two-level |correction| (= 0); order None: finest level kept, estimate = last "
+            "change"
+        )
     if len(level_jobs) > 1:
         attrs["pixel_extrapolation_json"] = json.dumps(
             {
-                "method": "Richardson extrapolation to zero pixel size from two levels "
-                "(solvers.lookup.combine_pixel_levels); error estimate = |correction| "
-                "(order None: finest level kept, estimate = last change)",
+                "method": method,
+                "levels": len(level_jobs),
+                "order_tolerance": ORDER_TOLERANCE if len(level_jobs) > 2 else None,
                 "level_pixel_size_m": [float(j.texture.pixel_size_m) for j in level_jobs],
                 "level_grid_shape": [list(np.shape(j.texture.heights_m)) for j in level_jobs],
                 "level_source": [j.texture.source for j in level_jobs],
@@ -400,11 +437,12 @@ def build_tables(
         Keep the chunk checkpoints after a table is written.
     on_chunk_done : callable(level_name, chunk_index), optional
         Called after each computed chunk is checkpointed (tests use it to interrupt a build);
-        the level name is the texture name, or ``<name>.level<i>`` (i = 0 coarse) for two
-        pixel levels.
-    refined : dict of str to Texture, optional
-        For ``settings.pixel_levels == "refine"``: each texture's surface on the 2× finer
-        grid (:func:`app.storage.textures.refined_texture`).
+        the level name is the texture name, or ``<name>.level<i>`` (i = 0 coarse) for
+        several pixel levels.
+    refined : dict of str to Texture or list of Texture, optional
+        For ``settings.pixel_levels`` ``"refine"``: each texture's surface on the 2× finer
+        grid (:func:`app.storage.textures.refined_texture`); ``"refine3"``: the list of its
+        surfaces on the 2× and 4× finer grids.
 
     Returns
     -------
@@ -572,13 +610,16 @@ def _command(args: argparse.Namespace) -> int:
     )
     textures = _load_textures(args.textures, args.detrend)
     refined = None
-    if args.pixel_levels == "refine":
+    factors = refinements(args.pixel_levels)
+    if factors:
         from skisnow.app.storage.textures import refined_texture
 
         if args.detrend is not None:
-            raise InputError("--pixel-levels refine takes the stored synthetic texture as is")
+            raise InputError(
+                f"--pixel-levels {args.pixel_levels} takes the stored synthetic texture as is"
+            )
         refined = {
-            t.name: refined_texture(spec, LEVEL_REFINEMENT)
+            t.name: [refined_texture(spec, k) for k in factors]
             for t, spec in zip(textures, args.textures, strict=True)
         }
     t0 = time.perf_counter()
@@ -625,8 +666,9 @@ def register(subparsers) -> None:
         default=d.pixel_levels,
         help=(
             "none: the texture's grid only; refine: plus the same synthetic surface at half "
-            "the pixel (shipped grinds); coarsen: plus the texture at twice the pixel (any "
-            "map). Two levels: zero-pixel extrapolation with a per-point error estimate"
+            "the pixel (shipped grinds); refine3: plus the surface at a half and a quarter of "
+            "the pixel; coarsen: plus the texture at twice the pixel (any map). Several "
+            "levels: zero-pixel extrapolation with a per-point error estimate"
         ),
     )
     p.add_argument(

@@ -577,6 +577,10 @@ def pixel_error_estimate(
         "pixel_levels": table.attrs.get("pixel_levels"),
         "level_pixel_size_um": [v * 1e6 for v in levels["level_pixel_size_m"]],
         "orders": levels["orders"],
+        # three levels: estimate from successive extrapolants where the order is stable
+        "estimate_rule": "successive_extrapolants"
+        if len(levels["level_pixel_size_m"]) > 2
+        else "richardson_correction",
     }
     short = {
         "real_contact_area_fraction": "real_contact_area_fraction",

@@ -1,17 +1,20 @@
 """Check the shipped tables' pixel-size error estimate against finer solves (issue #13 point 3).
 
-At chosen nodes of a shipped two-level table, solve the same surface at 512² (block average of
-the texture), 1024² (the texture), 2048² and 4096² (refined by its generator,
-:func:`app.storage.textures.refined_texture`), and compare the stored value and its estimate
-with the zero-pixel limit from the two finest grids (Richardson, order 1). Writes JSON lines
-(one per node) to stdout; docs/bench/table-pixel-checks.json holds a run, docs/tables.md the
-table made from it.
+At chosen nodes of a shipped table of two or three pixel levels, solve the same surface at the
+given sizes: below the texture's by block average, 1024² (the texture), above it refined by its
+generator (:func:`app.storage.textures.refined_texture`: 2048², 4096², 8192²), and compare the
+stored value and its estimate with the zero-pixel limit from the two finest sizes given
+(Richardson, order 1). Writes JSON lines (one per node) to stdout, with the table's per-level
+values and, for three-level tables, the observed order and the estimate rule at the node;
+docs/bench/table-pixel-checks.json holds runs, docs/tables.md the tables made from them.
 
 Usage::
 
     python scripts/table_pixel_check.py grind-2 --nodes 37 42 46 50 54 60 > out.jsonl
+    python scripts/table_pixel_check.py grind-2 --nodes 38 --sizes 4096 8192 --table-levels
 
-A 4096² solve takes 25–35 s on one core; run it on a quiet machine.
+A 4096² solve takes 25–35 s on one core, an 8192² solve a few minutes and ~6 GB; run them on
+a quiet machine.
 """
 
 from __future__ import annotations
@@ -38,6 +41,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--sizes", type=int, nargs="+", default=[512, 1024, 2048, 4096], help="grid sizes"
     )
+    parser.add_argument(
+        "--table-levels",
+        action="store_true",
+        help="take the table's own value at sizes it stores as a level instead of solving",
+    )
     args = parser.parse_args(argv)
 
     table = read_table(tables_dir() / f"{args.grind}.h5")
@@ -56,10 +64,21 @@ def main(argv: list[str] | None = None) -> int:
             t = refined_texture(args.grind, size // n)
             levels[size] = (t.heights_m, t.pixel_size_m)
     finest = sorted(levels)[-2:]
+    stored_levels = {}
+    if args.table_levels and table.levels is not None:
+        for i, dx in enumerate(table.levels["pixel_size_m"]):
+            stored_levels[round(n * base.pixel_size_m / float(dx))] = i
     for node in args.nodes:
         ratio = float(table.pressure_ratio[node])
         row = {"grind": args.grind, "node": node, "pressure_ratio": ratio, "levels": {}}
         for size, (h, dx) in sorted(levels.items()):
+            if size in stored_levels:
+                i = stored_levels[size]
+                row["levels"][size] = {
+                    **{q: float(table.levels[q][i, node]) for q in ERROR_FIELDS},
+                    "from_table": True,
+                }
+                continue
             t0 = time.perf_counter()
             res = solve_micro(h, dx, ratio * e, e, tol=table.tol, gap_floor_m=table.gap_floor_m)
             row["levels"][size] = {
@@ -84,6 +103,12 @@ def main(argv: list[str] | None = None) -> int:
             stored_minus_limit_rel=stored / limit - 1,
             within_estimate=None if claim is None else bool(abs(stored - limit) <= claim),
         )
+        q = "real_contact_area_fraction"
+        if table.levels is not None:
+            row["table_levels"] = [float(v) for v in table.levels[q][:, node]]
+            for key in (f"observed_order_{q}", f"three_level_estimate_{q}"):
+                if key in table.levels:
+                    row[key] = float(table.levels[key][node])
         print(json.dumps(row), flush=True)
     return 0
 

@@ -55,9 +55,11 @@ __all__ = [
     "MicroTable",
     "chunk_bounds",
     "combine_pixel_levels",
+    "combine_three_pixel_levels",
     "mean_gap_m",
     "mean_reciprocal_gap_per_m",
     "nominal_pressure_ratio",
+    "observed_order",
     "pressure_ratio_grid",
     "real_contact_area_fraction",
     "relative_error_estimate",
@@ -109,6 +111,12 @@ PIXEL_EXTRAPOLATION_ORDERS = {
     "mean_gap_m": 2.0,
     "mean_reciprocal_gap_per_m": None,
 }
+
+#: largest |observed − assumed| order [-] for which three levels count as being in the
+#: asymptotic range (:func:`combine_three_pixel_levels`). CHOICE: 0.25 takes the successive
+#: changes' ratio k^p_obs within 1.68–2.38 for p = 1, k = 2; the shipped grind-2 a_r has
+#: 1.99–2.14 at a_r 2.5e-3…0.17 (docs/tables.md, Pixel size).
+ORDER_TOLERANCE = 0.25
 
 
 @dataclass
@@ -589,6 +597,88 @@ def combine_pixel_levels(
         out[quantity] = np.where(exact, f, value)
         out[err_name] = np.where(exact, 0.0, err)
     return out
+
+
+def observed_order(coarse, middle, fine, refinement: float = 2.0) -> np.ndarray:
+    """Observed order of convergence from three pixel sizes ``k²Δ, kΔ, Δ`` [-].
+
+    ``p_obs = ln((f_middle − f_coarse) / (f_fine − f_middle)) / ln k``; NaN where the two
+    changes differ in sign or one is zero (no monotone convergence, no order).
+    """
+    if not refinement > 1:
+        raise InputError(f"refinement must be > 1, got {refinement!r}")
+    d_coarse = np.asarray(middle, dtype=float) - np.asarray(coarse, dtype=float)
+    d_fine = np.asarray(fine, dtype=float) - np.asarray(middle, dtype=float)
+    ok = d_coarse * d_fine > 0
+    ratio = np.divide(d_coarse, d_fine, out=np.ones_like(d_fine), where=ok)
+    return np.where(ok, np.log(np.abs(ratio)) / np.log(refinement), np.nan)
+
+
+def combine_three_pixel_levels(
+    coarse: dict[str, np.ndarray],
+    middle: dict[str, np.ndarray],
+    fine: dict[str, np.ndarray],
+    refinement: float = 2.0,
+    orders: dict[str, float | None] | None = None,
+    order_tolerance: float = ORDER_TOLERANCE,
+) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """Table arrays of the zero-pixel limit from three levels (pixel sizes ``k²Δ, kΔ, Δ``).
+
+    The value is the two-level result of the two finest levels
+    (:func:`combine_pixel_levels` of ``middle`` and ``fine``: Richardson extrapolant
+    ``R(kΔ, Δ)`` with the assumed order of :data:`PIXEL_EXTRAPOLATION_ORDERS`, the same
+    fall-backs). The error estimate uses all three levels where they are all in partial
+    contact and the quantity has an order p:
+
+    - the observed order :func:`observed_order` is within ``order_tolerance`` of p (the levels
+      are in the asymptotic range): the difference of the successive extrapolants,
+      ``|R(kΔ, Δ) − R(k²Δ, kΔ)|``. With a next error term of order q > p this is
+      ``(k^q − 1)`` times the remaining error of ``R(kΔ, Δ)`` (≥ it for k = 2, q ≥ 1);
+    - otherwise (no stable order): the larger of that difference and the two-level estimate
+      ``|R(kΔ, Δ) − f_fine|`` (conservative).
+
+    Elsewhere (no order, full contact at a level, failed extrapolation) the estimate of
+    :func:`combine_pixel_levels` of the two finest levels is kept.
+
+    Returns
+    -------
+    (dict of ndarray, dict of ndarray)
+        The table arrays as :func:`combine_pixel_levels` returns them, and per quantity
+        ``observed_order_<quantity>`` [-] (NaN where undefined) and
+        ``three_level_estimate_<quantity>`` (1 where the three-level estimate is used, 0 where
+        the conservative fall-back is, -1 where only two levels enter) [-].
+    """
+    orders = PIXEL_EXTRAPOLATION_ORDERS if orders is None else orders
+    if not (np.isfinite(order_tolerance) and order_tolerance > 0):
+        raise InputError(f"order_tolerance must be > 0, got {order_tolerance!r}")
+    out = combine_pixel_levels(middle, fine, refinement, orders)
+    out["converged"] = out["converged"] & np.asarray(coarse["converged"], bool)
+    partial = ~(
+        np.asarray(coarse["full_contact"], bool)
+        | np.asarray(middle["full_contact"], bool)
+        | np.asarray(fine["full_contact"], bool)
+    )
+    info: dict[str, np.ndarray] = {}
+    for quantity, err_name in ERROR_FIELDS.items():
+        c, m, f = (np.asarray(d[quantity], dtype=float) for d in (coarse, middle, fine))
+        p_obs = np.where(partial, observed_order(c, m, f, refinement), np.nan)
+        info[f"observed_order_{quantity}"] = p_obs
+        method = np.full(f.shape, -1.0)
+        order = orders.get(quantity)
+        if order is not None:
+            r_fine, _ = richardson(m, f, order, refinement)
+            r_coarse, _ = richardson(c, m, order, refinement)
+            # where combine_pixel_levels extrapolated (its fall-backs: see there)
+            extrapolated = partial & (r_fine > 0)
+            if quantity == "real_contact_area_fraction":
+                extrapolated &= r_fine <= 1
+            successive = np.abs(r_fine - r_coarse)
+            stable = np.abs(p_obs - order) <= order_tolerance  # False where p_obs is NaN
+            err = np.where(stable, successive, np.maximum(successive, out[err_name]))
+            out[err_name] = np.where(extrapolated, err, out[err_name])
+            method = np.where(extrapolated, np.where(stable, 1.0, 0.0), method)
+        info[f"three_level_estimate_{quantity}"] = method
+    return out, info
 
 
 # ---------------------------------------------------------------------------- building

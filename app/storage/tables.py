@@ -10,8 +10,8 @@ File layout of a table (schema ``skisnow.table/1``; docs/tables.md has the full 
 - ``/texture/heights_m`` [m] with the texture's ISO 25178 parameters as attributes;
 - ``/loaded/*``: the table over the pressure ratio ``P_n/E'``;
 - ``/loaded/*_error*``: per-point error estimates against the zero-pixel limit and
-  ``/levels/*``: per-level values (two-level tables only; optional, absent in tables built on
-  one pixel size, which read with ``None`` estimates);
+  ``/levels/*``: per-level values (tables of two or three levels only; optional, absent in
+  tables built on one pixel size, which read with ``None`` estimates);
 - ``/separated/*``: ``⟨1/(h_0 + H)⟩`` over the clearance H;
 - ``/diagnostics/solve_time_s``: wall time per point (not part of ``data_sha256``).
 
@@ -32,7 +32,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 from skisnow.solvers.errors import DataFileError
-from skisnow.solvers.lookup import TABLE_SCHEMA, MicroTable
+from skisnow.solvers.lookup import ERROR_FIELDS, TABLE_SCHEMA, MicroTable
 
 from .common import atomic_path, provenance, read_json_manifest, sha256_file
 
@@ -97,6 +97,9 @@ LEVEL_UNITS = {
     "iterations": "1",
     "converged": "1",
     "full_contact": "1",
+    # three-level tables, per quantity q (solvers.lookup.combine_three_pixel_levels)
+    **{f"observed_order_{q}": "1" for q in ERROR_FIELDS},
+    **{f"three_level_estimate_{q}": "1" for q in ERROR_FIELDS},
 }
 SEPARATED_DATASETS = [
     ("clearance_m", "m", "clearance H between the texture's highest point and the snow"),
@@ -258,8 +261,9 @@ def write_table(
         if table.levels:
             g = f.create_group("levels")
             g.attrs["description"] = (
-                "per-level results of the two-level table (first axis: level, coarse first); "
-                "the /loaded values are their zero-pixel extrapolation"
+                "per-level results of a table of several pixel levels (first axis: level, "
+                "coarse first; observed_order_* and three_level_estimate_* per point); the "
+                "/loaded values are their zero-pixel extrapolation"
             )
             for name, value in table.levels.items():
                 ds = g.create_dataset(
