@@ -6,7 +6,7 @@ generator (:func:`app.storage.textures.refined_texture`: 2048², 4096², 8192²)
 stored value and its estimate with the zero-pixel limit from the two finest sizes given
 (Richardson, order 1). Writes JSON lines (one per node) to stdout, with the table's per-level
 values and, for three-level tables, the observed order and the estimate rule at the node;
-docs/bench/table-pixel-checks.json holds runs, docs/tables.md the tables made from them.
+docs/studies/table-pixel-checks.json holds runs, docs/tables.md the tables made from them.
 
 Usage::
 
