@@ -85,7 +85,7 @@ def mount(app: FastAPI) -> None:
             poisson_ratio,
             preset,
         )
-        answer = flex.flex_sheet_answer(visible_catalogue(request), req)
+        answer = flex.flex_sheet_answer(visible_catalogue(request, skis=[name]), req)
         if format == "csv":
             return _csv(flex.sheet_csv(answer), f"flex-{name}")
         return JSONResponse(answer)
@@ -117,7 +117,12 @@ def mount(app: FastAPI) -> None:
             preset,
         )
         answer = flex.flex_pair(
-            visible_catalogue(request), left, right, req, grind=grind, ski_model=ski_model
+            visible_catalogue(request, skis=[left, right], grinds=[grind] if grind else []),
+            left,
+            right,
+            req,
+            grind=grind,
+            ski_model=ski_model,
         )
         if format == "csv":
             return _csv(flex.pair_csv(answer), f"pair-{left}-{right}")
@@ -143,7 +148,7 @@ def mount(app: FastAPI) -> None:
             body.preset,
         )
         answer = flex.flex_ranking(
-            visible_catalogue(request),
+            visible_catalogue(request, skis=body.skis, grinds=body.grinds),
             body.skis,
             body.grinds,
             req,

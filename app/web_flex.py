@@ -173,8 +173,16 @@ full weight, wax-layer lines and the wax zone.</figcaption></figure>
 """
 
 
+def _catalogue(request: Request):
+    """The caller's catalogue, with the skis and grinds the query names loaded if another
+    process finished them (:func:`skisnow.app.access.visible_catalogue`)."""
+    qp = request.query_params
+    named = qp.getlist("ski") + [v for k in ("left", "right") if (v := qp.get(k))]
+    return visible_catalogue(request, skis=named, grinds=qp.getlist("grind"))
+
+
 def render_sheet(request: Request) -> HTMLResponse:
-    cat = visible_catalogue(request)
+    cat = _catalogue(request)
     q = {**DEFAULTS, **dict(request.query_params)}
     skis = sorted(cat.skis)
     errors: dict[str, str] = {}
@@ -211,7 +219,7 @@ def render_sheet(request: Request) -> HTMLResponse:
 
 
 def render_pair(request: Request) -> HTMLResponse:
-    cat = visible_catalogue(request)
+    cat = _catalogue(request)
     q = {**DEFAULTS, **dict(request.query_params)}
     skis = sorted(cat.skis)
     grinds = ["", *sorted(cat.grinds)]
@@ -260,7 +268,7 @@ def render_pair(request: Request) -> HTMLResponse:
 
 
 def render_ranking(request: Request) -> HTMLResponse:
-    cat = visible_catalogue(request)
+    cat = _catalogue(request)
     q = {**DEFAULTS, **dict(request.query_params)}
     chosen_skis = request.query_params.getlist("ski")
     chosen_grinds = request.query_params.getlist("grind")
