@@ -279,7 +279,9 @@ def mount(app: FastAPI) -> None:
         the answer); its table is built by a background job (``job`` → ``GET /v1/jobs/{id}``)."""
         state = _state(request)
         settings = request.app.state.settings
-        uploads.check_job_quota(state.db, team, _limits(request))  # before the file is checked
+        # a taken name first (409), then the job quota (429), both before the file is read
+        uploads.check_name_free(state.db, "grind", name)
+        uploads.check_job_quota(state.db, team, _limits(request))
         meta = {
             "shop_code": _text(shop_code, "shop_code"),
             "machine": _text(machine, "machine"),
@@ -326,7 +328,9 @@ def mount(app: FastAPI) -> None:
         too sparse for the accuracy check are refused); its network is trained by a job."""
         state = _state(request)
         settings = request.app.state.settings
-        uploads.check_job_quota(state.db, team, _limits(request))  # before the file is checked
+        # a taken name first (409), then the job quota (429), both before the file is read
+        uploads.check_name_free(state.db, "ski", name)
+        uploads.check_job_quota(state.db, team, _limits(request))
         meta = {
             "brand_model": _text(brand_model, "brand_model"),
             "style": style,

@@ -100,6 +100,17 @@ class JobLimits:
     total: int
 
 
+def check_name_free(db: CatalogueDB, kind: str, name: str) -> str:
+    """The checked ``name`` (:func:`check_name`) of a new ``kind`` item; :class:`ConflictError`
+    (409) when an item of that kind has it. Asked before the job quota: a name that is taken
+    stays taken, so "retry later" (429) would be the wrong answer. Names are one namespace for
+    all teams; the answer does not say whose the item is."""
+    name = check_name(name)
+    if db.item_by_name(kind, name) is not None:
+        raise ConflictError(f"a {kind} named {name!r} already exists; choose another name")
+    return name
+
+
 def check_job_quota(db: CatalogueDB, team: str | None, limits: JobLimits | None) -> None:
     """Raise :class:`QuotaError` when ``team`` (None: no team) may not queue another job."""
     if limits is None:
@@ -378,11 +389,9 @@ def accept_grind(
     from skisnow.app.storage.textures import write_texture
     from skisnow.solvers.texture import iso25178_parameters, make_periodic
 
-    name = check_name(name)
+    name = check_name_free(db, "grind", name)
     if detrend is None and periodic == "none":  # declared periodic: no plane to remove
         detrend = "mean"
-    if db.item_by_name("grind", name) is not None:
-        raise ConflictError(f"a grind named {name!r} already exists")
     texture = read_grind_upload(
         upload_path,
         filename,
@@ -626,9 +635,7 @@ def accept_ski(
 ) -> tuple[ItemRow, str, dict]:
     """Validate a ski upload, store its CSV and queue the network training (``team`` within
     the job ``limits``, else :class:`QuotaError`)."""
-    name = check_name(name)
-    if db.item_by_name("ski", name) is not None:
-        raise ConflictError(f"a ski named {name!r} already exists")
+    name = check_name_free(db, "ski", name)
     _, outline, figures = check_ski_upload(
         data,
         filename,

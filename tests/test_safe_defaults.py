@@ -151,6 +151,9 @@ def test_per_team_quota_and_queue_cap(catalogue, tmp_path, camber_csv):
         assert "max_jobs_per_team" in body["detail"] and "team-a" in body["detail"]
         assert int(r.headers["retry-after"]) > 0
         is_problem(post_ski(client, camber_csv, name="a-ski", headers=A), 429)
+        # a taken name is refused as such (409), not with "retry later": it stays taken
+        body = is_problem(post_grind(client, name="a-0", headers=A), 409)
+        assert "already exists" in body["detail"]
         # team b has its own quota, until the service's cap (3) is reached
         assert post_grind(client, name="b-0", headers=B).status_code == 202
         r = post_grind(client, name="b-1", headers=B)
