@@ -20,10 +20,12 @@ FROM python:3.11-slim AS build
 WORKDIR /src
 ENV PIP_NO_CACHE_DIR=1 PIP_DISABLE_PIP_VERSION_CHECK=1
 COPY --from=reqs /requirements.txt /requirements.txt
+# exact versions (the ranges of pyproject.toml would install whatever is newest on the day)
+COPY scripts/docker-constraints.txt /constraints.txt
 # the dependencies (and setuptools/wheel to build the package below without a download); test
 # suites of the largest dependencies removed (about 100 MB, never imported by the service)
 RUN python -m venv /opt/venv \
-    && /opt/venv/bin/pip install -r /requirements.txt \
+    && /opt/venv/bin/pip install -r /requirements.txt -c /constraints.txt \
     && cd /opt/venv/lib/python3.*/site-packages \
     && rm -rf numpy/*/tests numpy/tests scipy/*/tests scipy/*/*/tests matplotlib/tests \
               numba/tests pandas/tests SurfaceTopography/*/tests

@@ -9,7 +9,8 @@
 #      machine's CA bundle; kept for the next run;
 #   3. docker build; then checks on containers of the image: /readyz, one /v1/contact answer, the
 #      health status turning healthy, uid/gid 10001, tables read-only, an uploaded grind
-#      surviving `docker restart`, `skisnow macro` and `skisnow micro` on the shipped data, and
+#      surviving `docker restart`, every package at its version in scripts/docker-constraints.txt,
+#      `skisnow macro` and `skisnow micro` on the shipped data, and
 #      10 fresh starts on new empty volumes (in parallel) each ready and still running after 30 s;
 #   4. removes its containers, volumes and the image skisnow:ci (the base image and the build
 #      cache, i.e. the image's parent layers, stay, so the next run builds only what changed).
@@ -304,6 +305,26 @@ check_upload_survives_restart() {
              "snow_modulus_mpa": 200, "porosity": 0.5, "ski_model": "rigid"}'
 }
 
+check_pinned() { # every package in the image at the version of scripts/docker-constraints.txt
+    docker exec "$MAIN" /opt/venv/bin/python -m pip freeze --all 2>/dev/null \
+        >"$TMP/image-freeze.txt" || return 1
+    python3 - "$TMP/image-freeze.txt" scripts/docker-constraints.txt <<'PY'
+import re, sys
+def pins(path):
+    out = {}
+    for line in open(path):
+        line = line.split("#")[0].strip()
+        if "==" in line:
+            name, version = line.split("==", 1)
+            out[re.sub(r"[-_.]+", "-", name).lower()] = version.strip()
+    return out
+image, wanted = pins(sys.argv[1]), pins(sys.argv[2])
+off = {n: (v, wanted.get(n)) for n, v in image.items() if n not in ("pip",) and wanted.get(n) != v}
+print(f"{len(image)} packages in the image; not at the pinned version: {off or 'none'}")
+sys.exit(1 if off else 0)
+PY
+}
+
 check_macro() {
     docker exec "$MAIN" skisnow macro --ski ski-a --load-kg 40 --load-position-mm -160 \
         --snow-modulus-mpa 200 --ski-model rigid --json |
@@ -356,6 +377,7 @@ check "health status turns healthy" check_healthy
 check "runs as uid 10001 gid 10001" check_non_root
 check "tables read-only for the service user" check_tables_read_only
 check "uploaded grind survives docker restart" check_upload_survives_restart
+check "dependencies at the versions of scripts/docker-constraints.txt" check_pinned
 check "skisnow macro --ski ski-a in the container" check_macro
 check "skisnow micro grind-1 in the container" check_micro
 docker rm -f "$MAIN" >/dev/null
