@@ -450,8 +450,9 @@ def _preset_field(q: Query) -> str:
         '<label class="field" for="preset"><span>Accuracy preset</span>'
         f'<select id="preset" name="preset">{options}</select>'
         '<span class="hint">the macro grid\'s error against a converged grid (90th percentile '
-        "of the accuracy benchmark): default 2.1 % in apparent area, fine 0.8 % at about 9× "
-        "the time, fast 10.8 %; every answer shows its own band (docs/benchmarks.md)"
+        "of the accuracy benchmark): default 1.3 % in apparent area, fine 1.4 % (better but "
+        "for a short tip/tail contact) at about 6.5× the time, fast 18 %; every answer shows "
+        "its own band (docs/benchmarks.md)"
         "</span></label>"
     )
 
