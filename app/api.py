@@ -17,8 +17,8 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from skisnow.app import api_catalogue, api_flex, service, web, web_flex
 from skisnow.app.access import WriteGuardMiddleware, visible_catalogue
-from skisnow.app.profiles import profile_model
 from skisnow.app.schemas import CompareBody, ContactBody
+from skisnow.app.service.profiles import profile_model
 from skisnow.app.settings import Settings
 from skisnow.solvers.errors import InputError, NotConvergedError, OutOfRangeError, SkisnowError
 from starlette.exceptions import HTTPException as StarletteHTTPException

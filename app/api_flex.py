@@ -1,5 +1,5 @@
 """Routes of the technician's flex sheet (issue #14; docs/flex.md): thin wrappers over
-:mod:`app.flex`.
+:mod:`app.service.flex`.
 
 - ``GET /v1/skis/{name}/flex``: one ski's flex sheet for a body weight (and a snow);
 - ``GET /v1/flex/pair``: two skis side by side, flagged differences;
@@ -17,9 +17,9 @@ from typing import Literal
 from fastapi import FastAPI, Query, Request
 from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, ConfigDict, Field
-from skisnow.app import flex
 from skisnow.app.access import visible_catalogue
 from skisnow.app.schemas import PresetName, SkiModelName
+from skisnow.app.service import flex
 from skisnow.solvers.errors import InputError
 
 Format = Literal["json", "csv"]

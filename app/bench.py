@@ -619,7 +619,7 @@ def bench_flexible(repeats: int = 7, skis: tuple[str, ...] = ("ski-a", "ski-b"))
     auto. Medians [s]."""
     from skisnow.app import service
     from skisnow.app.commands.macro import SKI_DIR
-    from skisnow.app.profiles import profile_model
+    from skisnow.app.service.profiles import profile_model
     from skisnow.solvers.beam import G_STANDARD
     from skisnow.solvers.elastic import effective_modulus
     from skisnow.solvers.flexible import prepare_flexible, solve_flexible

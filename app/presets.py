@@ -14,7 +14,7 @@ area, total real contact area, average real contact pressure and total reciproca
 tests use it as the documented agreement between presets (the minimum average separation is
 not in it: in a short tip or tail contact it follows the edge-singular peak pressure). What an
 answer reports instead is ``grid_band``, the 90th percentile of the measured errors per
-quantity (the minimum separation included); the error band (:func:`app.band.grid_component`)
+quantity (the minimum separation included); the error band (:func:`app.service.band.grid_component`)
 scales it for the real area, real pressure and reciprocal separation and replaces it by
 per-answer estimates for the apparent area and minimum separation.
 """
@@ -50,7 +50,7 @@ class Preset:
         percentile of the absolute relative errors against the reference over the 12 cases of
         ``skisnow bench accuracy`` (docs/bench/accuracy.json, ``end_to_end``), rounded up;
         scaled into every answer's error band for the quantities without a per-answer
-        estimate (:func:`app.band.grid_component`).
+        estimate (:func:`app.service.band.grid_component`).
     """
 
     name: str

@@ -29,8 +29,8 @@ import numpy as np
 from matplotlib import rc_context
 from matplotlib.figure import Figure
 from skisnow.app import plots, units
-from skisnow.app.profiles import profile_model
 from skisnow.app.service import Catalogue, ContactInputs, contact, load_catalogue
+from skisnow.app.service.profiles import profile_model
 from skisnow.app.storage.common import atomic_path, docs_dir, provenance
 from skisnow.solvers import lookup
 from skisnow.solvers.elastic import effective_modulus
@@ -38,7 +38,7 @@ from skisnow.solvers.errors import InputError, NotConvergedError, OutOfRangeErro
 
 log = logging.getLogger(__name__)
 
-#: words for :attr:`app.profiles.ProfileModel.source` in the report
+#: words for :attr:`app.service.profiles.ProfileModel.source` in the report
 PROFILE_MODEL_NAMES = {
     "identified_beam": "identified-beam",
     "network": "network",

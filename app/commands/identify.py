@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 from skisnow.app.path_pool import path_pool
-from skisnow.app.profiles import HELD_OUT_ERRORS, add_held_out_errors, identification_group
+from skisnow.app.service.profiles import HELD_OUT_ERRORS, add_held_out_errors, identification_group
 from skisnow.app.storage.common import atomic_path, provenance, tables_dir
 from skisnow.app.storage.skis import (
     SKI_MANIFEST,

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 from skisnow.app import service
-from skisnow.app.profiles import profile_model
+from skisnow.app.service.profiles import profile_model
 from skisnow.app.storage.common import tables_dir
 from skisnow.app.storage.skis import read_camber_csv, read_ski
 from skisnow.solvers.beam import G_STANDARD
@@ -97,8 +97,8 @@ def _si_inputs(args: argparse.Namespace) -> dict:
 
 
 def loaded_profile(ski, load_n: float, load_position_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """Loaded camber H*(X) of a stored ski record from its profile model (:mod:`app.profiles`:
-    identified beam, else camber network, else design beam).
+    """Loaded camber H*(X) of a stored ski record from its profile model
+    (:mod:`app.service.profiles`: identified beam, else camber network, else design beam).
 
     Returns
     -------

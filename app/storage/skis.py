@@ -121,7 +121,7 @@ class SkiRecord:
     beam_design: dict | None = None
     network: dict | None = None
     identified: dict | None = None
-    #: per-process objects built from this record (the profile model, :mod:`app.profiles`)
+    #: per-process objects built from this record (the profile model, :mod:`app.service.profiles`)
     cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property

@@ -1,21 +1,21 @@
 """The technician's flex sheet, pair matching and a skier's best ski (issue #14; docs/flex.md).
 
 Service functions over :mod:`solvers.flex`: they pick the ski's profile model (the one every
-contact answer uses, :mod:`app.profiles`), check the request against the model's range, add the
-kick-zone load share on snow (the bending ski of :mod:`solvers.flexible` on the preset's grid)
-and the band from the camber model, and shape JSON in technician units (unit in every key).
+contact answer uses, :mod:`app.service.profiles`), check the request against the model's range,
+add the kick-zone load share on snow (the bending ski of :mod:`solvers.flexible` on the preset's
+grid) and the band from the camber model, and shape JSON in technician units (unit in every key).
 
 Band (90 % half-width, absolute, in the quantity's unit)
     The sheet is computed again for plausible camber models and ``Z90 · rms(draw − nominal)``
     is the band (:data:`solvers.band.Z90`), as the contact answers' band does
-    (:mod:`app.band`):
+    (:mod:`app.service.band`):
 
-    - identified beam: :data:`app.band.BEAM_SAMPLES` beams drawn from the identification's
-      covariance in antithetic pairs, deviations × :data:`app.band.BEAM_SCALE`, seed
-      :data:`app.band.BAND_SEED` (:func:`app.band.beam_models` on snow, the same draws on the
-      flat);
-    - camber network: :data:`app.band.PROFILE_SAMPLES` smooth profile perturbations of the
-      network's own error (:func:`app.band.camber_sigma_m`), the same field at every load;
+    - identified beam: :data:`app.service.band.BEAM_SAMPLES` beams drawn from the identification's
+      covariance in antithetic pairs, deviations × :data:`app.service.band.BEAM_SCALE`, seed
+      :data:`app.service.band.BAND_SEED` (:func:`app.service.band.beam_models` on snow, the same
+      draws on the flat);
+    - camber network: :data:`app.service.band.PROFILE_SAMPLES` smooth profile perturbations of the
+      network's own error (:func:`app.service.band.camber_sigma_m`), the same field at every load;
     - design beam: taken as exact (band 0), as in every answer.
 
     On snow the kick-zone share's band adds the difference between the preset's grid and the
@@ -32,7 +32,9 @@ import time
 
 import numpy as np
 from skisnow.app import units
-from skisnow.app.band import (
+from skisnow.app.presets import DEFAULT_PRESET, get_preset
+from skisnow.app.service.answer import ContactInputs, contact
+from skisnow.app.service.band import (
     BAND_SEED,
     BEAM_SAMPLES,
     BEAM_SCALE,
@@ -41,9 +43,8 @@ from skisnow.app.band import (
     beam_models,
     camber_sigma_m,
 )
-from skisnow.app.presets import DEFAULT_PRESET, get_preset
-from skisnow.app.profiles import profile_model
-from skisnow.app.service import Catalogue, ContactInputs, Ski, UnknownItemError, contact
+from skisnow.app.service.catalogue import Catalogue, Ski, UnknownItemError
+from skisnow.app.service.profiles import profile_model
 from skisnow.app.storage.common import code_version
 from skisnow.app.storage.skis import identification_for_sampling
 from skisnow.solvers.band import Z90, unit_perturbations
