@@ -246,7 +246,7 @@ def main(argv: list[str] | None = None) -> int:
             },
         }
         print(json.dumps(result, indent=1))
-        from skisnow.app.bench import _write_stage
+        from skisnow.app.evidence.micro import _write_stage
 
         _write_stage(args.stage, result, None)
         ok = errors == 0 and mismatches == 0

@@ -6,8 +6,8 @@ import json
 
 import numpy as np
 import pytest
-from skisnow.app import bench
-from skisnow.app import bench_accuracy as BA
+from skisnow.app.evidence import accuracy as BA
+from skisnow.app.evidence import micro as bench
 
 
 @pytest.fixture(scope="module")

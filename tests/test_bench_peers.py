@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from skisnow.app import bench_peers
+from skisnow.app.evidence import peers as bench_peers
 
 
 def test_time_at_error_interpolates_log_log_and_says_when_unreached():

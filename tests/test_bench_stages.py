@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from skisnow.app import bench
+from skisnow.app.evidence import micro as bench
 
 
 def test_bench_micro_structure_and_agreement():

@@ -6,8 +6,8 @@ import json
 import math
 
 import pytest
-from skisnow.app import report
 from skisnow.app.cli import build_parser
+from skisnow.app.evidence import paper_case as report
 from skisnow.app.service import ContactInputs, contact, load_catalogue
 from skisnow.app.settings import Settings
 from skisnow.solvers.errors import InputError, NotConvergedError

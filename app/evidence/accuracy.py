@@ -1607,7 +1607,7 @@ def register(bsub: argparse._SubParsersAction) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from skisnow.app import bench
+    from skisnow.app.evidence import micro as bench
 
     cfg = QUICK if args.quick else AccuracyConfig()
     if args.stages:

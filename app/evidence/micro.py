@@ -764,13 +764,13 @@ def _macro_md(d: dict) -> list[str]:
 
 
 def _micro_peers_md(d: dict) -> list[str]:
-    from skisnow.app.bench_peers import render_md
+    from skisnow.app.evidence.peers import render_md
 
     return render_md(d)
 
 
 def _accuracy_md(d: dict) -> list[str]:
-    from skisnow.app.bench_accuracy import render_md
+    from skisnow.app.evidence.accuracy import render_md
 
     return render_md(d)
 
@@ -864,7 +864,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     mac = bsub.add_parser("macro", help="macro BEM per demo ski: default grid vs fine reference")
     mac.add_argument("--repeats", type=int, default=7)
     mac.set_defaults(func=_run_macro)
-    from skisnow.app import bench_accuracy
+    from skisnow.app.evidence import accuracy as bench_accuracy
 
     bench_accuracy.register(bsub)
 
@@ -873,7 +873,7 @@ def _run_micro(args: argparse.Namespace) -> int:
     if args.work_precision:
         import tempfile
 
-        from skisnow.app import bench_peers
+        from skisnow.app.evidence import peers as bench_peers
 
         with tempfile.TemporaryDirectory(prefix="skisnow-wp-") as tmp:
             data = bench_peers.bench_work_precision(

@@ -10,7 +10,7 @@ equal error, whatever their stopping criteria mean.
 Rules, the same for every solver:
 
 - **Own process, pinned threads.** Each solver runs in a fresh worker process
-  (``python -m skisnow.app.bench_peers worker``) whose environment sets ``OMP_NUM_THREADS``,
+  (``python -m skisnow.app.evidence.peers worker``) whose environment sets ``OMP_NUM_THREADS``,
   ``OPENBLAS_NUM_THREADS``, ``MKL_NUM_THREADS``, ``NUMBA_NUM_THREADS`` and
   ``VECLIB_MAXIMUM_THREADS`` to ``threads`` before anything is imported; our FFTs get
   ``workers=threads``. The worker records the environment, ``threadpoolctl``'s view of the
@@ -28,7 +28,7 @@ Rules, the same for every solver:
   tolerance; ASPHER ``solve_nested(backend="periodic")`` in its quick start's scaled units
   (E* = 1, domain side = 1).
 
-Whole-process times: ``python -m skisnow.app.bench_peers once ...`` run ``repeats`` times,
+Whole-process times: ``python -m skisnow.app.evidence.peers once ...`` run ``repeats`` times,
 timed from outside (interpreter start, imports, surface, solve, exit), side by side with the
 in-process median. ``aspher_probe`` measures ASPHER under the conditions the old benchmark
 mixed (inside a process that had already run our solver, unpinned threads, SI against scaled
@@ -308,7 +308,7 @@ def run_worker(
 def pinned_env(threads: int | None) -> dict[str, str]:
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(
-        [str(Path(__file__).resolve().parents[1]), *filter(None, [env.get("PYTHONPATH")])]
+        [str(Path(__file__).resolve().parents[2]), *filter(None, [env.get("PYTHONPATH")])]
     )
     if threads is not None:
         for k in THREAD_ENV:
@@ -317,7 +317,7 @@ def pinned_env(threads: int | None) -> dict[str, str]:
 
 
 def _spawn(args: list[str], threads: int | None, timeout_s: float = 3600) -> dict:
-    cmd = [sys.executable, "-m", "skisnow.app.bench_peers", *args]
+    cmd = [sys.executable, "-m", "skisnow.app.evidence.peers", *args]
     proc = subprocess.run(
         cmd, env=pinned_env(threads), capture_output=True, text=True, timeout=timeout_s
     )
