@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from skisnow.app.storage.common import tables_dir
 from skisnow.solvers.elastic import effective_modulus
+from skisnow.solvers.micro import DEFAULT_GAP_FLOOR_M
 
 TABLES = tables_dir()
 log = logging.getLogger(__name__)
@@ -20,7 +21,8 @@ log = logging.getLogger(__name__)
 MICRO_METRICS = {
     "real_contact_area_fraction": "real contact area fraction a_r",
     "mean_gap_m": "mean gap h̄_n",
-    "mean_reciprocal_gap_per_m": "reciprocal gap (1/h)‾, floored at 10 nm",
+    "mean_reciprocal_gap_per_m": "reciprocal gap (1/h)‾, floored at "
+    f"{DEFAULT_GAP_FLOOR_M * 1e9:g} nm",
     "mean_reciprocal_gap_raw_per_m": "reciprocal gap (1/h)‾, raw (no floor)",
 }
 #: metrics a table interpolates (MicroTable array, lookup function name)
@@ -120,8 +122,16 @@ QUICK = AccuracyConfig(
     network_repeats=1,
 )
 
+#: snow modulus of the micro and network studies [Pa]
+SNOW_MODULUS_PA = 200e6
 #: E' of the micro study: 200 MPa snow on a 0.7 GPa base, ν = 0.3 [Pa]
-MICRO_E_EFF_PA = effective_modulus(200e6, 0.7e9, 0.3)
+MICRO_E_EFF_PA = effective_modulus(SNOW_MODULUS_PA, 0.7e9, 0.3)
+#: relative pressure step of the micro study's well-posedness check, d ln f / d ln P_n [-]
+PRESSURE_STEP = 1e-3
+#: porosity n of the network stage's computations [-]
+NETWORK_POROSITY = 0.5
+#: a refinement sequence converges when each change is this many times smaller than the last
+CONVERGENCE_RATIO_MIN = 1.4
 #: physical size of the micro patch: the shipped textures' 1024 × 1.5 µm [m]
 MICRO_PATCH_M = 1024 * 1.5e-6
 
@@ -139,7 +149,9 @@ def _rel(value: float, ref: float) -> float:
     return float(value / ref - 1) if ref != 0 else float("nan")
 
 
-def convergence(values: list[float], ratio_min: float = 1.4, bound: float = 0.05) -> dict:
+def convergence(
+    values: list[float], ratio_min: float = CONVERGENCE_RATIO_MIN, bound: float = 0.05
+) -> dict:
     """Classify a refinement sequence (coarse → fine) by its successive differences.
 
     ``converges``: every successive difference is smaller than the previous one by at least

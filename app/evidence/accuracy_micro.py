@@ -12,6 +12,7 @@ from skisnow.app.evidence.accuracy_common import (
     MICRO_E_EFF_PA,
     MICRO_METRICS,
     MICRO_PATCH_M,
+    PRESSURE_STEP,
     SHIPPED_N,
     TABLES,
     AccuracyConfig,
@@ -122,7 +123,7 @@ def bench_micro_grid(cfg: AccuracyConfig, bar: tqdm) -> dict:
                 )
                 # well-posedness: d ln f / d ln P_n from a +0.1 % pressure step (O(1) for a
                 # well-posed metric; huge when a metric hangs on the gaps of a few pixels)
-                step = 1e-3
+                step = PRESSURE_STEP
                 pert = solve_micro(h, dx, p_n * (1 + step), MICRO_E_EFF_PA, halfspace=hs)
                 sens = {
                     k: _rel(float(getattr(pert, k)), float(getattr(res, k))) / step

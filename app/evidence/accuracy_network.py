@@ -10,6 +10,7 @@ import numpy as np
 from skisnow.app.evidence.accuracy_common import (
     ANSWER_METRICS,
     MICRO_E_EFF_PA,
+    NETWORK_POROSITY,
     AccuracyConfig,
     _median_time,
     _rel,
@@ -29,7 +30,7 @@ def bench_network(cfg: AccuracyConfig, bar: tqdm) -> dict:
     cat, verified = _catalogue()
     grind = cat.grind(cfg.network_grind)
     e_eff = MICRO_E_EFF_PA
-    porosity = 0.5
+    porosity = NETWORK_POROSITY
     out = {"grind": cfg.network_grind, "skis": [], "catalogue": verified}
     for name in cfg.network_skis:
         ski = cat.ski(name)

@@ -31,6 +31,10 @@ from tqdm import tqdm
 log = logging.getLogger(__name__)
 
 
+#: ratios of one vectorised lookup, timed per ratio [-]
+LOOKUP_BATCH = 10_000
+
+
 def thin_table(table: MicroTable, points: int) -> MicroTable:
     """The table restricted to ``points`` of its pressure nodes, ends kept, near-even in ln r."""
     n = len(table.pressure_ratio)
@@ -159,7 +163,7 @@ def bench_table(cfg: AccuracyConfig, bar: tqdm) -> dict:
                 row["lookup_time_per_query_s"] = _median_time(
                     lambda sub=sub, r1=rr[:1]: _lookup(sub, r1), 21
                 )[0]
-                many = np.geomspace(lo, hi, 10_000)
+                many = np.geomspace(lo, hi, LOOKUP_BATCH)
                 row["lookup_time_per_ratio_vectorised_s"] = (
                     _median_time(lambda sub=sub, many=many: _lookup(sub, many), 5)[0] / many.size
                 )
