@@ -12,6 +12,15 @@ import statistics
 import time
 
 import numpy as np
+from skisnow.app.evidence.paper_case import (
+    BASE_MODULUS_MPA,
+    DOC_POROSITY,
+    PAPER_LOAD_KG,
+    PAPER_POSITION_MM,
+    PAPER_SNOW_MODULUS_MPA,
+    POISSON_RATIO,
+    PROFILE_MODEL_NAMES,
+)
 
 log = logging.getLogger(__name__)
 
@@ -36,11 +45,11 @@ def bench_macro_stage(
         net = read_ski(SKI_DIR / f"{name}.h5").network
         if net is None:
             continue
-        camber.predict_profile(net, 40 * G_STANDARD, -0.160)  # warm-up
+        camber.predict_profile(net, PAPER_LOAD_KG * G_STANDARD, PAPER_POSITION_MM / 1e3)  # warm-up
         times = []
         for _ in range(inference_calls):
             t0 = time.perf_counter()
-            camber.predict_profile(net, 40 * G_STANDARD, -0.160)
+            camber.predict_profile(net, PAPER_LOAD_KG * G_STANDARD, PAPER_POSITION_MM / 1e3)
             times.append(time.perf_counter() - t0)
         out["inference"][name] = {"calls": inference_calls, "median_s": statistics.median(times)}
     return out
@@ -79,10 +88,18 @@ def bench_identification(skis: tuple[str, ...] = ("ski-a", "ski-b")) -> dict:
 def _identification_md(d: dict) -> list[str]:
     if not d:
         return []
+    first = next(iter(d.values()))
+    cases, held = first.get("cases"), first.get("held_out_cases")
+    shipped = (
+        f"its {cases} shipped cases ({first['noise_um']:.0f} µm noise), "
+        f"{100 * held / cases:.0f} % held out "
+        if cases and held
+        else "its shipped cases, 20 % held out "
+    )
     lines = [
         "### Beam identification (issue #12)",
         "",
-        "Each demo ski's beam identified from its 425 shipped cases (3 µm noise), 20 % held out "
+        f"Each demo ski's beam identified from {shipped}"
         "(seed 0), as `skisnow identify-ski` runs it: variable-projection start on 30 cases, then "
         "the forward fit of the exact device model (docs/camber-identification.md). One run each "
         "(target ≤ 2 min per ski; held-out profile ≤ 0.3 µm from the truth where H* < 0.2 mm).",
@@ -115,8 +132,8 @@ def bench_flexible(repeats: int = 7, skis: tuple[str, ...] = ("ski-a", "ski-b"))
     from skisnow.solvers.flexible import prepare_flexible, solve_flexible
     from skisnow.solvers.macro import extrude_profile, solve_macro
 
-    e_eff = effective_modulus(200e6, 0.7e9, 0.3)
-    load_n, xf = 40.0 * G_STANDARD, -0.160
+    e_eff = effective_modulus(PAPER_SNOW_MODULUS_MPA * 1e6, BASE_MODULUS_MPA * 1e6, POISSON_RATIO)
+    load_n, xf = PAPER_LOAD_KG * G_STANDARD, PAPER_POSITION_MM / 1e3
     cat = service.load_catalogue(SKI_DIR.parent)
     grind = sorted(cat.grinds)[0]
 
@@ -152,7 +169,15 @@ def bench_flexible(repeats: int = 7, skis: tuple[str, ...] = ("ski-a", "ski-b"))
         )
         req = {}
         for mode in ("rigid", "auto"):
-            inp = service.ContactInputs(name, grind, 40.0, -160.0, 200.0, 0.5, ski_model=mode)
+            inp = service.ContactInputs(
+                name,
+                grind,
+                PAPER_LOAD_KG,
+                PAPER_POSITION_MM,
+                PAPER_SNOW_MODULUS_MPA,
+                DOC_POROSITY,
+                ski_model=mode,
+            )
             req[mode], _ = median_of(lambda inp=inp: service.contact(cat, inp))
             req[mode + "_no_band"], _ = median_of(
                 lambda inp=inp: service.contact(cat, inp, error_band=False)
@@ -213,11 +238,26 @@ def _flexible_md(d: dict) -> list[str]:
     return lines
 
 
+def _case_words() -> str:
+    """ "40 kg at −160 mm, E_snow 200 MPa": the case every solve of this stage runs."""
+    position = f"{PAPER_POSITION_MM:g}".replace("-", "−")
+    return f"{PAPER_LOAD_KG:g} kg at {position} mm, E_snow {PAPER_SNOW_MODULUS_MPA:g} MPa"
+
+
+def _profile_words(d: dict) -> str:
+    """Which profile model the solves used, as the run recorded it (the flexible rows name the
+    ski's profile model; ``bench_macro`` loads the same one, ``commands.macro.loaded_profile``)."""
+    models = {r.get("profile_model") for r in d.get("flexible", {}).values()}
+    if len(models) == 1 and None not in models:
+        return f"{PROFILE_MODEL_NAMES.get(models.pop(), 'served')} profile"
+    return "profile from its profile model"
+
+
 def render_md(d: dict) -> list[str]:
     lines = [
         "## Macro scale: one ski-on-snow solve (`skisnow bench macro`)",
         "",
-        "Papers' case (40 kg at −160 mm, E_snow 200 MPa), each demo ski's network profile; "
+        f"Papers' case ({_case_words()}), each demo ski's {_profile_words(d)}; "
         "default grid against the 0.5 mm × 16 reference. Targets: ≤ 30 ms per solve, apparent "
         "area within 1 %, network inference ≤ 1 ms.",
         "",

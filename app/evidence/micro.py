@@ -28,12 +28,13 @@ E_STAR_PA = 200e6  # Johnson's composite modulus of the benchmark [Pa]; E' = 2 E
 PIXEL_M = 1e-6
 SQ_M = 2e-6
 PRESSURES_PA = (60e3, 1e6)
+HURST = 0.8  # Hurst exponent of the benchmark surface [-]
 
 
 def bench_surface(n: int, seed: int = 2026) -> np.ndarray:
     """The benchmark surface: self-affine, H = 0.8, Sq 2 µm, 1 µm pixels, seeded [m]."""
     rng = np.random.default_rng(seed)
-    return self_affine_surface((n, n), PIXEL_M, hurst=0.8, rms_height_m=SQ_M, rng=rng)
+    return self_affine_surface((n, n), PIXEL_M, hurst=HURST, rms_height_m=SQ_M, rng=rng)
 
 
 # --------------------------------------------------------------------------- peers
@@ -385,7 +386,8 @@ def render_md(d: dict) -> list[str]:
     lines = [
         "## Micro scale: one solve (`skisnow bench micro`)",
         "",
-        "Self-affine surface (H = 0.8, Sq = 2 µm, 1 µm pixels, seeded), E* = 200 MPa. "
+        f"Self-affine surface (H = {HURST:g}, Sq = {SQ_M * 1e6:g} µm, {PIXEL_M * 1e6:g} µm "
+        f"pixels, seeded), E* = {E_STAR_PA / 1e6:g} MPa. "
         "Median of repeats, our solver with each FFT backend against the bare FFT floor. "
         "Peers are compared in the work-precision section (`--work-precision`): single peer "
         "runs at their own stopping criteria, one cold run each, are not like-for-like "

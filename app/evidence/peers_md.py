@@ -53,7 +53,8 @@ def render_md(d: dict) -> list[str]:
         f"({', '.join(THREAD_ENV)}; our FFT workers the same), one untimed warm-up per "
         f"tolerance, median of {d['repeats']} repeats. Timer: {d['timer']}. Errors are relative "
         f"to one common reference ({d['reference']}): contact area fraction a_r, mean gap, "
-        "pressure field (L2). The machine (2 cores) was shared with other jobs while this ran: "
+        f"pressure field (L2). The machine ({d.get('machine', {}).get('cpus', '?')} cores) was "
+        "shared with other jobs while this ran: "
         "compare ratios within one size, not absolute times across runs.",
         "",
     ]
