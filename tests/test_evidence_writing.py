@@ -12,7 +12,14 @@ import re
 from pathlib import Path
 
 import pytest
-from skisnow.app.evidence import accuracy_md, macro, paper_case, paper_case_md, writer
+from skisnow.app.evidence import (
+    accuracy_md,
+    accuracy_md_micro,
+    macro,
+    paper_case,
+    paper_case_md,
+    writer,
+)
 from skisnow.app.storage.common import docs_dir
 
 EVIDENCE = Path(writer.__file__).parent
@@ -80,7 +87,7 @@ def test_every_stored_stage_renders(stage):
 
 def test_pixel_counting_sentence_states_the_counts_of_the_stored_run():
     d = json.loads((BENCH_JSON / "accuracy.json").read_text())
-    text = "\n".join(accuracy_md.table_section(d))
+    text = "\n".join(accuracy_md_micro.table_section(d))
     for g in d["table"]["grinds"]:
         n_px = g["grid_shape"][0] * g["grid_shape"][1]
         at = [
@@ -88,7 +95,7 @@ def test_pixel_counting_sentence_states_the_counts_of_the_stored_run():
             for r in g["rows"]
             if "held_out_max_at" in r
         ]
-        few = [a for a in at if a * n_px < accuracy_md.FEW_PIXELS]
+        few = [a for a in at if a * n_px < accuracy_md_micro.FEW_PIXELS]
         line = next(x for x in text.splitlines() if x.startswith(f"{g['grind']}: the largest"))
         if few:
             assert f"touches on {max(few) * n_px:.0f} pixels or fewer" in line
@@ -104,9 +111,9 @@ def test_the_words_follow_the_numbers():
     assert accuracy_md._times_words(3.3) == "a few times"
     assert accuracy_md._percent_words(0.115) == "several per cent"
     assert accuracy_md._percent_words(0.004) == "less than a per cent"
-    assert accuracy_md._power_of_ten(10_000) == "10⁴"
-    assert accuracy_md._order_words(1.0, 2048) == "first order"
-    assert accuracy_md._order_words(None, 2048) == "the 2048² value"
+    assert accuracy_md_micro._power_of_ten(10_000) == "10⁴"
+    assert accuracy_md_micro._order_words(1.0, 2048) == "first order"
+    assert accuracy_md_micro._order_words(None, 2048) == "the 2048² value"
 
 
 def test_macro_section_names_the_profile_model_the_run_used():

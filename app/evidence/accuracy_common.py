@@ -136,7 +136,7 @@ CONVERGENCE_RATIO_MIN = 1.4
 MICRO_PATCH_M = 1024 * 1.5e-6
 
 
-def _median_time(fn, repeats: int) -> tuple[float, list[float], object]:
+def median_time(fn, repeats: int) -> tuple[float, list[float], object]:
     times, out = [], None
     for _ in range(max(repeats, 1)):
         t0 = time.perf_counter()
@@ -145,7 +145,7 @@ def _median_time(fn, repeats: int) -> tuple[float, list[float], object]:
     return statistics.median(times), times, out
 
 
-def _rel(value: float, ref: float) -> float:
+def rel_diff(value: float, ref: float) -> float:
     return float(value / ref - 1) if ref != 0 else float("nan")
 
 
@@ -203,7 +203,7 @@ def zero_pixel_limit(values: list[float], conv: dict) -> float:
 SHIPPED_N = 1024
 
 
-def _grid_name(dx_mm: float, ny: int) -> str:
+def grid_name(dx_mm: float, ny: int) -> str:
     return f"{dx_mm:g} mm × {ny}"
 
 

@@ -14,9 +14,9 @@ from skisnow.app.evidence.accuracy_common import (
     PRESET_TOLERANCES,
     TABLES,
     AccuracyConfig,
-    _grid_name,
-    _rel,
+    grid_name,
     pareto_front,
+    rel_diff,
 )
 from skisnow.app.presets import DEFAULT_PRESET, PRESETS, Preset
 from tqdm import tqdm
@@ -24,7 +24,7 @@ from tqdm import tqdm
 log = logging.getLogger(__name__)
 
 
-def _catalogue():
+def shipped_catalogue():
     """The shipped catalogue, verified against its manifests when they match.
 
     Other jobs may be rewriting the demo ski files (retraining the camber networks) while a
@@ -64,7 +64,7 @@ def candidate_presets(cfg: AccuracyConfig) -> dict[str, Preset]:
     out: dict[str, Preset] = {}
     grids = list(cfg.grids) + [(p.pixel_along_m * 1e3, p.pixels_across) for p in PRESETS.values()]
     for dx, ny in grids:
-        name = _grid_name(dx, ny)
+        name = grid_name(dx, ny)
         out.setdefault(name, Preset(name, dx * 1e-3, int(ny), float("nan"), "candidate"))
     dx, ny = cfg.reference_grid
     out["reference"] = Preset("reference", dx * 1e-3, int(ny), 0.0, "reference")
@@ -79,9 +79,9 @@ def _answer_value(ans: dict, metric: str) -> float:
 def bench_end_to_end(cfg: AccuracyConfig, bar: tqdm) -> dict:
     from skisnow.app import service
 
-    cat, verified = _catalogue()
+    cat, verified = shipped_catalogue()
     cands = candidate_presets(cfg)
-    named = {_grid_name(p.pixel_along_m * 1e3, p.pixels_across): k for k, p in PRESETS.items()}
+    named = {grid_name(p.pixel_along_m * 1e3, p.pixels_across): k for k, p in PRESETS.items()}
     cases = []
     for ski, grind, kg, pos, snow, por in cfg.cases:
         # rigid: the stages' errors are measured on one model (auto could switch models
@@ -113,7 +113,7 @@ def bench_end_to_end(cfg: AccuracyConfig, bar: tqdm) -> dict:
             bar.update(1)
         ref = case["settings"]["reference"]
         for s in case["settings"].values():
-            s["rel_error"] = {m: _rel(s[m], ref[m]) for m in ANSWER_METRICS}
+            s["rel_error"] = {m: rel_diff(s[m], ref[m]) for m in ANSWER_METRICS}
         cases.append(case)
     settings = []
     for name, preset in cands.items():
@@ -152,7 +152,7 @@ def bench_end_to_end(cfg: AccuracyConfig, bar: tqdm) -> dict:
             "fastest_on_front": min(ok, key=lambda s: s["median_total_s"])["name"] if ok else None,
         }
     return {
-        "reference": _grid_name(*cfg.reference_grid),
+        "reference": grid_name(*cfg.reference_grid),
         "catalogue": verified,
         "presets": {k: asdict(p) for k, p in PRESETS.items()},
         "cases": cases,

@@ -16,9 +16,9 @@ from skisnow.app.evidence.accuracy_common import (
     SHIPPED_N,
     TABLES,
     AccuracyConfig,
-    _median_time,
-    _rel,
     convergence,
+    median_time,
+    rel_diff,
     zero_pixel_limit,
 )
 from skisnow.solvers.elastic import PeriodicHalfSpace
@@ -72,8 +72,8 @@ def _two_level(rows: list[dict], limit: dict) -> dict | None:
         value, err = richardson_levels(c[m], f[m], PIXEL_EXTRAPOLATION_ORDERS[m])
         out["value"][m] = float(value)
         out["estimate_rel"][m] = float(err / abs(value))
-        out["before_rel_error"][m] = _rel(c[m], limit[m])
-        out["after_rel_error"][m] = _rel(float(value), limit[m])
+        out["before_rel_error"][m] = rel_diff(c[m], limit[m])
+        out["after_rel_error"][m] = rel_diff(float(value), limit[m])
     out["time_s"] = c["median_time_s"] + f["median_time_s"]
     return out
 
@@ -115,7 +115,7 @@ def bench_micro_grid(cfg: AccuracyConfig, bar: tqdm) -> dict:
                 h = block_average(fine, n)
                 dx = MICRO_PATCH_M / n
                 hs = PeriodicHalfSpace(h.shape, dx, MICRO_E_EFF_PA)
-                med, times, res = _median_time(
+                med, times, res = median_time(
                     lambda h=h, dx=dx, hs=hs, p_n=p_n: solve_micro(
                         h, dx, p_n, MICRO_E_EFF_PA, halfspace=hs
                     ),
@@ -126,7 +126,7 @@ def bench_micro_grid(cfg: AccuracyConfig, bar: tqdm) -> dict:
                 step = PRESSURE_STEP
                 pert = solve_micro(h, dx, p_n * (1 + step), MICRO_E_EFF_PA, halfspace=hs)
                 sens = {
-                    k: _rel(float(getattr(pert, k)), float(getattr(res, k))) / step
+                    k: rel_diff(float(getattr(pert, k)), float(getattr(res, k))) / step
                     for k in MICRO_METRICS
                 }
                 rows.append(
@@ -144,7 +144,7 @@ def bench_micro_grid(cfg: AccuracyConfig, bar: tqdm) -> dict:
                 bar.update(1)
             ref = rows[-1]
             for r in rows:
-                r["rel_error"] = {k: _rel(r[k], ref[k]) for k in MICRO_METRICS}
+                r["rel_error"] = {k: rel_diff(r[k], ref[k]) for k in MICRO_METRICS}
                 r["time_ratio_vs_reference"] = r["median_time_s"] / ref["median_time_s"]
             conv = {k: convergence([r[k] for r in rows]) for k in MICRO_METRICS}
             limit = {k: zero_pixel_limit([r[k] for r in rows], conv[k]) for k in ERROR_FIELDS}

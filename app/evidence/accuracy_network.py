@@ -12,10 +12,10 @@ from skisnow.app.evidence.accuracy_common import (
     MICRO_E_EFF_PA,
     NETWORK_POROSITY,
     AccuracyConfig,
-    _median_time,
-    _rel,
+    median_time,
+    rel_diff,
 )
-from skisnow.app.evidence.accuracy_e2e import _catalogue
+from skisnow.app.evidence.accuracy_e2e import shipped_catalogue
 from skisnow.solvers.beam import G_STANDARD, BeamFlexibility, solve_beam_contact
 from tqdm import tqdm
 
@@ -27,7 +27,7 @@ def bench_network(cfg: AccuracyConfig, bar: tqdm) -> dict:
     from skisnow.solvers.macro import extrude_profile, solve_macro
     from skisnow.solvers.multiscale import multiscale
 
-    cat, verified = _catalogue()
+    cat, verified = shipped_catalogue()
     grind = cat.grind(cfg.network_grind)
     e_eff = MICRO_E_EFF_PA
     porosity = NETWORK_POROSITY
@@ -45,14 +45,14 @@ def bench_network(cfg: AccuracyConfig, bar: tqdm) -> dict:
             for pos in cfg.network_positions_mm:
                 f, xf = kg * G_STANDARD, pos * 1e-3
                 net, beam_ski = rec.network, rec.beam
-                tn, _, (xn, gn) = _median_time(
+                tn, _, (xn, gn) = median_time(
                     lambda f=f, xf=xf, net=net: camber.predict_profile(net, f, xf),
                     cfg.network_repeats,
                 )
-                tb, _, beam = _median_time(
+                tb, _, beam = median_time(
                     lambda f=f, xf=xf, b=beam_ski: solve_beam_contact(b, f, xf), 1
                 )
-                tbc, _, _ = _median_time(
+                tbc, _, _ = median_time(
                     lambda f=f, xf=xf, b=beam_ski, fl=flex: solve_beam_contact(
                         b, f, xf, flexibility=fl
                     ),
@@ -84,7 +84,7 @@ def bench_network(cfg: AccuracyConfig, bar: tqdm) -> dict:
                         "converged": bool(mac.converged),
                     }
                 row["rel_error"] = {
-                    m: _rel(vals["network"][m], vals["beam"][m]) for m in ANSWER_METRICS
+                    m: rel_diff(vals["network"][m], vals["beam"][m]) for m in ANSWER_METRICS
                 }
                 row["converged"] = vals["network"]["converged"] and vals["beam"]["converged"]
                 rows.append(row)

@@ -11,7 +11,7 @@ from skisnow.app.evidence.accuracy_common import (
     MICRO_METRICS,
     PRESET_TOLERANCES,
     TABLE_METRICS,
-    _rel,
+    rel_diff,
 )
 from skisnow.solvers.lookup import (
     ERROR_FIELDS,
@@ -107,7 +107,7 @@ def plot_accuracy(data: dict, path: Path) -> None:
                     )
                 t = s.get("two_level")
                 if t and m in t["value"]:  # after: the two-level table value (vs the finest)
-                    y = _floor(_rel(t["value"][m], s["rows"][-1][m]))
+                    y = _floor(rel_diff(t["value"][m], s["rows"][-1][m]))
                     ax.loglog(t["time_s"], y, "*", ms=11, color=ax.lines[-1].get_color())
                     ax.annotate("1024²+2048² extrap.", (t["time_s"], y), fontsize=6)
             ax.set_title(label, fontsize=9)

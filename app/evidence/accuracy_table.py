@@ -15,7 +15,7 @@ from skisnow.app.evidence.accuracy_common import (
     TABLE_METRICS,
     TABLES,
     AccuracyConfig,
-    _median_time,
+    median_time,
 )
 from skisnow.solvers.elastic import PeriodicHalfSpace
 from skisnow.solvers.lookup import (
@@ -160,12 +160,12 @@ def bench_table(cfg: AccuracyConfig, bar: tqdm) -> dict:
             if direct:
                 rr = np.array([d["pressure_ratio"] for d in direct])
                 got = _lookup(sub, rr)  # also builds the interpolants (once per table)
-                row["lookup_time_per_query_s"] = _median_time(
+                row["lookup_time_per_query_s"] = median_time(
                     lambda sub=sub, r1=rr[:1]: _lookup(sub, r1), 21
                 )[0]
                 many = np.geomspace(lo, hi, LOOKUP_BATCH)
                 row["lookup_time_per_ratio_vectorised_s"] = (
-                    _median_time(lambda sub=sub, many=many: _lookup(sub, many), 5)[0] / many.size
+                    median_time(lambda sub=sub, many=many: _lookup(sub, many), 5)[0] / many.size
                 )
                 err = {
                     m: np.abs(got[m] / np.array([d[m] for d in direct]) - 1) for m in TABLE_METRICS
