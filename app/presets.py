@@ -8,7 +8,7 @@ in ``provenance.preset.texture_pixel_size_um`` beside the preset and the macro p
 The presets were chosen on the error-versus-time front of ``skisnow bench accuracy``
 (docs/benchmarks.md, "Macro grid spacing and end to end"): each is the fastest grid on the front
 whose errors against a 0.5 mm × 64-pixels-across reference (same table) stay within its
-tolerance (:data:`app.bench_accuracy.PRESET_TOLERANCES`). ``max_rel_error`` is the largest
+tolerance (:data:`app.evidence.accuracy_common.PRESET_TOLERANCES`). ``max_rel_error`` is the largest
 relative error measured there over the benchmark's cases, rounded up, of the apparent contact
 area, total real contact area, average real contact pressure and total reciprocal separation;
 tests use it as the documented agreement between presets (the minimum average separation is
