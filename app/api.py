@@ -238,7 +238,7 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
             )
         return {"grinds": out}
 
-    # The answers are plain JSON types already (lists of floats from service.rounding.finite_list), so
+    # The answers are plain JSON types already (float lists: service.rounding.finite_list), so
     # they go out as a JSONResponse: FastAPI's jsonable_encoder would walk their ~10^4 values
     # again (8-10 ms of a ~60 ms request on the benchmark machine) to give the same bytes.
     @app.post("/v1/contact", tags=["contact"], response_model=dict)

@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from skisnow.app import units
-from skisnow.app.service.profiles import profile_model
 from skisnow.app.service import Catalogue, ContactInputs, contact
+from skisnow.app.service.profiles import profile_model
 from skisnow.app.storage.common import provenance
 from skisnow.solvers import lookup
 from skisnow.solvers.elastic import effective_modulus
