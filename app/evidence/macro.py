@@ -21,6 +21,16 @@ from skisnow.app.evidence.paper_case import (
     POISSON_RATIO,
     PROFILE_MODEL_NAMES,
 )
+from skisnow.app.service.profiles import profile_model
+from skisnow.app.storage.skis import SHIPPED_SKI_DIR, read_ski
+from skisnow.solvers.beam import G_STANDARD
+from skisnow.solvers.elastic import effective_modulus
+from skisnow.solvers.macro import (
+    DEFAULT_PIXEL_ACROSS,
+    DEFAULT_PIXEL_ALONG_M,
+    extrude_profile,
+    solve_macro,
+)
 
 log = logging.getLogger(__name__)
 
@@ -29,20 +39,17 @@ def bench_macro_stage(
     repeats: int = 7, inference_calls: int = 300, identification: bool = True
 ) -> dict:
     """``skisnow bench macro``: one macro solve per demo ski at the default grid against the
-    fine reference (``app.commands.macro.bench_macro``), the bending ski, the network inference
+    fine reference (:func:`bench_macro`), the bending ski, the network inference
     time and (``identification``) the beam identification of both demo skis (about 1.5–2 min
     each on 2 cores; the tests leave it out, tests/test_identify*.py cover it)."""
-    from skisnow.app.commands.macro import SKI_DIR, bench_macro
-    from skisnow.app.storage.skis import read_ski
     from skisnow.solvers import camber
-    from skisnow.solvers.beam import G_STANDARD
 
     out = {"skis": bench_macro(repeats=repeats), "inference": {}}
     out["flexible"] = bench_flexible(repeats=repeats)
     if identification:
         out["identification"] = bench_identification()
     for name in out["skis"]:
-        net = read_ski(SKI_DIR / f"{name}.h5").network
+        net = read_ski(SHIPPED_SKI_DIR / f"{name}.h5").network
         if net is None:
             continue
         camber.predict_profile(net, PAPER_LOAD_KG * G_STANDARD, PAPER_POSITION_MM / 1e3)  # warm-up
@@ -59,13 +66,11 @@ def bench_identification(skis: tuple[str, ...] = ("ski-a", "ski-b")) -> dict:
     """Beam identification of each demo ski from its shipped measurements, as ``skisnow
     identify-ski`` runs it (20 % held out, seed 0): wall time, misfit, held-out errors against
     the measurements and against the design beam near contact (one run each; target ≤ 2 min)."""
-    from skisnow.app.commands.identify import identify_report
-    from skisnow.app.commands.macro import SKI_DIR
-    from skisnow.app.storage.skis import read_ski
+    from skisnow.app.service.identification import identify_report
 
     out = {}
     for name in skis:
-        rec = read_ski(SKI_DIR / f"{name}.h5")
+        rec = read_ski(SHIPPED_SKI_DIR / f"{name}.h5")
         rep = identify_report(rec.measurements, rec.beam, 0.2, 0)
         out[name] = {
             k: rep.get(k)
@@ -125,16 +130,11 @@ def bench_flexible(repeats: int = 7, skis: tuple[str, ...] = ("ski-a", "ski-b"))
     and one whole ``/v1/contact`` computation (``service.contact``) with ``ski_model`` rigid and
     auto. Medians [s]."""
     from skisnow.app import service
-    from skisnow.app.commands.macro import SKI_DIR
-    from skisnow.app.service.profiles import profile_model
-    from skisnow.solvers.beam import G_STANDARD
-    from skisnow.solvers.elastic import effective_modulus
     from skisnow.solvers.flexible import prepare_flexible, solve_flexible
-    from skisnow.solvers.macro import extrude_profile, solve_macro
 
     e_eff = effective_modulus(PAPER_SNOW_MODULUS_MPA * 1e6, BASE_MODULUS_MPA * 1e6, POISSON_RATIO)
     load_n, xf = PAPER_LOAD_KG * G_STANDARD, PAPER_POSITION_MM / 1e3
-    cat = service.load_catalogue(SKI_DIR.parent)
+    cat = service.load_catalogue(SHIPPED_SKI_DIR.parent)
     grind = sorted(cat.grinds)[0]
 
     def median_of(fn) -> tuple[float, object]:
@@ -291,3 +291,49 @@ def render_md(d: dict) -> list[str]:
     lines += _flexible_md(d.get("flexible", {}))
     lines += _identification_md(d.get("identification", {}))
     return lines
+
+
+def bench_macro(repeats: int = 7, skis: tuple[str, ...] = ("ski-a", "ski-b")) -> dict:
+    """Median time of one macro solve per demo ski at the default grid vs a fine reference.
+
+    One untimed warm-up solve per grid first (numba compilation, kernel cache), as in the
+    running service. The fine reference is 0.5 mm × 16 pixels across, timed twice.
+
+    Returns a dict per ski: default and fine grid (pixel sizes [mm]), median solve time [s],
+    apparent area [cm²] (sub-pixel zone edges), the same area by pixel counting [cm²], peak
+    pressure [kPa], iterations, and the relative errors of the default grid.
+    """
+    e_eff = effective_modulus(200e6, 0.7e9, 0.3)
+    load_n, xf = 40.0 * G_STANDARD, -0.160
+    out: dict = {}
+    for name in skis:
+        ski = read_ski(SHIPPED_SKI_DIR / f"{name}.h5")
+        x, gap = profile_model(ski)(load_n, xf)
+        width = float(ski.outline.width_m.max())
+        rows = {}
+        for label, dx, ny in (
+            ("default", DEFAULT_PIXEL_ALONG_M, DEFAULT_PIXEL_ACROSS),
+            ("fine", 0.5e-3, 16),
+        ):
+            gm = extrude_profile(x, gap, width, pixel_along_m=dx, pixels_across=ny)
+            res = solve_macro(gm, load_n, xf, e_eff)  # warm-up
+            times = []
+            for _ in range(repeats if label == "default" else 2):
+                t0 = time.perf_counter()
+                res = solve_macro(gm, load_n, xf, e_eff)
+                times.append(time.perf_counter() - t0)
+            p = np.nan_to_num(res.pressure_pa)
+            rows[label] = {
+                "pixel_mm": (dx * 1e3, width / ny * 1e3),
+                "median_time_s": float(np.median(times)),
+                "area_cm2": res.apparent_contact_area_m2 * 1e4,
+                "pixel_count_area_cm2": float(np.count_nonzero(p > 0) * dx * width / ny * 1e4),
+                "peak_pressure_kpa": res.peak_pressure_pa * 1e-3,
+                "iterations": res.iterations,
+                "converged": res.converged,
+            }
+        d, f = rows["default"], rows["fine"]
+        rows["area_error"] = d["area_cm2"] / f["area_cm2"] - 1
+        rows["peak_pressure_error"] = d["peak_pressure_kpa"] / f["peak_pressure_kpa"] - 1
+        out[name] = rows
+    return out

@@ -52,9 +52,6 @@ PAPER_POSITION_MM = -160.0
 PAPER_SNOW_MODULUS_MPA = 200.0
 #: the porosity the docs state (method.md §5, README): a choice of ours, the papers give none
 DOC_POROSITY = 0.5
-#: density of ice [kg/m³]: snow density ρ = (1 − n) ρ_ice (the web form's value, app/web.py;
-#: its one home belongs in app/units.py)
-ICE_DENSITY_KG_M3 = 917.0
 BASE_MODULUS_MPA = 700.0
 POISSON_RATIO = 0.3
 
