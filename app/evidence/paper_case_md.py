@@ -14,7 +14,6 @@ import numpy as np
 from skisnow.app.evidence.paper_case import (
     BASE_MODULUS_MPA,
     GRINDS,
-    ICE_DENSITY_KG_M3,
     JSON_NAME,
     METRICS,
     PAPER_LOAD_KG,
@@ -31,6 +30,7 @@ from skisnow.app.evidence.paper_case import (
     zone_pressures,
 )
 from skisnow.app.evidence.paper_case_findings import measure_findings
+from skisnow.app.units import ICE_DENSITY_KG_M3
 
 #: apparent pressures of the real-area table [kPa] (nearest points of the curve)
 TABLE_PRESSURES_KPA = (10.0, 30.0, 100.0, 300.0)
