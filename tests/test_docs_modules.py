@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-DOCS = sorted((REPO / "docs").glob("*.md")) + [REPO / "README.md"]
+DOCS = [*sorted((REPO / "docs").glob("*.md")), REPO / "README.md"]
 #: a file path of the code: app/x.py, app/room/x.py, solvers/x.py, scripts/x.py
 PATH_RE = re.compile(r"(?<![\w/.-])((?:app|solvers|scripts)/[\w/]+\.py)")
 #: a dotted module reference: app.x[.y] or solvers.x (docs write them without ``skisnow.``)
