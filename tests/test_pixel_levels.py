@@ -414,23 +414,7 @@ def _shipped(name: str):
     return read_table(tables_dir() / f"{name}.h5")
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        "grind-1",
-        pytest.param(
-            "grind-2",
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="TABLE-PIXEL-GRIND2-LOWLOAD: with three levels (1.5/0.75/0.375 µm) the "
-                "estimate is ≤ 1.2 % where the observed order of a_r is within 0.25 of 1 (29 of "
-                "31 points), but the conservative fall-back gives 4.07 % at r = 8.78e-5 (a_r "
-                "1.6e-3, observed order 0.70) and 2.4 % at r = 2.18e-4 (order 1.37) "
-                "(docs/tables.md, Shipped tables)",
-            ),
-        ),
-    ],
-)
+@pytest.mark.parametrize("name", ["grind-1", "grind-2"])
 def test_shipped_table_area_error_estimate_within_3_percent(name):
     table = _shipped(name)
     assert table.has_error_estimates
@@ -439,6 +423,23 @@ def test_shipped_table_area_error_estimate_within_3_percent(name):
     assert np.count_nonzero(sel) >= 20
     rel = table.real_contact_area_fraction_error[sel] / a[sel]
     assert rel.max() <= AR_TOLERANCE, f"{name}: largest a_r estimate {rel.max():.3%}"
+
+
+def test_shipped_grind2_fourth_level_follows_its_rule():
+    """The shipped grind-2 table has the fourth level exactly at the nodes its rule selects
+    from the three-level table (its a_r before the pass and its three-level flags)."""
+    table = _shipped("grind-2")
+    nodes = table.fourth_level_nodes
+    a_before = table.real_contact_area_fraction.copy()
+    a_before[nodes] = table.levels["adaptive_previous_real_contact_area_fraction"]
+    expect, _ = L.select_fourth_level_nodes(
+        a_before, {q: table.levels[f"three_level_estimate_{q}"] for q in L.ERROR_FIELDS}
+    )
+    assert nodes.size and np.array_equal(nodes, expect)
+    assert float(table.levels["adaptive_pixel_size_m"]) == pytest.approx(
+        table.levels["pixel_size_m"][-1] / 2, rel=1e-12
+    )
+    assert np.all(table.levels["adaptive_converged"])
 
 
 @pytest.mark.slow
@@ -724,6 +725,19 @@ def test_fourth_level_pass_refines_only_the_selected_nodes(fourth_level):
         info["estimate_range_a_r"] == list(L.ESTIMATE_RANGE_A_R) and info["nodes"] == nodes.tolist()
     )
     assert table.attrs["data_sha256"] != three.attrs["data_sha256"]
+    # the lookup and the API report the recombined estimate and the fourth level
+    p = table.pressure_ratio[nodes[0]] * e
+    rel = L.relative_error_estimate(table, p, e, "real_contact_area_fraction")
+    assert rel == pytest.approx(
+        table.real_contact_area_fraction_error[nodes[0]]
+        / table.real_contact_area_fraction[nodes[0]]
+    )
+    answer = pixel_error_estimate(table, np.array([[p, 0.0]]), np.array([[0.1, 0.0]]), 0.0, e)
+    assert answer["fourth_level"]["pixel_size_um"] == pytest.approx(PIXEL / 8 * 1e6)
+    assert answer["fourth_level"]["cells_near"] == 1
+    assert "fourth_level" not in pixel_error_estimate(
+        three, np.array([[p]]), np.array([[0.1]]), 0.0, e
+    )
 
 
 def test_fourth_level_pass_resumes_and_equals_the_from_scratch_build(fourth_level):
