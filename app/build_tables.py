@@ -596,7 +596,7 @@ FOURTH_LEVEL_RULE = (
 
 
 def fourth_level_key(
-    table_data_sha256: str, fine: Texture, table, max_iterations: int, refine: int
+    table_data_sha256: str, fine: Texture, table: MicroTable, max_iterations: int, refine: int
 ) -> str:
     """Hash of everything a fourth-level node depends on (stale checkpoints never match)."""
     h = hashlib.sha256()
@@ -679,7 +679,7 @@ def fourth_level_pass(
     log.info("%s: fourth level at node(s) %s", table.name, nodes.tolist())
     input_sha = str(table.attrs["data_sha256"])
     max_iterations = int(table.attrs["max_iterations"])
-    fourth: dict[str, list] = {}
+    fourth: dict[str, np.ndarray] = {}
     solve_time = np.zeros(nodes.size)
     resumed = 0
     directory = None

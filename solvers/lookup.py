@@ -39,7 +39,7 @@ Lookup rules
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -861,8 +861,6 @@ def with_fourth_level(
     refinement : float
         Pixel-size ratio between successive levels [-].
     """
-    from dataclasses import replace
-
     if table.levels is None or f"{ADAPTIVE_LEVEL_PREFIX}node" in table.levels:
         raise InputError(
             "a fourth level is added once, to a three-level table without one"
