@@ -28,6 +28,17 @@ of each quantity (three levels: from the successive extrapolants where the obser
 stable, :func:`solvers.lookup.combine_three_pixel_levels`) and the per-level values under
 ``/levels``.
 
+**Adaptive fourth level** (``--adaptive-level``, docs/tables.md "Adaptive fourth level"): after
+a three-level (``refine3``) table is assembled, :func:`fourth_level_pass` solves the nodes of
+:func:`solvers.lookup.select_fourth_level_nodes` (a_r in the estimate range, three-level rule
+fell back for a_r or the mean gap) once more at half the finest pixel, one node at a time in
+this process (an 8192² solve needs ~12 GB: never two at once, whatever ``--workers`` says),
+each cold from the solver's nested-grid start, each checkpointed atomically under
+``OUT/.checkpoints/<texture>.level4/<key>/``; the nodes are recombined from their three finest
+levels (:func:`solvers.lookup.with_fourth_level`). With ``--from-table PATH`` only the pass
+runs, on an existing three-level table. A from-scratch build keeps its level checkpoints until
+the pass is done, so a build killed during the pass resumes without solving a chunk again.
+
 The texture is solved as periodic, as given. ``--detrend`` says what is removed from a height
 map file's heights first (:func:`solvers.texture.level_heights`: plane, mean or none; default
 plane for a raw or measured map, a stored texture as it is, synthetic ones with their mean
@@ -39,6 +50,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import hashlib
 import inspect
 import json
@@ -58,6 +70,7 @@ from skisnow.solvers.elastic import PeriodicHalfSpace
 from skisnow.solvers.errors import InputError
 from skisnow.solvers.lookup import (
     ERROR_FIELDS,
+    ESTIMATE_RANGE_A_R,
     ORDER_TOLERANCE,
     PIXEL_EXTRAPOLATION_ORDERS,
     MicroTable,
@@ -65,17 +78,27 @@ from skisnow.solvers.lookup import (
     combine_pixel_levels,
     combine_three_pixel_levels,
     pressure_ratio_grid,
+    select_fourth_level_nodes,
     separated_curve,
     solve_table_chunk,
     unloaded_statistics,
+    with_fourth_level,
 )
 from skisnow.solvers.micro import DEFAULT_GAP_FLOOR_M, full_contact_pressure
 from skisnow.solvers.texture import DETREND_METHODS, Texture, iso25178_parameters
 
-from .storage.common import code_version
-from .storage.tables import read_checkpoint, write_checkpoint, write_manifest, write_table
+from .storage.common import code_version, provenance
+from .storage.tables import (
+    read_checkpoint,
+    read_table,
+    read_table_extras,
+    read_table_heights,
+    write_checkpoint,
+    write_manifest,
+    write_table,
+)
 
-__all__ = ["BuildSettings", "build_tables", "checkpoint_key", "register"]
+__all__ = ["BuildSettings", "build_tables", "checkpoint_key", "fourth_level_pass", "register"]
 
 log = logging.getLogger(__name__)
 
@@ -412,6 +435,8 @@ def build_tables(
     keep_checkpoints: bool = False,
     on_chunk_done: Callable[[str, int], None] | None = None,
     refined: dict[str, Texture] | None = None,
+    fourth_level: dict[str, Callable[[int], Texture]] | None = None,
+    on_node_done: Callable[[int], None] | None = None,
 ) -> dict[str, Path]:
     """Build one table file ``OUT/<texture name>.h5`` per texture, and ``OUT/manifest.json``.
 
@@ -443,6 +468,12 @@ def build_tables(
         For ``settings.pixel_levels`` ``"refine"``: each texture's surface on the 2× finer
         grid (:func:`app.storage.textures.refined_texture`); ``"refine3"``: the list of its
         surfaces on the 2× and 4× finer grids.
+    fourth_level : dict of str to callable(refine) -> Texture, optional
+        Run the adaptive fourth-level pass (:func:`fourth_level_pass`, ``refine3`` only) on
+        these textures' tables: the callable gives the surface refined ``refine``× (8 for
+        ``refine3``), called only if a node is selected.
+    on_node_done : callable(node), optional
+        Passed to :func:`fourth_level_pass`.
 
     Returns
     -------
@@ -457,6 +488,13 @@ def build_tables(
         raise InputError("no textures given")
     if len(set(names)) != len(names):
         raise InputError(f"texture names must be distinct, got {names}")
+    fourth_level = fourth_level or {}
+    if fourth_level and settings.pixel_levels != "refine3":
+        raise InputError(
+            f"the adaptive fourth level needs --pixel-levels refine3, got {settings.pixel_levels}"
+        )
+    if set(fourth_level) - set(names):
+        raise InputError(f"fourth_level names no texture: {sorted(set(fourth_level) - set(names))}")
     t0 = time.perf_counter()
     levels_of: dict[str, list[str]] = {}
     jobs: dict[str, _Job] = {}
@@ -498,8 +536,12 @@ def build_tables(
         table.attrs["chunks_resumed"] = sum(len(j.bounds) for j in level_jobs) - sum(
             1 for n, _ in pending if n in levels_of[name]
         )
+        adaptive = name in fourth_level
+        # with the pass, the three-level table waits beside the checkpoints (kept until the
+        # pass is done) and OUT/<name>.h5 appears only with the fourth level in it
+        three_level_path = out_dir / ".checkpoints" / f"{name}.levels3.h5"
         paths[name] = write_table(
-            out_dir / f"{name}.h5",
+            three_level_path if adaptive else out_dir / f"{name}.h5",
             table,
             heights_m=texture.heights_m,
             texture_attrs={
@@ -510,13 +552,24 @@ def build_tables(
             diagnostics=diagnostics,
             parameters={**asdict(settings), "texture": name, "grid_points": ratio_grid.size},
         )
+        if adaptive:
+            paths[name] = fourth_level_pass(
+                three_level_path,
+                out_dir,
+                fourth_level[name],
+                progress=progress,
+                keep_checkpoints=keep_checkpoints,
+                on_node_done=on_node_done,
+                write_out_manifest=False,
+            )
+            three_level_path.unlink()
         if not keep_checkpoints:
             for job in level_jobs:
                 shutil.rmtree(job.directory, ignore_errors=True)
                 for parent in (job.directory.parent, job.directory.parent.parent):
                     with contextlib.suppress(OSError):
                         parent.rmdir()  # only if empty
-        bad = int(np.count_nonzero(~table.converged))
+        bad = int(np.count_nonzero(~table.converged))  # the fourth level's: the pass logs
         if bad:
             log.warning("%s: %d point(s) did not converge (see /loaded/converged)", name, bad)
     write_manifest(out_dir)
@@ -527,6 +580,230 @@ def build_tables(
         time.perf_counter() - t0,
     )
     return paths
+
+
+# ------------------------------------------------------------------ adaptive fourth level
+
+#: the rule of the fourth-level pass, as recorded in the table (fixed in advance)
+FOURTH_LEVEL_RULE = (
+    "after the three-level combination, every node whose a_r lies in estimate_range_a_r and "
+    "where the three-level rule fell back (three_level_estimate_<q> == 0) for a quantity with "
+    "an order (a_r, mean gap) is solved once more at half the finest pixel, cold from the "
+    "solver's nested-grid start, and recombined from its three finest levels with "
+    "solvers.lookup.combine_three_pixel_levels (same orders, order_tolerance and fall-back); "
+    "one extra level at most"
+)
+
+
+def fourth_level_key(
+    table_data_sha256: str, fine: Texture, table: MicroTable, max_iterations: int, refine: int
+) -> str:
+    """Hash of everything a fourth-level node depends on (stale checkpoints never match)."""
+    h = hashlib.sha256()
+    h.update(table_data_sha256.encode())
+    heights = np.ascontiguousarray(fine.heights_m, dtype=np.float64)
+    h.update(f"{heights.shape};{float(fine.pixel_size_m)!r};refine={refine}".encode())
+    h.update(heights.tobytes())
+    for name in ("effective_modulus_pa", "tol", "gap_floor_m"):
+        h.update(f"{name}={float(getattr(table, name))!r};".encode())
+    h.update(f"max_iterations={int(max_iterations)};".encode())
+    h.update(code_version().encode())
+    h.update(_solver_source_sha256().encode())
+    return h.hexdigest()
+
+
+def fourth_level_pass(
+    table_path: str | Path,
+    out_dir: str | Path,
+    refined_surface: Callable[[int], Texture],
+    *,
+    progress: bool = True,
+    keep_checkpoints: bool = False,
+    on_node_done: Callable[[int], None] | None = None,
+    write_out_manifest: bool = True,
+) -> Path:
+    """Add the adaptive fourth pixel level to a three-level table; write ``OUT/<name>.h5``.
+
+    The nodes of :func:`solvers.lookup.select_fourth_level_nodes` are solved one at a time in
+    this process at half the finest pixel (:func:`solvers.lookup.solve_table_chunk` of the
+    one node: cold, nested-grid start, one FFT thread), each checkpointed atomically to
+    ``OUT/.checkpoints/<name>.level4/<key>/node-NNN.h5``; a rerun solves only the missing
+    nodes and writes the same ``data_sha256``. The nodes are recombined by
+    :func:`solvers.lookup.with_fourth_level`; the rest of the table is unchanged. The input
+    table's provenance is kept; the pass adds ``adaptive_level_json`` (rule, range, input
+    ``data_sha256``, code version, command, time) and ``/diagnostics/adaptive_solve_time_s``.
+
+    Parameters
+    ----------
+    table_path : path-like
+        A three-level (``refine3``) table without a fourth level.
+    out_dir : path-like
+        Output directory (may hold the input: the file is replaced atomically).
+    refined_surface : callable(refine) -> Texture
+        The table's surface refined ``refine``× against its texture (for shipped grinds
+        :func:`app.storage.textures.refined_texture`); called once, only if a node is selected.
+    progress : bool
+        tqdm progress bar over the nodes (stderr).
+    keep_checkpoints : bool
+        Keep the node checkpoints after the table is written.
+    on_node_done : callable(node), optional
+        Called after each solved node is checkpointed (tests interrupt the pass with it).
+    write_out_manifest : bool
+        Rewrite ``OUT/manifest.json`` afterwards.
+
+    Returns
+    -------
+    Path
+        The written table.
+    """
+    from tqdm import tqdm
+
+    t0 = time.perf_counter()
+    table_path, out_dir = Path(table_path), Path(out_dir)
+    table = read_table(table_path)
+    if table.attrs.get("pixel_levels") != "refine3" or table.levels is None:
+        raise InputError(
+            f"{table_path}: the fourth level needs a table built with --pixel-levels refine3, "
+            f"got {table.attrs.get('pixel_levels', 'none')!r}"
+        )
+    if table.fourth_level_nodes.size or "adaptive_level_json" in table.attrs:
+        raise InputError(f"{table_path}: already has the fourth level (one extra level at most)")
+    heights_m, base_pixel_m = read_table_heights(table_path)
+    texture_attrs, diagnostics = read_table_extras(table_path)
+    finest_pixel_m = float(table.levels["pixel_size_m"][-1])
+    refine = LEVEL_REFINEMENT * round(base_pixel_m / finest_pixel_m)
+    nodes, selected_by = select_fourth_level_nodes(
+        table.real_contact_area_fraction,
+        {q: table.levels[f"three_level_estimate_{q}"] for q in ERROR_FIELDS},
+    )
+    log.info("%s: fourth level at node(s) %s", table.name, nodes.tolist())
+    input_sha = str(table.attrs["data_sha256"])
+    max_iterations = int(table.attrs["max_iterations"])
+    fourth: dict[str, np.ndarray] = {}
+    solve_time = np.zeros(nodes.size)
+    resumed = 0
+    directory = None
+    fine_pixel_m = finest_pixel_m / LEVEL_REFINEMENT
+    fine_shape = [int(v) * refine for v in np.shape(heights_m)]
+    p_fc_ratio = np.nan
+    source = None
+    if nodes.size:
+        fine = refined_surface(refine)
+        if np.shape(fine.heights_m) != tuple(fine_shape) or not np.isclose(
+            fine.pixel_size_m, fine_pixel_m, rtol=1e-12
+        ):
+            raise InputError(
+                f"refined surface of {table.name!r} is not {refine}x finer than its texture"
+            )
+        source = fine.source
+        key = fourth_level_key(input_sha, fine, table, max_iterations, refine)
+        directory = out_dir / ".checkpoints" / f"{table.name}.level4" / key[:16]
+        e_eff = table.effective_modulus_pa
+        hs = PeriodicHalfSpace(np.shape(fine.heights_m), fine.pixel_size_m, e_eff, workers=1)
+        p_fc, _ = full_contact_pressure(fine.heights_m, fine.pixel_size_m, e_eff, halfspace=hs)
+        del hs
+        p_fc_ratio = p_fc / e_eff
+        results = {}
+        for node in nodes:
+            done = read_checkpoint(directory / f"node-{node:03d}.h5", key)
+            if done is not None:
+                results[int(node)] = done
+        resumed = len(results)
+        with tqdm(
+            total=nodes.size,
+            initial=resumed,
+            desc=f"{table.name} fourth level",
+            unit="node",
+            disable=not progress,
+        ) as bar:
+            for node in nodes:
+                node = int(node)
+                if node in results:
+                    continue
+                results[node] = solve_table_chunk(
+                    fine.heights_m,
+                    float(fine.pixel_size_m),
+                    table.pressure_ratio[node : node + 1],
+                    effective_modulus_pa=e_eff,
+                    full_contact_pressure_ratio=p_fc_ratio,
+                    tol=table.tol,
+                    max_iterations=max_iterations,
+                    gap_floor_m=table.gap_floor_m,
+                )
+                write_checkpoint(directory / f"node-{node:03d}.h5", results[node], key)
+                bar.update(1)
+                if on_node_done is not None:
+                    on_node_done(node)
+        del fine
+        for name in results[int(nodes[0])]:
+            fourth[name] = np.concatenate([results[int(n)][name] for n in nodes])
+        solve_time = fourth.pop("solve_time_s")
+    else:
+        for name, dtype in (
+            *((k, float) for k in ERROR_FIELDS),
+            ("mean_reciprocal_gap_raw_per_m", float),
+            ("iterations", np.int64),
+            ("residual", float),
+            ("converged", bool),
+            ("full_contact", bool),
+        ):
+            fourth[name] = np.zeros(0, dtype=dtype)
+    new = with_fourth_level(
+        table,
+        nodes,
+        fourth,
+        pixel_size_m=fine_pixel_m,
+        full_contact_pressure_ratio=p_fc_ratio,
+        selected_by=selected_by,
+        refinement=LEVEL_REFINEMENT,
+    )
+    stamp = provenance()
+    new.attrs["adaptive_level_json"] = json.dumps(
+        {
+            "rule": FOURTH_LEVEL_RULE,
+            "estimate_range_a_r": list(ESTIMATE_RANGE_A_R),
+            "order_tolerance": ORDER_TOLERANCE,
+            "orders": PIXEL_EXTRAPOLATION_ORDERS,
+            "refinement": LEVEL_REFINEMENT,
+            "nodes": nodes.tolist(),
+            "pixel_size_m": fine_pixel_m,
+            "grid_shape": fine_shape,
+            "source": source,
+            "start": "cold, the solver's nested-grid start, one node at a time (1 FFT thread)",
+            "input_data_sha256": input_sha,
+            "nodes_resumed": resumed,
+            "time_s": round(time.perf_counter() - t0, 3),
+            "solver_source_sha256": _solver_source_sha256(),
+            **{k: stamp[k] for k in ("code_version", "git_commit", "command_line", "created_utc")},
+        },
+        sort_keys=True,
+    )
+    diagnostics["adaptive_solve_time_s"] = solve_time
+    path = write_table(
+        out_dir / f"{table.name}.h5",
+        new,
+        heights_m=heights_m,
+        texture_attrs=texture_attrs,
+        diagnostics=diagnostics,
+    )
+    bad = int(np.count_nonzero(~np.asarray(fourth["converged"], bool)))
+    if bad:
+        log.warning("%s: %d fourth-level node(s) did not converge", table.name, bad)
+    if directory is not None and not keep_checkpoints:
+        shutil.rmtree(directory, ignore_errors=True)
+        for parent in (directory.parent, directory.parent.parent):
+            with contextlib.suppress(OSError):
+                parent.rmdir()  # only if empty
+    if write_out_manifest:
+        write_manifest(out_dir)
+    log.info(
+        "%s: fourth level at %d node(s) (%d resumed) in %.1f s",
+        table.name,
+        nodes.size,
+        resumed,
+        time.perf_counter() - t0,
+    )
+    return path
 
 
 def _run(client, jobs, pending, settings, progress, on_chunk_done) -> int:
@@ -608,6 +885,8 @@ def _command(args: argparse.Namespace) -> int:
         gap_floor_m=args.gap_floor_nm * 1e-9,
         pixel_levels=args.pixel_levels,
     )
+    if args.from_table is not None:
+        return _fourth_level_command(args)
     textures = _load_textures(args.textures, args.detrend)
     refined = None
     factors = refinements(args.pixel_levels)
@@ -622,6 +901,14 @@ def _command(args: argparse.Namespace) -> int:
             t.name: [refined_texture(spec, k) for k in factors]
             for t, spec in zip(textures, args.textures, strict=True)
         }
+    fourth_level = None
+    if args.adaptive_level:
+        from skisnow.app.storage.textures import refined_texture
+
+        fourth_level = {
+            t.name: functools.partial(refined_texture, spec)
+            for t, spec in zip(textures, args.textures, strict=True)
+        }
     t0 = time.perf_counter()
     paths = build_tables(
         textures,
@@ -631,10 +918,31 @@ def _command(args: argparse.Namespace) -> int:
         workers=args.workers,
         keep_checkpoints=args.keep_checkpoints,
         refined=refined,
+        fourth_level=fourth_level,
     )
     for name, path in paths.items():
         print(f"{name}: {path}")
     print(f"manifest: {Path(args.out) / 'manifest.json'} ({time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+def _fourth_level_command(args: argparse.Namespace) -> int:
+    """``build-tables TEXTURE --adaptive-level --from-table PATH``: the pass alone."""
+    from skisnow.app.storage.textures import refined_texture
+
+    if not args.adaptive_level:
+        raise InputError("--from-table runs the fourth-level pass: give --adaptive-level too")
+    if len(args.textures) != 1:
+        raise InputError(f"--from-table takes one texture, got {args.textures}")
+    spec = args.textures[0]
+    t0 = time.perf_counter()
+    path = fourth_level_pass(
+        args.from_table,
+        args.out,
+        functools.partial(refined_texture, spec),
+        keep_checkpoints=args.keep_checkpoints,
+    )
+    print(f"{read_table(path).name}: {path} ({time.perf_counter() - t0:.1f} s)")
     return 0
 
 
@@ -669,6 +977,26 @@ def register(subparsers) -> None:
             "the pixel (shipped grinds); refine3: plus the surface at a half and a quarter of "
             "the pixel; coarsen: plus the texture at twice the pixel (any map). Several "
             "levels: zero-pixel extrapolation with a per-point error estimate"
+        ),
+    )
+    p.add_argument(
+        "--adaptive-level",
+        action="store_true",
+        help=(
+            "refine3 only: after the three levels, solve the nodes with a_r in [1e-3, 0.9] "
+            "where the three-level rule fell back once more at half the finest pixel (one at "
+            "a time, ~12 GB for 8192²) and recombine them from their three finest levels"
+        ),
+    )
+    p.add_argument(
+        "--from-table",
+        type=Path,
+        default=None,
+        metavar="PATH",
+        help=(
+            "with --adaptive-level: run only the fourth-level pass on this existing "
+            "three-level table of TEXTURE (its own grid and solver settings; the options "
+            "above are not used) and write OUT/<name>.h5"
         ),
     )
     p.add_argument(

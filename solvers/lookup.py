@@ -39,7 +39,7 @@ Lookup rules
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -48,7 +48,9 @@ from scipy.interpolate import PchipInterpolator
 from .errors import InputError, OutOfRangeError
 
 __all__ = [
+    "ADAPTIVE_LEVEL_PREFIX",
     "ERROR_FIELDS",
+    "ESTIMATE_RANGE_A_R",
     "PIXEL_EXTRAPOLATION_ORDERS",
     "POINT_FIELDS",
     "TABLE_SCHEMA",
@@ -56,6 +58,7 @@ __all__ = [
     "chunk_bounds",
     "combine_pixel_levels",
     "combine_three_pixel_levels",
+    "combine_with_fourth_level",
     "mean_gap_m",
     "mean_reciprocal_gap_per_m",
     "nominal_pressure_ratio",
@@ -64,11 +67,13 @@ __all__ = [
     "real_contact_area_fraction",
     "relative_error_estimate",
     "richardson",
+    "select_fourth_level_nodes",
     "separated_curve",
     "separated_mean_gap_m",
     "separated_reciprocal_gap_per_m",
     "solve_table_chunk",
     "unloaded_statistics",
+    "with_fourth_level",
 ]
 
 #: Schema identifier written into (and required from) every table file
@@ -117,6 +122,16 @@ PIXEL_EXTRAPOLATION_ORDERS = {
 #: changes' ratio k^p_obs within 1.68–2.38 for p = 1, k = 2; the shipped grind-2 a_r has
 #: 1.99–2.14 at a_r 2.5e-3…0.17 (docs/tables.md, Pixel size).
 ORDER_TOLERANCE = 0.25
+
+#: the partial-contact range of a_r over which issue #13 (point 3) asks the pixel-size error
+#: estimate to be ≤ 3 % [-] (inclusive ends, on the table's value of a_r). The adaptive fourth
+#: level (:func:`select_fourth_level_nodes`) is solved only at nodes in it: below 1e-3 a
+#: 1024² cell has a few contact pixels and no asymptotic order to recover.
+ESTIMATE_RANGE_A_R = (1e-3, 0.9)
+
+#: prefix of the ``levels`` entries of the adaptive fourth pixel level (one value per refined
+#: node, :func:`with_fourth_level`); tables without it read as before
+ADAPTIVE_LEVEL_PREFIX = "adaptive_"
 
 
 @dataclass
@@ -178,7 +193,9 @@ class MicroTable:
         The same for the floored mean reciprocal gap [1/m].
     levels : dict, optional
         Per-level results of a two-level table: ``{"pixel_size_m": [...], "<quantity>":
-        ndarray (levels, N), ...}``, coarse first; ``None`` for one-level tables.
+        ndarray (levels, N), ...}``, coarse first; ``None`` for one-level tables. Three-level
+        tables add ``observed_order_<q>`` and ``three_level_estimate_<q>`` (N,); a table with
+        the adaptive fourth level adds the ``adaptive_*`` entries of :func:`with_fourth_level`.
     """
 
     name: str
@@ -247,6 +264,12 @@ class MicroTable:
             raise InputError("real_contact_area_fraction must be > 0 at every loaded point")
 
     # ------------------------------------------------------------------ derived quantities
+    @property
+    def fourth_level_nodes(self) -> np.ndarray:
+        """Indices of the nodes recombined with the adaptive fourth pixel level (may be empty)."""
+        nodes = (self.levels or {}).get(f"{ADAPTIVE_LEVEL_PREFIX}node")
+        return np.zeros(0, dtype=np.int64) if nodes is None else np.asarray(nodes, np.int64)
+
     @property
     def full_contact_reached(self) -> bool:
         """True if the grid reaches full contact (then every r ≥ r_fc is exact)."""
@@ -679,6 +702,208 @@ def combine_three_pixel_levels(
             method = np.where(extrapolated, np.where(stable, 1.0, 0.0), method)
         info[f"three_level_estimate_{quantity}"] = method
     return out, info
+
+
+# ---------------------------------------------------------------------------- fourth level
+# An adaptive fourth pixel level at the nodes where three levels do not show a stable order
+# (docs/tables.md, "Adaptive fourth level"). The rule is fixed in advance, not tuned to the
+# outcome: select (:func:`select_fourth_level_nodes`), solve those nodes once more at half the
+# finest pixel (app/build_tables.py), recombine them from their three finest levels with the
+# unchanged three-level rule (:func:`combine_with_fourth_level`). One extra level at most.
+
+#: per-point keys of a level (as :func:`solve_table_chunk` returns them, without time)
+_LEVEL_KEYS = (
+    "real_contact_area_fraction",
+    "mean_gap_m",
+    "mean_reciprocal_gap_per_m",
+    "mean_reciprocal_gap_raw_per_m",
+    "iterations",
+    "converged",
+    "full_contact",
+)
+
+
+def select_fourth_level_nodes(
+    real_contact_area_fraction,
+    three_level_estimate: dict[str, np.ndarray],
+    orders: dict[str, float | None] | None = None,
+    a_r_range: tuple[float, float] = ESTIMATE_RANGE_A_R,
+) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Nodes of a three-level table that get the adaptive fourth pixel level.
+
+    A node is selected when its a_r (the table's value) lies in ``a_r_range`` (inclusive) and
+    the three-level rule fell back (``three_level_estimate_<q> == 0``:
+    :func:`combine_three_pixel_levels` found no observed order within the tolerance of the
+    assumed one) for at least one quantity q with an order (:data:`PIXEL_EXTRAPOLATION_ORDERS`
+    not None: a_r and the mean gap).
+
+    Parameters
+    ----------
+    real_contact_area_fraction : array_like, shape (N,)
+        The table's a_r [-].
+    three_level_estimate : dict of str to array_like, shape (N,)
+        ``three_level_estimate_<q>`` per quantity q, keyed by q (1 stable, 0 fall-back,
+        -1 two levels) [-].
+    orders : dict, optional
+        Assumed orders (default :data:`PIXEL_EXTRAPOLATION_ORDERS`).
+    a_r_range : (float, float)
+        The a_r range [-] (default :data:`ESTIMATE_RANGE_A_R`).
+
+    Returns
+    -------
+    (ndarray of int, dict of str to ndarray of bool)
+        The selected node indices, rising, and per quantity with an order whether it fell
+        back at each selected node (which quantities triggered the node).
+    """
+    orders = PIXEL_EXTRAPOLATION_ORDERS if orders is None else orders
+    a = np.asarray(real_contact_area_fraction, dtype=float)
+    lo, hi = a_r_range
+    if not 0 < lo < hi <= 1:
+        raise InputError(f"a_r_range must satisfy 0 < low < high <= 1, got {a_r_range!r}")
+    in_range = (a >= lo) & (a <= hi)
+    fell_back = {}
+    for quantity, order in orders.items():
+        if order is None:
+            continue
+        if quantity not in three_level_estimate:
+            raise InputError(f"three_level_estimate has no entry for {quantity!r}")
+        method = np.asarray(three_level_estimate[quantity], dtype=float)
+        if method.shape != a.shape:
+            raise InputError(
+                f"three_level_estimate[{quantity!r}] has shape {method.shape}, expected {a.shape}"
+            )
+        fell_back[quantity] = in_range & (method == 0)
+    selected = np.zeros(a.shape, dtype=bool)
+    for mask in fell_back.values():
+        selected |= mask
+    nodes = np.flatnonzero(selected).astype(np.int64)
+    return nodes, {q: mask[nodes] for q, mask in fell_back.items()}
+
+
+def combine_with_fourth_level(
+    levels: dict[str, np.ndarray],
+    nodes,
+    fourth: dict[str, np.ndarray],
+    refinement: float = 2.0,
+    orders: dict[str, float | None] | None = None,
+    order_tolerance: float = ORDER_TOLERANCE,
+) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """Recombine nodes of a three-level table from its two finest levels and a fourth one.
+
+    :func:`combine_three_pixel_levels` (same orders, tolerance and fall-backs) of the stored
+    middle and finest levels and the fourth level, pixel sizes ``kΔ, Δ, Δ/k``; the coarsest
+    stored level no longer enters.
+
+    Parameters
+    ----------
+    levels : dict
+        A three-level table's ``levels`` (per-level arrays of shape (3, N), coarse first).
+    nodes : array_like of int, shape (K,)
+        The recombined node indices.
+    fourth : dict of str to ndarray, shape (K,)
+        The fourth level at those nodes: the keys of :func:`solve_table_chunk`.
+
+    Returns
+    -------
+    (dict of ndarray, dict of ndarray)
+        As :func:`combine_three_pixel_levels`, over the K nodes.
+    """
+    idx = np.asarray(nodes, dtype=np.int64)
+    count = np.shape(levels["real_contact_area_fraction"])[0]
+    if count != 3:
+        raise InputError(f"a fourth level needs a three-level table, got {count} level(s)")
+    stored = [{key: np.asarray(levels[key])[i, idx] for key in _LEVEL_KEYS} for i in (1, 2)]
+    finest = {key: np.asarray(value) for key, value in fourth.items() if key != "solve_time_s"}
+    for key in _LEVEL_KEYS:
+        if np.shape(finest.get(key)) != idx.shape:
+            raise InputError(f"fourth level {key!r} must have shape {idx.shape}")
+    return combine_three_pixel_levels(
+        *stored, finest, refinement=refinement, orders=orders, order_tolerance=order_tolerance
+    )
+
+
+def with_fourth_level(
+    table: MicroTable,
+    nodes,
+    fourth: dict[str, np.ndarray],
+    *,
+    pixel_size_m: float,
+    full_contact_pressure_ratio: float,
+    selected_by: dict[str, np.ndarray],
+    refinement: float = 2.0,
+) -> MicroTable:
+    """A copy of a three-level table with ``nodes`` recombined from the fourth level.
+
+    At each node the values, error estimates, iterations, residual and raw reciprocal gap
+    of ``table`` are replaced by :func:`combine_with_fourth_level`'s (``converged``: all four
+    levels). ``levels`` gains, with prefix :data:`ADAPTIVE_LEVEL_PREFIX`: ``node`` (K,),
+    ``pressure_ratio`` (K,), ``pixel_size_m`` and ``full_contact_pressure_ratio`` of the fourth
+    level (scalars), the fourth level's values (the keys of :func:`solve_table_chunk` and
+    ``residual``, (K,)), the rule used per node and quantity
+    (``observed_order_<q>``, ``three_level_estimate_<q>`` from the three finest levels),
+    which quantities selected the node (``selected_by_<q>``), and the three-level values and
+    estimates the node had before (``previous_<q>``, ``previous_<error name>``).
+
+    Parameters
+    ----------
+    table : MicroTable
+        A three-level table without a fourth level.
+    nodes : array_like of int, shape (K,)
+        Node indices (:func:`select_fourth_level_nodes`).
+    fourth : dict of str to ndarray, shape (K,)
+        The fourth level's results at the nodes.
+    pixel_size_m : float
+        Pixel size of the fourth level [m].
+    full_contact_pressure_ratio : float
+        ``p_fc / E'`` of the fourth-level surface [-].
+    selected_by : dict of str to ndarray of bool, shape (K,)
+        Per quantity, whether it selected the node.
+    refinement : float
+        Pixel-size ratio between successive levels [-].
+    """
+    if table.levels is None or f"{ADAPTIVE_LEVEL_PREFIX}node" in table.levels:
+        raise InputError(
+            "a fourth level is added once, to a three-level table without one"
+            + ("" if table.levels is None else f" ({table.name!r} already has it)")
+        )
+    idx = np.asarray(nodes, dtype=np.int64)
+    n = table.pressure_ratio.size
+    if idx.size and (np.any(np.diff(idx) <= 0) or idx[0] < 0 or idx[-1] >= n):
+        raise InputError(f"nodes must be rising indices into the table, got {idx.tolist()}")
+    out, info = combine_with_fourth_level(table.levels, idx, fourth, refinement)
+    fields = {
+        name: np.array(getattr(table, name), copy=True)
+        for name in (*POINT_FIELDS[1:], *ERROR_FIELDS.values())
+    }
+    previous = {}
+    for quantity, err_name in ERROR_FIELDS.items():
+        previous[f"previous_{quantity}"] = fields[quantity][idx]
+        previous[f"previous_{err_name}"] = fields[err_name][idx]
+        fields[quantity][idx] = out[quantity]
+        fields[err_name][idx] = out[err_name]
+    for name in ("mean_reciprocal_gap_raw_per_m", "iterations", "residual"):
+        fields[name][idx] = out[name]
+    fields["converged"][idx] = fields["converged"][idx] & out["converged"]
+    p = ADAPTIVE_LEVEL_PREFIX
+    levels = dict(table.levels)
+    levels[f"{p}node"] = idx
+    levels[f"{p}pressure_ratio"] = np.asarray(table.pressure_ratio, dtype=float)[idx]
+    levels[f"{p}pixel_size_m"] = np.asarray(float(pixel_size_m))
+    levels[f"{p}full_contact_pressure_ratio"] = np.asarray(float(full_contact_pressure_ratio))
+    for key in (*_LEVEL_KEYS, "residual"):
+        levels[f"{p}{key}"] = np.asarray(fourth[key])
+    for key, value in info.items():
+        levels[f"{p}{key}"] = value
+    for quantity, mask in selected_by.items():
+        levels[f"{p}selected_by_{quantity}"] = np.asarray(mask, dtype=bool)
+    for key, value in previous.items():
+        levels[f"{p}{key}"] = value
+    return replace(
+        table,
+        **fields,
+        levels=levels,
+        attrs={**table.attrs, "points_not_converged": int(np.count_nonzero(~fields["converged"]))},
+    )
 
 
 # ---------------------------------------------------------------------------- building

@@ -336,6 +336,9 @@ def pixel_error_estimate(
     the cells for a_r (``real_contact_area_fraction_rel_max``), the mean gap and the floored
     reciprocal gap, and the a_r-weighted mean for a_r, the relative estimate of the total
     real contact area (equal cells). Tables built on one pixel size: ``estimated`` false.
+    Tables with the adaptive fourth level (docs/tables.md) also report its pixel size, its
+    nodes' ``P_n / E'`` and how many loaded cells interpolate next to one of them (their
+    ratio between the node's neighbours).
     """
     levels = json.loads(table.attrs.get("pixel_extrapolation_json", "null") or "null")
     if not table.has_error_estimates or levels is None:
@@ -358,6 +361,17 @@ def pixel_error_estimate(
         "mean_gap_m": "mean_gap",
         "mean_reciprocal_gap_per_m": "mean_reciprocal_gap",
     }
+    nodes = table.fourth_level_nodes
+    if nodes.size:
+        r = np.asarray(table.pressure_ratio, dtype=float)
+        lo, hi = r[np.maximum(nodes - 1, 0)], r[np.minimum(nodes + 1, r.size - 1)]
+        ratio = p_n[:, None] / e_eff
+        near = ((ratio > lo) & (ratio < hi)) | np.isclose(ratio, r[nodes], rtol=1e-9, atol=0)
+        out["fourth_level"] = {
+            "pixel_size_um": float(table.levels["adaptive_pixel_size_m"]) * 1e6,
+            "pressure_ratio": [float(v) for v in r[nodes]],
+            "cells_near": int(np.count_nonzero(np.any(near, axis=1))),
+        }
     for quantity in ERROR_FIELDS:
         rel = np.atleast_1d(relative_error_estimate(table, p_n, e_eff, quantity))
         finite = rel[np.isfinite(rel)]

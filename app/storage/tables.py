@@ -11,7 +11,8 @@ File layout of a table (schema ``skisnow.table/1``; docs/tables.md has the full 
 - ``/loaded/*``: the table over the pressure ratio ``P_n/E'``;
 - ``/loaded/*_error*``: per-point error estimates against the zero-pixel limit and
   ``/levels/*``: per-level values (tables of two or three levels only; optional, absent in
-  tables built on one pixel size, which read with ``None`` estimates);
+  tables built on one pixel size, which read with ``None`` estimates); ``/levels/adaptive_*``:
+  the adaptive fourth level at the nodes that have it (optional);
 - ``/separated/*``: ``⟨1/(h_0 + H)⟩`` over the clearance H;
 - ``/diagnostics/solve_time_s``: wall time per point (not part of ``data_sha256``).
 
@@ -32,7 +33,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 from skisnow.solvers.errors import DataFileError
-from skisnow.solvers.lookup import ERROR_FIELDS, TABLE_SCHEMA, MicroTable
+from skisnow.solvers.lookup import ADAPTIVE_LEVEL_PREFIX, ERROR_FIELDS, TABLE_SCHEMA, MicroTable
 
 from .common import atomic_path, provenance, read_json_manifest, sha256_file
 
@@ -42,6 +43,7 @@ __all__ = [
     "read_checkpoint",
     "read_manifest",
     "read_table",
+    "read_table_extras",
     "read_table_heights",
     "table_data_sha256",
     "verify_manifest",
@@ -100,7 +102,23 @@ LEVEL_UNITS = {
     # three-level tables, per quantity q (solvers.lookup.combine_three_pixel_levels)
     **{f"observed_order_{q}": "1" for q in ERROR_FIELDS},
     **{f"three_level_estimate_{q}": "1" for q in ERROR_FIELDS},
+    "residual": "1",
 }
+
+
+def _level_units(name: str) -> str:
+    """Units of a /levels dataset; ``adaptive_*`` (the fourth level) as its base name."""
+    if name.startswith(ADAPTIVE_LEVEL_PREFIX):
+        base = name[len(ADAPTIVE_LEVEL_PREFIX) :]
+        for prefix in ("previous_", "selected_by_"):
+            base = base.removeprefix(prefix)
+        errors = {err: units for err, units, _ in ERROR_DATASETS}
+        if base in errors:
+            return errors[base]
+        return "1" if base in ("node", "pressure_ratio") else LEVEL_UNITS.get(base, "1")
+    return LEVEL_UNITS.get(name, "1")
+
+
 SEPARATED_DATASETS = [
     ("clearance_m", "m", "clearance H between the texture's highest point and the snow"),
     (
@@ -123,6 +141,12 @@ _TYPED_ATTRS = {"schema", "name", "grid_shape", "full_contact_reached", *_SCALAR
 
 
 def _dtype(name: str):
+    if name.startswith(ADAPTIVE_LEVEL_PREFIX):  # the fourth level's entries in /levels
+        name = name[len(ADAPTIVE_LEVEL_PREFIX) :]
+        if name == "node":
+            return np.int64
+        if name.startswith("selected_by_"):
+            return np.bool_
     if name == "iterations":
         return np.int64
     if name in ("converged", "full_contact"):
@@ -263,13 +287,16 @@ def write_table(
             g.attrs["description"] = (
                 "per-level results of a table of several pixel levels (first axis: level, "
                 "coarse first; observed_order_* and three_level_estimate_* per point); the "
-                "/loaded values are their zero-pixel extrapolation"
+                "/loaded values are their zero-pixel extrapolation. adaptive_*: the fourth "
+                "level at half the finest pixel, at the nodes adaptive_node only (one value "
+                "per node), which are recombined from their three finest levels "
+                "(solvers.lookup.with_fourth_level)"
             )
             for name, value in table.levels.items():
                 ds = g.create_dataset(
                     name, data=np.asarray(value, dtype=_dtype(name)), track_times=False
                 )
-                ds.attrs["units"] = LEVEL_UNITS.get(name, "1")
+                ds.attrs["units"] = _level_units(name)
         f["loaded/mean_reciprocal_gap_per_m"].attrs["gap_floor_m"] = float(table.gap_floor_m)
         f["separated"].attrs["unloaded_mean_gap_m"] = float(table.unloaded_mean_gap_m)
         diag = f.create_group("diagnostics")
@@ -344,6 +371,31 @@ def read_table_heights(path: str | os.PathLike) -> tuple[np.ndarray, float]:
             return np.asarray(f["texture/heights_m"][()]), float(f["texture"].attrs["pixel_size_m"])
     except (OSError, KeyError) as exc:
         raise DataFileError(f"{path}: no readable /texture/heights_m ({exc})") from exc
+
+
+def read_table_extras(path: str | os.PathLike) -> tuple[dict, dict[str, np.ndarray]]:
+    """What a table file holds beside its :class:`MicroTable`, to write it again unchanged.
+
+    Returns
+    -------
+    (dict, dict of ndarray)
+        The ``/texture`` attributes ``source``, ``missing_fraction``, ``detrend`` (those
+        present), and the ``/diagnostics`` datasets (e.g. ``solve_time_s`` [s]).
+    """
+    path = Path(path)
+    try:
+        with h5py.File(path, "r") as f:
+            texture = {
+                k: _json_safe(v)
+                for k, v in f["texture"].attrs.items()
+                if k in ("source", "missing_fraction", "detrend")
+            }
+            diagnostics = {
+                name: np.asarray(ds[()]) for name, ds in f.get("diagnostics", {}).items()
+            }
+    except (OSError, KeyError) as exc:
+        raise DataFileError(f"{path}: unreadable table file ({exc})") from exc
+    return texture, diagnostics
 
 
 # ---------------------------------------------------------------------------- manifest
