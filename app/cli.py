@@ -17,7 +17,7 @@ from skisnow.solvers.errors import SkisnowError
 #: modules that provide ``register(subparsers)``; a module missing here is simply not offered
 COMMAND_MODULES = [
     "skisnow.app.commands.micro",
-    "skisnow.app.build_tables",
+    "skisnow.app.commands.build_tables",
     "skisnow.app.commands.bench",
     "skisnow.app.commands.macro",
     "skisnow.app.commands.flex",

@@ -451,19 +451,19 @@ def _add_item(db: CatalogueDB, kind: str, name: str, meta: dict, team: str | Non
 
 
 def build_settings(settings: Settings):
-    from skisnow.app.build_tables import BuildSettings
+    from skisnow.app.jobs.table_settings import BuildSettings
 
     return BuildSettings(points=settings.table_points, chunk_size=settings.table_chunk_size)
 
 
 def run_grind_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -> str:
-    """Job ``grind-table``: build the table with :func:`app.build_tables.build_tables`.
+    """Job ``grind-table``: build the table with :func:`app.jobs.table_build.build_tables`.
 
     Chunks are checkpointed under ``work/<item id>/.checkpoints``; a rerun (service restart)
     computes only the missing chunks. The finished table is moved into ``grinds/`` with one
     ``os.replace``.
     """
-    from skisnow.app.build_tables import build_tables
+    from skisnow.app.jobs.table_build import build_tables
     from skisnow.app.storage.tables import read_table
     from skisnow.app.storage.textures import read_texture
     from skisnow.solvers.lookup import chunk_bounds

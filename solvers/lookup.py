@@ -708,8 +708,9 @@ def combine_three_pixel_levels(
 # An adaptive fourth pixel level at the nodes where three levels do not show a stable order
 # (docs/tables.md, "Adaptive fourth level"). The rule is fixed in advance, not tuned to the
 # outcome: select (:func:`select_fourth_level_nodes`), solve those nodes once more at half the
-# finest pixel (app/build_tables.py), recombine them from their three finest levels with the
-# unchanged three-level rule (:func:`combine_with_fourth_level`). One extra level at most.
+# finest pixel (app/jobs/table_fourth_level.py), recombine them from their three finest levels
+# with the unchanged three-level rule (:func:`combine_with_fourth_level`). One extra level at
+# most.
 
 #: per-point keys of a level (as :func:`solve_table_chunk` returns them, without time)
 _LEVEL_KEYS = (
@@ -908,7 +909,7 @@ def with_fourth_level(
 
 # ---------------------------------------------------------------------------- building
 # Pure kernels of the table build (the job itself, with files and scheduling, lives in
-# app/build_tables.py).
+# app/jobs/table_build.py).
 
 
 def pressure_ratio_grid(ratio_min: float, ratio_max: float, points: int) -> np.ndarray:

@@ -17,7 +17,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from skisnow.app.build_tables import BuildSettings, build_tables
+from skisnow.app.jobs.table_build import build_tables
+from skisnow.app.jobs.table_settings import BuildSettings
 from skisnow.app.storage.textures import write_texture
 from skisnow.solvers.texture import Texture, self_affine_surface
 

@@ -10,7 +10,8 @@ import os
 import h5py
 import numpy as np
 import pytest
-from skisnow.app.build_tables import BuildSettings, build_tables
+from skisnow.app.jobs.table_build import build_tables
+from skisnow.app.jobs.table_settings import BuildSettings
 from skisnow.app.service import pixel_error_estimate
 from skisnow.app.storage.common import tables_dir
 from skisnow.app.storage.tables import read_table, table_data_sha256
@@ -614,7 +615,7 @@ def fourth_level(tmp_path_factory):
     """Build then pass, and a from-scratch build with the pass killed after its first node and
     rerun."""
     from dask.distributed import Client, LocalCluster
-    from skisnow.app.build_tables import fourth_level_pass
+    from skisnow.app.jobs.table_fourth_level import fourth_level_pass
 
     texture, finer, surface = _strip_levels(SHAPE4)
     settings = BuildSettings(**FOURTH_SETTINGS, pixel_levels="refine3")
@@ -748,7 +749,7 @@ def test_fourth_level_pass_resumes_and_equals_the_from_scratch_build(fourth_leve
     assert calls == [8, 8]  # the 8× surface of the strip, made once per run
     assert table_data_sha256(resumed) == table_data_sha256(passed)
     assert resumed.attrs["data_sha256"] == passed.attrs["data_sha256"]
-    from skisnow.app.build_tables import fourth_level_pass
+    from skisnow.app.jobs.table_fourth_level import fourth_level_pass
 
     with pytest.raises(InputError, match="already"):
         fourth_level_pass(path, path.parent, lambda k: None, progress=False)

@@ -8,7 +8,9 @@ import json
 import h5py
 import numpy as np
 import pytest
-from skisnow.app.build_tables import BuildSettings, build_tables, checkpoint_key, register
+from skisnow.app.commands.build_tables import register
+from skisnow.app.jobs.table_build import build_tables
+from skisnow.app.jobs.table_settings import BuildSettings, checkpoint_key
 from skisnow.app.storage.tables import (
     LOADED_DATASETS,
     SEPARATED_DATASETS,

@@ -10,13 +10,13 @@ from dataclasses import replace
 
 import h5py
 import numpy as np
-from skisnow.app.build_tables import refinements
 from skisnow.app.evidence.accuracy_common import (
     TABLE_METRICS,
     TABLES,
     AccuracyConfig,
     median_time,
 )
+from skisnow.app.storage.tables import refinements
 from skisnow.solvers.elastic import PeriodicHalfSpace
 from skisnow.solvers.lookup import (
     ERROR_FIELDS,

@@ -7,7 +7,7 @@ claims nothing and only polls for finished items). Its poll thread claims jobs f
 small thread pool through a handler per job kind, and beats a heartbeat for the jobs it runs.
 Handlers report progress through :class:`JobContext`, which also raises :class:`JobInterrupted`
 once the runner is stopping; an interrupted job goes back to ``queued`` and resumes in the next
-process that starts (grind tables from their chunk checkpoints, see :mod:`app.build_tables`; ski
+process that starts (grind tables from their chunk checkpoints, see :mod:`app.jobs.table_build`; ski
 networks from the start). A claim is a lease of ``stale_s`` seconds renewed by every heartbeat
 (each poll). A process killed mid-job (``kill -9``, a lost machine) stops beating; once its lease
 has expired, any other process on the same database claims the job and runs it again (a grind table

@@ -514,3 +514,17 @@ def read_checkpoint(path: str | os.PathLike, key: str) -> dict[str, np.ndarray] 
     except (OSError, KeyError) as exc:
         log.warning("ignoring unreadable checkpoint %s (%s)", path, exc)
         return None
+
+
+# ---------------------------------------------------------------------------- pixel levels
+#: ``--pixel-levels`` choices
+PIXEL_LEVEL_MODES = ("none", "refine", "refine3", "coarsen")
+#: pixel-size ratio between successive levels of a table [-]
+LEVEL_REFINEMENT = 2
+
+
+def refinements(pixel_levels: str) -> list[int]:
+    """Refinement factors of the finer levels of ``--pixel-levels`` (``refine3``: [2, 4])."""
+    return {"refine": [LEVEL_REFINEMENT], "refine3": [LEVEL_REFINEMENT, LEVEL_REFINEMENT**2]}.get(
+        pixel_levels, []
+    )
