@@ -36,7 +36,7 @@ from dataclasses import dataclass, replace
 from urllib.parse import urlsplit
 
 from skisnow.app import service
-from skisnow.app.uploads import UnauthorizedError
+from skisnow.app.errors import UnauthorizedError
 from starlette.datastructures import Headers
 from starlette.requests import Request
 

@@ -2,7 +2,7 @@
 
 Mounted by :func:`app.api.create_app`; :func:`start` and :func:`stop` run in the app's
 lifespan (catalogue database, job runner). Thin routes: each checks the request and calls one
-function of :mod:`app.uploads`. Who may change and see what is :mod:`app.access`: changes
+function of :mod:`app.jobs.uploads`. Who may change and see what is :mod:`app.access`: changes
 pass its write guard first; with team tokens, reads show the caller's team's items and jobs (and
 the shipped ones and those of no team), another team's are 404. Uploads are refused with 429
 beyond the job quotas (``max_jobs_per_team``, ``max_queued_jobs``). See docs/uploads.md.
@@ -20,11 +20,23 @@ from typing import Annotated, Literal
 from fastapi import Depends, FastAPI, File, Form, Request, UploadFile
 from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, ConfigDict, Field
-from skisnow.app import access, uploads
+from skisnow.app import access
 from skisnow.app.access import Caller
-from skisnow.app.jobs import JobRunner
+from skisnow.app.errors import (
+    ConflictError,
+    ForbiddenError,
+    QuotaError,
+    UnauthorizedError,
+    UnsupportedContentError,
+    UploadTooLargeError,
+)
+from skisnow.app.jobs import JobRunner, uploads
+from skisnow.app.jobs.grind_job import run_grind_job
+from skisnow.app.jobs.ski_job import on_job_failure, run_ski_job
 from skisnow.app.service import UnknownItemError, beam_report, profile_report
+from skisnow.app.service.live import LiveCatalogue, register_shipped
 from skisnow.app.storage.catalogue import CatalogueDB, ItemRow, JobRow, NameTakenError
+from skisnow.app.storage.layout import Layout
 from skisnow.solvers.errors import DataFileError, InputError
 
 __all__ = ["UPLOAD_PATHS", "mount", "start", "stop"]
@@ -39,8 +51,8 @@ _COPY_CHUNK = 1 << 20
 @dataclass
 class CatalogueState:
     db: CatalogueDB
-    layout: uploads.Layout
-    live: uploads.LiveCatalogue
+    layout: Layout
+    live: LiveCatalogue
     runner: JobRunner
 
 
@@ -49,18 +61,18 @@ def start(app: FastAPI) -> None:
     start the job runner (which resumes interrupted jobs)."""
     settings = app.state.settings
     db = CatalogueDB(settings.catalogue_url)
-    layout = uploads.Layout(Path(settings.data_dir))
-    live = uploads.LiveCatalogue(lambda: app.state.catalogue, db)
-    uploads.register_shipped(db, app.state.catalogue)
+    layout = Layout(Path(settings.data_dir))
+    live = LiveCatalogue(lambda: app.state.catalogue, db)
+    register_shipped(db, app.state.catalogue)
     live.sync()
     handlers = {
-        uploads.GRIND_JOB: lambda ctx: uploads.run_grind_job(ctx, layout, settings, live.put),
-        uploads.SKI_JOB: lambda ctx: uploads.run_ski_job(ctx, layout, settings, live.put),
+        uploads.GRIND_JOB: lambda ctx: run_grind_job(ctx, layout, settings, live.put),
+        uploads.SKI_JOB: lambda ctx: run_ski_job(ctx, layout, settings, live.put),
     }
     runner = JobRunner(
         db,
         handlers,
-        on_failure=lambda ctx, exc: uploads.on_job_failure(ctx, layout),
+        on_failure=lambda ctx, exc: on_job_failure(ctx, layout),
         on_poll=live.sync,
         workers=settings.job_workers,
         poll_s=settings.job_poll_s,
@@ -115,7 +127,7 @@ def _limits(request: Request) -> uploads.JobLimits:
 def _multipart(request: Request) -> None:
     ctype = request.headers.get("content-type", "")
     if not ctype.lower().startswith("multipart/form-data"):
-        raise uploads.UnsupportedContentError(
+        raise UnsupportedContentError(
             f"uploads are multipart/form-data (a file part and form fields), got {ctype or 'none'}"
         )
 
@@ -155,15 +167,15 @@ def _item_or_404(state: CatalogueState, kind: str, name: str, who: Caller) -> It
 
 def _writable(state: CatalogueState, row: ItemRow, team: str | None) -> None:
     if row.read_only:
-        raise uploads.ForbiddenError(f"{row.kind} {row.name!r} is a shipped demo item (read-only)")
+        raise ForbiddenError(f"{row.kind} {row.name!r} is a shipped demo item (read-only)")
     if team is not None and row.team is not None and row.team != team:
-        raise uploads.ForbiddenError(f"{row.kind} {row.name!r} belongs to another team")
+        raise ForbiddenError(f"{row.kind} {row.name!r} belongs to another team")
 
 
 def _busy(state: CatalogueState, row: ItemRow) -> None:
     active = state.db.jobs(item_id=row.id, states=("queued", "running"))
     if active:
-        raise uploads.ConflictError(
+        raise ConflictError(
             f"{row.kind} {row.name!r} is used by job {active[0].id} ({active[0].state}); "
             "wait for it to finish"
         )
@@ -182,9 +194,7 @@ def _incoming(state: CatalogueState, file: UploadFile, limit: int):
             while chunk := file.file.read(_COPY_CHUNK):
                 size += len(chunk)
                 if size > limit:
-                    raise uploads.UploadTooLargeError(
-                        f"file exceeds the upload limit of {limit} bytes"
-                    )
+                    raise UploadTooLargeError(f"file exceeds the upload limit of {limit} bytes")
                 tmp.write(chunk)
         except BaseException:
             tmp.close()
@@ -223,16 +233,16 @@ def _accepted(item, job_id: str, **extra) -> JSONResponse:
 
 
 def mount(app: FastAPI) -> None:
-    """Add the catalogue routes and the status codes of :mod:`app.uploads` errors."""
+    """Add the catalogue routes and the status codes of :mod:`app.jobs.uploads` errors."""
     from skisnow.app.api import problem
 
     statuses = {
-        uploads.UnsupportedContentError: (415, "Unsupported Media Type"),
-        uploads.ConflictError: (409, "Conflict"),
-        uploads.ForbiddenError: (403, "Forbidden"),
-        uploads.UnauthorizedError: (401, "Unauthorized"),
-        uploads.UploadTooLargeError: (413, "Payload Too Large"),
-        uploads.QuotaError: (429, "Too Many Requests"),
+        UnsupportedContentError: (415, "Unsupported Media Type"),
+        ConflictError: (409, "Conflict"),
+        ForbiddenError: (403, "Forbidden"),
+        UnauthorizedError: (401, "Unauthorized"),
+        UploadTooLargeError: (413, "Payload Too Large"),
+        QuotaError: (429, "Too Many Requests"),
         NameTakenError: (409, "Conflict"),
     }
     for exc_class, (status, title) in statuses.items():

@@ -18,7 +18,7 @@ Routes (all ``GET`` so that every result is a link; no multipart, no JavaScript 
 ``/upload``
     Upload a ski's camber CSV or a grind's topography with their metadata. The two forms post
     multipart to the REST routes (``POST /v1/skis``, ``POST /v1/grinds``, checks in
-    :mod:`app.uploads`) from ``static/upload.js``, show the problem+json errors next to the
+    :mod:`app.jobs.uploads`) from ``static/upload.js``, show the problem+json errors next to the
     field they name, then follow the job (``GET /v1/jobs/{id}`` every second) with a progress
     bar and, when it is done, link back to the form with the new item selected (and, for a
     ski, to its page ``/skis/{name}``: the beam its job identified, or why there is none).
@@ -53,13 +53,15 @@ from urllib.parse import quote, urlencode
 from fastapi import FastAPI, Request
 from fastapi.responses import HTMLResponse, Response
 from pydantic import ValidationError
-from skisnow.app import plots, service, units, uploads
+from skisnow.app import plots, service, units
 from skisnow.app.access import caller, visible_catalogue
+from skisnow.app.jobs import uploads
 from skisnow.app.presets import DEFAULT_PRESET
 from skisnow.app.presets import PRESETS as ACCURACY_PRESETS
 from skisnow.app.schemas import ContactBody
 from skisnow.app.service.profiles import SERVED_MISFIT_LIMIT
 from skisnow.app.ski_figures import ski_figures
+from skisnow.app.storage.layout import Layout
 from skisnow.solvers.band import Z90
 from skisnow.solvers.errors import SkisnowError
 from skisnow.solvers.identify import HELD_OUT_LIMIT
@@ -1180,7 +1182,7 @@ SKI_UPLOAD_FIELDS = (
     ),
 )
 
-#: (kind, job kind of app.uploads, REST route, form fields, title)
+#: (kind, job kind of app.jobs.uploads, REST route, form fields, title)
 UPLOAD_FORMS = (
     ("grind", uploads.GRIND_JOB, "/v1/grinds", GRIND_UPLOAD_FIELDS, "Grind: topography"),
     ("ski", uploads.SKI_JOB, "/v1/skis", SKI_UPLOAD_FIELDS, "Ski: camber measurements"),
@@ -1350,7 +1352,7 @@ def mount(app: FastAPI) -> None:
         settings = getattr(request.app.state, "settings", None)
         cache = None
         if settings is not None:
-            cache = uploads.Layout(Path(settings.data_dir)).ski_figures(ski.path.stem)
+            cache = Layout(Path(settings.data_dir)).ski_figures(ski.path.stem)
         return render_ski(cat, ski, cache)
 
     @app.get("/upload", response_class=HTMLResponse, include_in_schema=False)

@@ -179,8 +179,8 @@ def test_without_tokens_everyone_is_one_team(catalogue, tmp_path):
 def test_defaults_refuse_the_mirror_of_the_largest_upload():
     """The issue's case: a 1 M-point upload (the largest by default) mirrored to 4 M points is
     refused by the default limits; as measured, or a quarter of it mirrored, it passes."""
+    from skisnow.app.jobs.uploads import check_solve_grid
     from skisnow.app.settings import Settings
-    from skisnow.app.uploads import check_solve_grid
     from skisnow.solvers.errors import InputError
 
     s = Settings()

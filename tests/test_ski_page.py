@@ -314,7 +314,7 @@ def test_page_figures_are_kept_on_disk_per_ski_file(catalogue, tmp_path, monkeyp
 
 
 def test_an_uploads_figure_cache_goes_with_it(tmp_path):
-    from skisnow.app.uploads import Layout
+    from skisnow.app.storage.layout import Layout
 
     layout = Layout(tmp_path)
     path = layout.ski_figures("item-1")

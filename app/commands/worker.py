@@ -50,7 +50,7 @@ def run_worker(settings, stop: threading.Event, *, jobs: int) -> None:
     from skisnow.app.jobs.handlers import job_handlers
     from skisnow.app.jobs.runner import JobRunner
     from skisnow.app.storage.catalogue import CatalogueDB
-    from skisnow.app.uploads import Layout
+    from skisnow.app.storage.layout import Layout
 
     layout = Layout(Path(settings.data_dir))
     db = CatalogueDB(settings.catalogue_url)

@@ -6,15 +6,18 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from skisnow.app import uploads
+from skisnow.app.jobs import uploads
+from skisnow.app.jobs.grind_job import run_grind_job
 from skisnow.app.jobs.runner import FailureHook, Handler, JobContext
+from skisnow.app.jobs.ski_job import on_job_failure, run_ski_job
 from skisnow.app.settings import Settings
+from skisnow.app.storage.layout import Layout
 
 __all__ = ["job_handlers"]
 
 
 def job_handlers(
-    settings: Settings, layout: uploads.Layout, on_ready: Callable
+    settings: Settings, layout: Layout, on_ready: Callable
 ) -> tuple[dict[str, Handler], FailureHook]:
     """Handlers per job kind (``uploads.GRIND_JOB``, ``uploads.SKI_JOB``) and the failure hook.
 
@@ -24,12 +27,12 @@ def job_handlers(
     """
 
     def grind(ctx: JobContext) -> str:
-        return uploads.run_grind_job(ctx, layout, settings, on_ready)
+        return run_grind_job(ctx, layout, settings, on_ready)
 
     def ski(ctx: JobContext) -> str:
-        return uploads.run_ski_job(ctx, layout, settings, on_ready)
+        return run_ski_job(ctx, layout, settings, on_ready)
 
     def on_failure(ctx: JobContext, exc: BaseException) -> None:
-        uploads.on_job_failure(ctx, layout)
+        on_job_failure(ctx, layout)
 
     return {uploads.GRIND_JOB: grind, uploads.SKI_JOB: ski}, on_failure

@@ -1,4 +1,7 @@
-"""Bring-your-own skis and grinds: validate uploads, run their jobs, keep the live catalogue.
+"""Bring-your-own skis and grinds: validate an upload, store it and queue its job.
+
+The jobs themselves: :mod:`app.jobs.grind_job`, :mod:`app.jobs.ski_job`; the served catalogue
+of finished items: :mod:`app.service.live`; the data directory: :mod:`app.storage.layout`.
 
 Storage layout under the data directory (``Settings.data_dir``)::
 
@@ -20,24 +23,19 @@ rejected upload leaves nothing behind.
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import math
-import os
 import re
-import shutil
-import threading
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-from skisnow.app import service
-from skisnow.app.jobs import JobContext
+from skisnow.app.errors import ConflictError, QuotaError, UnsupportedContentError
 from skisnow.app.settings import Settings
 from skisnow.app.storage.catalogue import CatalogueDB, ItemRow
-from skisnow.app.storage.common import atomic_path, provenance, sha256_file
-from skisnow.solvers.errors import DataFileError, InputError, SkisnowError
+from skisnow.app.storage.common import atomic_path, sha256_file
+from skisnow.app.storage.layout import Layout
+from skisnow.solvers.errors import DataFileError, InputError
 
 log = logging.getLogger(__name__)
 
@@ -54,41 +52,6 @@ PIXEL_UM_RANGE = (0.01, 1000.0)
 MAX_SAMPLE_SPACING_MM = 10.0
 SKI_LENGTH_MM_RANGE = (1000.0, 2600.0)
 SKI_WIDTH_MM_RANGE = (30.0, 80.0)
-
-
-# ------------------------------------------------------------------------------- errors
-
-
-class UnsupportedContentError(SkisnowError):
-    """The upload's bytes are not what its kind or name promises (HTTP 415)."""
-
-
-class ConflictError(SkisnowError):
-    """A name is taken, or the item is used by a job (HTTP 409)."""
-
-
-class ForbiddenError(SkisnowError):
-    """A shipped read-only item, or another team's item (HTTP 403)."""
-
-
-class UnauthorizedError(SkisnowError):
-    """Teams are configured and the request has no valid bearer token (HTTP 401)."""
-
-
-class UploadTooLargeError(SkisnowError):
-    """The uploaded file exceeds ``max_upload_bytes`` (HTTP 413)."""
-
-
-class QuotaError(SkisnowError):
-    """Too many jobs queued or running, for the team or for the service (HTTP 429 with
-    ``Retry-After: retry_after_s``)."""
-
-    #: what the answer's ``Retry-After`` asks [s]: about the time a table build at the default
-    #: settings takes on one worker, so that a retry is likely to find a free slot
-    retry_after_s = 60
-
-
-# -------------------------------------------------------------------------------- quotas
 
 
 @dataclass(frozen=True)
@@ -131,51 +94,6 @@ def check_job_quota(db: CatalogueDB, team: str | None, limits: JobLimits | None)
         )
 
 
-# ------------------------------------------------------------------------------- layout
-
-
-@dataclass(frozen=True)
-class Layout:
-    """Paths of the data directory (see the module docstring)."""
-
-    root: Path
-
-    @property
-    def uploads(self) -> Path:
-        return self.root / "uploads"
-
-    def work(self, item_id: str) -> Path:
-        return self.root / "work" / item_id
-
-    def grind_texture(self, item_id: str) -> Path:
-        return self.uploads / f"{item_id}.texture.h5"
-
-    def ski_csv(self, item_id: str) -> Path:
-        return self.uploads / f"{item_id}.csv"
-
-    def grind_table(self, item_id: str) -> Path:
-        return self.root / "grinds" / f"{item_id}.h5"
-
-    def ski_file(self, item_id: str) -> Path:
-        return self.root / "skis" / f"{item_id}.h5"
-
-    def ski_figures(self, stem: str) -> Path:
-        """The ski page's figures of ski file ``{stem}.h5`` (:mod:`app.ski_figures`)."""
-        return self.root / "cache" / "ski-figures" / f"{stem}.json"
-
-    def remove_item_files(self, item_id: str) -> None:
-        for path in (
-            self.grind_texture(item_id),
-            self.ski_csv(item_id),
-            self.grind_table(item_id),
-            self.ski_file(item_id),
-            self.ski_figures(item_id),
-        ):
-            with contextlib.suppress(FileNotFoundError):
-                path.unlink()
-        shutil.rmtree(self.work(item_id), ignore_errors=True)
-
-
 def check_name(name: str, field: str = "name") -> str:
     name = (name or "").strip()
     if not NAME_RE.match(name):
@@ -184,9 +102,6 @@ def check_name(name: str, field: str = "name") -> str:
             "letter or digit"
         )
     return name
-
-
-# ------------------------------------------------------------------------------- grinds
 
 
 def _topography():
@@ -450,73 +365,6 @@ def _add_item(db: CatalogueDB, kind: str, name: str, meta: dict, team: str | Non
         raise ConflictError(str(exc)) from None
 
 
-def build_settings(settings: Settings):
-    from skisnow.app.jobs.table_settings import BuildSettings
-
-    return BuildSettings(points=settings.table_points, chunk_size=settings.table_chunk_size)
-
-
-def run_grind_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -> str:
-    """Job ``grind-table``: build the table with :func:`app.jobs.table_build.build_tables`.
-
-    Chunks are checkpointed under ``work/<item id>/.checkpoints``; a rerun (service restart)
-    computes only the missing chunks. The finished table is moved into ``grinds/`` with one
-    ``os.replace``.
-    """
-    from skisnow.app.jobs.table_build import build_tables
-    from skisnow.app.storage.tables import read_table
-    from skisnow.app.storage.textures import read_texture
-    from skisnow.solvers.lookup import chunk_bounds
-
-    item = ctx.item
-    texture = read_texture(layout.grind_texture(item.id))
-    bs = build_settings(settings)
-    work = layout.work(item.id)
-    total = len(chunk_bounds(bs.points, bs.chunk_size))
-
-    def done_chunks() -> int:
-        return sum(1 for _ in work.glob(".checkpoints/*/*/chunk-*.h5"))
-
-    ctx.progress(done_chunks() / (total + 1), f"building the table ({total} chunks)")
-
-    def on_chunk(_name: str, _index: int) -> None:
-        n = done_chunks()
-        ctx.progress(n / (total + 1), f"table chunk {n}/{total}")
-
-    paths = build_tables(
-        [texture],
-        work,
-        bs,
-        scheduler=settings.dask_scheduler,
-        workers=settings.table_workers,
-        processes=settings.table_processes,
-        progress=False,
-        on_chunk_done=on_chunk,
-    )
-    ctx.check_stop()
-    built = paths[texture.name]
-    final = layout.grind_table(item.id)
-    final.parent.mkdir(parents=True, exist_ok=True)
-    os.replace(built, final)
-    table = read_table(final)
-    sha = sha256_file(final)
-    meta = {
-        **item.metadata,
-        "table_points": int(table.pressure_ratio.size),
-        "table_points_not_converged": int(np.count_nonzero(~table.converged)),
-    }
-    db_item = ctx.db.update_item(
-        item.id, state="ready", file_path=str(final), sha256=sha, metadata=meta
-    )
-    layout.grind_texture(item.id).unlink(missing_ok=True)
-    shutil.rmtree(work, ignore_errors=True)
-    on_ready(db_item)
-    return f"table built: {table.pressure_ratio.size} points, {total} chunks"
-
-
-# --------------------------------------------------------------------------------- skis
-
-
 def _decode_text(data: bytes, filename: str) -> str:
     if b"\x00" in data[:4096]:
         raise UnsupportedContentError(f"file {filename!r} is not a text CSV (binary bytes)")
@@ -665,310 +513,3 @@ def accept_ski(
         db.delete_item(item.id)
         raise
     return item, job.id, figures
-
-
-def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -> str:
-    """Job ``ski-network``: train the camber network, check it, write the ski file."""
-    from skisnow.app.storage.skis import SkiOutline, SkiRecord, read_camber_csv, read_ski, write_ski
-    from skisnow.app.train_camber import (
-        camber_training_arrays,
-        train_camber_network,
-        write_network_to_ski,
-    )
-
-    item = ctx.item
-    data = read_camber_csv(layout.ski_csv(item.id))
-    _, x, f, xf, h, side = camber_training_arrays(data)
-    total = settings.train_ensemble * (settings.train_epochs + settings.train_lbfgs_epochs)
-    calls = 0
-
-    def progress(phase: str, epoch: int, loss_tr: float, loss_va: float) -> None:
-        nonlocal calls
-        calls += 1
-        ctx.progress(0.95 * calls / total, f"training ({phase}, epoch {epoch})")
-
-    ctx.progress(0.0, "training the camber network")
-    result = train_camber_network(
-        x,
-        f,
-        xf,
-        h,
-        epochs=settings.train_epochs,
-        lbfgs_epochs=settings.train_lbfgs_epochs,
-        ensemble=settings.train_ensemble,
-        ski_id=item.name,
-        metadata={"measured_side": side, "measurements_source": f"upload {item.id}.csv"},
-        progress=progress,
-    )
-    m = result.metrics
-    rmse_um = float(m.get("test_rmse_band_m", math.nan)) * 1e6
-    limit = settings.ski_max_test_rmse_um
-    figures = (
-        f"held-out RMSE where H* < 0.2 mm = {rmse_um:.2f} µm on {m.get('test_n_cases', 0)} test "
-        f"case(s) (limit {limit:g} µm), validation {m.get('validation_rmse_band_m', 0) * 1e6:.2f}"
-        f" µm, train {m.get('train_rmse_band_m', 0) * 1e6:.2f} µm"
-    )
-    if not (math.isfinite(rmse_um) and rmse_um <= limit):
-        raise InputError(
-            f"accuracy check failed: {figures}; measure more load cases or denser positions"
-        )
-    ctx.check_stop()
-    o = item.metadata["outline"]
-    record = SkiRecord(
-        measurements=data,
-        outline=SkiOutline(
-            length_m=float(item.metadata["length_mm"]) * 1e-3,
-            balance_point_from_tail_m=float(o["balance_point_from_tail_mm"]) * 1e-3,
-            positions_m=np.asarray(o["positions_mm"]) * 1e-3,
-            width_m=np.asarray(o["width_mm"]) * 1e-3,
-        ),
-        metadata={
-            k: str(v)
-            for k, v in item.metadata.items()
-            if k in ("brand_model", "style", "owner_team", "notes", "original_filename")
-        }
-        | {"description": f"uploaded ski {item.name}", "item_id": item.id},
-    )
-    ctx.progress(0.96, "identifying the ski's beam from its camber cases")
-    record.identified, beam_note = _identify(
-        data,
-        item,
-        lambda frac, msg: ctx.progress(0.96 + 0.03 * frac, f"identifying the ski's beam: {msg}"),
-    )
-    work = layout.work(item.id)
-    work.mkdir(parents=True, exist_ok=True)
-    staged = work / "ski.h5"
-    write_ski(staged, record, parameters={"item": item.id, "name": item.name})
-    write_network_to_ski(staged, result.network)
-    read_ski(staged)  # verify before it enters the catalogue
-    final = layout.ski_file(item.id)
-    final.parent.mkdir(parents=True, exist_ok=True)
-    os.replace(staged, final)
-    shutil.rmtree(work, ignore_errors=True)
-    ctx.progress(0.98, "drawing the ski page's figures")
-    _draw_page_figures(item, final, layout)
-    meta = {**item.metadata, "accuracy": {k: v for k, v in m.items() if isinstance(v, float)}}
-    db_item = ctx.db.update_item(
-        item.id, state="ready", file_path=str(final), sha256=sha256_file(final), metadata=meta
-    )
-    on_ready(db_item)
-    return f"network trained; {figures}; {beam_note}"
-
-
-def _draw_page_figures(item, path: Path, layout: Layout) -> None:
-    """Draw the figures of the ski's page into its figure cache (:mod:`app.ski_figures`), so
-    that its first view is fast. A failure is logged, never fails the job: the page then draws
-    them on its first view."""
-    from skisnow.app.ski_figures import ski_figures
-    from skisnow.app.storage.skis import read_ski
-
-    try:
-        ski = service.Ski(item.name, path, sha256_file(path), read_ski(path))
-        ski_figures(ski, layout.ski_figures(path.stem))
-    except Exception as exc:  # a cache not filled must not fail the upload
-        log.warning(
-            "figures of ski %r not drawn in its job (%s): its page draws them", item.name, exc
-        )
-
-
-def _identify(data, item, callback=None) -> tuple[dict, str]:
-    """Identify the beam of an uploaded ski (method.md §4c): the stored ``identified`` group and
-    one sentence for the job result. A failure is recorded, never raised: the ski still works
-    with the rigid model and its network. ``callback(fraction, message)``: the
-    identification's progress (the job shows it; minutes on a loaded machine)."""
-    from skisnow.app.path_pool import path_pool
-    from skisnow.app.service.profiles import identification_group, served_beam_note
-    from skisnow.app.storage.skis import mean_profiles
-    from skisnow.solvers.identify import identify_beam_checked
-
-    try:
-        f, xf, y, note = mean_profiles(data)
-        with path_pool() as pmap:
-            ident, check = identify_beam_checked(
-                data.positions_m, f, xf, y, callback=callback, path_map=pmap
-            )
-    except SkisnowError as exc:
-        reason = f"beam not identified: {exc}"
-        failed = {"attrs": {"ok": False, "reason": reason, **provenance({"item": item.id})}}
-        return failed, reason + " (rigid model only)"
-    group = identification_group(ident, check, note, f, xf, {"item": item.id}, y)
-    if not ident.ok:
-        return group, f"beam not identified: {ident.reason} (rigid model only)"
-    if served_beam_note(group):
-        return group, f"beam identified but not used: {served_beam_note(group)}"
-    return group, (
-        f"beam identified: misfit {ident.misfit_m * 1e6:.2f} µm against device noise "
-        f"{ident.noise_m * 1e6:.2f} µm over {f.size - check['held_out_cases']} cases, "
-        f"{(check['held_out_rms_m'] or 0.0) * 1e6:.2f} µm on {check['held_out_cases']} held-out "
-        f"cases ({note})"
-    )
-
-
-def on_job_failure(ctx: JobContext, layout: Layout) -> None:
-    """A failed job leaves its item ``failed`` with no files (the job row keeps the error)."""
-    if ctx.item is None:
-        return
-    layout.remove_item_files(ctx.item.id)
-    with contextlib.suppress(Exception):
-        ctx.db.update_item(ctx.item.id, state="failed", file_path=None, sha256=None)
-
-
-# --------------------------------------------------------------------- live catalogue
-
-
-def load_live(item: ItemRow):
-    """The :mod:`app.service` object of a ready item (file verified against its sha256)."""
-    from skisnow.app.storage.skis import read_ski
-    from skisnow.app.storage.tables import read_table
-
-    path = Path(item.file_path)
-    if not path.is_file():
-        raise DataFileError(f"{item.kind} {item.name!r}: file {path} is missing")
-    sha = sha256_file(path)
-    if sha != item.sha256:
-        raise DataFileError(f"{item.kind} {item.name!r}: {path.name} does not match its sha256")
-    if item.kind == "grind":
-        return service.Grind(item.name, path, sha, read_table(path))
-    return service.Ski(item.name, path, sha, read_ski(path))
-
-
-def _locked(method):
-    def wrapper(self, *args, **kwargs):
-        with self.lock:
-            return method(self, *args, **kwargs)
-
-    wrapper.__name__ = method.__name__
-    wrapper.__doc__ = method.__doc__
-    return wrapper
-
-
-class LiveCatalogue:
-    """Keeps ``app.state.catalogue`` in step with the database's ready uploaded items.
-
-    Dicts are replaced, never mutated in place, so a request iterating over them is safe.
-    """
-
-    def __init__(self, get_catalogue: Callable[[], service.Catalogue], db: CatalogueDB) -> None:
-        self._get = get_catalogue
-        self.db = db
-        self.lock = threading.RLock()
-        # item id -> (kind, name, sha256, team)
-        self.loaded: dict[str, tuple[str, str, str, str | None]] = {}
-
-    def _dicts(self, kind: str) -> tuple[service.Catalogue, str]:
-        return self._get(), "grinds" if kind == "grind" else "skis"
-
-    @_locked
-    def put(self, item: ItemRow) -> None:
-        obj = load_live(item)
-        cat, attr = self._dicts(item.kind)
-        d = dict(getattr(cat, attr))
-        old = self.loaded.get(item.id)
-        if old is not None:
-            d.pop(old[1], None)
-        d[item.name] = obj
-        setattr(cat, attr, d)
-        self.loaded[item.id] = (item.kind, item.name, item.sha256, item.team)
-
-    @_locked
-    def drop(self, item_id: str) -> None:
-        old = self.loaded.pop(item_id, None)
-        if old is None:
-            return
-        cat, attr = self._dicts(old[0])
-        d = dict(getattr(cat, attr))
-        d.pop(old[1], None)
-        setattr(cat, attr, d)
-
-    @_locked
-    def drop_all(self) -> None:
-        """Take every loaded upload out of the catalogue (the service stops): the catalogue is
-        the shipped one again, and a new start loads the uploads afresh."""
-        for item_id in list(self.loaded):
-            self.drop(item_id)
-
-    @_locked
-    def rename(self, item: ItemRow) -> None:
-        old = self.loaded.get(item.id)
-        if old is None:
-            return
-        cat, attr = self._dicts(item.kind)
-        d = dict(getattr(cat, attr))
-        obj = d.pop(old[1], None)
-        if obj is not None:
-            d[item.name] = replace(obj, name=item.name)
-        setattr(cat, attr, d)
-        self.loaded[item.id] = (item.kind, item.name, item.sha256, item.team)
-
-    @_locked
-    def owned_by_others(self, team: str | None) -> set[tuple[str, str]]:
-        """``(kind, name)`` of the served uploads that belong to a team other than ``team``
-        (items of no team belong to nobody; shipped items are never here)."""
-        return {(k, n) for k, n, _, owner in self.loaded.values() if owner not in (None, team)}
-
-    def catch_up(self, kind: str, name: str) -> bool:
-        """Load ``name`` now when this process does not serve it and the database holds it
-        ready (another process finished its job before this one's next poll). True when it is
-        served afterwards. Costs nothing for a served name, one query for an unknown one."""
-        cat, attr = self._dicts(kind)
-        if name in getattr(cat, attr):
-            return True
-        row = self.db.item_by_name(kind, name)
-        if row is None or row.state != "ready" or row.read_only:
-            return False
-        self.sync()
-        cat, attr = self._dicts(kind)
-        return name in getattr(cat, attr)
-
-    @_locked
-    def sync(self) -> None:
-        """Load new ready items, drop deleted ones, follow renames (other processes too)."""
-        ready = {i.id: i for i in self.db.items(state="ready") if not i.read_only}
-        for item_id in list(self.loaded):
-            if item_id not in ready:
-                self.drop(item_id)
-        for item in ready.values():
-            old = self.loaded.get(item.id)
-            if old == (item.kind, item.name, item.sha256, item.team):
-                continue
-            if old is not None and old[2] == item.sha256:
-                self.rename(item)
-                continue
-            cat, attr = self._dicts(item.kind)
-            if old is None and item.name in getattr(cat, attr):
-                continue  # a shipped item of that name is served (see register_shipped)
-            try:
-                self.put(item)
-            except SkisnowError as exc:
-                log.error("cannot load %s %r: %s", item.kind, item.name, exc)
-
-
-def register_shipped(db: CatalogueDB, cat: service.Catalogue) -> None:
-    """Record the shipped demo items as read-only rows (names reserved, never deletable)."""
-    shipped = {("grind", n): g for n, g in cat.grinds.items()}
-    shipped |= {("ski", n): s for n, s in cat.skis.items()}
-    for row in db.items():
-        if row.read_only and (row.kind, row.name) not in shipped:
-            db.delete_item(row.id)
-    for (kind, name), obj in shipped.items():
-        row = db.item_by_name(kind, name)
-        if row is None:
-            with contextlib.suppress(SkisnowError):
-                db.add_item(
-                    kind,
-                    name,
-                    metadata={"shipped": True},
-                    state="ready",
-                    file_path=str(obj.path),
-                    sha256=obj.sha256,
-                    read_only=True,
-                )
-        elif row.read_only:
-            if row.sha256 != obj.sha256 or row.file_path != str(obj.path):
-                db.update_item(row.id, file_path=str(obj.path), sha256=obj.sha256)
-        else:
-            log.warning(
-                "uploaded %s %r has the name of a shipped one; the shipped one is served",
-                kind,
-                name,
-            )

@@ -1,0 +1,168 @@
+"""Job ``ski-network`` of an uploaded ski: beam identification, camber network training and its
+accuracy check, the ski file (:func:`run_ski_job`); and the clean-up of any failed job
+(:func:`on_job_failure`)."""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+from skisnow.app import service
+from skisnow.app.jobs.runner import JobContext
+from skisnow.app.settings import Settings
+from skisnow.app.storage.common import provenance, sha256_file
+from skisnow.app.storage.layout import Layout
+from skisnow.solvers.errors import InputError, SkisnowError
+
+log = logging.getLogger(__name__)
+
+
+def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -> str:
+    """Job ``ski-network``: train the camber network, check it, write the ski file."""
+    from skisnow.app.storage.skis import SkiOutline, SkiRecord, read_camber_csv, read_ski, write_ski
+    from skisnow.app.train_camber import (
+        camber_training_arrays,
+        train_camber_network,
+        write_network_to_ski,
+    )
+
+    item = ctx.item
+    data = read_camber_csv(layout.ski_csv(item.id))
+    _, x, f, xf, h, side = camber_training_arrays(data)
+    total = settings.train_ensemble * (settings.train_epochs + settings.train_lbfgs_epochs)
+    calls = 0
+
+    def progress(phase: str, epoch: int, loss_tr: float, loss_va: float) -> None:
+        nonlocal calls
+        calls += 1
+        ctx.progress(0.95 * calls / total, f"training ({phase}, epoch {epoch})")
+
+    ctx.progress(0.0, "training the camber network")
+    result = train_camber_network(
+        x,
+        f,
+        xf,
+        h,
+        epochs=settings.train_epochs,
+        lbfgs_epochs=settings.train_lbfgs_epochs,
+        ensemble=settings.train_ensemble,
+        ski_id=item.name,
+        metadata={"measured_side": side, "measurements_source": f"upload {item.id}.csv"},
+        progress=progress,
+    )
+    m = result.metrics
+    rmse_um = float(m.get("test_rmse_band_m", math.nan)) * 1e6
+    limit = settings.ski_max_test_rmse_um
+    figures = (
+        f"held-out RMSE where H* < 0.2 mm = {rmse_um:.2f} µm on {m.get('test_n_cases', 0)} test "
+        f"case(s) (limit {limit:g} µm), validation {m.get('validation_rmse_band_m', 0) * 1e6:.2f}"
+        f" µm, train {m.get('train_rmse_band_m', 0) * 1e6:.2f} µm"
+    )
+    if not (math.isfinite(rmse_um) and rmse_um <= limit):
+        raise InputError(
+            f"accuracy check failed: {figures}; measure more load cases or denser positions"
+        )
+    ctx.check_stop()
+    o = item.metadata["outline"]
+    record = SkiRecord(
+        measurements=data,
+        outline=SkiOutline(
+            length_m=float(item.metadata["length_mm"]) * 1e-3,
+            balance_point_from_tail_m=float(o["balance_point_from_tail_mm"]) * 1e-3,
+            positions_m=np.asarray(o["positions_mm"]) * 1e-3,
+            width_m=np.asarray(o["width_mm"]) * 1e-3,
+        ),
+        metadata={
+            k: str(v)
+            for k, v in item.metadata.items()
+            if k in ("brand_model", "style", "owner_team", "notes", "original_filename")
+        }
+        | {"description": f"uploaded ski {item.name}", "item_id": item.id},
+    )
+    ctx.progress(0.96, "identifying the ski's beam from its camber cases")
+    record.identified, beam_note = _identify(
+        data,
+        item,
+        lambda frac, msg: ctx.progress(0.96 + 0.03 * frac, f"identifying the ski's beam: {msg}"),
+    )
+    work = layout.work(item.id)
+    work.mkdir(parents=True, exist_ok=True)
+    staged = work / "ski.h5"
+    write_ski(staged, record, parameters={"item": item.id, "name": item.name})
+    write_network_to_ski(staged, result.network)
+    read_ski(staged)  # verify before it enters the catalogue
+    final = layout.ski_file(item.id)
+    final.parent.mkdir(parents=True, exist_ok=True)
+    os.replace(staged, final)
+    shutil.rmtree(work, ignore_errors=True)
+    ctx.progress(0.98, "drawing the ski page's figures")
+    _draw_page_figures(item, final, layout)
+    meta = {**item.metadata, "accuracy": {k: v for k, v in m.items() if isinstance(v, float)}}
+    db_item = ctx.db.update_item(
+        item.id, state="ready", file_path=str(final), sha256=sha256_file(final), metadata=meta
+    )
+    on_ready(db_item)
+    return f"network trained; {figures}; {beam_note}"
+
+
+def _draw_page_figures(item, path: Path, layout: Layout) -> None:
+    """Draw the figures of the ski's page into its figure cache (:mod:`app.ski_figures`), so
+    that its first view is fast. A failure is logged, never fails the job: the page then draws
+    them on its first view."""
+    from skisnow.app.ski_figures import ski_figures
+    from skisnow.app.storage.skis import read_ski
+
+    try:
+        ski = service.Ski(item.name, path, sha256_file(path), read_ski(path))
+        ski_figures(ski, layout.ski_figures(path.stem))
+    except Exception as exc:  # a cache not filled must not fail the upload
+        log.warning(
+            "figures of ski %r not drawn in its job (%s): its page draws them", item.name, exc
+        )
+
+
+def _identify(data, item, callback=None) -> tuple[dict, str]:
+    """Identify the beam of an uploaded ski (method.md §4c): the stored ``identified`` group and
+    one sentence for the job result. A failure is recorded, never raised: the ski still works
+    with the rigid model and its network. ``callback(fraction, message)``: the
+    identification's progress (the job shows it; minutes on a loaded machine)."""
+    from skisnow.app.path_pool import path_pool
+    from skisnow.app.service.profiles import identification_group, served_beam_note
+    from skisnow.app.storage.skis import mean_profiles
+    from skisnow.solvers.identify import identify_beam_checked
+
+    try:
+        f, xf, y, note = mean_profiles(data)
+        with path_pool() as pmap:
+            ident, check = identify_beam_checked(
+                data.positions_m, f, xf, y, callback=callback, path_map=pmap
+            )
+    except SkisnowError as exc:
+        reason = f"beam not identified: {exc}"
+        failed = {"attrs": {"ok": False, "reason": reason, **provenance({"item": item.id})}}
+        return failed, reason + " (rigid model only)"
+    group = identification_group(ident, check, note, f, xf, {"item": item.id}, y)
+    if not ident.ok:
+        return group, f"beam not identified: {ident.reason} (rigid model only)"
+    if served_beam_note(group):
+        return group, f"beam identified but not used: {served_beam_note(group)}"
+    return group, (
+        f"beam identified: misfit {ident.misfit_m * 1e6:.2f} µm against device noise "
+        f"{ident.noise_m * 1e6:.2f} µm over {f.size - check['held_out_cases']} cases, "
+        f"{(check['held_out_rms_m'] or 0.0) * 1e6:.2f} µm on {check['held_out_cases']} held-out "
+        f"cases ({note})"
+    )
+
+
+def on_job_failure(ctx: JobContext, layout: Layout) -> None:
+    """A failed job leaves its item ``failed`` with no files (the job row keeps the error)."""
+    if ctx.item is None:
+        return
+    layout.remove_item_files(ctx.item.id)
+    with contextlib.suppress(Exception):
+        ctx.db.update_item(ctx.item.id, state="failed", file_path=None, sha256=None)
