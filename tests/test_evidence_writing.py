@@ -160,3 +160,27 @@ def test_paper_case_words_come_from_the_constants():
         + re.sub("-", "−", f"{paper_case.PAPER_POSITION_MM:g}")
         + " mm"
     )
+
+
+def test_shipped_stage_reads_the_tables_own_estimates_in_the_range():
+    """The ``shipped`` accuracy stage reports the largest stored a_r estimate over the range,
+    and says whether the 3 % target is met (from the numbers, not canned)."""
+    import numpy as np
+    from skisnow.app.evidence.accuracy_common import AccuracyConfig
+    from skisnow.app.evidence.accuracy_shipped import bench_shipped, shipped_section
+    from skisnow.app.storage.common import tables_dir
+    from skisnow.app.storage.tables import read_table
+    from skisnow.solvers.lookup import ESTIMATE_RANGE_A_R
+
+    st = bench_shipped(AccuracyConfig(table_grinds=("grind-2",)))
+    row = st["tables"][0]
+    table = read_table(tables_dir() / "grind-2.h5")
+    a = table.real_contact_area_fraction
+    keep = (a >= ESTIMATE_RANGE_A_R[0]) & (a <= ESTIMATE_RANGE_A_R[1])
+    expected = np.max(table.real_contact_area_fraction_error[keep] / a[keep])
+    assert row["max_rel_estimate"]["real_contact_area_fraction"]["rel"] == expected
+    assert row["nodes_in_range"] == int(keep.sum())
+    text = "\n".join(shipped_section({"shipped": st}))
+    assert ("met by every table" in text) == (expected <= 0.03)
+    worse = {**st, "target_a_r_rel": expected / 2}
+    assert "**not met**" in "\n".join(shipped_section({"shipped": worse}))

@@ -20,6 +20,8 @@ Stages (issue #6 §2), each measured in the same run so that times compare as ra
   table; the named presets of :mod:`app.presets` are marked on the error-versus-time front.
 - ``network``: the camber network of each ski against the beam model it learned, through the
   whole computation.
+- ``shipped``: the shipped tables' own pixel-size error estimates over the partial-contact range
+  (no solve; :mod:`app.evidence.accuracy_shipped`).
 
 Results go to ``docs/bench/accuracy.json`` and charts ``docs/bench/accuracy-<stage>.png`` via
 :func:`app.evidence.writer.write_stage`, which regenerates ``docs/benchmarks.md``.
@@ -43,6 +45,7 @@ from skisnow.app.evidence.accuracy_common import (
 from skisnow.app.evidence.accuracy_e2e import bench_end_to_end, candidate_presets
 from skisnow.app.evidence.accuracy_micro import bench_micro_grid
 from skisnow.app.evidence.accuracy_network import bench_network
+from skisnow.app.evidence.accuracy_shipped import bench_shipped
 from skisnow.app.evidence.accuracy_table import bench_table
 from skisnow.app.storage.common import provenance
 from tqdm import tqdm
@@ -75,6 +78,7 @@ def bench_accuracy(cfg: AccuracyConfig, progress: bool = True) -> dict:
         "table": ("table", "table vs direct", bench_table),
         "end-to-end": ("end_to_end", "macro grid / presets", bench_end_to_end),
         "network": ("network", "network vs beam", bench_network),
+        "shipped": ("shipped", "shipped tables' estimates", bench_shipped),
     }
     with tqdm(total=_work_items(cfg), disable=not progress, desc="bench accuracy") as bar:
         for stage, (key, label, run) in runners.items():

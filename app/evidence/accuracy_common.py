@@ -100,7 +100,7 @@ class AccuracyConfig:
     network_positions_mm: tuple[float, ...] = (-275.0, -175.0, -125.0, -25.0, 75.0)
     network_grind: str = "grind-1"
     network_repeats: int = 5
-    stages: tuple[str, ...] = ("micro", "table", "end-to-end", "network")
+    stages: tuple[str, ...] = ("micro", "table", "end-to-end", "network", "shipped")
     extra: dict = field(default_factory=dict)
 
 

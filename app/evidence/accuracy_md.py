@@ -23,6 +23,7 @@ from skisnow.app.evidence.accuracy_md_micro import (
     micro_section,
     table_section,
 )
+from skisnow.app.evidence.accuracy_shipped import shipped_section
 from skisnow.app.presets import DEFAULT_PRESET
 from skisnow.solvers.camber import CONTACT_BAND_M
 
@@ -335,6 +336,7 @@ def _wall_times(d: dict) -> list[str]:
 SECTIONS = (
     ("micro", micro_section),
     ("table", table_section),
+    ("shipped", shipped_section),
     ("end_to_end", e2e_section),
     ("network", network_section),
 )

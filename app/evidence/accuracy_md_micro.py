@@ -291,6 +291,13 @@ def _before_after_lines(mi: dict) -> list[str]:
             f"{_apct(t['estimate_rel'][rec])} |"
         )
     out += ["", "![shipped tables before and after](bench/accuracy-tables-before-after.png)"]
+    notes = [
+        f"{s['grind']} {s['nominal_pressure_kpa']:g} kPa: {s['shipped_table_note']}"
+        for s in rows
+        if s.get("shipped_table_note")
+    ]
+    if notes:
+        out += ["", "The `a_r table (estimate)` column, " + "; ".join(notes) + "."]
     return out
 
 
