@@ -7,19 +7,21 @@
 
 Each takes ``format=json`` (default) or ``format=csv``. Bad input is a 4xx problem body whose
 ``errors`` name the field (query validation by FastAPI, range checks of the service through the
-``field`` of its errors, :func:`app.api.problem`).
+``field`` of its errors, :mod:`app.api.handlers`). The bounds are those of :mod:`app.bounds`.
 """
 
 from __future__ import annotations
 
 from typing import Literal
 
-from fastapi import FastAPI, Query, Request
+from fastapi import APIRouter, Query, Request
 from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, ConfigDict, Field
-from skisnow.app import flex
+from skisnow.app import bounds, flex
 from skisnow.app.access import visible_catalogue
-from skisnow.app.schemas import PresetName, SkiModelName
+from skisnow.app.api import problems
+from skisnow.app.api.models import PresetName, SkiModelName
+from skisnow.app.api.responses import FlexPair, FlexRanking, FlexSheet
 from skisnow.solvers.errors import InputError
 
 Format = Literal["json", "csv"]
@@ -37,11 +39,15 @@ class RankingBody(BaseModel):
 
     skis: list[str] = Field(..., min_length=1, max_length=16, examples=[["ski-a", "ski-b"]])
     grinds: list[str] = Field(..., min_length=1, max_length=16, examples=[["grind-1"]])
-    body_weight_kg: float = Field(..., gt=0, le=300, description=_W_DOC, examples=[75])
-    snow_modulus_mpa: float = Field(..., ge=1, le=2000, description=_E_DOC, examples=[200])
-    porosity: float = Field(..., ge=0, lt=1, description=_N_DOC, examples=[0.5])
-    base_modulus_mpa: float = Field(700.0, ge=1, le=20000)
-    poisson_ratio: float = Field(0.3, ge=0, lt=0.5)
+    body_weight_kg: float = Field(
+        ..., **bounds.BODY_WEIGHT_KG.field(), description=_W_DOC, examples=[75]
+    )
+    snow_modulus_mpa: float = Field(
+        ..., **bounds.SNOW_MODULUS_MPA.field(), description=_E_DOC, examples=[200]
+    )
+    porosity: float = Field(..., **bounds.POROSITY.field(), description=_N_DOC, examples=[0.5])
+    base_modulus_mpa: float = Field(700.0, **bounds.BASE_MODULUS_MPA.field())
+    poisson_ratio: float = Field(0.3, **bounds.POISSON_RATIO.field())
     preset: PresetName = "default"
     ski_model: SkiModelName = "auto"
     criterion: Criterion = Field(
@@ -58,103 +64,117 @@ def _csv(text: str, name: str) -> Response:
     )
 
 
-def mount(app: FastAPI) -> None:
-    settings = app.state.settings
+router = APIRouter(tags=["flex"])
 
-    @app.get("/v1/skis/{name}/flex", tags=["flex"])
-    def get_flex(
-        request: Request,
-        name: str,
-        body_weight_kg: float = Query(..., gt=0, le=300, description=_W_DOC),
-        snow_modulus_mpa: float | None = Query(None, ge=1, le=2000, description=_E_DOC),
-        porosity: float | None = Query(None, ge=0, lt=1, description=_N_DOC),
-        base_modulus_mpa: float = Query(700.0, ge=1, le=20000),
-        poisson_ratio: float = Query(0.3, ge=0, lt=0.5),
-        preset: PresetName = "default",
-        format: Format = "json",
-    ):
-        """The flex sheet: wax pocket at 0.10/0.15/0.20/0.30 mm under half and full weight,
-        closing load, kick-zone load share (flat and snow), wheelbase, glide check; each with
-        its 90 % band from the camber model."""
-        req = flex.FlexRequest(
-            name,
-            body_weight_kg,
-            snow_modulus_mpa,
-            porosity,
-            base_modulus_mpa,
-            poisson_ratio,
-            preset,
-        )
-        answer = flex.flex_sheet_answer(visible_catalogue(request, skis=[name]), req)
-        if format == "csv":
-            return _csv(flex.sheet_csv(answer), f"flex-{name}")
-        return JSONResponse(answer)
+#: a csv answer besides the JSON one
+_CSV = {"content": {"text/csv": {"schema": {"type": "string"}}}}
+#: what a flex route can be answered with besides 200
+_ERRORS = problems.responses(401, 404, 422)
 
-    @app.get("/v1/flex/pair", tags=["flex"])
-    def get_pair(
-        request: Request,
-        left: str = Query(..., min_length=1, max_length=64),
-        right: str = Query(..., min_length=1, max_length=64),
-        body_weight_kg: float = Query(..., gt=0, le=300, description=_W_DOC),
-        grind: str | None = Query(None, min_length=1, max_length=64),
-        snow_modulus_mpa: float | None = Query(None, ge=1, le=2000, description=_E_DOC),
-        porosity: float | None = Query(None, ge=0, lt=1, description=_N_DOC),
-        base_modulus_mpa: float = Query(700.0, ge=1, le=20000),
-        poisson_ratio: float = Query(0.3, ge=0, lt=0.5),
-        preset: PresetName = "default",
-        ski_model: SkiModelName = "auto",
-        format: Format = "json",
-    ):
-        """Two skis of a pair side by side: every flex-sheet number and (with a grind and a
-        snow) the four contact metrics, flagged where a difference exceeds the camber band."""
-        req = flex.FlexRequest(
-            left,
-            body_weight_kg,
-            snow_modulus_mpa,
-            porosity,
-            base_modulus_mpa,
-            poisson_ratio,
-            preset,
-        )
-        answer = flex.flex_pair(
-            visible_catalogue(request, skis=[left, right], grinds=[grind] if grind else []),
-            left,
-            right,
-            req,
-            grind=grind,
-            ski_model=ski_model,
-        )
-        if format == "csv":
-            return _csv(flex.pair_csv(answer), f"pair-{left}-{right}")
-        return JSONResponse(answer)
 
-    @app.post("/v1/flex/ranking", tags=["flex"])
-    def post_ranking(request: Request, body: RankingBody, format: Format = "json"):
-        """Ski × grind combinations ranked for a skier by a switchable criterion."""
-        cells = len(body.skis) * len(body.grinds)
-        if cells > settings.max_compare_cells:
-            raise flex.field_error(
-                InputError,
-                "skis",
-                f"skis × grinds = {cells} cases exceeds the limit of {settings.max_compare_cells}",
-            )
-        req = flex.FlexRequest(
-            body.skis[0],
-            body.body_weight_kg,
-            body.snow_modulus_mpa,
-            body.porosity,
-            body.base_modulus_mpa,
-            body.poisson_ratio,
-            body.preset,
+@router.get(
+    "/v1/skis/{name}/flex",
+    response_model=FlexSheet,
+    responses={200: _CSV, **_ERRORS},
+)
+def get_flex(
+    request: Request,
+    name: str,
+    body_weight_kg: float = Query(..., **bounds.BODY_WEIGHT_KG.field(), description=_W_DOC),
+    snow_modulus_mpa: float | None = Query(
+        None, **bounds.SNOW_MODULUS_MPA.field(), description=_E_DOC
+    ),
+    porosity: float | None = Query(None, **bounds.POROSITY.field(), description=_N_DOC),
+    base_modulus_mpa: float = Query(700.0, **bounds.BASE_MODULUS_MPA.field()),
+    poisson_ratio: float = Query(0.3, **bounds.POISSON_RATIO.field()),
+    preset: PresetName = "default",
+    format: Format = "json",
+):
+    """The flex sheet: wax pocket at 0.10/0.15/0.20/0.30 mm under half and full weight,
+    closing load, kick-zone load share (flat and snow), wheelbase, glide check; each with
+    its 90 % band from the camber model."""
+    req = flex.FlexRequest(
+        name,
+        body_weight_kg,
+        snow_modulus_mpa,
+        porosity,
+        base_modulus_mpa,
+        poisson_ratio,
+        preset,
+    )
+    answer = flex.flex_sheet_answer(visible_catalogue(request, skis=[name]), req)
+    if format == "csv":
+        return _csv(flex.sheet_csv(answer), f"flex-{name}")
+    return JSONResponse(answer)
+
+
+@router.get("/v1/flex/pair", response_model=FlexPair, responses={200: _CSV, **_ERRORS})
+def get_pair(
+    request: Request,
+    left: str = Query(..., min_length=1, max_length=64),
+    right: str = Query(..., min_length=1, max_length=64),
+    body_weight_kg: float = Query(..., **bounds.BODY_WEIGHT_KG.field(), description=_W_DOC),
+    grind: str | None = Query(None, min_length=1, max_length=64),
+    snow_modulus_mpa: float | None = Query(
+        None, **bounds.SNOW_MODULUS_MPA.field(), description=_E_DOC
+    ),
+    porosity: float | None = Query(None, **bounds.POROSITY.field(), description=_N_DOC),
+    base_modulus_mpa: float = Query(700.0, **bounds.BASE_MODULUS_MPA.field()),
+    poisson_ratio: float = Query(0.3, **bounds.POISSON_RATIO.field()),
+    preset: PresetName = "default",
+    ski_model: SkiModelName = "auto",
+    format: Format = "json",
+):
+    """Two skis of a pair side by side: every flex-sheet number and (with a grind and a
+    snow) the four contact metrics, flagged where a difference exceeds the camber band."""
+    req = flex.FlexRequest(
+        left,
+        body_weight_kg,
+        snow_modulus_mpa,
+        porosity,
+        base_modulus_mpa,
+        poisson_ratio,
+        preset,
+    )
+    answer = flex.flex_pair(
+        visible_catalogue(request, skis=[left, right], grinds=[grind] if grind else []),
+        left,
+        right,
+        req,
+        grind=grind,
+        ski_model=ski_model,
+    )
+    if format == "csv":
+        return _csv(flex.pair_csv(answer), f"pair-{left}-{right}")
+    return JSONResponse(answer)
+
+
+@router.post("/v1/flex/ranking", response_model=FlexRanking, responses={200: _CSV, **_ERRORS})
+def post_ranking(request: Request, body: RankingBody, format: Format = "json"):
+    """Ski × grind combinations ranked for a skier by a switchable criterion."""
+    max_cells = request.app.state.settings.max_compare_cells
+    cells = len(body.skis) * len(body.grinds)
+    if cells > max_cells:
+        raise flex.field_error(
+            InputError, "skis", f"skis × grinds = {cells} cases exceeds the limit of {max_cells}"
         )
-        answer = flex.flex_ranking(
-            visible_catalogue(request, skis=body.skis, grinds=body.grinds),
-            body.skis,
-            body.grinds,
-            req,
-            criterion=body.criterion,
-            ski_model=body.ski_model,
-        )
-        if format == "csv":
-            return _csv(flex.ranking_csv(answer), "ranking")
-        return JSONResponse(answer)
+    req = flex.FlexRequest(
+        body.skis[0],
+        body.body_weight_kg,
+        body.snow_modulus_mpa,
+        body.porosity,
+        body.base_modulus_mpa,
+        body.poisson_ratio,
+        body.preset,
+    )
+    answer = flex.flex_ranking(
+        visible_catalogue(request, skis=body.skis, grinds=body.grinds),
+        body.skis,
+        body.grinds,
+        req,
+        criterion=body.criterion,
+        ski_model=body.ski_model,
+    )
+    if format == "csv":
+        return _csv(flex.ranking_csv(answer), "ranking")
+    return JSONResponse(answer)
