@@ -32,16 +32,18 @@ class Bound:
 
     ``low_open``/``high_open``: the end itself is refused (``gt``/``lt`` instead of
     ``ge``/``le``). ``unit`` is written after values in messages ("" for dimensionless).
+    Whole-number ends are ints, so that schemas, messages and the form's ``min``/``max``
+    attributes read ``150``, not ``150.0``.
     """
 
     name: str
-    low: float
-    high: float
+    low: int | float
+    high: int | float
     unit: str = ""
     low_open: bool = False
     high_open: bool = False
 
-    def field(self) -> dict[str, float]:
+    def field(self) -> dict[str, int | float]:
         """Keyword arguments of :func:`pydantic.Field` / ``fastapi.Query`` (``gt``/``ge``,
         ``lt``/``le``)."""
         return {
@@ -82,16 +84,16 @@ class Bound:
 
 
 #: equivalent load on one ski [kg] (the service's limit; a skier's full weight on one ski)
-LOAD_KG = Bound("load_kg", 0.0, 150.0, "kg", low_open=True)
+LOAD_KG = Bound("load_kg", 0, 150, "kg", low_open=True)
 #: load position from the balance point, positive towards the tip [mm]
-LOAD_POSITION_MM = Bound("load_position_mm", -1000.0, 1000.0, "mm")
+LOAD_POSITION_MM = Bound("load_position_mm", -1000, 1000, "mm")
 #: Young's modulus of the snow [MPa]
-SNOW_MODULUS_MPA = Bound("snow_modulus_mpa", 1.0, 2000.0, "MPa")
+SNOW_MODULUS_MPA = Bound("snow_modulus_mpa", 1, 2000, "MPa")
 #: snow porosity n = 1 − ρ/917 [-]
-POROSITY = Bound("porosity", 0.0, 1.0, high_open=True)
+POROSITY = Bound("porosity", 0, 1, high_open=True)
 #: Young's modulus of the ski base [MPa]
-BASE_MODULUS_MPA = Bound("base_modulus_mpa", 1.0, 20000.0, "MPa")
+BASE_MODULUS_MPA = Bound("base_modulus_mpa", 1, 20000, "MPa")
 #: Poisson's ratio of snow and base [-]
-POISSON_RATIO = Bound("poisson_ratio", 0.0, 0.5, high_open=True)
+POISSON_RATIO = Bound("poisson_ratio", 0, 0.5, high_open=True)
 #: skier's body weight of the flex sheet [kg]
-BODY_WEIGHT_KG = Bound("body_weight_kg", 0.0, 300.0, "kg", low_open=True)
+BODY_WEIGHT_KG = Bound("body_weight_kg", 0, 300, "kg", low_open=True)
