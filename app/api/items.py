@@ -26,7 +26,7 @@ def item_routes(router: APIRouter, kind: str, plural: str) -> None:
         name=f"show_{kind}",
         response_model=ItemDetail,
         response_model_exclude_unset=True,
-        responses=problems.responses(401, 404),
+        responses=problems.responses(401, 404, 422),
     )
     def show(request: Request, name: str, who: C.Reader) -> dict:
         """One item: state, metadata, file and its jobs; for a usable ski also its profile model

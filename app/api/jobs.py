@@ -13,7 +13,9 @@ from skisnow.app.api.responses import JobList, JobView
 router = APIRouter(tags=["catalogue"])
 
 
-@router.get("/v1/jobs/{job_id}", response_model=JobView, responses=problems.responses(401, 404))
+@router.get(
+    "/v1/jobs/{job_id}", response_model=JobView, responses=problems.responses(401, 404, 422)
+)
 def get_job(request: Request, job_id: str, who: C.Reader) -> dict:
     """A background job: state (queued, running, done, failed), progress 0..1, errors
     (another team's job is 404)."""

@@ -41,10 +41,11 @@ class Problem(BaseModel):
     an unknown ski or grind has ``field`` and the ``known`` names."""
 
     model_config = ConfigDict(extra="forbid")
-    type: str = Field("about:blank", description="always about:blank: the status says it all")
+    type: str = Field(..., description="always about:blank: the status says it all")
     status: int = Field(..., description="the HTTP status code")
     title: str
     detail: str = Field(..., description="what went wrong, and what to change")
+    # present only where they apply (absent, not null, elsewhere)
     errors: list[FieldError] | None = Field(None, description="invalid fields (422)")
     field: str | None = Field(None, description="the request field naming an unknown item")
     known: list[str] | None = Field(None, description="the names that exist (404 of an item)")

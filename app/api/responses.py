@@ -234,6 +234,7 @@ class FlexSheet(BaseModel):
     glide_check: dict[str, Any]
     band: dict[str, Any]
     provenance: dict[str, Any]
+    timing_ms: dict[str, float] = Field(..., description="wall-clock time per step [ms]")
     profiles: dict[str, list[float]] | None = Field(
         None, description="the profile under half and full weight"
     )
