@@ -1,10 +1,11 @@
 """Bounds of every number a user can ask for: one source for the API, the CLI and the web form.
 
-The REST models (:mod:`app.api.models`), the ``skisnow`` commands (argparse types from
-:meth:`Bound.parse`) and the web form read these; a CLI user cannot ask for what the service
-refuses. Units are technician units, in the names (kg, mm, MPa, -). These are the limits of
-the inputs, not of the model: a ski's camber model covers a narrower load and position range
-of its own (:attr:`app.service.Ski.load_range_n`), checked by the service with a 422.
+The REST models (:mod:`app.api.models`, and through them ``skisnow solve`` and the web form),
+``skisnow macro`` and ``skisnow flex`` (checked before the solve, :meth:`Bound.contains`) and
+the flex pages read these; a CLI user cannot ask for what the service refuses. Units are
+technician units, in the names (kg, mm, MPa, -). These are the limits of the inputs, not of
+the model: a ski's camber model covers a narrower load and position range of its own
+(:attr:`app.service.Ski.load_range_n`), checked by the service with a 422.
 
 Imports nothing from the rooms of app/ (anyone in app/ may import it).
 """
@@ -68,18 +69,6 @@ class Bound:
         """``value`` if inside, else ``ValueError`` naming the input and the interval."""
         if not self.contains(value):
             raise ValueError(f"{name or self.name} must be in {self.text()}, got {value:g}")
-        return value
-
-    def parse(self, text: str) -> float:
-        """argparse ``type=``: a float inside the interval (argparse reports the message)."""
-        import argparse
-
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-        if not self.contains(value):
-            raise argparse.ArgumentTypeError(f"must be in {self.text()}, got {text}")
         return value
 
 

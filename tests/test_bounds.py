@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import math
 
 import pytest
@@ -22,9 +21,6 @@ def test_bound_ends_open_and_closed():
     assert bounds.POROSITY.field() == {"ge": 0, "lt": 1} and bounds.POROSITY.text() == "[0, 1)"
     with pytest.raises(ValueError, match=r"x must be in \(0, 1\] kg, got 2"):
         b.check(2)
-    with pytest.raises(argparse.ArgumentTypeError):
-        b.parse("2")
-    assert b.parse("0.5") == 0.5
 
 
 @pytest.mark.parametrize(
