@@ -76,18 +76,15 @@ def _record(ids: _Ids, resp, html: bool = False) -> dict:
 
 
 def _camber_csv(tmp: Path) -> bytes:
-    import numpy as np
-    from skisnow.app.storage.skis import CamberData, read_ski, write_camber_csv
-    from skisnow.solvers.beam import G_STANDARD, measure_camber
+    """The tests' valid camber CSV (tests/conftest.py ``camber_csv``)."""
+    import conftest
 
-    rec = read_ski(REPO / "tables" / "skis" / "ski-a.h5")
-    loads = np.array([20.0, 35.0, 50.0, 65.0, 80.0]) * G_STANDARD
-    positions = np.linspace(-0.30, 0.10, 5)
-    f, xf, gaps = measure_camber(rec.beam, loads, positions, noise_m=3e-6, rng=7)
-    sel = np.arange(0, rec.beam.positions_m.size, 5)
-    data = CamberData("my-ski", rec.beam.positions_m[sel], f, xf, ["mean"] * f.size, gaps[:, sel])
-    write_camber_csv(tmp / "ski.csv", data)
-    return (tmp / "ski.csv").read_bytes()
+    class _Factory:  # the one method of pytest's tmp_path_factory the fixture uses
+        def mktemp(self, name: str) -> Path:
+            (tmp / name).mkdir(exist_ok=True)
+            return tmp / name
+
+    return conftest.camber_csv.__wrapped__(_Factory())
 
 
 def _npy(seed: int = 1) -> bytes:
