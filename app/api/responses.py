@@ -122,7 +122,9 @@ class Apparent(BaseModel):
     zones: list[Zone]
 
 
-class Warning(BaseModel):
+class ResultWarning(BaseModel):
+    """A condition under which the answer is computed but not trustworthy (docs/limits.md)."""
+
     model_config = _FIXED
     code: str
     detail: str
@@ -204,7 +206,7 @@ class ContactAnswer(BaseModel):
     inputs: CaseEcho
     metrics: Metrics
     apparent: Apparent
-    warnings: list[Warning]
+    warnings: list[ResultWarning]
     distributions: Distributions
     provenance: Provenance
     timing_ms: dict[str, float] = Field(..., description="wall-clock time per step [ms]")
