@@ -1,7 +1,7 @@
 """Answers of the REST API (pydantic), as documented in ``/docs`` and ``/openapi.json``.
 
 Each model is exactly what its route sends: no field more or less (``extra="forbid"``, checked
-against real answers in tests/api/test_models.py). Nested parts whose keys depend on the case
+against real answers in tests/api/test_api_models.py). Nested parts whose keys depend on the case
 (the ski-model decision, the solver diagnostics, the flex sheet's sections) are
 ``dict[str, Any]`` and described in words. Units are in the names.
 
