@@ -10,7 +10,7 @@ import pytest
 from conftest import CONTACT_BODY
 from fastapi.testclient import TestClient
 from skisnow.app import service
-from skisnow.app.api.models import PresetName
+from skisnow.app.bounds import PresetName
 from skisnow.app.main import create_app
 from skisnow.app.presets import DEFAULT_PRESET, PRESETS, get_preset
 from skisnow.app.settings import Settings

@@ -20,8 +20,8 @@ from pydantic import BaseModel, ConfigDict, Field
 from skisnow.app import bounds, flex
 from skisnow.app.access import visible_catalogue
 from skisnow.app.api import problems
-from skisnow.app.api.models import PresetName, SkiModelName
 from skisnow.app.api.responses import FlexPair, FlexRanking, FlexSheet
+from skisnow.app.bounds import PresetName, SkiModelName
 from skisnow.solvers.errors import InputError
 
 Format = Literal["json", "csv"]
