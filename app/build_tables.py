@@ -589,7 +589,7 @@ def _run(client, jobs, pending, settings, progress, on_chunk_done) -> int:
 
 def _load_textures(specs: Sequence[str], detrend: str | None = None) -> list[Texture]:
     try:
-        from skisnow.app.storage.textures import load_texture
+        from skisnow.app.storage.topography import load_texture
     except ModuleNotFoundError as exc:
         if exc.name != "skisnow.app.storage.textures":
             raise

@@ -18,13 +18,14 @@ from skisnow.solvers.errors import SkisnowError
 COMMAND_MODULES = [
     "skisnow.app.commands.micro",
     "skisnow.app.build_tables",
-    "skisnow.app.bench",
+    "skisnow.app.commands.bench",
     "skisnow.app.commands.macro",
     "skisnow.app.commands.flex",
     "skisnow.app.commands.identify",
     "skisnow.app.train_camber",
     "skisnow.app.commands.serve",
-    "skisnow.app.report",
+    "skisnow.app.commands.worker",
+    "skisnow.app.commands.report",
 ]
 
 

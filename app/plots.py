@@ -413,7 +413,7 @@ FLEX_WAX_LINES = ((0.10, "2 layers"), (0.15, "3 layers"), (0.20, "4 layers"), (0
 
 def flex_profile_svg(answer: dict) -> str:
     """The loaded gap H*(X) on the rigid flat under half and full body weight at the pocket's
-    foot position (an answer of :func:`app.flex.flex_sheet_answer` with ``profiles``), the
+    foot position (an answer of :func:`app.service.flex.flex_sheet_answer` with ``profiles``), the
     wax-layer lines (0.10/0.15/0.20/0.30 mm) and the wax zone (the 0.10 mm pocket under half
     weight) shaded; the foot is a vertical line. Units: mm on both axes."""
     prof = answer["profiles"]

@@ -8,13 +8,13 @@ in ``provenance.preset.texture_pixel_size_um`` beside the preset and the macro p
 The presets were chosen on the error-versus-time front of ``skisnow bench accuracy``
 (docs/benchmarks.md, "Macro grid spacing and end to end"): each is the fastest grid on the front
 whose errors against a 0.5 mm × 64-pixels-across reference (same table) stay within its
-tolerance (:data:`app.bench_accuracy.PRESET_TOLERANCES`). ``max_rel_error`` is the largest
+tolerance (:data:`app.evidence.accuracy_common.PRESET_TOLERANCES`). ``max_rel_error`` is the largest
 relative error measured there over the benchmark's cases, rounded up, of the apparent contact
 area, total real contact area, average real contact pressure and total reciprocal separation;
 tests use it as the documented agreement between presets (the minimum average separation is
 not in it: in a short tip or tail contact it follows the edge-singular peak pressure). What an
 answer reports instead is ``grid_band``, the 90th percentile of the measured errors per
-quantity (the minimum separation included); the error band (:func:`app.band.grid_component`)
+quantity (the minimum separation included); the error band (:func:`app.service.band.grid_component`)
 scales it for the real area, real pressure and reciprocal separation and replaces it by
 per-answer estimates for the apparent area and minimum separation.
 """
@@ -50,7 +50,7 @@ class Preset:
         percentile of the absolute relative errors against the reference over the 12 cases of
         ``skisnow bench accuracy`` (docs/bench/accuracy.json, ``end_to_end``), rounded up;
         scaled into every answer's error band for the quantities without a per-answer
-        estimate (:func:`app.band.grid_component`).
+        estimate (:func:`app.service.band.grid_component`).
     """
 
     name: str

@@ -62,7 +62,13 @@ class Settings(BaseSettings):
         description="accuracy check: RMSE where H* < 0.2 mm on held-out measured load cases "
         "(device noise included) [µm]",
     )
-    job_workers: int = Field(1, ge=1, le=16, description="jobs run at once per service process")
+    job_workers: int = Field(
+        1,
+        ge=0,
+        le=16,
+        description="jobs run at once per service process; 0: none, the jobs run in separate "
+        "`skisnow worker` processes on the same database (app/commands/worker.py)",
+    )
     job_poll_s: float = Field(1.0, gt=0, description="job runner poll interval [s]")
     job_stale_s: float = Field(
         120.0, gt=0, description="a running job without heartbeat this long is taken over [s]"

@@ -8,6 +8,10 @@ from __future__ import annotations
 from skisnow.solvers.beam import G_STANDARD
 from skisnow.solvers.errors import InputError
 
+#: density of ice [kg/m³]: snow density ρ = (1 − n) ρ_ice, porosity n = 1 − ρ/ρ_ice (the web
+#: form converts a density to a porosity with it; app/static/web.js repeats the number)
+ICE_DENSITY_KG_M3 = 917.0
+
 _LENGTH_TO_M = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "μm": 1e-6, "nm": 1e-9}
 
 

@@ -777,7 +777,7 @@ def _identify(data, item, callback=None) -> tuple[dict, str]:
     with the rigid model and its network. ``callback(fraction, message)``: the
     identification's progress (the job shows it; minutes on a loaded machine)."""
     from skisnow.app.path_pool import path_pool
-    from skisnow.app.profiles import identification_group, served_beam_note
+    from skisnow.app.service.profiles import identification_group, served_beam_note
     from skisnow.app.storage.skis import mean_profiles
     from skisnow.solvers.identify import identify_beam_checked
 

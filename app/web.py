@@ -58,7 +58,7 @@ from skisnow.app.access import caller, visible_catalogue
 from skisnow.app.api.models import ContactBody
 from skisnow.app.presets import DEFAULT_PRESET
 from skisnow.app.presets import PRESETS as ACCURACY_PRESETS
-from skisnow.app.profiles import SERVED_MISFIT_LIMIT
+from skisnow.app.service.profiles import SERVED_MISFIT_LIMIT
 from skisnow.app.ski_figures import ski_figures
 from skisnow.solvers.band import Z90
 from skisnow.solvers.errors import SkisnowError

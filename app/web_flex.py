@@ -1,6 +1,6 @@
 """The flex tab of the web form (issue #14; docs/flex.md): flex sheet → pair → ranking.
 
-Three pages over :mod:`app.flex`, each a GET form that shows its answer below it:
+Three pages over :mod:`app.service.flex`, each a GET form that shows its answer below it:
 
 - ``/flex?ski=..&body_weight_kg=..[&snow_modulus_mpa=..]``: the sheet, its plot
   (:func:`app.plots.flex_profile_svg`) and a CSV link (the API's ``format=csv``);
@@ -18,11 +18,10 @@ from urllib.parse import urlencode
 
 from fastapi import FastAPI, Request
 from fastapi.responses import HTMLResponse
-from skisnow.app import flex
 from skisnow.app.access import visible_catalogue
 from skisnow.app.bounds import BODY_WEIGHT_KG, POROSITY, SNOW_MODULUS_MPA
 from skisnow.app.plots import flex_profile_svg
-from skisnow.app.service import UnknownItemError
+from skisnow.app.service import UnknownItemError, flex
 from skisnow.app.web import _page
 from skisnow.solvers.errors import SkisnowError
 

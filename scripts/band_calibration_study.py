@@ -48,8 +48,9 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from skisnow.app import band, service  # noqa: E402
+from skisnow.app import service  # noqa: E402
 from skisnow.app.presets import PRESETS  # noqa: E402
+from skisnow.app.service import band  # noqa: E402
 from skisnow.app.storage.skis import read_ski  # noqa: E402
 from skisnow.app.storage.tables import read_table  # noqa: E402
 from skisnow.solvers.beam import OTHER_DESIGNS, solve_beam_contact  # noqa: E402

@@ -2,8 +2,8 @@
 
 The demo skis are answered by the beam identified from their noisy camber data; their true
 (design) beam is stored with them. For body weights over the skis' range, the sheet of the
-identified beam (with its band, :mod:`app.flex`) is compared with the sheet of the true beam;
-per quantity the share of cases where |identified − true| ≤ band is the band's coverage
+identified beam (with its band, :mod:`app.service.flex`) is compared with the sheet of the true
+beam; per quantity the share of cases where |identified − true| ≤ band is the band's coverage
 (target 90 %). Prints one JSON object.
 
 Usage::
@@ -17,8 +17,7 @@ import argparse
 import json
 import math
 
-from skisnow.app import flex
-from skisnow.app.service import load_catalogue
+from skisnow.app.service import flex, load_catalogue
 from skisnow.app.storage.common import tables_dir
 from skisnow.solvers.beam import G_STANDARD
 from skisnow.solvers.flex import beam_profile, flex_sheet

@@ -8,13 +8,13 @@ porosity 0.5, default preset; ``--modulus`` for other snow), one ``service.conta
     no band (``error_band=False``);
 ``before``
     the band as before this change: no camber part and no coarse solve for an answer of the
-    bending ski (:func:`app.band.beam_models` answering None);
+    bending ski (:func:`app.service.band.beam_models` answering None);
 ``coarse``
     the coarse nominal solve only (the per-answer grid estimate, no beam draws);
 ``draws2``, ``draws4``, ``draws8``
     the coarse nominal and 2, 4 or 8 plausible beams, their deviations × the factor given by
-    ``--draw-scale N=S`` (default :data:`app.band.BEAM_SCALE`; the factor changes how far the
-    perturbed solves start from their answer, so it changes their cost a little).
+    ``--draw-scale N=S`` (default :data:`app.service.band.BEAM_SCALE`; the factor changes how far
+    the perturbed solves start from their answer, so it changes their cost a little).
 
 Variants run round-robin, one call each per round, after one warm-up round (which also
 prepares and caches the beam models), so that a changing machine load hits them alike; the
@@ -39,26 +39,28 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from skisnow.app import band, service  # noqa: E402
+from skisnow.app import service  # noqa: E402
+from skisnow.app.service import answer as service_contact  # noqa: E402
+from skisnow.app.service import band  # noqa: E402
 
 VARIANTS = ("no_band", "before", "coarse", "draws2", "draws4", "draws8")
 
 
 def run(cat, inp, variant: str, scales: dict[int, float]) -> dict:
-    original_band, original_models = service.answer_band, band.beam_models
+    original_band, original_models = service_contact.answer_band, band.beam_models
     try:
         if variant == "before":
             band.beam_models = lambda *a, **k: None
         elif variant == "coarse":
-            service.answer_band = functools.partial(band.answer_band, beam_samples=0)
+            service_contact.answer_band = functools.partial(band.answer_band, beam_samples=0)
         elif variant.startswith("draws"):
             n = int(variant[5:])
-            service.answer_band = functools.partial(
+            service_contact.answer_band = functools.partial(
                 band.answer_band, beam_samples=n, beam_scale=scales.get(n, band.BEAM_SCALE)
             )
         return service.contact(cat, inp, error_band=variant != "no_band")
     finally:
-        service.answer_band, band.beam_models = original_band, original_models
+        service_contact.answer_band, band.beam_models = original_band, original_models
 
 
 def main(argv=None) -> dict:

@@ -10,7 +10,7 @@ preset's grid, then the texture table. Recorded per quantity:
   grid of ``skisnow bench accuracy`` (0.5 mm × 64 across, as the rigid calibration test);
 - the answer with the ski's true beam on the answer's own grid (``design``): its difference
   to the answer is the identification's own error, which the camber part stands for;
-- the band's components: ``macro_grid`` (:func:`app.band.grid_component` with the coarse
+- the band's components: ``macro_grid`` (:func:`app.service.band.grid_component` with the coarse
   nominal; ``macro_grid_preset`` without it) and ``table_interpolation``, and the
   ``camber_model`` spread for each of :data:`SCALES` (factor on the identification
   covariance's deviations of the beam draws) and each kind of draw (:data:`KINDS`):
@@ -34,8 +34,8 @@ The summary fits, per kind of draw, the factor (the smallest of :data:`SCALES` w
 part alone covers 90 % of the ``calib`` identification errors), then per quantity the grid
 factor (the smallest of :data:`GRID_FACTORS` that puts 90 % of the ``calib`` truths inside the
 whole band), and checks both on ``test``; then it prints the service's own constants
-(:data:`app.band.BEAM_SAMPLES`, :data:`app.band.BEAM_SCALE`,
-:data:`app.band.FLEXIBLE_GRID_FACTOR`) on both sets. ``--summary`` reprints it from a
+(:data:`app.service.band.BEAM_SAMPLES`, :data:`app.service.band.BEAM_SCALE`,
+:data:`app.service.band.FLEXIBLE_GRID_FACTOR`) on both sets. ``--summary`` reprints it from a
 written file.
 
 Usage::
@@ -61,9 +61,9 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from skisnow.app import band  # noqa: E402
 from skisnow.app.presets import PRESETS  # noqa: E402
-from skisnow.app.profiles import served_beam  # noqa: E402
+from skisnow.app.service import band  # noqa: E402
+from skisnow.app.service.profiles import served_beam  # noqa: E402
 from skisnow.app.storage.skis import identification_for_sampling, read_ski  # noqa: E402
 from skisnow.app.storage.tables import read_table  # noqa: E402
 from skisnow.solvers.beam import BeamSki  # noqa: E402

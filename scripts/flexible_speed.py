@@ -21,8 +21,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from skisnow.app import service
-from skisnow.app.commands.macro import SKI_DIR
-from skisnow.app.profiles import profile_model
+from skisnow.app.service.profiles import profile_model
+from skisnow.app.storage.skis import SHIPPED_SKI_DIR as SKI_DIR
 from skisnow.solvers.beam import G_STANDARD
 from skisnow.solvers.elastic import effective_modulus
 from skisnow.solvers.flexible import prepare_flexible, solve_flexible

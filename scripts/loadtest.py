@@ -246,9 +246,9 @@ def main(argv: list[str] | None = None) -> int:
             },
         }
         print(json.dumps(result, indent=1))
-        from skisnow.app.bench import _write_stage
+        from skisnow.app.evidence.writer import write_stage
 
-        _write_stage(args.stage, result, None)
+        write_stage(args.stage, result, None)
         ok = errors == 0 and mismatches == 0
         return 0 if ok else 1
     finally:

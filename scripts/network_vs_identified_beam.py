@@ -1,10 +1,10 @@
 """Profile model of a ski: its identified beam, or a network retrained on that beam's profiles?
 
 Issue #12 point 2. The loaded profile H*(X) for any (F, x_F) can come from the beam identified
-from the ski's camber measurements (:class:`app.profiles.ProfileModel`, flexibility cached) or
-from the camber network retrained on that identified beam's **noise-free** profiles. This study
-measures both on the demo skis, against their true beam (``record.beam``), on the 85 cases the
-identification held out (``tests/test_demo_identification.py``: ``held_out_index`` of the
+from the ski's camber measurements (:class:`app.service.profiles.ProfileModel`, flexibility
+cached) or from the camber network retrained on that identified beam's **noise-free** profiles.
+This study measures both on the demo skis, against their true beam (``record.beam``), on the 85
+cases the identification held out (``tests/test_demo_identification.py``: ``held_out_index`` of the
 ski file's ``identified`` group, 20 %, seed 0):
 
 - loaded profile: RMS of H* − H*_true where H*_true < 0.2 mm, pooled over the cases (the
@@ -12,7 +12,7 @@ ski file's ``identified`` group, 20 %, seed 0):
 - apparent area: rigid model, default macro grid, E_snow = 200 MPa
   (:func:`solvers.macro.solve_macro` on :func:`solvers.macro.extrude_profile`, as the
   acceptance test), error against the true profile's area: max, median, count within 3 %;
-- time per profile as the service calls it (:class:`app.profiles.ProfileModel`): the
+- time per profile as the service calls it (:class:`app.service.profiles.ProfileModel`): the
   identified beam (:func:`solvers.beam.solve_beam_contact`, cold start, cached flexibility) and
   the network (:func:`solvers.camber.predict_profile`), interleaved in the same process, medians
   over ``--repeats`` rounds of the held-out cases; the flexibility's one-off build apart.
@@ -65,7 +65,7 @@ sys.path.insert(0, str(REPO / "scripts"))
 
 import camber_floor_study as cfs  # noqa: E402
 from skisnow.app import train_camber as tc  # noqa: E402
-from skisnow.app.profiles import ProfileModel  # noqa: E402
+from skisnow.app.service.profiles import ProfileModel  # noqa: E402
 from skisnow.app.storage import common, skis  # noqa: E402
 from skisnow.solvers import elastic  # noqa: E402
 from skisnow.solvers.macro import extrude_profile, solve_macro  # noqa: E402

@@ -2,10 +2,16 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+# the application's OpenMP setting (skisnow.app sets it on import; tests import the kernels
+# alone first): before any solver import starts an OpenMP runtime
+os.environ.setdefault("GOMP_SPINCOUNT", "1000")
+
 from skisnow.solvers import lookup as L
 from skisnow.solvers.elastic import PeriodicHalfSpace
 from skisnow.solvers.micro import full_contact_pressure

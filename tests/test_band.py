@@ -10,8 +10,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from skisnow.app import band, service
+from skisnow.app import service
 from skisnow.app.presets import PRESETS
+from skisnow.app.service import band
 from skisnow.app.storage.skis import read_ski
 from skisnow.app.storage.tables import read_table
 from skisnow.solvers.band import (
@@ -67,7 +68,7 @@ def test_perturbations_have_the_asked_spread_and_correlation():
 def test_unit_fields_times_sigma_are_the_perturbations_and_are_kept_per_grid():
     """The service keeps the unit fields per profile grid; × σ they are the perturbations of
     profile_perturbations bit for bit, so the band does not depend on what was cached."""
-    from skisnow.app import band
+    from skisnow.app.service import band
 
     x = np.linspace(-0.9, 1.0, 2001)
     sigma = np.where(x < 0, 1e-6, 2.5e-6)

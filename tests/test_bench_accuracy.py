@@ -6,15 +6,18 @@ import json
 
 import numpy as np
 import pytest
-from skisnow.app import bench
-from skisnow.app import bench_accuracy as BA
+from skisnow.app.evidence import accuracy_common as BA
+from skisnow.app.evidence import writer
+from skisnow.app.evidence.accuracy import bench_accuracy
+from skisnow.app.evidence.accuracy_plots import plot_accuracy
+from skisnow.app.evidence.accuracy_table import thin_table
 
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
     docs = tmp_path_factory.mktemp("docs")
-    data = BA.bench_accuracy(BA.QUICK, progress=False)
-    path = bench._write_stage("accuracy", data, BA.plot_accuracy, docs_dir=docs)
+    data = bench_accuracy(BA.QUICK, progress=False)
+    path = writer.write_stage("accuracy", data, plot_accuracy, docs_dir=docs)
     return docs, json.loads(path.read_text())
 
 
@@ -34,7 +37,7 @@ def test_pareto_front():
 
 
 def test_thin_table_keeps_the_ends(small_table):
-    sub = BA.thin_table(small_table, 9)
+    sub = thin_table(small_table, 9)
     assert len(sub.pressure_ratio) == 9
     assert sub.pressure_ratio[0] == small_table.pressure_ratio[0]
     assert sub.pressure_ratio[-1] == small_table.pressure_ratio[-1]

@@ -3,16 +3,16 @@
 from __future__ import annotations
 
 import pytest
-from skisnow.app import bench
+from skisnow.app.evidence import macro, micro, writer
 
 
 def test_bench_micro_structure_and_agreement():
     pytest.importorskip("ContactMechanics")
-    data = bench.bench_micro([32], 1, ["contactmechanics"], 32, 2, ["contactmechanics"])
+    data = micro.bench_micro([32], 1, ["contactmechanics"], 32, 2, ["contactmechanics"])
     assert data["peers"] == ["contactmechanics"]
     ours = [r for r in data["runs"] if r["solver"] == "skisnow[scipy]"]
     peer = [r for r in data["runs"] if r["solver"] == "contactmechanics"]
-    assert len(ours) == len(peer) == len(bench.PRESSURES_PA)
+    assert len(ours) == len(peer) == len(micro.PRESSURES_PA)
     for r in ours:
         assert r["converged"] and r["median_time_s"] > 0 and r["fft_pairs_finest"] > 0
     for r in peer:
@@ -21,7 +21,7 @@ def test_bench_micro_structure_and_agreement():
     table = data["table"]
     assert table["points"] == 2 and set(table["peers"]) == {"contactmechanics"}
     assert table["peers"]["contactmechanics"]["max_contact_fraction_rel_diff"] < 0.02
-    lines = bench._micro_md(data)
+    lines = micro.render_md(data)
     # single cold peer runs at their own stopping criteria are not like-for-like (issue #13):
     # the page shows our rows only and points to the work-precision section for peers
     assert any(line.startswith("| 32 | 60 | skisnow[scipy] |") for line in lines)
@@ -29,13 +29,13 @@ def test_bench_micro_structure_and_agreement():
 
 
 def test_bench_macro_stage_renders():
-    data = bench.bench_macro_stage(repeats=1, inference_calls=3, identification=False)
+    data = macro.bench_macro_stage(repeats=1, inference_calls=3, identification=False)
     assert set(data["skis"]) == {"ski-a", "ski-b"}
     assert "identification" not in data
     for r in data["skis"].values():
         assert r["default"]["converged"] and r["fine"]["converged"]
         assert abs(r["area_error"]) < 0.05
-    lines = bench._macro_md(data)
+    lines = macro.render_md(data)
     assert sum("(default)" in line for line in lines) == 2
     assert all(0 < r["median_s"] < 1 for r in data["inference"].values())
 
@@ -53,7 +53,7 @@ def test_benchmarks_md_renders_stages_and_skips_other_json(tmp_path):
     }
     (bench_dir / "custom.json").write_text(json.dumps(stage))
     (bench_dir / "notes.json").write_text(json.dumps({"results": []}))
-    out = bench.write_benchmarks_md(tmp_path)
+    out = writer.write_benchmarks_md(tmp_path)
     text = out.read_text()
     assert "## custom" in text and "on 2 cores" in text
     assert "notes" not in text
@@ -71,9 +71,9 @@ def test_identification_table_renders_each_ski():
         "held_out_vs_measured_rms_um": 2.998,
         "held_out_vs_design_beam_rms_um": 0.0964,
     }
-    lines = bench._identification_md({"ski-a": row, "ski-b": row})
+    lines = macro._identification_md({"ski-a": row, "ski-b": row})
     rows = [line for line in lines if line.startswith("| ski-")]
     assert rows == [
         f"| {s} | 95 (20 + 75) | 3.00 / 3.01 | 3.00 | 0.096 |" for s in ("ski-a", "ski-b")
     ]
-    assert bench._identification_md({}) == []
+    assert macro._identification_md({}) == []

@@ -13,7 +13,7 @@ from conftest import REPO
 from fastapi.testclient import TestClient
 from skisnow.app import service
 from skisnow.app.main import create_app
-from skisnow.app.profiles import profile_model
+from skisnow.app.service.profiles import profile_model
 from skisnow.app.settings import Settings
 from skisnow.app.storage.skis import identified_beam, read_ski
 from skisnow.solvers.elastic import effective_modulus

@@ -16,10 +16,11 @@ import math
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-from skisnow.app import flex, service
+from skisnow.app import service
 from skisnow.app.main import create_app
 from skisnow.app.presets import get_preset
-from skisnow.app.profiles import profile_model
+from skisnow.app.service import flex
+from skisnow.app.service.profiles import profile_model
 from skisnow.app.settings import Settings
 from skisnow.solvers.beam import (
     G_STANDARD,
@@ -29,7 +30,7 @@ from skisnow.solvers.beam import (
     solve_beam_contact,
 )
 from skisnow.solvers.elastic import effective_modulus
-from skisnow.solvers.errors import InputError
+from skisnow.solvers.errors import InputError, OutOfRangeError
 from skisnow.solvers.flex import (
     CLOSED_GAP_M,
     FlatProfile,
@@ -289,7 +290,7 @@ def test_identified_beam_has_a_band(cat):
 
 
 def test_out_of_range_body_weight_names_the_field(cat):
-    with pytest.raises(service.OutOfRangeError) as exc:
+    with pytest.raises(OutOfRangeError) as exc:
         flex.flex_sheet_answer(cat, flex.FlexRequest("flex-a", 120.0))  # the ski covers 90 kg
     assert exc.value.field == "body_weight_kg"
 

@@ -96,7 +96,7 @@ def _recomputed_held_out_errors(record) -> tuple[np.ndarray, np.ndarray]:
 def test_store_keeps_the_held_out_errors(tmp_path, camber_csv, capsys):
     """``--store`` writes each held-out case's error with the identification (what the ski's
     page shows), equal to a recomputation from the stored beam."""
-    from skisnow.app.profiles import HELD_OUT_ERRORS, HELD_OUT_STORED
+    from skisnow.app.service.profiles import HELD_OUT_ERRORS, HELD_OUT_STORED
     from skisnow.app.storage.skis import read_ski
 
     path = _small_ski_file(tmp_path, camber_csv)
@@ -115,7 +115,7 @@ def test_add_held_out_errors_to_an_older_file(tmp_path, capsys):
     """``--add-held-out-errors`` adds to an identification stored without them (here: a demo
     ski's, stripped) the errors the shipped file stores, changing nothing else, and says so in
     their provenance."""
-    from skisnow.app.profiles import HELD_OUT_ADDED, HELD_OUT_ERRORS
+    from skisnow.app.service.profiles import HELD_OUT_ADDED, HELD_OUT_ERRORS
     from skisnow.app.storage.skis import read_ski, replace_ski_group
 
     path = tmp_path / "ski-a.h5"

@@ -1,12 +1,12 @@
-"""Profile models of a stored ski (app.profiles): which model answers, and that the identified
-beam's answer is the device model's exact contact solve whatever the warm start."""
+"""Profile models of a stored ski (app.service.profiles): which model answers, and that the
+identified beam's answer is the device model's exact contact solve whatever the warm start."""
 
 import dataclasses
 
 import numpy as np
 import pytest
 from conftest import REPO
-from skisnow.app.profiles import ProfileModel, profile_model, served_beam, served_beam_note
+from skisnow.app.service.profiles import ProfileModel, profile_model, served_beam, served_beam_note
 from skisnow.app.storage.skis import read_ski
 from skisnow.solvers.beam import solve_beam_contact
 from skisnow.solvers.errors import DataFileError

@@ -6,8 +6,10 @@ import json
 import math
 
 import pytest
-from skisnow.app import report
 from skisnow.app.cli import build_parser
+from skisnow.app.commands import report as report_command
+from skisnow.app.evidence import paper_case as report
+from skisnow.app.evidence.paper_case_write import write_paper_case
 from skisnow.app.service import ContactInputs, contact, load_catalogue
 from skisnow.app.settings import Settings
 from skisnow.solvers.errors import InputError, NotConvergedError
@@ -24,9 +26,7 @@ def cat():
 @pytest.fixture(scope="module")
 def written(cat, tmp_path_factory):
     out = tmp_path_factory.mktemp("docs")
-    md = report.write_paper_case(
-        cat, out, progress=False, snow_moduli_mpa=SWEEP, load_check_kg=LOADS
-    )
+    md = write_paper_case(cat, out, progress=False, snow_moduli_mpa=SWEEP, load_check_kg=LOADS)
     return out, md
 
 
@@ -156,9 +156,7 @@ def test_a_failed_sweep_solve_is_reported_not_fatal(cat, tmp_path, monkeypatch):
         return contact(c, inp)
 
     monkeypatch.setattr(report, "contact", flaky)
-    md = report.write_paper_case(
-        cat, tmp_path, progress=False, snow_moduli_mpa=SWEEP, load_check_kg=LOADS
-    )
+    md = write_paper_case(cat, tmp_path, progress=False, snow_moduli_mpa=SWEEP, load_check_kg=LOADS)
     text = md.read_text(encoding="utf-8")
     assert "Failed solves" in text and "synthetic failure for the test" in text
     data = json.loads((tmp_path / "paper-case" / "paper-case.json").read_text(encoding="utf-8"))
@@ -170,7 +168,7 @@ def test_cli_registers_report_paper_case(tmp_path):
     args = build_parser().parse_args(
         ["report", "paper-case", "--out-dir", str(tmp_path), "--tables-dir", "tables"]
     )
-    assert args.func is report.run
+    assert args.func is report_command.run
     assert str(args.out_dir) == str(tmp_path)
     defaults = build_parser().parse_args(["report", "paper-case"])
     assert defaults.out_dir.name == "docs" and defaults.tables_dir is None

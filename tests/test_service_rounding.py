@@ -1,4 +1,4 @@
-"""The answer's value lists: ``_finite_list`` rounds exactly as formatting each value does."""
+"""The answer's value lists: ``finite_list`` rounds exactly as formatting each value does."""
 
 import math
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from skisnow.app.service import _finite_list
+from skisnow.app.service.rounding import finite_list
 
 
 def _by_text(a, scale=1.0, digits=6):
@@ -36,7 +36,7 @@ def test_matches_formatting_every_value(values, scale, digits):
     a = np.array(values, dtype=float)
     with np.errstate(over="ignore"):
         expected = _by_text(a, scale, digits)
-        got = _finite_list(a, scale, digits)
+        got = finite_list(a, scale, digits)
     assert len(got) == len(expected)
     assert all(_same(x, y) for x, y in zip(got, expected, strict=True))
 
@@ -59,7 +59,7 @@ def test_ties_powers_of_ten_signs_and_extremes():
         for digits in (4, 6):
             with np.errstate(over="ignore"):
                 expected = _by_text(edge, scale, digits)
-                got = _finite_list(edge, scale, digits)
+                got = finite_list(edge, scale, digits)
             bad = [
                 (v, x, y) for v, x, y in zip(edge, expected, got, strict=True) if not _same(x, y)
             ]
@@ -69,5 +69,5 @@ def test_ties_powers_of_ten_signs_and_extremes():
 @pytest.mark.parametrize("shape", [(0,), (7,)])
 def test_empty_and_plain_lists(shape):
     a = np.linspace(0.1, 2.0, shape[0])
-    assert _finite_list(a, 1e3) == _by_text(a, 1e3)
-    assert _finite_list(list(a)) == _by_text(a)
+    assert finite_list(a, 1e3) == _by_text(a, 1e3)
+    assert finite_list(list(a)) == _by_text(a)

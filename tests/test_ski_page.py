@@ -15,7 +15,9 @@ import pytest
 from fastapi.testclient import TestClient
 from skisnow.app import service, web
 from skisnow.app.main import create_app
-from skisnow.app.profiles import HELD_OUT_ADDED, HELD_OUT_ERRORS, HELD_OUT_STORED
+from skisnow.app.service.profiles import HELD_OUT_ADDED, HELD_OUT_ERRORS, HELD_OUT_STORED
+from skisnow.app.service.reports import _identification_cases
+from skisnow.app.service.rounding import finite_list
 from skisnow.app.settings import Settings
 from skisnow.app.storage.skis import mean_profiles
 from skisnow.solvers.band import Z90
@@ -245,7 +247,7 @@ def test_the_api_and_page_show_the_stored_held_out_errors(demo, catalogue):
     name, html, api = demo
     held = api["beam"]["identification"]["held_out"]
     stored = catalogue.skis[name].record.identified[HELD_OUT_ERRORS]
-    assert held["error_um"] == service._finite_list(np.asarray(stored["rms_error_m"]), 1e6, 4)
+    assert held["error_um"] == finite_list(np.asarray(stored["rms_error_m"]), 1e6, 4)
     origin = held["provenance"]
     assert origin["source"] == stored["attrs"]["source"]
     assert origin["created_utc"] == stored["attrs"]["created_utc"]
@@ -259,7 +261,7 @@ def test_an_older_file_computes_the_held_out_errors_on_read(client, catalogue, n
     held-out case's error: predicted from the stored beam on reading, and said so."""
     base = catalogue.skis["ski-a"].record.identified[HELD_OUT_ERRORS]
     ski = client.app.state.catalogue.skis[name]
-    *_, held, error_m, origin = service._identification_cases(ski)
+    *_, held, error_m, origin = _identification_cases(ski)
     assert origin == {"source": service.HELD_OUT_COMPUTED}
     assert np.array_equal(held, base["case_index"])
     np.testing.assert_allclose(error_m, base["rms_error_m"], rtol=1e-12, atol=0)

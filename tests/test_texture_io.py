@@ -11,11 +11,11 @@ from skisnow.app.storage.textures import (
     SCHEMA,
     SHIPPED_TEXTURES_DIR,
     list_shipped_textures,
-    load_texture,
     read_heightmap,
     read_texture,
     write_texture,
 )
+from skisnow.app.storage.topography import load_texture
 from skisnow.solvers.errors import DataFileError, InputError
 from skisnow.solvers.texture import (
     GRIND_TARGETS,

@@ -22,6 +22,7 @@ from skisnow.app import service
 from skisnow.app.main import create_app
 from skisnow.app.settings import Settings
 from skisnow.app.storage.catalogue import CatalogueDB
+from skisnow.solvers.beam import BeamSki
 from skisnow.solvers.texture import iso25178_parameters, level_heights, self_affine_surface
 
 REPO = Path(__file__).resolve().parents[1]
@@ -375,7 +376,7 @@ def test_ski_upload_train_and_contact(catalogue, tmp_path, camber_csv):
         )
         # the job stored each held-out case's error with the identification: the page and the
         # API read it (no prediction on read), and it is the stored beam's prediction error
-        from skisnow.app.profiles import HELD_OUT_ERRORS, HELD_OUT_STORED
+        from skisnow.app.service.profiles import HELD_OUT_ERRORS, HELD_OUT_STORED
         from skisnow.app.storage.skis import mean_profiles, read_ski
         from skisnow.solvers.identify import predict_gaps
 
@@ -386,7 +387,7 @@ def test_ski_upload_train_and_contact(catalogue, tmp_path, camber_csv):
         held = np.sort(record.identified["held_out_index"])
         assert held.size == 5 and np.array_equal(stored["case_index"], held)
         f, xf, y, _ = mean_profiles(record.measurements)
-        beam = service.BeamSki(*(record.identified[k] for k in BEAM_ARRAYS))
+        beam = BeamSki(*(record.identified[k] for k in BEAM_ARRAYS))
         expected = np.sqrt(np.mean((predict_gaps(beam, f[held], xf[held]) - y[held]) ** 2, axis=1))
         np.testing.assert_allclose(stored["rms_error_m"], expected, rtol=1e-12, atol=0)
         assert ident["held_out"]["error_um"] == [float(f"{e * 1e6:.4g}") for e in expected]

@@ -1,6 +1,6 @@
 """Contact routes: one ski × grind case, and every combination of skis and grinds.
 
-The answers are plain JSON types already (lists of floats from ``service._finite_list``), so
+The answers are plain JSON types already (float lists: ``service.rounding.finite_list``), so
 they go out as a ``JSONResponse``: FastAPI's jsonable_encoder would walk their ~10^4 values
 again (8-10 ms of a ~60 ms request on the benchmark machine) to give the same bytes. The
 response models document them (:mod:`app.api.responses`).

@@ -1,5 +1,5 @@
 """Routes of the technician's flex sheet (issue #14; docs/flex.md): thin wrappers over
-:mod:`app.flex`.
+:mod:`app.service.flex`.
 
 - ``GET /v1/skis/{name}/flex``: one ski's flex sheet for a body weight (and a snow);
 - ``GET /v1/flex/pair``: two skis side by side, flagged differences;
@@ -17,11 +17,12 @@ from typing import Literal
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, ConfigDict, Field
-from skisnow.app import bounds, flex
+from skisnow.app import bounds
 from skisnow.app.access import visible_catalogue
 from skisnow.app.api import problems
 from skisnow.app.api.responses import FlexPair, FlexRanking, FlexSheet
 from skisnow.app.bounds import PresetName, SkiModelName
+from skisnow.app.service import flex
 from skisnow.solvers.errors import InputError
 
 Format = Literal["json", "csv"]

@@ -17,7 +17,7 @@ from skisnow.app.api import catalogue as C
 from skisnow.app.api import problems
 from skisnow.app.api.items import item_routes
 from skisnow.app.api.responses import SkiAccepted, SkiList
-from skisnow.app.profiles import profile_model
+from skisnow.app.service.profiles import profile_model
 
 router = APIRouter(tags=["catalogue"])
 

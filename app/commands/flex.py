@@ -1,6 +1,6 @@
 """``skisnow flex``: the technician's flex sheet of a stored ski (issue #14; docs/flex.md).
 
-The same numbers as ``GET /v1/skis/{name}/flex`` (:func:`app.flex.flex_sheet_answer`), read
+The same numbers as ``GET /v1/skis/{name}/flex`` (:func:`app.service.flex.flex_sheet_answer`), read
 from ``tables/skis/NAME.h5`` (no texture tables needed).
 """
 
@@ -9,7 +9,8 @@ from __future__ import annotations
 import argparse
 import json
 
-from skisnow.app import bounds, flex, service
+from skisnow.app import bounds, service
+from skisnow.app.service import flex
 from skisnow.app.storage.common import sha256_file, tables_dir
 from skisnow.app.storage.skis import read_ski
 from skisnow.solvers.errors import InputError

@@ -1,4 +1,4 @@
-"""``skisnow macro``: apparent contact of one ski on snow (method.md §4), and its benchmark.
+"""``skisnow macro``: apparent contact of one ski on snow (method.md §4).
 
 Technician units (kg, mm, MPa) are converted to SI in :func:`_si_inputs` only.
 """
@@ -7,20 +7,16 @@ from __future__ import annotations
 
 import argparse
 import json
-import time
 from pathlib import Path
 
 import numpy as np
 from skisnow.app import bounds, service
-from skisnow.app.profiles import profile_model
-from skisnow.app.storage.common import tables_dir
-from skisnow.app.storage.skis import read_camber_csv, read_ski
+from skisnow.app.service.profiles import profile_model
+from skisnow.app.storage.skis import SHIPPED_SKI_DIR, read_camber_csv, read_ski
 from skisnow.solvers.beam import G_STANDARD
 from skisnow.solvers.elastic import effective_modulus
 from skisnow.solvers.errors import DataFileError, InputError, OutOfRangeError
 from skisnow.solvers.macro import (
-    DEFAULT_PIXEL_ACROSS,
-    DEFAULT_PIXEL_ALONG_M,
     GapMap,
     MacroResult,
     extrude_profile,
@@ -28,9 +24,9 @@ from skisnow.solvers.macro import (
     solve_macro,
 )
 
-__all__ = ["bench_macro", "loaded_profile", "register", "run"]
+__all__ = ["loaded_profile", "register", "run"]
 
-SKI_DIR = tables_dir() / "skis"
+SKI_DIR = SHIPPED_SKI_DIR
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -102,8 +98,8 @@ def _si_inputs(args: argparse.Namespace) -> dict:
 
 
 def loaded_profile(ski, load_n: float, load_position_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """Loaded camber H*(X) of a stored ski record from its profile model (:mod:`app.profiles`:
-    identified beam, else camber network, else design beam).
+    """Loaded camber H*(X) of a stored ski record from its profile model
+    (:mod:`app.service.profiles`: identified beam, else camber network, else design beam).
 
     Returns
     -------
@@ -258,49 +254,3 @@ def run(args: argparse.Namespace) -> int:
         print(f"iterations                 {rep['iterations']}")
         print(f"solve_time_s               {rep['solve_time_s']:.4f}")
     return 0 if res.converged else 1
-
-
-def bench_macro(repeats: int = 7, skis: tuple[str, ...] = ("ski-a", "ski-b")) -> dict:
-    """Median time of one macro solve per demo ski at the default grid vs a fine reference.
-
-    One untimed warm-up solve per grid first (numba compilation, kernel cache), as in the
-    running service. The fine reference is 0.5 mm × 16 pixels across, timed twice.
-
-    Returns a dict per ski: default and fine grid (pixel sizes [mm]), median solve time [s],
-    apparent area [cm²] (sub-pixel zone edges), the same area by pixel counting [cm²], peak
-    pressure [kPa], iterations, and the relative errors of the default grid.
-    """
-    e_eff = effective_modulus(200e6, 0.7e9, 0.3)
-    load_n, xf = 40.0 * G_STANDARD, -0.160
-    out: dict = {}
-    for name in skis:
-        ski = read_ski(SKI_DIR / f"{name}.h5")
-        x, gap = loaded_profile(ski, load_n, xf)
-        width = float(ski.outline.width_m.max())
-        rows = {}
-        for label, dx, ny in (
-            ("default", DEFAULT_PIXEL_ALONG_M, DEFAULT_PIXEL_ACROSS),
-            ("fine", 0.5e-3, 16),
-        ):
-            gm = extrude_profile(x, gap, width, pixel_along_m=dx, pixels_across=ny)
-            res = solve_macro(gm, load_n, xf, e_eff)  # warm-up
-            times = []
-            for _ in range(repeats if label == "default" else 2):
-                t0 = time.perf_counter()
-                res = solve_macro(gm, load_n, xf, e_eff)
-                times.append(time.perf_counter() - t0)
-            p = np.nan_to_num(res.pressure_pa)
-            rows[label] = {
-                "pixel_mm": (dx * 1e3, width / ny * 1e3),
-                "median_time_s": float(np.median(times)),
-                "area_cm2": res.apparent_contact_area_m2 * 1e4,
-                "pixel_count_area_cm2": float(np.count_nonzero(p > 0) * dx * width / ny * 1e4),
-                "peak_pressure_kpa": res.peak_pressure_pa * 1e-3,
-                "iterations": res.iterations,
-                "converged": res.converged,
-            }
-        d, f = rows["default"], rows["fine"]
-        rows["area_error"] = d["area_cm2"] / f["area_cm2"] - 1
-        rows["peak_pressure_error"] = d["peak_pressure_kpa"] / f["peak_pressure_kpa"] - 1
-        out[name] = rows
-    return out

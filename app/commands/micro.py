@@ -87,7 +87,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from skisnow.app.storage.textures import load_texture
+    from skisnow.app.storage.topography import load_texture
 
     if args.nominal_pressure_kpa is None or not args.nominal_pressure_kpa >= 0:
         raise InputError(f"--nominal-pressure-kpa must be >= 0, got {args.nominal_pressure_kpa}")

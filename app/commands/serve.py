@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 from skisnow.app.presets import DEFAULT_PRESET, PRESETS
-from skisnow.solvers.errors import DataFileError
+from skisnow.app.storage.common import check_data_dir
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -50,24 +50,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     v.add_argument("--json", action="store_true", help="print the full JSON answer")
     v.set_defaults(func=run_solve)
-
-
-def _check_data_dir(data_dir: Path) -> None:
-    """Refuse to start, naming the setting and the user, when the data directory (uploads, the
-    SQLite catalogue) cannot be created or written, e.g. a bind mount owned by another uid."""
-    try:
-        data_dir.mkdir(parents=True, exist_ok=True)
-        probe = data_dir / f".write-test-{os.getpid()}"
-        probe.write_bytes(b"")
-        probe.unlink()
-    except OSError as exc:
-        uid = os.getuid() if hasattr(os, "getuid") else "?"
-        raise DataFileError(
-            f"the data directory {data_dir} is not writable by this process (uid {uid}): "
-            f"{exc.strerror or exc}. Set SKISNOW_DATA_DIR to a writable folder, or give the "
-            "folder to this user (Docker: the image runs as uid 10001; chown the mounted folder "
-            "or use a named volume)"
-        ) from None
 
 
 def open_writes_warning(host: str, team_tokens: dict) -> str | None:
@@ -113,7 +95,7 @@ def run_serve(args: argparse.Namespace) -> int:
     from skisnow.app.service import load_catalogue
 
     load_catalogue(settings.tables_dir)
-    _check_data_dir(Path(settings.data_dir))
+    check_data_dir(Path(settings.data_dir))
     # the catalogue's schema is created or upgraded here (Alembic, app.storage.schema), once,
     # before the workers start; they find it at the head revision
     from skisnow.app.storage.catalogue import CatalogueDB

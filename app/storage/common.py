@@ -16,6 +16,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from skisnow.solvers import __version__
+from skisnow.solvers.errors import DataFileError
 
 __all__ = [
     "NPY_READ_ERRORS",
@@ -216,3 +217,21 @@ def read_json_manifest(
     if not isinstance(data.get("files"), dict):
         raise DataFileError(f"{path}: {what} has no 'files' mapping")
     return data
+
+
+def check_data_dir(data_dir: Path) -> None:
+    """Refuse to start, naming the setting and the user, when the data directory (uploads, the
+    SQLite catalogue) cannot be created or written, e.g. a bind mount owned by another uid."""
+    try:
+        data_dir.mkdir(parents=True, exist_ok=True)
+        probe = data_dir / f".write-test-{os.getpid()}"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        uid = os.getuid() if hasattr(os, "getuid") else "?"
+        raise DataFileError(
+            f"the data directory {data_dir} is not writable by this process (uid {uid}): "
+            f"{exc.strerror or exc}. Set SKISNOW_DATA_DIR to a writable folder, or give the "
+            "folder to this user (Docker: the image runs as uid 10001; chown the mounted folder "
+            "or use a named volume)"
+        ) from None

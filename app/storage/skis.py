@@ -32,7 +32,7 @@ import numpy as np
 from skisnow.solvers.beam import G_STANDARD, BeamSki
 from skisnow.solvers.errors import DataFileError, InputError
 
-from .common import atomic_path, provenance, read_json_manifest, sha256_file
+from .common import atomic_path, provenance, read_json_manifest, sha256_file, tables_dir
 
 __all__ = [
     "CSV_COLUMNS",
@@ -121,7 +121,7 @@ class SkiRecord:
     beam_design: dict | None = None
     network: dict | None = None
     identified: dict | None = None
-    #: per-process objects built from this record (the profile model, :mod:`app.profiles`)
+    #: per-process objects built from this record (the profile model, :mod:`app.service.profiles`)
     cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -398,6 +398,8 @@ def read_ski(path: str | os.PathLike) -> SkiRecord:
     return SkiRecord(meas, outline, metadata, beam, design, network, identified)
 
 
+#: Directory of the shipped demo skis (``tables/skis``)
+SHIPPED_SKI_DIR = tables_dir() / "skis"
 SKI_MANIFEST = "manifest.json"
 SKI_MANIFEST_SCHEMA = "skisnow.ski-manifest/1"
 

@@ -37,15 +37,13 @@ from skisnow.solvers.texture import (
 )
 
 from .common import NPY_READ_ERRORS, atomic_path, provenance, sha256_file, tables_dir
+from .heightgrid import height_factor, parse_csv_grid, pixel_size_m
 
 __all__ = [
-    "HEIGHT_UNITS",
     "SCHEMA",
     "SHIPPED_TEXTURES_DIR",
     "detrend_texture",
     "list_shipped_textures",
-    "load_texture",
-    "parse_csv_grid",
     "read_heightmap",
     "read_texture",
     "refined_texture",
@@ -57,27 +55,6 @@ SCHEMA = "skisnow.texture/1"
 #: Directory of the shipped (synthetic) textures
 SHIPPED_TEXTURES_DIR = tables_dir() / "textures"
 
-#: Accepted height units of raw maps and their factor to metres
-HEIGHT_UNITS: dict[str, float] = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "nm": 1e-9}
-
-
-def _height_factor(height_unit) -> float:
-    if not isinstance(height_unit, str) or height_unit.strip() not in HEIGHT_UNITS:
-        raise InputError(
-            f"height_unit must be one of {', '.join(HEIGHT_UNITS)}, got {height_unit!r}"
-        )
-    return HEIGHT_UNITS[height_unit.strip()]
-
-
-def _pixel_size_m(pixel_size_um) -> float:
-    try:
-        value = float(pixel_size_um)
-    except (TypeError, ValueError):
-        raise InputError(f"pixel_size_um must be a number, got {pixel_size_um!r}") from None
-    if not (np.isfinite(value) and value > 0):
-        raise InputError(f"pixel_size_um must be finite and > 0, got {pixel_size_um!r}")
-    return value * 1e-6
-
 
 def _read_csv(path: Path) -> np.ndarray:
     try:
@@ -85,29 +62,6 @@ def _read_csv(path: Path) -> np.ndarray:
     except (OSError, UnicodeDecodeError) as exc:
         raise DataFileError(f"cannot read height map {path}: {exc}") from exc
     return parse_csv_grid(text, f"height map {path}")
-
-
-def parse_csv_grid(text: str, label: str) -> np.ndarray:
-    """Numbers of a csv height grid (comma or whitespace separated, ``#`` comments, empty cell
-    or NaN for a missing point) as a float64 array; ``label`` names the file in errors."""
-    rows = []
-    for lineno, line in enumerate(text.splitlines(), start=1):
-        stripped = line.strip()
-        if not stripped or stripped.startswith("#"):
-            continue
-        cells = line.split(",") if "," in line else stripped.split()
-        try:
-            rows.append([float(c) if c.strip() else np.nan for c in cells])
-        except ValueError as exc:
-            raise DataFileError(f"{label}, line {lineno}: {exc}") from None
-    if not rows:
-        raise DataFileError(f"{label} holds no numbers")
-    widths = {len(r) for r in rows}
-    if len(widths) != 1:
-        raise DataFileError(
-            f"{label} is not a rectangular grid (row lengths {sorted(widths)}); truncated file?"
-        )
-    return np.array(rows, dtype=np.float64)
 
 
 def _read_npy(path: Path) -> np.ndarray:
@@ -151,8 +105,8 @@ def read_heightmap(
     DataFileError
         Missing, unreadable, truncated or non-numeric file (the message names the file).
     """
-    factor = _height_factor(height_unit)
-    dx = _pixel_size_m(pixel_size_um)
+    factor = height_factor(height_unit)
+    dx = pixel_size_m(pixel_size_um)
     detrend = check_detrend(detrend)
     path = Path(path)
     if not path.is_file():
@@ -283,59 +237,6 @@ def list_shipped_textures() -> list[str]:
     if not SHIPPED_TEXTURES_DIR.is_dir():
         return []
     return sorted(p.stem for p in SHIPPED_TEXTURES_DIR.glob("*.h5"))
-
-
-def load_texture(
-    spec: str | os.PathLike,
-    *,
-    pixel_size_um: float | None = None,
-    height_unit: str | None = None,
-    detrend: str | None = None,
-    **topography_options,
-) -> Texture:
-    """Texture from a shipped name or a height map file of any format
-    :func:`app.storage.topography.read_topography` accepts (detected by content: x3p,
-    instrument formats, ``.h5`` texture, raw ``.npy``/``.csv``).
-
-    Parameters
-    ----------
-    spec : str or os.PathLike
-        Shipped name (see :func:`list_shipped_textures`, e.g. "grind-1") or a file path.
-    pixel_size_um : float, optional
-        Pixel size of a raw map [µm]; required for ``.npy``/``.csv``.
-    height_unit : str, optional
-        Height unit of a raw map ("m", "mm", "um", "nm"); required for ``.npy``/``.csv``.
-    detrend : str, optional
-        "plane", "mean" or "none" (:func:`solvers.texture.level_heights`). ``None``: "plane"
-        for a raw or measured map; a texture (shipped name or ``.h5``) is kept as stored. A
-        texture given a ``detrend`` has it applied to its stored heights; its
-        :attr:`Texture.detrend` is then the combination of both
-        (:func:`solvers.texture.combined_detrend`).
-    **topography_options
-        ``along_ski``, ``channel``, ``max_pixels``, ... of
-        :func:`app.storage.topography.read_topography`.
-    """
-    spec_str = os.fspath(spec)
-    shipped = list_shipped_textures()
-    if detrend is not None:
-        check_detrend(detrend)
-    if spec_str in shipped:
-        return detrend_texture(read_texture(SHIPPED_TEXTURES_DIR / f"{spec_str}.h5"), detrend)
-    if not Path(spec_str).is_file():
-        raise InputError(
-            f"unknown texture {spec_str!r}: give a shipped name ({', '.join(shipped) or 'none'}) "
-            "or a height map file (.x3p, .sur, .datx, .plu, .opd, ..., texture .h5, .npy, .csv)"
-        )
-    from .topography import read_topography
-
-    # the format is decided by the content (app.storage.topography), not by the file name
-    return read_topography(
-        spec_str,
-        pixel_size_um=pixel_size_um,
-        height_unit=height_unit,
-        detrend=detrend,
-        **topography_options,
-    )
 
 
 def detrend_texture(texture: Texture, detrend: str | None) -> Texture:

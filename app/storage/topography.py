@@ -17,7 +17,7 @@ instrument magic          ``.sur``, ``.sdf``, ``.opd``,         ``SurfaceTopogra
                           ``.al3d``, ``.frt``, ``.vk*``, …
 (no magic, by extension)  ``.plu``, ``.opdx``                   ``SurfaceTopography``
 ``\\x93NUMPY``             raw ``.npy`` grid (no pickles)        numpy, ``allow_pickle=False``
-UTF-8 text of numbers     raw ``.csv`` grid                     :mod:`.textures`
+UTF-8 text of numbers     raw ``.csv`` grid                     :mod:`.heightgrid`
 ========================= ===================================== =============================
 
 Raw grids (``.npy``/``.csv``) carry no calibration: ``pixel_size_um`` and ``height_unit`` are
@@ -61,6 +61,14 @@ from skisnow.solvers.errors import DataFileError, InputError
 from skisnow.solvers.texture import Texture, check_detrend, level_heights
 
 from .common import NPY_READ_ERRORS
+from .heightgrid import height_factor, parse_csv_grid, pixel_size_m
+from .textures import (
+    SCHEMA,
+    SHIPPED_TEXTURES_DIR,
+    detrend_texture,
+    list_shipped_textures,
+    read_texture,
+)
 
 __all__ = [
     "DEFAULT_MAX_FILE_BYTES",
@@ -69,6 +77,7 @@ __all__ = [
     "INSTRUMENT_FORMATS",
     "RawTopography",
     "detect_format",
+    "load_texture",
     "read_raw_topography",
     "read_topography",
 ]
@@ -372,8 +381,6 @@ def _read_npy(data: bytes, label: str, max_pixels: int, min_side: int) -> np.nda
 
 
 def _read_csv(data: bytes, label: str, max_pixels: int, min_side: int) -> np.ndarray:
-    from .textures import parse_csv_grid
-
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
@@ -384,8 +391,6 @@ def _read_csv(data: bytes, label: str, max_pixels: int, min_side: int) -> np.nda
 
 
 def _raw_grid(arr: np.ndarray, fmt: str, label: str, pixel_size_um, height_unit) -> RawTopography:
-    from .textures import _height_factor, _pixel_size_m
-
     missing = [
         n for n, v in (("pixel_size_um", pixel_size_um), ("height_unit", height_unit)) if v is None
     ]
@@ -394,16 +399,14 @@ def _raw_grid(arr: np.ndarray, fmt: str, label: str, pixel_size_um, height_unit)
             f"{label} is a raw {fmt} height grid without calibration: "
             f"{' and '.join(missing)} must be given"
         )
-    factor = _height_factor(height_unit)
+    factor = height_factor(height_unit)
     return RawTopography(
-        arr * factor, _pixel_size_m(pixel_size_um), fmt, f"raw {fmt}, heights in {height_unit}"
+        arr * factor, pixel_size_m(pixel_size_um), fmt, f"raw {fmt}, heights in {height_unit}"
     )
 
 
 def _hdf5_kind(data: bytes, label: str) -> str:
     import h5py
-
-    from .textures import SCHEMA
 
     try:
         with h5py.File(io.BytesIO(data), "r") as f:
@@ -482,8 +485,6 @@ def read_raw_topography(
             return _read_surfacetopography(data, "datx", label, max_pixels, min_side, channel)
         if path is None:
             raise InputError(f"{label}: skisnow texture files are accepted from disk only")
-        from .textures import read_texture
-
         tex = read_texture(path)
         _check_grid_size(tex.heights_m.shape, max_pixels, min_side, label)
         return RawTopography(tex.heights_m, tex.pixel_size_m, "texture", tex.source, tex)
@@ -596,8 +597,6 @@ def read_topography(
         max_uncompressed_bytes=max_uncompressed_bytes,
     )
     if raw.texture is not None:  # a skisnow texture file: detrended when written, kept as is
-        from .textures import detrend_texture
-
         tex = raw.texture
         if along_ski == "y":
             tex = Texture(
@@ -634,3 +633,54 @@ def read_topography(
     if along_ski == "y":
         source_text += "; transposed: file y along the ski"
     return Texture(levelled, raw.pixel_size_m, stem, missing, source_text, detrend)
+
+
+def load_texture(
+    spec: str | os.PathLike,
+    *,
+    pixel_size_um: float | None = None,
+    height_unit: str | None = None,
+    detrend: str | None = None,
+    **topography_options,
+) -> Texture:
+    """Texture from a shipped name or a height map file of any format
+    :func:`read_topography` accepts (detected by content: x3p,
+    instrument formats, ``.h5`` texture, raw ``.npy``/``.csv``).
+
+    Parameters
+    ----------
+    spec : str or os.PathLike
+        Shipped name (see :func:`list_shipped_textures`, e.g. "grind-1") or a file path.
+    pixel_size_um : float, optional
+        Pixel size of a raw map [µm]; required for ``.npy``/``.csv``.
+    height_unit : str, optional
+        Height unit of a raw map ("m", "mm", "um", "nm"); required for ``.npy``/``.csv``.
+    detrend : str, optional
+        "plane", "mean" or "none" (:func:`solvers.texture.level_heights`). ``None``: "plane"
+        for a raw or measured map; a texture (shipped name or ``.h5``) is kept as stored. A
+        texture given a ``detrend`` has it applied to its stored heights; its
+        :attr:`Texture.detrend` is then the combination of both
+        (:func:`solvers.texture.combined_detrend`).
+    **topography_options
+        ``along_ski``, ``channel``, ``max_pixels``, ... of
+        :func:`read_topography`.
+    """
+    spec_str = os.fspath(spec)
+    shipped = list_shipped_textures()
+    if detrend is not None:
+        check_detrend(detrend)
+    if spec_str in shipped:
+        return detrend_texture(read_texture(SHIPPED_TEXTURES_DIR / f"{spec_str}.h5"), detrend)
+    if not Path(spec_str).is_file():
+        raise InputError(
+            f"unknown texture {spec_str!r}: give a shipped name ({', '.join(shipped) or 'none'}) "
+            "or a height map file (.x3p, .sur, .datx, .plu, .opd, ..., texture .h5, .npy, .csv)"
+        )
+    # the format is decided by the content (app.storage.topography), not by the file name
+    return read_topography(
+        spec_str,
+        pixel_size_um=pixel_size_um,
+        height_unit=height_unit,
+        detrend=detrend,
+        **topography_options,
+    )

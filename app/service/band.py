@@ -44,7 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from skisnow.app.presets import Preset
-from skisnow.app.profiles import served_beam
+from skisnow.app.service.profiles import served_beam
 from skisnow.app.storage.skis import identification_for_sampling
 from skisnow.solvers.band import (
     Z90,
@@ -130,7 +130,7 @@ def camber_sigma_m(record, positions_m: np.ndarray) -> tuple[np.ndarray | float 
     where it comes from; ``(0, …)`` for a ski answered by its design beam, ``(None, …)`` when
     unknown.
 
-    For an identified beam (the profile model of :mod:`app.profiles` when its identification
+    For an identified beam (the profile model of :mod:`app.service.profiles` when its identification
     passed): the stored ``profile_sd_m``, the spread of the loaded profile over beams drawn
     from the identification's covariance (:func:`solvers.identify.profile_sigma`).
 

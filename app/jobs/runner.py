@@ -1,18 +1,18 @@
 """Background jobs of the service: persisted in the catalogue database, run in a thread pool.
 
-A :class:`JobRunner` lives in each service process. Its poll thread claims jobs from the
-database (queued ones, and running ones whose runner stopped beating: a crashed process), runs
-them in a small thread pool through a handler per job kind, and beats a heartbeat for the jobs
-it runs. Handlers report progress through :class:`JobContext`, which also raises
-:class:`JobInterrupted` once the runner is stopping; an interrupted job goes back to
-``queued`` and resumes in the next process that starts (grind tables from their chunk
-checkpoints, see :mod:`app.build_tables`; ski networks from the start).
-
-A claim is a lease of ``stale_s`` seconds renewed by every heartbeat (each poll). A process
-killed mid-job (``kill -9``, a lost machine) stops beating; once its lease has expired, any
-other process on the same database claims the job and runs it again (a grind table from the
-checkpoints in the shared data directory). Processes on the same host requeue the jobs of dead
-local pids at start without waiting for the lease. A runner that finds its job taken over (its
+A :class:`JobRunner` lives in each service process (``job_workers`` ≥ 1, the default), or only in
+``skisnow worker`` processes (:mod:`app.commands.worker`; the service with ``job_workers = 0`` then
+claims nothing and only polls for finished items). Its poll thread claims jobs from the database
+(queued ones, and running ones whose runner stopped beating: a crashed process), runs them in a
+small thread pool through a handler per job kind, and beats a heartbeat for the jobs it runs.
+Handlers report progress through :class:`JobContext`, which also raises :class:`JobInterrupted`
+once the runner is stopping; an interrupted job goes back to ``queued`` and resumes in the next
+process that starts (grind tables from their chunk checkpoints, see :mod:`app.build_tables`; ski
+networks from the start). A claim is a lease of ``stale_s`` seconds renewed by every heartbeat
+(each poll). A process killed mid-job (``kill -9``, a lost machine) stops beating; once its lease
+has expired, any other process on the same database claims the job and runs it again (a grind table
+from the checkpoints in the shared data directory). Processes on the same host requeue the jobs of
+dead local pids at start without waiting for the lease. A runner that finds its job taken over (its
 own heartbeats lapsed, e.g. a frozen process) stops it with :class:`JobLeaseLost` and writes
 nothing more about it. ``stale_s`` must exceed the longest pause between two polls.
 
@@ -112,7 +112,8 @@ class JobRunner:
     on_poll : callable, optional
         Called on every poll (the service syncs its live catalogue with the database there).
     workers : int
-        Jobs run at once.
+        Jobs run at once; 0: this process claims no job and only polls (``on_poll``), the
+        jobs run in separate ``skisnow worker`` processes on the same database.
     poll_s : float
         Poll interval [s].
     stale_s : float
@@ -152,7 +153,8 @@ class JobRunner:
     def start(self) -> None:
         """Requeue jobs of dead processes on this host, then start polling."""
         self._requeue_dead_local_runners()
-        self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="skisnow-job")
+        if self.workers > 0:  # 0: poll only (on_poll); the jobs run in `skisnow worker`
+            self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="skisnow-job")
         self._thread = threading.Thread(target=self._loop, name="skisnow-jobs", daemon=True)
         self._thread.start()
         self._beat_thread = threading.Thread(

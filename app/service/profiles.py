@@ -172,7 +172,7 @@ class ProfileModel:
 
     def beam_result(self, load_n: float, load_position_m: float) -> BeamResult:
         """The beam's full solve on the rigid flat (gap and nodal reactions; the flex sheet of
-        :mod:`app.flex` needs the reactions). Raises :class:`InputError` for a network."""
+        :mod:`app.service.flex` needs the reactions). Raises :class:`InputError` for a network."""
         if self.beam is None:
             raise InputError("the camber network has no beam: no reactions on the flat")
         # no warm start from earlier requests: the answer must not depend on what this process

@@ -1,0 +1,339 @@
+"""``skisnow bench macro``: one macro solve per demo ski (default grid against the fine
+reference), the bending ski, the network inference time and the beam identification.
+
+Written by :func:`app.evidence.writer.write_stage` to ``docs/bench/macro.json``;
+:func:`render_md` is its section of ``docs/benchmarks.md``.
+"""
+
+from __future__ import annotations
+
+import logging
+import statistics
+import time
+
+import numpy as np
+from skisnow.app.evidence.paper_case import (
+    BASE_MODULUS_MPA,
+    DOC_POROSITY,
+    PAPER_LOAD_KG,
+    PAPER_POSITION_MM,
+    PAPER_SNOW_MODULUS_MPA,
+    POISSON_RATIO,
+    PROFILE_MODEL_NAMES,
+)
+from skisnow.app.service.profiles import profile_model
+from skisnow.app.storage.skis import SHIPPED_SKI_DIR, read_ski
+from skisnow.solvers.beam import G_STANDARD
+from skisnow.solvers.elastic import effective_modulus
+from skisnow.solvers.macro import (
+    DEFAULT_PIXEL_ACROSS,
+    DEFAULT_PIXEL_ALONG_M,
+    extrude_profile,
+    solve_macro,
+)
+
+log = logging.getLogger(__name__)
+
+
+def bench_macro_stage(
+    repeats: int = 7, inference_calls: int = 300, identification: bool = True
+) -> dict:
+    """``skisnow bench macro``: one macro solve per demo ski at the default grid against the
+    fine reference (:func:`bench_macro`), the bending ski, the network inference
+    time and (``identification``) the beam identification of both demo skis (about 1.5–2 min
+    each on 2 cores; the tests leave it out, tests/test_identify*.py cover it)."""
+    from skisnow.solvers import camber
+
+    out = {"skis": bench_macro(repeats=repeats), "inference": {}}
+    out["flexible"] = bench_flexible(repeats=repeats)
+    if identification:
+        out["identification"] = bench_identification()
+    for name in out["skis"]:
+        net = read_ski(SHIPPED_SKI_DIR / f"{name}.h5").network
+        if net is None:
+            continue
+        camber.predict_profile(net, PAPER_LOAD_KG * G_STANDARD, PAPER_POSITION_MM / 1e3)  # warm-up
+        times = []
+        for _ in range(inference_calls):
+            t0 = time.perf_counter()
+            camber.predict_profile(net, PAPER_LOAD_KG * G_STANDARD, PAPER_POSITION_MM / 1e3)
+            times.append(time.perf_counter() - t0)
+        out["inference"][name] = {"calls": inference_calls, "median_s": statistics.median(times)}
+    return out
+
+
+def bench_identification(skis: tuple[str, ...] = ("ski-a", "ski-b")) -> dict:
+    """Beam identification of each demo ski from its shipped measurements, as ``skisnow
+    identify-ski`` runs it (20 % held out, seed 0): wall time, misfit, held-out errors against
+    the measurements and against the design beam near contact (one run each; target ≤ 2 min)."""
+    from skisnow.app.service.identification import identify_report
+
+    out = {}
+    for name in skis:
+        rec = read_ski(SHIPPED_SKI_DIR / f"{name}.h5")
+        rep = identify_report(rec.measurements, rec.beam, 0.2, 0)
+        out[name] = {
+            k: rep.get(k)
+            for k in (
+                "identified",
+                "cases",
+                "held_out_cases",
+                "time_s",
+                "start_time_s",
+                "forward_time_s",
+                "noise_um",
+                "misfit_um",
+                "held_out_vs_measured_rms_um",
+                "held_out_vs_design_beam_rms_um",
+            )
+        }
+    return out
+
+
+def _identification_md(d: dict) -> list[str]:
+    if not d:
+        return []
+    first = next(iter(d.values()))
+    cases, held = first.get("cases"), first.get("held_out_cases")
+    shipped = (
+        f"its {cases} shipped cases ({first['noise_um']:.0f} µm noise), "
+        f"{100 * held / cases:.0f} % held out "
+        if cases and held
+        else "its shipped cases, 20 % held out "
+    )
+    lines = [
+        "### Beam identification (issue #12)",
+        "",
+        f"Each demo ski's beam identified from {shipped}"
+        "(seed 0), as `skisnow identify-ski` runs it: variable-projection start on 30 cases, then "
+        "the forward fit of the exact device model (docs/camber-identification.md). One run each "
+        "(target ≤ 2 min per ski; held-out profile ≤ 0.3 µm from the truth where H* < 0.2 mm).",
+        "",
+        "| ski | time [s] (start + forward) | misfit / noise [µm] | held-out vs measured [µm] "
+        "| held-out vs truth near contact [µm] |",
+        "|---|---|---|---|---|",
+    ]
+    for name, r in d.items():
+        lines.append(
+            f"| {name} | {r['time_s']:.0f} ({r['start_time_s']:.0f} + {r['forward_time_s']:.0f}) "
+            f"| {r['misfit_um']:.2f} / {r['noise_um']:.2f} | "
+            f"{r['held_out_vs_measured_rms_um']:.2f} | {r['held_out_vs_design_beam_rms_um']:.3f} |"
+        )
+    lines.append("")
+    return lines
+
+
+def bench_flexible(repeats: int = 7, skis: tuple[str, ...] = ("ski-a", "ski-b")) -> dict:
+    """Per demo ski at the papers' case, default grid, in one run: the beam's loaded profile on
+    the flat (cached flexibility), the rigid solve of that profile, the flexible solve (cold, from
+    its own row-level start, as the service calls it; and warm-started from the rigid pressure),
+    and one whole ``/v1/contact`` computation (``service.contact``) with ``ski_model`` rigid and
+    auto. Medians [s]."""
+    from skisnow.app import service
+    from skisnow.solvers.flexible import prepare_flexible, solve_flexible
+
+    e_eff = effective_modulus(PAPER_SNOW_MODULUS_MPA * 1e6, BASE_MODULUS_MPA * 1e6, POISSON_RATIO)
+    load_n, xf = PAPER_LOAD_KG * G_STANDARD, PAPER_POSITION_MM / 1e3
+    cat = service.load_catalogue(SHIPPED_SKI_DIR.parent)
+    grind = sorted(cat.grinds)[0]
+
+    def median_of(fn) -> tuple[float, object]:
+        res = fn()  # warm-up
+        times = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            res = fn()
+            times.append(time.perf_counter() - t0)
+        return float(np.median(times)), res
+
+    out: dict = {}
+    for name in skis:
+        rec = cat.ski(name).record
+        beam, _ = cat.ski(name).beam()
+        if beam is None:
+            continue
+        pm = profile_model(rec)
+        t_prof, (x_prof, gap_prof) = median_of(lambda pm=pm: pm(load_n, xf))
+        gm = extrude_profile(
+            x_prof, gap_prof, rec.outline.width_m, width_positions_m=rec.outline.positions_m
+        )
+        t_rigid, rigid = median_of(lambda gm=gm: solve_macro(gm, load_n, xf, e_eff))
+        model = prepare_flexible(
+            beam, rec.outline.width_m, width_positions_m=rec.outline.positions_m
+        )
+        t_cold, flex = median_of(lambda m=model: solve_flexible(m, load_n, xf, e_eff))
+        t_warm, _ = median_of(
+            lambda m=model, r=rigid: solve_flexible(
+                m, load_n, xf, e_eff, initial_pressure_pa=r.pressure_pa
+            )
+        )
+        req = {}
+        for mode in ("rigid", "auto"):
+            inp = service.ContactInputs(
+                name,
+                grind,
+                PAPER_LOAD_KG,
+                PAPER_POSITION_MM,
+                PAPER_SNOW_MODULUS_MPA,
+                DOC_POROSITY,
+                ski_model=mode,
+            )
+            req[mode], _ = median_of(lambda inp=inp: service.contact(cat, inp))
+            req[mode + "_no_band"], _ = median_of(
+                lambda inp=inp: service.contact(cat, inp, error_band=False)
+            )
+        out[name] = {
+            "profile_model": pm.source,
+            "beam_profile_s": t_prof,
+            "rigid_solve_s": t_rigid,
+            "flexible_cold_s": t_cold,
+            "flexible_warm_s": t_warm,
+            "flexible_iterations": flex.iterations,
+            "rigid_area_cm2": rigid.apparent_contact_area_m2 * 1e4,
+            "flexible_area_cm2": flex.apparent_contact_area_m2 * 1e4,
+            "contact_rigid_s": req["rigid"],
+            "contact_auto_s": req["auto"],
+            "contact_rigid_no_band_s": req["rigid_no_band"],
+            "contact_auto_no_band_s": req["auto_no_band"],
+            "grind": grind,
+        }
+    return out
+
+
+def _flexible_md(d: dict) -> list[str]:
+    if not d:
+        return []
+    lines = [
+        "### The bending ski (issue #12)",
+        "",
+        "Papers' case, default grid, same run. Profile: the ski's profile model as the service "
+        "calls it (identified beam: one device solve on the flat with the cached flexibility; "
+        "target ≤ 10 ms). Flexible "
+        "solve: beam and snow as one complementarity problem (target ≤ 2 × rigid and ≤ 40 ms), "
+        "cold (its own row-level start, as the service calls it) and warm-started from the rigid "
+        "pressure. Request: one "
+        "`service.contact` computation (profile, macro, multiscale; auto also solves the "
+        "flexible ski), with its 90 % error band and without it (the band re-solves a rigid "
+        "answer 9 times on a grid twice as coarse, an answer of the bending ski once plus once "
+        "per plausible beam drawn from the identification; docs/limits.md, Error band).",
+        "",
+        "| ski | profile model | profile [ms] | rigid solve [ms] | flexible cold [ms] | "
+        "flexible warm [ms] | cold / rigid | request rigid [ms] (no band) | request auto [ms] "
+        "(no band) | area rigid → flexible [cm²] |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, r in d.items():
+        nb_rigid = 1e3 * r.get("contact_rigid_no_band_s", float("nan"))
+        nb_auto = 1e3 * r.get("contact_auto_no_band_s", float("nan"))
+        lines.append(
+            f"| {name} | {r.get('profile_model', 'design_beam')} | "
+            f"{1e3 * r['beam_profile_s']:.2f} | {1e3 * r['rigid_solve_s']:.1f} | "
+            f"{1e3 * r['flexible_cold_s']:.1f} | {1e3 * r['flexible_warm_s']:.1f} | "
+            f"{r['flexible_cold_s'] / r['rigid_solve_s']:.1f} | "
+            f"{1e3 * r['contact_rigid_s']:.1f} ({nb_rigid:.1f}) | "
+            f"{1e3 * r['contact_auto_s']:.1f} ({nb_auto:.1f}) | "
+            f"{r['rigid_area_cm2']:.2f} → {r['flexible_area_cm2']:.2f} |"
+        )
+    lines.append("")
+    return lines
+
+
+def _case_words() -> str:
+    """ "40 kg at −160 mm, E_snow 200 MPa": the case every solve of this stage runs."""
+    position = f"{PAPER_POSITION_MM:g}".replace("-", "−")
+    return f"{PAPER_LOAD_KG:g} kg at {position} mm, E_snow {PAPER_SNOW_MODULUS_MPA:g} MPa"
+
+
+def _profile_words(d: dict) -> str:
+    """Which profile model the solves used, as the run recorded it (the flexible rows name the
+    ski's profile model; ``bench_macro`` loads the same one, ``commands.macro.loaded_profile``)."""
+    models = {r.get("profile_model") for r in d.get("flexible", {}).values()}
+    if len(models) == 1 and None not in models:
+        return f"{PROFILE_MODEL_NAMES.get(models.pop(), 'served')} profile"
+    return "profile from its profile model"
+
+
+def render_md(d: dict) -> list[str]:
+    lines = [
+        "## Macro scale: one ski-on-snow solve (`skisnow bench macro`)",
+        "",
+        f"Papers' case ({_case_words()}), each demo ski's {_profile_words(d)}; "
+        "default grid against the 0.5 mm × 16 reference. Targets: ≤ 30 ms per solve, apparent "
+        "area within 1 %, network inference ≤ 1 ms.",
+        "",
+        "| ski | grid [mm] | median solve [ms] | apparent area [cm²] | peak pressure [kPa] "
+        "| iterations | area error | peak error | reference time / default |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, r in d["skis"].items():
+        dflt, fine = r["default"], r["fine"]
+        for label, row in (("default", dflt), ("fine", fine)):
+            err = (
+                f"{100 * r['area_error']:+.2f} % | {100 * r['peak_pressure_error']:+.1f} %"
+                if label == "default"
+                else "— | —"
+            )
+            ratio = (
+                f"{fine['median_time_s'] / dflt['median_time_s']:.1f}" if label == "fine" else ""
+            )
+            lines.append(
+                f"| {name} ({label}) | {row['pixel_mm'][0]:g} × {row['pixel_mm'][1]:.2f} | "
+                f"{1e3 * row['median_time_s']:.1f} | {row['area_cm2']:.2f} | "
+                f"{row['peak_pressure_kpa']:.0f} | {row['iterations']} | {err} | {ratio} |"
+            )
+    for name, r in d.get("inference", {}).items():
+        lines.append("")
+        lines.append(
+            f"Network inference, {name}: median {1e3 * r['median_s']:.2f} ms over "
+            f"{r['calls']} calls."
+        )
+    lines.append("")
+    lines += _flexible_md(d.get("flexible", {}))
+    lines += _identification_md(d.get("identification", {}))
+    return lines
+
+
+def bench_macro(repeats: int = 7, skis: tuple[str, ...] = ("ski-a", "ski-b")) -> dict:
+    """Median time of one macro solve per demo ski at the default grid vs a fine reference.
+
+    One untimed warm-up solve per grid first (numba compilation, kernel cache), as in the
+    running service. The fine reference is 0.5 mm × 16 pixels across, timed twice.
+
+    Returns a dict per ski: default and fine grid (pixel sizes [mm]), median solve time [s],
+    apparent area [cm²] (sub-pixel zone edges), the same area by pixel counting [cm²], peak
+    pressure [kPa], iterations, and the relative errors of the default grid.
+    """
+    e_eff = effective_modulus(200e6, 0.7e9, 0.3)
+    load_n, xf = 40.0 * G_STANDARD, -0.160
+    out: dict = {}
+    for name in skis:
+        ski = read_ski(SHIPPED_SKI_DIR / f"{name}.h5")
+        x, gap = profile_model(ski)(load_n, xf)
+        width = float(ski.outline.width_m.max())
+        rows = {}
+        for label, dx, ny in (
+            ("default", DEFAULT_PIXEL_ALONG_M, DEFAULT_PIXEL_ACROSS),
+            ("fine", 0.5e-3, 16),
+        ):
+            gm = extrude_profile(x, gap, width, pixel_along_m=dx, pixels_across=ny)
+            res = solve_macro(gm, load_n, xf, e_eff)  # warm-up
+            times = []
+            for _ in range(repeats if label == "default" else 2):
+                t0 = time.perf_counter()
+                res = solve_macro(gm, load_n, xf, e_eff)
+                times.append(time.perf_counter() - t0)
+            p = np.nan_to_num(res.pressure_pa)
+            rows[label] = {
+                "pixel_mm": (dx * 1e3, width / ny * 1e3),
+                "median_time_s": float(np.median(times)),
+                "area_cm2": res.apparent_contact_area_m2 * 1e4,
+                "pixel_count_area_cm2": float(np.count_nonzero(p > 0) * dx * width / ny * 1e4),
+                "peak_pressure_kpa": res.peak_pressure_pa * 1e-3,
+                "iterations": res.iterations,
+                "converged": res.converged,
+            }
+        d, f = rows["default"], rows["fine"]
+        rows["area_error"] = d["area_cm2"] / f["area_cm2"] - 1
+        rows["peak_pressure_error"] = d["peak_pressure_kpa"] / f["peak_pressure_kpa"] - 1
+        out[name] = rows
+    return out

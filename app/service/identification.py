@@ -1,0 +1,87 @@
+"""A ski's beam identification with its held-out check, as a JSON-ready report
+(:func:`identify_report`): what ``skisnow identify-ski`` prints and the bench's identification
+stage records. Imports ``storage``, ``solvers`` and the shared top-level modules.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from skisnow.app.path_pool import path_pool
+from skisnow.app.storage.skis import CamberData, mean_profiles
+from skisnow.solvers.errors import InputError
+from skisnow.solvers.identify import identify_beam_checked, predict_gaps
+
+__all__ = ["NEAR_CONTACT_M", "identify_report"]
+
+#: where held-out profiles are compared with a design beam: near contact [m]
+NEAR_CONTACT_M = 2e-4
+
+
+def identify_report(
+    data: CamberData,
+    design_beam,
+    holdout: float,
+    seed: int,
+    *,
+    keep: dict | None = None,
+    callback=None,
+) -> dict:
+    """Identify on the kept cases and measure on the held-out ones; a JSON-ready report.
+    ``keep``: a dict that receives the identification and its check (for ``--store``);
+    ``callback(fraction, message)``: progress of the identification."""
+    if not (0.0 <= holdout < 0.9):
+        raise InputError(f"--holdout must be in [0, 0.9), got {holdout}")
+    f, xf, y, sides_note = mean_profiles(data)
+    t0 = time.perf_counter()
+    with path_pool() as pmap:
+        ident, check = identify_beam_checked(
+            data.positions_m, f, xf, y, holdout=holdout, seed=seed, callback=callback, path_map=pmap
+        )
+    elapsed = time.perf_counter() - t0
+    if keep is not None:
+        keep.update(
+            ident=ident, check=check, sides=sides_note, loads_n=f, positions_m=xf, profiles_m=y
+        )
+    held = np.zeros(f.size, dtype=bool)
+    held[check["held_out_index"]] = True
+    x = data.positions_m
+    report: dict = {
+        "ski_id": data.ski_id,
+        "cases": int(f.size),
+        "held_out_cases": int(held.sum()),
+        "sides": sides_note,
+        "identified": bool(ident.ok),
+        "reason": ident.reason,
+        "noise_um": ident.noise_m * 1e6,
+        "misfit_um": ident.misfit_m * 1e6,
+        "case_misfit_um": {
+            "median": float(np.median(ident.case_misfit_m)) * 1e6,
+            "max": float(np.max(ident.case_misfit_m)) * 1e6,
+        },
+        "iterations": ident.iterations,
+        "contact_passes": ident.contact_passes,
+        "time_s": elapsed,
+        "start_time_s": ident.extra.get("start_time_s"),
+        "forward_time_s": ident.extra.get("forward_time_s"),
+        "kinks_mm": [k * 1e3 for k in ident.extra.get("kinks_m", [])],
+        "stiffness": [
+            {
+                "position_mm": float(x[i] * 1e3),
+                "ei_nm2": float(ident.beam.bending_stiffness_nm2[i]),
+                "band_90_nm2": [float(v) for v in ident.stiffness_band_nm2[:, i]],
+            }
+            for i in np.linspace(0, x.size - 1, 21).astype(int)
+        ],
+    }
+    if held.any():
+        pred = predict_gaps(ident.beam, f[held], xf[held])
+        res = pred - y[held]
+        report["held_out_vs_measured_rms_um"] = float(np.sqrt(np.mean(res**2))) * 1e6
+        if design_beam is not None:
+            truth = predict_gaps(design_beam, f[held], xf[held])
+            near = truth < NEAR_CONTACT_M
+            err = (pred - truth)[near]
+            report["held_out_vs_design_beam_rms_um"] = float(np.sqrt(np.mean(err**2))) * 1e6
+    return report

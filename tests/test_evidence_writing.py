@@ -1,0 +1,162 @@
+"""app/evidence: the one writer, no import circle, and prose that follows the numbers.
+
+Renders from the stored ``docs/bench/*.json`` and from small synthetic records; no benchmark is
+run (tests/test_bench_*.py and tests/test_report.py run the stages on small cases).
+"""
+
+from __future__ import annotations
+
+import ast
+import json
+import re
+from pathlib import Path
+
+import pytest
+from skisnow.app.evidence import (
+    accuracy_md,
+    accuracy_md_micro,
+    macro,
+    paper_case,
+    paper_case_md,
+    writer,
+)
+from skisnow.app.storage.common import docs_dir
+
+EVIDENCE = Path(writer.__file__).parent
+BENCH_JSON = Path(__file__).resolve().parents[1] / "docs" / "bench"
+
+
+def _imports(path: Path) -> set[str]:
+    """Modules of app.evidence that ``path`` imports (any depth of the file)."""
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom) and node.module:
+            if node.module == "skisnow.app.evidence":
+                out |= {a.name for a in node.names}
+            elif node.module.startswith("skisnow.app.evidence."):
+                out.add(node.module.rsplit(".", 1)[1])
+        elif isinstance(node, ast.Import):
+            out |= {
+                a.name.rsplit(".", 1)[1]
+                for a in node.names
+                if a.name.startswith("skisnow.app.evidence.")
+            }
+    return out
+
+
+def test_no_import_circle_and_no_stage_imports_the_writer():
+    graph = {p.stem: _imports(p) for p in EVIDENCE.glob("*.py") if p.stem != "__init__"}
+    # the writer imports the stages' renderers; only the report's file step imports it
+    assert [m for m, deps in graph.items() if "writer" in deps] == ["paper_case_write"]
+    assert not any("commands" in deps for deps in graph.values())
+
+    def reach(start: str, seen: set[str]) -> set[str]:
+        for dep in graph.get(start, ()):
+            if dep not in seen:
+                seen.add(dep)
+                reach(dep, seen)
+        return seen
+
+    cycles = [m for m in graph if m in reach(m, set())]
+    assert cycles == []
+
+
+def test_writer_writes_docs_where_the_storage_rule_says():
+    """Never into site-packages: the writer's folder is storage.common.docs_dir()."""
+    assert writer.DOCS == docs_dir()
+
+
+def test_write_stage_writes_json_chart_and_page(tmp_path):
+    seen = []
+    path = writer.write_stage("custom", {"x": 1}, lambda d, p: seen.append(p), docs_dir=tmp_path)
+    data = json.loads(path.read_text())
+    assert path == tmp_path / "bench" / "custom.json"
+    assert data["stage"] == "custom" and data["x"] == 1 and "provenance" in data
+    assert seen == [tmp_path / "bench" / "custom.png"]
+    assert "## custom" in (tmp_path / "benchmarks.md").read_text()
+
+
+@pytest.mark.parametrize("stage", sorted(writer.STAGE_RENDERERS))
+def test_every_stored_stage_renders(stage):
+    path = BENCH_JSON / f"{stage}.json"
+    if not path.is_file():
+        pytest.skip(f"no stored {path.name}")
+    lines = writer.STAGE_RENDERERS[stage](json.loads(path.read_text()))
+    assert lines[0].startswith("## ")
+
+
+def test_pixel_counting_sentence_states_the_counts_of_the_stored_run():
+    d = json.loads((BENCH_JSON / "accuracy.json").read_text())
+    text = "\n".join(accuracy_md_micro.table_section(d))
+    for g in d["table"]["grinds"]:
+        n_px = g["grid_shape"][0] * g["grid_shape"][1]
+        at = [
+            r["held_out_max_at"]["real_contact_area_fraction"]["real_contact_area_fraction"]
+            for r in g["rows"]
+            if "held_out_max_at" in r
+        ]
+        few = [a for a in at if a * n_px < accuracy_md_micro.FEW_PIXELS]
+        line = next(x for x in text.splitlines() if x.startswith(f"{g['grind']}: the largest"))
+        if few:
+            assert f"touches on {max(few) * n_px:.0f} pixels or fewer" in line
+        else:
+            assert "pixel counting" not in line
+
+
+def test_the_words_follow_the_numbers():
+    assert accuracy_md._trend_words([0.17, 0.11, 0.05, 0.0, -0.05]) == "keeps falling"
+    assert accuracy_md._trend_words([0.1, 0.2]) == "keeps rising"
+    assert accuracy_md._trend_words([0.1, -0.2, 0.1]) == "keeps moving"
+    assert accuracy_md._times_words(590) == "hundreds of times"
+    assert accuracy_md._times_words(3.3) == "a few times"
+    assert accuracy_md._percent_words(0.115) == "several per cent"
+    assert accuracy_md._percent_words(0.004) == "less than a per cent"
+    assert accuracy_md_micro._power_of_ten(10_000) == "10⁴"
+    assert accuracy_md_micro._order_words(1.0, 2048) == "first order"
+    assert accuracy_md_micro._order_words(None, 2048) == "the 2048² value"
+
+
+def test_macro_section_names_the_profile_model_the_run_used():
+    flex = {"ski-a": {"profile_model": "network"}, "ski-b": {"profile_model": "network"}}
+    assert macro._profile_words({"flexible": flex}) == "network profile"
+    flex["ski-b"]["profile_model"] = "identified_beam"
+    assert macro._profile_words({"flexible": flex}) == "profile from its profile model"
+
+
+def _case_with_zones(zones: list[dict], sweep: list[dict]) -> paper_case.PaperCase:
+    case = paper_case.PaperCase(porosity=0.5, sweep=sweep)
+    case.results = {
+        (s, g): {"apparent": {"zones": zones}} for s in paper_case.SKIS for g in paper_case.GRINDS
+    }
+    return case
+
+
+def test_paper_case_mid_zone_note_follows_the_zones():
+    mid = {"name": "mid", "start_mm": -338.0, "end_mm": -122.0}
+    assert "counts as rear" in paper_case_md._mid_zone_note(_case_with_zones([mid], []))[0]
+    ahead = {"name": "mid", "start_mm": -100.0, "end_mm": 300.0}
+    assert "counts as front" in paper_case_md._mid_zone_note(_case_with_zones([ahead], []))[0]
+    rear = {"name": "rear", "start_mm": -300.0, "end_mm": -200.0}
+    assert paper_case_md._mid_zone_note(_case_with_zones([rear], [])) == []
+
+
+def test_paper_case_soft_snow_clause_needs_a_second_piece():
+    def row(e: float, pieces: int) -> dict:
+        return {
+            "snow_modulus_mpa": e,
+            "error": None,
+            "rear": {"pieces": pieces},
+            "front": {"pieces": 1},
+        }
+
+    assert paper_case_md._ends_touch_at_soft_snow(_case_with_zones([], [row(20.0, 2)]))
+    assert not paper_case_md._ends_touch_at_soft_snow(_case_with_zones([], [row(400.0, 2)]))
+    assert not paper_case_md._ends_touch_at_soft_snow(_case_with_zones([], [row(20.0, 1)]))
+
+
+def test_paper_case_words_come_from_the_constants():
+    assert paper_case_md._paper_case_words() == (
+        f"{paper_case.PAPER_LOAD_KG:g} kg at "
+        + re.sub("-", "−", f"{paper_case.PAPER_POSITION_MM:g}")
+        + " mm"
+    )
