@@ -207,7 +207,7 @@ class WriteGuardMiddleware:
             or scope.get("path") in READ_ONLY_POSTS
         ):
             return await self.app(scope, receive, send)
-        from skisnow.app.api import problem
+        from skisnow.app.api.problems import problem
 
         headers = Headers(scope=scope)
         if self.tokens:

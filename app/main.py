@@ -1,5 +1,31 @@
-"""ASGI entry point for uvicorn workers: ``app.main:app`` (settings from SKISNOW_* env)."""
+"""The service: the REST API (:mod:`app.api`) and the web pages (:mod:`app.web`) in one app.
 
-from skisnow.app.api import create_app
+``skisnow.app.main:app`` is the ASGI entry point of the uvicorn workers (``skisnow serve``,
+settings from the SKISNOW_* environment). It is built on first access, not on import, so that
+importing :func:`create_app` (tests, scripts) builds nothing.
+"""
 
-app = create_app()
+from __future__ import annotations
+
+from skisnow.app import web, web_flex
+from skisnow.app.api.factory import create_api
+from skisnow.app.service import Catalogue
+from skisnow.app.settings import Settings
+
+__all__ = ["create_app"]  # and ``app``, made on first access (below)
+
+
+def create_app(settings: Settings | None = None, catalogue: Catalogue | None = None):
+    """The API of :func:`app.api.factory.create_api` with the web pages mounted."""
+    app = create_api(settings, catalogue)
+    web.mount(app)
+    web_flex.mount(app)
+    return app
+
+
+def __getattr__(name: str):
+    # PEP 562: ``app`` is made once, when uvicorn (or anyone) first asks for it
+    if name == "app":
+        globals()["app"] = instance = create_app()
+        return instance
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

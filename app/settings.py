@@ -26,7 +26,6 @@ class Settings(BaseSettings):
     )
     max_body_bytes: int = Field(64 * 1024, ge=1024, description="largest accepted request body")
     max_compare_cells: int = Field(16, ge=1, le=256, description="largest ski × grind matrix")
-    max_load_kg: float = Field(150.0, gt=0, description="largest equivalent load [kg]")
     warm_up: bool = Field(
         True, description="solve one case at start-up so the first request is not slow"
     )

@@ -55,10 +55,10 @@ from fastapi.responses import HTMLResponse, Response
 from pydantic import ValidationError
 from skisnow.app import plots, service, units
 from skisnow.app.access import caller, visible_catalogue
+from skisnow.app.api.models import ContactBody
 from skisnow.app.jobs import uploads
 from skisnow.app.presets import DEFAULT_PRESET
 from skisnow.app.presets import PRESETS as ACCURACY_PRESETS
-from skisnow.app.schemas import ContactBody
 from skisnow.app.service.profiles import SERVED_MISFIT_LIMIT
 from skisnow.app.ski_figures import ski_figures
 from skisnow.app.storage.layout import Layout

@@ -19,6 +19,7 @@ from urllib.parse import urlencode
 from fastapi import FastAPI, Request
 from fastapi.responses import HTMLResponse
 from skisnow.app.access import visible_catalogue
+from skisnow.app.bounds import BODY_WEIGHT_KG, POROSITY, SNOW_MODULUS_MPA
 from skisnow.app.plots import flex_profile_svg
 from skisnow.app.service import UnknownItemError, flex
 from skisnow.app.web import _page
@@ -104,12 +105,9 @@ def _request(q: dict, errors: dict, ski: str, snow_required: bool) -> flex.FlexR
     w = _float(q, "body_weight_kg", errors)
     e = _float(q, "snow_modulus_mpa", errors, snow_required)
     n = _float(q, "porosity", errors, snow_required)
-    if w is not None and not 0 < w <= 300:
-        errors["body_weight_kg"] = "must be in (0, 300] kg"
-    if e is not None and not 1 <= e <= 2000:
-        errors["snow_modulus_mpa"] = "must be in [1, 2000] MPa"
-    if n is not None and not 0 <= n < 1:
-        errors["porosity"] = "must be in [0, 1)"
+    for b, v in ((BODY_WEIGHT_KG, w), (SNOW_MODULUS_MPA, e), (POROSITY, n)):
+        if v is not None and not b.contains(v):
+            errors[b.name] = f"must be in {b.text()}"
     if errors:
         return None
     return flex.FlexRequest(ski, w, e, n)

@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 from fastapi.testclient import TestClient
-from skisnow.app.api import create_app
+from skisnow.app.main import create_app
 from skisnow.app.settings import Settings
 
 

@@ -71,7 +71,7 @@ def _serve(app):
 
 @pytest.fixture(scope="module")
 def server(catalogue):
-    from skisnow.app.api import create_app
+    from skisnow.app.main import create_app
     from skisnow.app.settings import Settings
 
     with _serve(create_app(Settings(), catalogue=catalogue)) as url:
@@ -83,7 +83,7 @@ def upload_server(catalogue, tmp_path_factory):
     """The app on its own data directory and a copy of the catalogue, with table settings so
     small that a grind's table builds in seconds (as tests/test_uploads.py)."""
     from skisnow.app import service
-    from skisnow.app.api import create_app
+    from skisnow.app.main import create_app
     from skisnow.app.settings import Settings
 
     cat = service.Catalogue(
@@ -294,7 +294,7 @@ def flex_server(catalogue):
     import dataclasses
 
     from skisnow.app import service
-    from skisnow.app.api import create_app
+    from skisnow.app.main import create_app
     from skisnow.app.settings import Settings
     from test_flex import DESIGNS
 

@@ -12,7 +12,7 @@ import pytest
 from conftest import REPO
 from fastapi.testclient import TestClient
 from skisnow.app import service
-from skisnow.app.api import create_app
+from skisnow.app.main import create_app
 from skisnow.app.service.profiles import profile_model
 from skisnow.app.settings import Settings
 from skisnow.app.storage.skis import identified_beam, read_ski

@@ -26,9 +26,9 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 from skisnow.app import cli, service
-from skisnow.app.api import create_app
 from skisnow.app.jobs.table_build import build_tables
 from skisnow.app.jobs.table_settings import BuildSettings
+from skisnow.app.main import create_app
 from skisnow.app.settings import Settings
 from skisnow.app.storage.common import sha256_file
 from skisnow.app.storage.skis import read_ski, write_ski_manifest

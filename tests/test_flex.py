@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 from skisnow.app import service
-from skisnow.app.api import create_app
+from skisnow.app.main import create_app
 from skisnow.app.presets import get_preset
 from skisnow.app.service import flex
 from skisnow.app.service.profiles import profile_model

@@ -64,7 +64,7 @@ from schemathesis import GenerationMode
 from schemathesis.python import asgi
 from skisnow.app import service
 from skisnow.app.access import READ_ONLY_POSTS, WRITE_METHODS
-from skisnow.app.api import create_app
+from skisnow.app.main import create_app
 from skisnow.app.settings import Settings
 from skisnow.solvers.texture import self_affine_surface
 

@@ -10,9 +10,9 @@ import pytest
 from conftest import CONTACT_BODY
 from fastapi.testclient import TestClient
 from skisnow.app import service
-from skisnow.app.api import create_app
+from skisnow.app.bounds import PresetName
+from skisnow.app.main import create_app
 from skisnow.app.presets import DEFAULT_PRESET, PRESETS, get_preset
-from skisnow.app.schemas import PresetName
 from skisnow.app.settings import Settings
 from skisnow.solvers.errors import InputError
 from skisnow.solvers.macro import DEFAULT_PIXEL_ACROSS, DEFAULT_PIXEL_ALONG_M

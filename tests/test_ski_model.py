@@ -8,7 +8,7 @@ import pytest
 from conftest import CONTACT_BODY
 from fastapi.testclient import TestClient
 from skisnow.app import service
-from skisnow.app.api import create_app
+from skisnow.app.main import create_app
 from skisnow.app.settings import Settings
 
 #: papers' apparent areas (method.md §4) [cm²]

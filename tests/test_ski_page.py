@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 from skisnow.app import service, web
-from skisnow.app.api import create_app
+from skisnow.app.main import create_app
 from skisnow.app.service.profiles import HELD_OUT_ADDED, HELD_OUT_ERRORS, HELD_OUT_STORED
 from skisnow.app.service.reports import _identification_cases
 from skisnow.app.service.rounding import finite_list

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 from skisnow.app import service
-from skisnow.app.api import create_app
+from skisnow.app.main import create_app
 from skisnow.app.settings import Settings
 from skisnow.app.storage.catalogue import CatalogueDB
 from skisnow.solvers.beam import BeamSki

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from fastapi.testclient import TestClient
 from skisnow.app import web
-from skisnow.app.api import create_app
+from skisnow.app.main import create_app
 from skisnow.app.settings import Settings
 
 REPO = Path(__file__).resolve().parents[1]

@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from skisnow.app import service
+from skisnow.app import bounds, service
 from skisnow.app.service import flex
 from skisnow.app.storage.common import sha256_file, tables_dir
 from skisnow.app.storage.skis import read_ski
@@ -65,6 +65,17 @@ def _fmt(v, unit: str = "", band=None, digits: int = 1) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``skisnow flex``; exit 0."""
+    # the bounds of GET /v1/skis/{name}/flex (app.bounds)
+    for bound, flag, value in (
+        (bounds.BODY_WEIGHT_KG, "--body-weight-kg", args.body_weight_kg),
+        (bounds.SNOW_MODULUS_MPA, "--snow-modulus-mpa", args.snow_modulus_mpa),
+        (bounds.BASE_MODULUS_MPA, "--base-modulus-mpa", args.base_modulus_mpa),
+        (bounds.POISSON_RATIO, "--poisson", args.poisson),
+    ):
+        if value is not None and not bound.contains(value):
+            raise flex.field_error(
+                InputError, bound.name, f"{flag} must be in {bound.text()}, got {value:g}"
+            )
     cat = _catalogue(args.ski)
     req = flex.FlexRequest(
         args.ski,

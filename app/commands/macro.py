@@ -10,7 +10,7 @@ import json
 from pathlib import Path
 
 import numpy as np
-from skisnow.app import service
+from skisnow.app import bounds, service
 from skisnow.app.service.profiles import profile_model
 from skisnow.app.storage.skis import SHIPPED_SKI_DIR, read_camber_csv, read_ski
 from skisnow.solvers.beam import G_STANDARD
@@ -68,12 +68,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _si_inputs(args: argparse.Namespace) -> dict:
     """The one place where technician units become SI."""
-    if not np.isfinite(args.load_kg) or not (0 < args.load_kg <= 200):
-        raise InputError(f"--load-kg must be in (0, 200], got {args.load_kg}")
-    if not np.isfinite(args.load_position_mm) or abs(args.load_position_mm) > 1500:
-        raise InputError(f"--load-position-mm must be within ±1500, got {args.load_position_mm}")
-    if not np.isfinite(args.snow_modulus_mpa) or not (0 < args.snow_modulus_mpa <= 10000):
-        raise InputError(f"--snow-modulus-mpa must be in (0, 10000], got {args.snow_modulus_mpa}")
+    # the service's bounds (app.bounds): the CLI asks for nothing the API refuses
+    for bound, value in (
+        (bounds.LOAD_KG, args.load_kg),
+        (bounds.LOAD_POSITION_MM, args.load_position_mm),
+        (bounds.SNOW_MODULUS_MPA, args.snow_modulus_mpa),
+        (bounds.BASE_MODULUS_MPA, args.base_modulus_mpa),
+        (bounds.POISSON_RATIO, args.poisson),
+    ):
+        if not bound.contains(value):
+            flag = "--poisson" if bound is bounds.POISSON_RATIO else f"--{bound.name}"
+            raise InputError(f"{flag.replace('_', '-')} must be in {bound.text()}, got {value:g}")
     out = {
         "load_n": args.load_kg * G_STANDARD,
         "load_position_m": args.load_position_mm * 1e-3,

@@ -147,7 +147,7 @@ def _run_workers(host: str, port: int, workers: int) -> int:
 def run_solve(args: argparse.Namespace) -> int:
     from pydantic import ValidationError
     from skisnow.app import service
-    from skisnow.app.schemas import ContactBody
+    from skisnow.app.api.models import ContactBody
     from skisnow.app.settings import Settings
     from skisnow.solvers.errors import InputError
 

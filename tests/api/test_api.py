@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from conftest import CONTACT_BODY
 from fastapi.testclient import TestClient
-from skisnow.app.api import create_app
+from skisnow.app.main import create_app
 from skisnow.app.settings import Settings
 
 BODY = CONTACT_BODY

@@ -1,0 +1,328 @@
+"""Answers of the REST API (pydantic), as documented in ``/docs`` and ``/openapi.json``.
+
+Each model is exactly what its route sends: no field more or less (``extra="forbid"``, checked
+against real answers in tests/api/test_api_models.py). Nested parts whose keys depend on the case
+(the ski-model decision, the solver diagnostics, the flex sheet's sections) are
+``dict[str, Any]`` and described in words. Units are in the names.
+
+Routes whose answers are large (contact, compare, flex) send them as they are
+(``JSONResponse``): these models document them, they do not filter them.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+_FIXED = ConfigDict(extra="forbid")
+
+
+class Health(BaseModel):
+    model_config = _FIXED
+    status: str = Field(..., examples=["ok"])
+
+
+class Ready(BaseModel):
+    model_config = _FIXED
+    status: str = Field(..., examples=["ready"])
+    skis: list[str]
+    grinds: list[str]
+
+
+# ------------------------------------------------------------------------ catalogue lists
+
+
+class SkiSummary(BaseModel):
+    model_config = _FIXED
+    name: str
+    length_mm: float
+    width_mm: list[float] = Field(..., description="running-surface width, one or per position")
+    load_position_range_mm: list[float] = Field(..., description="[low, high] the model covers")
+    profile_model: str = Field(..., description="identified_beam, camber_network or design_beam")
+    profile_model_reason: str
+    network_metrics: str | None = Field(None, description="the camber network's metrics (JSON)")
+    description: str | None
+    file: str
+    sha256: str
+
+
+class SkiList(BaseModel):
+    model_config = _FIXED
+    skis: list[SkiSummary]
+
+
+class GrindSummary(BaseModel):
+    model_config = _FIXED
+    name: str
+    iso25178: dict[str, Any] = Field(..., description="ISO 25178 parameters, units in the keys")
+    texture_pixel_size_um: float
+    grid: list[int]
+    pressure_ratio_range: list[float] = Field(..., description="[low, high] of P_n/E' tabulated")
+    gap_floor_nm: float
+    detrend: str | None = Field(..., description="removed from the heights; null: not recorded")
+    file: str
+    sha256: str
+    code_version: str | None
+    git_commit: str | None
+
+
+class GrindList(BaseModel):
+    model_config = _FIXED
+    grinds: list[GrindSummary]
+
+
+# -------------------------------------------------------------------------- contact
+
+
+class CaseEcho(BaseModel):
+    """The inputs of the case as solved, with the load in N and E' in MPa."""
+
+    model_config = _FIXED
+    ski: str
+    grind: str
+    load_kg: float
+    load_position_mm: float
+    snow_modulus_mpa: float
+    porosity: float
+    base_modulus_mpa: float
+    poisson_ratio: float
+    preset: str
+    load_n: float
+    effective_modulus_mpa: float
+
+
+class Metrics(BaseModel):
+    """The four functional parameters."""
+
+    model_config = _FIXED
+    total_real_contact_area_mm2: float
+    average_real_contact_pressure_mpa: float
+    min_average_separation_um: float
+    total_reciprocal_separation_m: float
+
+
+class Zone(BaseModel):
+    model_config = _FIXED
+    name: str = Field(..., description="rear, mid or front of the load position")
+    start_mm: float
+    end_mm: float
+    length_mm: float
+    load_n: float
+    load_share: float
+    apparent_area_cm2: float
+    real_area_mm2: float
+    load_band_90_n: list[float] | None = Field(None, description="[low, high], with a band")
+
+
+class Apparent(BaseModel):
+    model_config = _FIXED
+    contact_area_cm2: float
+    mean_pressure_kpa: float
+    zones: list[Zone]
+
+
+class ResultWarning(BaseModel):
+    """A condition under which the answer is computed but not trustworthy (docs/limits.md)."""
+
+    model_config = _FIXED
+    code: str
+    detail: str
+
+
+class Distributions(BaseModel):
+    """Values along the ski, one per position (finite rows)."""
+
+    model_config = _FIXED
+    position_mm: list[float | None]
+    pressure_kpa: list[float | None]
+    clearance_um: list[float | None]
+    real_area_fraction: list[float | None]
+    average_separation_um: list[float | None]
+    reciprocal_separation_per_m: list[float | None]
+    pressure_band_low_kpa: list[float | None] | None = None
+    pressure_band_high_kpa: list[float | None] | None = None
+
+
+class TableProvenance(BaseModel):
+    model_config = _FIXED
+    file: str
+    sha256: str
+    texture_pixel_size_um: float
+    gap_floor_nm: float
+    pixel_error_estimate: dict[str, Any] = Field(
+        ..., description="estimated: false, or the table's error against the zero-pixel limit"
+    )
+
+
+class SkiProvenance(BaseModel):
+    model_config = _FIXED
+    file: str
+    sha256: str
+    profile_model: str
+
+
+class MacroProvenance(BaseModel):
+    model_config = _FIXED
+    converged: bool
+    iterations: int
+    residual: float
+    pixel_size_mm: list[float]
+    force_residual: float
+    moment_residual: float
+
+
+class Provenance(BaseModel):
+    model_config = _FIXED
+    code_version: str
+    preset: dict[str, Any] = Field(..., description="the accuracy preset's settings")
+    table: TableProvenance
+    ski: SkiProvenance
+    ski_model: dict[str, Any] = Field(
+        ..., description="requested, used and why (rigid or flexible), with the solves"
+    )
+    macro: MacroProvenance
+    multiscale: dict[str, Any] = Field(..., description="the multi-scale step's diagnostics")
+
+
+class Band(BaseModel):
+    """The 90 % error band of the answer (docs/limits.md)."""
+
+    model_config = _FIXED
+    level: float
+    relative_half_width: dict[str, float | None]
+    intervals: dict[str, list[float] | None]
+    zone_load_relative_half_width: list[float]
+    components: dict[str, dict[str, float | None]]
+    camber_model: dict[str, Any]
+    not_covered: list[str]
+    method: str
+
+
+class ContactAnswer(BaseModel):
+    """One ski × grind case."""
+
+    model_config = _FIXED
+    inputs: CaseEcho
+    metrics: Metrics
+    apparent: Apparent
+    warnings: list[ResultWarning]
+    distributions: Distributions
+    provenance: Provenance
+    timing_ms: dict[str, float] = Field(..., description="wall-clock time per step [ms]")
+    band: Band | None = None
+
+
+class CompareAnswer(BaseModel):
+    model_config = _FIXED
+    results: list[ContactAnswer] = Field(..., description="skis × grinds, ski-major order")
+
+
+# ----------------------------------------------------------------------------- flex
+
+
+class FlexSheet(BaseModel):
+    """The flex sheet of one ski (docs/flex.md); each section with its 90 % band."""
+
+    model_config = _FIXED
+    inputs: dict[str, Any]
+    pockets: list[dict[str, Any]] = Field(..., description="wax pocket per gap, half/full weight")
+    wax_zone: dict[str, Any]
+    foot_gap_half_weight_mm: float | None
+    foot_gap_half_weight_band_mm: float | None
+    closing_load: dict[str, Any]
+    kick_zone: dict[str, Any]
+    wheelbase: dict[str, Any]
+    glide_check: dict[str, Any]
+    band: dict[str, Any]
+    provenance: dict[str, Any]
+    timing_ms: dict[str, float] = Field(..., description="wall-clock time per step [ms]")
+    profiles: dict[str, list[float]] | None = Field(
+        None, description="the profile under half and full weight"
+    )
+
+
+class FlexPair(BaseModel):
+    model_config = _FIXED
+    inputs: dict[str, Any]
+    left: FlexSheet
+    right: FlexSheet
+    flex_differences: list[dict[str, Any]]
+    metric_differences: list[dict[str, Any]] | None
+    flagged: bool
+    flagged_quantities: list[str]
+    rule: str
+
+
+class FlexRanking(BaseModel):
+    model_config = _FIXED
+    inputs: dict[str, Any]
+    criterion: dict[str, Any]
+    ranking: list[dict[str, Any]]
+    left_out: list[dict[str, Any]]
+    rule: str
+
+
+# ------------------------------------------------------------------------ items, jobs
+
+
+class JobView(BaseModel):
+    model_config = _FIXED
+    id: str
+    kind: str
+    item: str | None
+    item_id: str | None
+    state: str = Field(..., description="queued, running, done or failed")
+    progress: float = Field(..., ge=0, le=1)
+    message: str
+    error: str | None
+    created_at: str
+    updated_at: str
+
+
+class JobList(BaseModel):
+    model_config = _FIXED
+    jobs: list[JobView]
+
+
+class ItemView(BaseModel):
+    """A catalogue item (no server paths)."""
+
+    model_config = _FIXED
+    id: str
+    kind: str
+    name: str
+    state: str
+    read_only: bool
+    team: str | None
+    metadata: dict[str, Any]
+    file: str | None
+    sha256: str | None
+    created_at: str
+    updated_at: str
+
+
+class ItemDetail(ItemView):
+    """An item, whether it is served, its jobs and, for a usable ski, its profile model and
+    beam (absent otherwise)."""
+
+    usable: bool
+    jobs: list[JobView]
+    profile_model: dict[str, Any] | None = None
+    beam: dict[str, Any] | None = None
+
+
+class GrindAccepted(BaseModel):
+    model_config = _FIXED
+    item: ItemView
+    job: str
+    job_url: str
+    iso25178: dict[str, Any]
+
+
+class SkiAccepted(BaseModel):
+    model_config = _FIXED
+    item: ItemView
+    job: str
+    job_url: str
+    data: dict[str, Any] = Field(..., description="what the camber file holds")

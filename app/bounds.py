@@ -1,0 +1,142 @@
+"""Bounds of every number a user can ask for: one source for the API, the CLI and the web form.
+
+As numbers (:class:`Bound`: the ends, open or closed, and the unit) and as the pydantic model of
+one case's inputs (:class:`CaseInputs`: load, snow, base, preset, ski model), which the API's
+bodies extend (:mod:`app.api.models`) and the web form validates with.
+
+The REST models (:mod:`app.api.models`, and through them ``skisnow solve`` and the web form),
+``skisnow macro`` and ``skisnow flex`` (checked before the solve, :meth:`Bound.contains`) and
+the flex pages read these; a CLI user cannot ask for what the service refuses. Units are
+technician units, in the names (kg, mm, MPa, -). These are the limits of the inputs, not of
+the model: a ski's camber model covers a narrower load and position range of its own
+(:attr:`app.service.Ski.load_range_n`), checked by the service with a 422.
+
+Imports nothing from the rooms of app/ (anyone in app/ may import it).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+__all__ = [
+    "BASE_MODULUS_MPA",
+    "BODY_WEIGHT_KG",
+    "LOAD_KG",
+    "LOAD_POSITION_MM",
+    "POISSON_RATIO",
+    "POROSITY",
+    "SNOW_MODULUS_MPA",
+    "Bound",
+    "CaseInputs",
+    "PresetName",
+    "SkiModelName",
+]
+
+
+@dataclass(frozen=True)
+class Bound:
+    """An interval of accepted values of one input.
+
+    ``low_open``/``high_open``: the end itself is refused (``gt``/``lt`` instead of
+    ``ge``/``le``). ``unit`` is written after values in messages ("" for dimensionless).
+    Whole-number ends are ints, so that schemas, messages and the form's ``min``/``max``
+    attributes read ``150``, not ``150.0``.
+    """
+
+    name: str
+    low: int | float
+    high: int | float
+    unit: str = ""
+    low_open: bool = False
+    high_open: bool = False
+
+    def field(self) -> dict[str, int | float]:
+        """Keyword arguments of :func:`pydantic.Field` / ``fastapi.Query`` (``gt``/``ge``,
+        ``lt``/``le``)."""
+        return {
+            "gt" if self.low_open else "ge": self.low,
+            "lt" if self.high_open else "le": self.high,
+        }
+
+    def text(self) -> str:
+        """The interval in words, e.g. ``(0, 150] kg``."""
+        lo, hi = "(" if self.low_open else "[", ")" if self.high_open else "]"
+        return f"{lo}{self.low:g}, {self.high:g}{hi}" + (f" {self.unit}" if self.unit else "")
+
+    def contains(self, value: float) -> bool:
+        """True when ``value`` is a finite number inside the interval."""
+        if not math.isfinite(value):
+            return False
+        above = value > self.low if self.low_open else value >= self.low
+        below = value < self.high if self.high_open else value <= self.high
+        return above and below
+
+    def check(self, value: float, name: str | None = None) -> float:
+        """``value`` if inside, else ``ValueError`` naming the input and the interval."""
+        if not self.contains(value):
+            raise ValueError(f"{name or self.name} must be in {self.text()}, got {value:g}")
+        return value
+
+
+#: equivalent load on one ski [kg] (the service's limit; a skier's full weight on one ski)
+LOAD_KG = Bound("load_kg", 0, 150, "kg", low_open=True)
+#: load position from the balance point, positive towards the tip [mm]
+LOAD_POSITION_MM = Bound("load_position_mm", -1000, 1000, "mm")
+#: Young's modulus of the snow [MPa]
+SNOW_MODULUS_MPA = Bound("snow_modulus_mpa", 1, 2000, "MPa")
+#: snow porosity n = 1 − ρ/917 [-]
+POROSITY = Bound("porosity", 0, 1, high_open=True)
+#: Young's modulus of the ski base [MPa]
+BASE_MODULUS_MPA = Bound("base_modulus_mpa", 1, 20000, "MPa")
+#: Poisson's ratio of snow and base [-]
+POISSON_RATIO = Bound("poisson_ratio", 0, 0.5, high_open=True)
+#: skier's body weight of the flex sheet [kg]
+BODY_WEIGHT_KG = Bound("body_weight_kg", 0, 300, "kg", low_open=True)
+
+
+#: names of :data:`app.presets.PRESETS` (checked equal in tests/test_presets.py)
+PresetName = Literal["fast", "default", "fine"]
+_PRESET_DOC = (
+    "accuracy preset: fast (8 mm × 4), default (4 mm × 8), fine (1 mm × 16) macro pixels; "
+    "see docs/benchmarks.md"
+)
+
+
+SkiModelName = Literal["rigid", "flexible", "auto"]
+_SKI_MODEL_DOC = (
+    "rigid: the ski keeps its loaded shape on the measuring device's flat (the papers' model); "
+    "flexible: the ski bends on the snow (beam and snow solved together, method.md §4b); "
+    "auto: rigid where it is within 2 % of flexible in apparent area, rear load share and the "
+    "four metrics, flexible elsewhere. provenance.ski_model says which was used and why."
+)
+
+#: descriptions of the bounded numbers (API, flex routes and web form show the same words)
+LOAD_DOC = "equivalent load [kg]"
+POSITION_DOC = "load position from the balance point, positive towards the tip [mm]"
+SNOW_MODULUS_DOC = "Young's modulus of the snow [MPa]"
+POROSITY_DOC = "snow porosity n = 1 − ρ/917 [-]"
+BASE_MODULUS_DOC = "Young's modulus of the ski base [MPa]"
+POISSON_DOC = "Poisson's ratio [-]"
+
+
+class CaseInputs(BaseModel):
+    """Load, snow, base and discretisation of one case (shared by contact and compare)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    load_kg: float = Field(..., **LOAD_KG.field(), description=LOAD_DOC, examples=[40])
+    load_position_mm: float = Field(
+        ..., **LOAD_POSITION_MM.field(), examples=[-160], description=POSITION_DOC
+    )
+    snow_modulus_mpa: float = Field(
+        ..., **SNOW_MODULUS_MPA.field(), description=SNOW_MODULUS_DOC, examples=[200]
+    )
+    porosity: float = Field(..., **POROSITY.field(), description=POROSITY_DOC, examples=[0.5])
+    base_modulus_mpa: float = Field(700.0, **BASE_MODULUS_MPA.field(), description=BASE_MODULUS_DOC)
+    poisson_ratio: float = Field(0.3, **POISSON_RATIO.field(), description=POISSON_DOC)
+    preset: PresetName = Field("default", description=_PRESET_DOC)
+    ski_model: SkiModelName = Field("auto", description=_SKI_MODEL_DOC)
