@@ -76,7 +76,7 @@ class Settings(BaseSettings):
     team_tokens: dict[str, str] = Field(
         default_factory=dict,
         description="bearer token -> team; empty (default): no authentication, and changes "
-        "must come from the service's own origin (app/access.py)",
+        "must come from the service's own origin (app/api/access.py)",
     )
     trusted_origins: list[str] = Field(
         default_factory=list,

@@ -31,7 +31,7 @@ Each combination is one :func:`app.service.contact` call; answers are kept in a 
 in-memory cache so that the CSV download after a results page costs nothing. The cache is keyed
 on the inputs and the sha256 of the ski and grind files, so a renamed item, or one deleted and
 uploaded again under its name, is never served an earlier item's answer. With team tokens the
-pages show what :func:`app.access.visible_catalogue` lets the request see (a browser sends no
+pages show what :func:`app.api.access.visible_catalogue` lets the request see (a browser sends no
 bearer token with a page request: the shipped items and those of no team).
 """
 
@@ -54,7 +54,7 @@ from fastapi import FastAPI, Request
 from fastapi.responses import HTMLResponse, Response
 from pydantic import ValidationError
 from skisnow.app import plots, service, units
-from skisnow.app.access import caller, visible_catalogue
+from skisnow.app.api.access import caller, visible_catalogue
 from skisnow.app.api.models import ContactBody
 from skisnow.app.jobs import uploads
 from skisnow.app.presets import DEFAULT_PRESET

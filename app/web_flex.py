@@ -18,7 +18,7 @@ from urllib.parse import urlencode
 
 from fastapi import FastAPI, Request
 from fastapi.responses import HTMLResponse
-from skisnow.app.access import visible_catalogue
+from skisnow.app.api.access import visible_catalogue
 from skisnow.app.bounds import BODY_WEIGHT_KG, POROSITY, SNOW_MODULUS_MPA
 from skisnow.app.plots import flex_profile_svg
 from skisnow.app.service import UnknownItemError, flex
@@ -172,7 +172,7 @@ full weight, wax-layer lines and the wax zone.</figcaption></figure>
 
 def _catalogue(request: Request):
     """The caller's catalogue, with the skis and grinds the query names loaded if another
-    process finished them (:func:`skisnow.app.access.visible_catalogue`)."""
+    process finished them (:func:`skisnow.app.api.access.visible_catalogue`)."""
     qp = request.query_params
     named = qp.getlist("ski") + [v for k in ("left", "right") if (v := qp.get(k))]
     return visible_catalogue(request, skis=named, grinds=qp.getlist("grind"))

@@ -15,7 +15,7 @@ app with its job runner for the module) with:
   none, and the service decides on content *and* suffix) and, in five of six cases, a real
   file instead of the generated text: a valid height map (``.npy``, ``.csv``) or camber CSV,
   whole, truncated or with bytes overwritten. A quarter of the changes carry an ``Origin`` or
-  ``Referer`` header, foreign or not (the same-origin check of :mod:`app.access`);
+  ``Referer`` header, foreign or not (the same-origin check of :mod:`app.api.access`);
 - **negative** cases: bodies, queries and headers that violate the schema (wrong types,
   missing or extra fields, out-of-range numbers, malformed JSON).
 
@@ -63,7 +63,7 @@ from hypothesis.errors import Unsatisfiable
 from schemathesis import GenerationMode
 from schemathesis.python import asgi
 from skisnow.app import service
-from skisnow.app.access import READ_ONLY_POSTS, WRITE_METHODS
+from skisnow.app.api.access import READ_ONLY_POSTS, WRITE_METHODS
 from skisnow.app.main import create_app
 from skisnow.app.settings import Settings
 from skisnow.solvers.texture import self_affine_surface

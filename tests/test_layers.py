@@ -47,8 +47,12 @@ TOP_LEVEL = {
     "errors": "shared",
     "path_pool": "shared",
 }
-#: (importing room, imported module prefix) allowed across one rank
-ALLOWED_ACROSS = {("web", "skisnow.app.api.problems")}
+#: (importing room, imported module) allowed across one rank: the web pages answer errors and
+#: check callers as the API does (one error module, one access module)
+ALLOWED_ACROSS = {
+    ("web", "skisnow.app.api.problems"),
+    ("web", "skisnow.app.api.access"),
+}
 
 
 def _modules() -> dict[str, Path]:

@@ -1,4 +1,4 @@
-"""Safe by default (issue #15, point 5): who may change and see what (app/access.py), the job
+"""Safe by default (issue #15, point 5): who may change and see what (app/api/access.py), the job
 quotas, the limit on the grid a table is solved on, and the web form's result cache keyed on
 content. Uploads are the tiny ones of tests/test_uploads.py (64² grind, 8-point tables)."""
 
@@ -9,7 +9,7 @@ import io
 
 import numpy as np
 import pytest
-from skisnow.app.access import cross_origin_reason
+from skisnow.app.api.access import cross_origin_reason
 from skisnow.solvers.texture import PERIODISATION_METHODS, make_periodic, periodic_shape
 from test_uploads import (
     CONTACT,
@@ -102,7 +102,7 @@ def test_cross_origin_changes_are_refused_without_tokens(catalogue, tmp_path):
         assert r.status_code == 200
         assert client.delete("/v1/grinds/mine-2", headers=SAME).status_code == 204
 
-        # computations change nothing and stay open (app/access.py READ_ONLY_POSTS)
+        # computations change nothing and stay open (app/api/access.py READ_ONLY_POSTS)
         r = client.post(
             "/v1/contact", json={"ski": "ski-a", "grind": "curl", **CONTACT}, headers=EVIL
         )

@@ -5,10 +5,10 @@
   :mod:`.grinds`, :mod:`.items` (one item of either), :mod:`.jobs`, :mod:`.flex`;
 - :mod:`.models` (request bodies, bounds from :mod:`app.bounds`), :mod:`.responses` (answers);
 - :mod:`.problems` (problem bodies and their OpenAPI schema: the one error module, which the web
-  pages and :mod:`app.access` may use too), :mod:`.handlers` (exceptions → problems),
+  pages and :mod:`app.api.access` may use too), :mod:`.handlers` (exceptions → problems),
   :mod:`.limits` (body size), :mod:`.catalogue` (the uploads' state and request checks).
 
-May import the service layer (:mod:`app.service`, :mod:`app.jobs.uploads`, :mod:`app.access`, ...),
+May import the service layer (:mod:`app.service`, :mod:`app.jobs.uploads`, :mod:`app.api.access`, ...),
 storage, solvers and the top-level modules; never the web pages or a command. Importing this
 package imports none of its modules (``app.api.problems`` stays light for the web pages).
 """

@@ -4,7 +4,7 @@
 :func:`start` and :func:`stop` run in the app's lifespan (catalogue database, job runner;
 :func:`app.api.factory.create_api`). Thin routes: each checks the request with the helpers here
 and calls one function of :mod:`app.jobs.uploads`. Who may change and see what is
-:mod:`app.access`: changes pass its write guard first; with team tokens, reads show the
+:mod:`app.api.access`: changes pass its write guard first; with team tokens, reads show the
 caller's team's items and jobs (and the shipped ones and those of no team), another team's are
 404. Uploads are refused with 429
 beyond the job quotas (``max_jobs_per_team``, ``max_queued_jobs``). See docs/uploads.md.
@@ -21,8 +21,8 @@ from typing import Annotated
 
 from fastapi import Depends, FastAPI, Request, UploadFile
 from fastapi.responses import JSONResponse
-from skisnow.app import access
-from skisnow.app.access import Caller
+from skisnow.app.api import access
+from skisnow.app.api.access import Caller
 from skisnow.app.errors import (
     ConflictError,
     ForbiddenError,
@@ -119,7 +119,7 @@ def catalogue_state(request: Request) -> CatalogueState:
 
 def changing_team(request: Request) -> str | None:
     """The changing caller's team from ``Authorization: Bearer TOKEN`` (None when teams are
-    off; the write guard of :mod:`app.access` has refused a missing or bad token already)."""
+    off; the write guard of :mod:`app.api.access` has refused a missing or bad token already)."""
     tokens = request.app.state.settings.team_tokens
     if not tokens:
         return None

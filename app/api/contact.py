@@ -11,8 +11,8 @@ from __future__ import annotations
 from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
 from skisnow.app import service
-from skisnow.app.access import visible_catalogue
 from skisnow.app.api import problems
+from skisnow.app.api.access import visible_catalogue
 from skisnow.app.api.models import CompareBody, ContactBody
 from skisnow.app.api.responses import CompareAnswer, ContactAnswer
 

@@ -3,7 +3,7 @@
 :func:`create_api` builds it; :func:`app.main.create_app` adds the web pages. Every error a
 user can cause is a problem body (:mod:`app.api.problems`, mapped in :mod:`app.api.handlers`);
 bodies over the limit are 413 (:mod:`app.api.limits`). Who may change and see what (tokens,
-the same-origin check of changes, team filtering) is :mod:`app.access`.
+the same-origin check of changes, team filtering) is :mod:`app.api.access`.
 """
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ from contextlib import asynccontextmanager
 from fastapi import FastAPI
 from fastapi.openapi.utils import get_openapi
 from skisnow.app import service
-from skisnow.app.access import WriteGuardMiddleware
 from skisnow.app.api import catalogue as catalogue_state
 from skisnow.app.api import contact, flex, grinds, handlers, jobs, ops, problems, skis
+from skisnow.app.api.access import WriteGuardMiddleware
 from skisnow.app.api.limits import BodyLimitMiddleware
 from skisnow.app.settings import Settings
 

@@ -18,8 +18,8 @@ from fastapi import APIRouter, Query, Request
 from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, ConfigDict, Field
 from skisnow.app import bounds
-from skisnow.app.access import visible_catalogue
 from skisnow.app.api import problems
+from skisnow.app.api.access import visible_catalogue
 from skisnow.app.api.responses import FlexPair, FlexRanking, FlexSheet
 from skisnow.app.bounds import PresetName, SkiModelName
 from skisnow.app.service import flex

@@ -11,9 +11,9 @@ from typing import Annotated, Literal
 
 from fastapi import APIRouter, Depends, File, Form, Request, UploadFile
 from fastapi.responses import JSONResponse
-from skisnow.app.access import visible_catalogue
 from skisnow.app.api import catalogue as C
 from skisnow.app.api import problems
+from skisnow.app.api.access import visible_catalogue
 from skisnow.app.api.items import item_routes
 from skisnow.app.api.responses import GrindAccepted, GrindList
 from skisnow.app.jobs import uploads

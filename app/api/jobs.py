@@ -1,6 +1,6 @@
 """Job routes: the background jobs of uploads (table builds, ski identification/training).
 
-Another team's job is 404 (:mod:`app.access`); see docs/uploads.md.
+Another team's job is 404 (:mod:`app.api.access`); see docs/uploads.md.
 """
 
 from __future__ import annotations

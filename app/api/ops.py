@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
-from skisnow.app.access import visible_catalogue
 from skisnow.app.api import problems
+from skisnow.app.api.access import visible_catalogue
 from skisnow.app.api.responses import Health, Ready
 
 router = APIRouter(tags=["ops"])

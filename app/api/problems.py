@@ -2,7 +2,7 @@
 
 :func:`problem` renders one; :class:`Problem` is its schema, declared in OpenAPI for every
 error a route can send (:func:`responses`, :func:`add_to_openapi`). Used by the API's routes and
-handlers, by the write guard of :mod:`app.access` and free for the web pages. Imports nothing
+handlers, by the write guard of :mod:`app.api.access` and free for the web pages. Imports nothing
 from app/ (web may import it without importing the API's routes).
 """
 
