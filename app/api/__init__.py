@@ -8,7 +8,7 @@
   pages and :mod:`app.api.access` may use too), :mod:`.handlers` (exceptions → problems),
   :mod:`.limits` (body size), :mod:`.catalogue` (the uploads' state and request checks).
 
-May import the service layer (:mod:`app.service`, :mod:`app.jobs.uploads`, :mod:`app.api.access`, ...),
+May import the service and jobs layers (:mod:`app.service`, :mod:`app.jobs.uploads`, ...),
 storage, solvers and the top-level modules; never the web pages or a command. Importing this
 package imports none of its modules (``app.api.problems`` stays light for the web pages).
 """
