@@ -24,6 +24,7 @@ COMMAND_MODULES = [
     "skisnow.app.commands.identify",
     "skisnow.app.train_camber",
     "skisnow.app.commands.serve",
+    "skisnow.app.commands.solve",
     "skisnow.app.commands.worker",
     "skisnow.app.commands.report",
 ]
