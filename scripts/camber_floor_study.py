@@ -50,8 +50,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from skisnow.app import train_camber as tc  # noqa: E402
 from skisnow.app.storage import common, skis  # noqa: E402
+from skisnow.app.training import fit as tc  # noqa: E402
 from skisnow.solvers import beam, elastic  # noqa: E402
 
 log = logging.getLogger("camber_floor_study")

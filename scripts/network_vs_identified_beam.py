@@ -64,9 +64,9 @@ sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "scripts"))
 
 import camber_floor_study as cfs  # noqa: E402
-from skisnow.app import train_camber as tc  # noqa: E402
 from skisnow.app.profiles import ProfileModel  # noqa: E402
 from skisnow.app.storage import common, skis  # noqa: E402
+from skisnow.app.training import fit as tc  # noqa: E402
 from skisnow.solvers import elastic  # noqa: E402
 from skisnow.solvers.macro import extrude_profile, solve_macro  # noqa: E402
 

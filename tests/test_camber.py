@@ -14,7 +14,7 @@ import pytest
 
 torch = pytest.importorskip("torch", reason="torch is a test dependency (skisnow[test])")
 
-from skisnow.app import train_camber  # noqa: E402
+from skisnow.app.training import fit as train_camber  # noqa: E402
 from skisnow.solvers import camber  # noqa: E402
 from skisnow.solvers.errors import DataFileError, InputError, OutOfRangeError  # noqa: E402
 
