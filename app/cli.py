@@ -22,7 +22,7 @@ COMMAND_MODULES = [
     "skisnow.app.commands.macro",
     "skisnow.app.commands.flex",
     "skisnow.app.commands.identify",
-    "skisnow.app.training.fit",
+    "skisnow.app.commands.train_camber",
     "skisnow.app.commands.serve",
     "skisnow.app.report",
 ]

@@ -551,7 +551,7 @@ def check_ski_upload(
         The measurements, the outline and figures of the data (cases, spacing, side used).
     """
     from skisnow.app.storage.skis import SkiOutline, read_camber_csv
-    from skisnow.app.training.fit import camber_training_arrays, split_load_cases
+    from skisnow.app.training.data import camber_training_arrays, split_load_cases
 
     if Path(filename).suffix.lower() not in (".csv", ".txt"):
         raise UnsupportedContentError(
@@ -670,11 +670,9 @@ def accept_ski(
 def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -> str:
     """Job ``ski-network``: train the camber network, check it, write the ski file."""
     from skisnow.app.storage.skis import SkiOutline, SkiRecord, read_camber_csv, read_ski, write_ski
-    from skisnow.app.training.fit import (
-        camber_training_arrays,
-        train_camber_network,
-        write_network_to_ski,
-    )
+    from skisnow.app.training.data import camber_training_arrays
+    from skisnow.app.training.files import write_network_to_ski
+    from skisnow.app.training.fit import train_camber_network
 
     item = ctx.item
     data = read_camber_csv(layout.ski_csv(item.id))
