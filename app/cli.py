@@ -22,7 +22,7 @@ COMMAND_MODULES = [
     "skisnow.app.commands.macro",
     "skisnow.app.commands.flex",
     "skisnow.app.commands.identify",
-    "skisnow.app.train_camber",
+    "skisnow.app.commands.train_camber",
     "skisnow.app.commands.serve",
     "skisnow.app.commands.solve",
     "skisnow.app.commands.worker",

@@ -17,7 +17,7 @@ LxP`` adds both variants on a denser measuring grid (L loads 10–90 kg × P pos
 
 Every variant is one ensemble member (``--ensemble``), seed 0, the command's other defaults
 (relu 2 × 64, 5 mm nodes, 10 mm output smoothing), checked by
-:func:`app.train_camber.truth_check` on the network's held-out test cases, 32 loads drawn
+:func:`app.training.check.truth_check` on the network's held-out test cases, 32 loads drawn
 uniformly from the trained range (seed 0) and the papers' case 40 kg at −160 mm, through the
 macro BEM at E_snow = 200 MPa. Results: ``docs/studies/camber-floor.json`` and ``.png``
 (atomic writes, provenance inside).
@@ -50,8 +50,11 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from skisnow.app import train_camber as tc  # noqa: E402
 from skisnow.app.storage import common, skis  # noqa: E402
+from skisnow.app.training.check import beam_truth_profiles, truth_check  # noqa: E402
+from skisnow.app.training.data import camber_training_arrays, split_load_cases  # noqa: E402
+from skisnow.app.training.fit import _fit_member, train_camber_network  # noqa: E402
+from skisnow.app.training.model import smoothing_matrix, sum_networks, torch_threads  # noqa: E402
 from skisnow.solvers import beam, elastic  # noqa: E402
 
 log = logging.getLogger("camber_floor_study")
@@ -65,10 +68,10 @@ GRID_SEED = 7
 
 def variants(record, grid: tuple[int, int] | None):
     """(name, loads [N], positions [m], profiles [m]) of every training set to compare."""
-    _, x, f, xf, h, _ = tc.camber_training_arrays(record.measurements)
+    _, x, f, xf, h, _ = camber_training_arrays(record.measurements)
     out = [
         ("measured", f, xf, h),
-        ("noise-free", f, xf, tc.beam_truth_profiles(record.beam, x, f, xf)),
+        ("noise-free", f, xf, beam_truth_profiles(record.beam, x, f, xf)),
     ]
     if grid is not None:
         loads = np.linspace(10.0, 90.0, grid[0]) * beam.G_STANDARD
@@ -102,9 +105,9 @@ def residual_stage(
 
     The first network (frozen) gives S1 at the nodes; a second MLP of the same width and
     activation, with its output scaled to ``scale_m`` per node and smoothed by
-    ``smoothing_m``, minimises the training loss of S1 + S2 (``app.train_camber._fit_member``
+    ``smoothing_m``, minimises the training loss of S1 + S2 (``app.training.fit._fit_member``
     with ``base = S1``: same loss, split, Adam then L-BFGS and early stopping as the first).
-    :func:`app.train_camber.sum_networks` adds the two into one MLP of the stored schema
+    :func:`app.training.model.sum_networks` adds the two into one MLP of the stored schema
     (stacked first layer, block-diagonal hidden layers, concatenated
     last layer), exactly like the ensemble fold.
     """
@@ -114,16 +117,16 @@ def residual_stage(
     x = np.asarray(network["positions_m"])
     node_idx = camber.select_nodes(x, float(network["attrs"]["node_spacing_m"]))
     nodes = x[node_idx]
-    split = tc.split_load_cases(f, xf, seed=int(network["attrs"]["seed"]))
+    split = split_load_cases(f, xf, seed=int(network["attrs"]["seed"]))
     band = float(network["attrs"]["contact_band_m"])
     hidden = [int(v) for v in str(network["attrs"]["hidden_layers"]).split(",")]
     if not np.allclose(network["output_scale"], 1.0):
         raise ValueError("residual_stage needs a folded network (output_scale 1)")
     activation = str(network["attrs"]["activation"])
-    g = tc.smoothing_matrix(nodes, smoothing_m)
+    g = smoothing_matrix(nodes, smoothing_m)
     f_in = (np.stack([f, xf], axis=1) - network["input_offset"]) / network["input_scale"]
-    with tc._torch_threads(torch, 1):
-        member = tc._fit_member(
+    with torch_threads(torch, 1):
+        member = _fit_member(
             torch,
             seed=seed,
             sizes=[2, *hidden, int(nodes.size)],
@@ -150,7 +153,7 @@ def residual_stage(
         [np.asarray(network[f"layer{i}_weight"]) for i in range(n)],
         [np.asarray(network[f"layer{i}_bias"]) for i in range(n)],
     )
-    weights, biases = tc.sum_networks([first, (w2, b2)])
+    weights, biases = sum_networks([first, (w2, b2)])
     out = dict(network)
     out["attrs"] = dict(network["attrs"])
     for i in range(n):
@@ -161,7 +164,7 @@ def residual_stage(
 
 def evaluate(record, network, name: str, n_cases: int, train_s: float) -> dict:
     """Truth check of one trained network (module docstring) as a JSON-ready row."""
-    t = tc.truth_check(
+    t = truth_check(
         network,
         record.beam,
         n_random=32,
@@ -195,7 +198,7 @@ def train_variant(x, f, xf, h, name: str, ensemble: int = 1, **kwargs) -> tuple[
     ``ensemble`` members, seed 0 (``kwargs`` override other settings, e.g. ``epochs``).
     Returns the network dict and the training time [s]."""
     t0 = time.perf_counter()
-    res = tc.train_camber_network(x, f, xf, h, ensemble=ensemble, seed=0, ski_id=name, **kwargs)
+    res = train_camber_network(x, f, xf, h, ensemble=ensemble, seed=0, ski_id=name, **kwargs)
     return res.network, time.perf_counter() - t0
 
 

@@ -64,9 +64,9 @@ sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "scripts"))
 
 import camber_floor_study as cfs  # noqa: E402
-from skisnow.app import train_camber as tc  # noqa: E402
 from skisnow.app.service.profiles import ProfileModel  # noqa: E402
 from skisnow.app.storage import common, skis  # noqa: E402
+from skisnow.app.training.check import beam_truth_profiles  # noqa: E402
 from skisnow.solvers import elastic  # noqa: E402
 from skisnow.solvers.macro import extrude_profile, solve_macro  # noqa: E402
 
@@ -123,7 +123,7 @@ def train_networks(
     out = {}
     for name, rows in sets:
         f, xf = m.loads_n[rows], m.load_positions_m[rows]
-        h = tc.beam_truth_profiles(beam, x, f, xf)
+        h = beam_truth_profiles(beam, x, f, xf)
         log.info("%s: training %s on %d cases, %d epochs", ski, name, f.size, epochs)
         net, train_s = cfs.train_variant(
             x, f, xf, h, f"{ski} {name}", epochs=epochs, lbfgs_epochs=lbfgs_epochs
@@ -213,7 +213,7 @@ def study_ski(ski: str, networks: dict, repeats: int) -> dict:
     times = timings(models, f, xf, repeats)
     yardstick = papers_case_timing(record, beam_model, 10 * repeats)
 
-    truth = tc.beam_truth_profiles(record.beam, m.positions_m, f, xf)
+    truth = beam_truth_profiles(record.beam, m.positions_m, f, xf)
     truth_area = np.array([area(record, truth[k], f[k], xf[k]) for k in range(f.size)])
     rows = []
     for name, model in models.items():

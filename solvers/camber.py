@@ -2,7 +2,7 @@
 
 A camber measuring device presses the ski with one point load ``(F, x_F)`` against a rigid flat
 and records the gap ``H*(X) ≥ 0`` between base and flat. The network, trained per ski on such
-measurements (training: :mod:`app.train_camber`, needs torch), maps ``(F, x_F)`` to the whole
+measurements (training: :mod:`app.training`, needs torch), maps ``(F, x_F)`` to the whole
 loaded profile ``H*(X)``. This module is the torch-free inference: pure numpy on a plain dict.
 
 Network (schema ``"skisnow.camber-mlp/1"``)
@@ -90,7 +90,7 @@ CONTACT_BAND_M = 0.2e-3
 #: relative tolerance on the edges of the trained range (float rounding of stored bounds) [-]
 _RANGE_RTOL = 1e-9
 
-#: hidden-layer activations (numpy); app.train_camber has the torch twins
+#: hidden-layer activations (numpy); app.training.model has the torch twins
 ACTIVATIONS = {
     "tanh": np.tanh,
     "relu": lambda a: np.maximum(a, 0.0),

@@ -14,7 +14,11 @@ import pytest
 
 torch = pytest.importorskip("torch", reason="torch is a test dependency (skisnow[test])")
 
-from skisnow.app import train_camber  # noqa: E402
+from skisnow.app.training.check import beam_truth_profiles, contact_area_check  # noqa: E402
+from skisnow.app.training.data import camber_training_arrays, split_load_cases  # noqa: E402
+from skisnow.app.training.files import read_network_from_ski, write_network_to_ski  # noqa: E402
+from skisnow.app.training.fit import train_camber_network  # noqa: E402
+from skisnow.app.training.model import fold_members, smoothing_matrix, sum_networks, torch_predict  # noqa: E402
 from skisnow.solvers import camber  # noqa: E402
 from skisnow.solvers.errors import DataFileError, InputError, OutOfRangeError  # noqa: E402
 
@@ -55,7 +59,7 @@ def train_camber_network_short(f, xf, h, seed, epochs=300, lbfgs_epochs=150, **k
     # tanh suits this smooth family (the demo skis' beam data, with kinks where contacts appear,
     # default to relu); smoothing and the other settings are the defaults
     kwargs.setdefault("activation", "tanh")
-    return train_camber.train_camber_network(
+    return train_camber_network(
         GRID_M,
         f,
         xf,
@@ -102,7 +106,7 @@ def test_numpy_inference_matches_torch(trained):
     f = rng.uniform(net["attrs"]["load_min_n"], net["attrs"]["load_max_n"], 50)
     xf = rng.uniform(net["attrs"]["load_position_min_m"], net["attrs"]["load_position_max_m"], 50)
     ours = camber.predict_profiles(net, f, xf).gaps_m
-    ref = train_camber.torch_predict(net, f, xf)
+    ref = torch_predict(net, f, xf)
     assert ours.shape == (50, GRID_M.size)
     np.testing.assert_allclose(ours, ref, rtol=1e-6, atol=1e-6 * np.abs(ref).max())
     # and not trivially: the gaps vary with the load
@@ -184,9 +188,9 @@ def test_hdf5_round_trip(trained, tmp_path):
     with h5py.File(path, "w") as fh:
         fh.attrs["ski_id"] = "synthetic"
         fh.create_dataset("other", data=np.arange(3))
-    train_camber.write_network_to_ski(path, net)
-    train_camber.write_network_to_ski(path, net)  # replacing an existing group works too
-    back = train_camber.read_network_from_ski(path)
+    write_network_to_ski(path, net)
+    write_network_to_ski(path, net)  # replacing an existing group works too
+    back = read_network_from_ski(path)
     _assert_same_network(back, net)
     f, xf = [150.0, 650.0], [-0.2, 0.0]
     np.testing.assert_array_equal(
@@ -217,7 +221,7 @@ def test_round_trip_through_ski_storage(trained, tmp_path):
     skis.write_ski(path, skis.SkiRecord(data, outline), network=net)
     _assert_same_network(camber.network_to_dict(skis.read_ski(path).network), net)
     # and the in-place update keeps the measurements readable by the storage module
-    train_camber.write_network_to_ski(path, net)
+    write_network_to_ski(path, net)
     record = skis.read_ski(path)
     np.testing.assert_array_equal(record.measurements.profiles_m, data.profiles_m)
     _assert_same_network(camber.network_to_dict(record.network), net)
@@ -240,14 +244,14 @@ def test_schema_is_checked(trained):
 
 def test_split_holds_out_interior_cases_only():
     f, xf = _cases()
-    split = train_camber.split_load_cases(f, xf, validation_fraction=0.15, test_fraction=0.15)
+    split = split_load_cases(f, xf, validation_fraction=0.15, test_fraction=0.15)
     held = np.concatenate([split["validation"], split["test"]])
     assert np.intersect1d(held, split["train"]).size == 0
     assert np.union1d(held, split["train"]).size == f.size
     assert (f[held] > f.min()).all() and (f[held] < f.max()).all()
     assert (xf[held] > xf.min()).all() and (xf[held] < xf.max()).all()
     with pytest.raises(InputError, match="interior"):
-        train_camber.split_load_cases(f[:5], xf[:5])
+        split_load_cases(f[:5], xf[:5])
 
 
 def test_training_is_deterministic():
@@ -268,12 +272,12 @@ def test_training_rejects_bad_data():
     bad = h.copy()
     bad[0, 5] = -60e-6  # below the device-noise allowance of -50 µm
     with pytest.raises(InputError, match="profiles_m must be >="):
-        train_camber.train_camber_network(GRID_M, f, xf, bad, epochs=1)
+        train_camber_network(GRID_M, f, xf, bad, epochs=1)
     bad[0, 5] = np.nan
     with pytest.raises(InputError, match="NaN"):
-        train_camber.train_camber_network(GRID_M, f, xf, bad, epochs=1)
+        train_camber_network(GRID_M, f, xf, bad, epochs=1)
     with pytest.raises(InputError, match="shape"):
-        train_camber.train_camber_network(GRID_M, f, xf, h[:, :-1], epochs=1)
+        train_camber_network(GRID_M, f, xf, h[:, :-1], epochs=1)
 
 
 def _relu(a):
@@ -303,9 +307,9 @@ def test_ensemble_fold_equals_mean_of_members():
     ]
     nodes = np.linspace(0.0, 0.04, 5)
     off, scale = rng.normal(size=5), rng.uniform(0.5, 2.0, size=5)
-    g = train_camber.smoothing_matrix(nodes, 0.01)
+    g = smoothing_matrix(nodes, 0.01)
     np.testing.assert_allclose(g.sum(axis=1), 1.0)
-    weights, biases = train_camber._fold_members(members, off, scale, g)
+    weights, biases = fold_members(members, off, scale, g)
     z = rng.normal(size=(4, 2))
     mean = np.mean(
         [(off + scale * _mlp(z, m["weights"], m["biases"], _relu)) @ g.T for m in members], 0
@@ -326,13 +330,13 @@ def test_sum_networks_output_is_the_sum(sizes):
         )
         for _ in range(2)
     ]
-    weights, biases = train_camber.sum_networks(members)
+    weights, biases = sum_networks(members)
     z = rng.normal(size=(6, 2))
     expected = sum(_mlp(z, w, b, np.tanh) for w, b in members)
     np.testing.assert_allclose(_mlp(z, weights, biases, np.tanh), expected, rtol=1e-12, atol=1e-12)
     with pytest.raises(InputError):
         extra = (members[1][0] + members[1][0][-1:], members[1][1] + members[1][1][-1:])
-        train_camber.sum_networks([members[0], extra])
+        sum_networks([members[0], extra])
 
 
 def test_signed_node_gaps_interpolate_to_the_prediction(trained):
@@ -359,7 +363,7 @@ def test_relu_ensemble_numpy_matches_torch():
     loads = np.linspace(150.0, 650.0, 7)
     pos = np.linspace(-0.2, 0.0, 7)
     ours = camber.predict_profiles(net, loads, pos).gaps_m
-    ref = train_camber.torch_predict(net, loads, pos)
+    ref = torch_predict(net, loads, pos)
     np.testing.assert_allclose(ours, ref, rtol=1e-6, atol=1e-6 * np.abs(ref).max())
 
 
@@ -370,12 +374,12 @@ def test_contact_area_check_reports_errors(trained):
     loads, pos = np.array([392.8]), np.array([-0.16])
     own = camber.predict_profiles(net, loads, pos).gaps_m
     kwargs = {"width_m": 0.044, "effective_modulus_pa": 3.4e8}
-    same = train_camber.contact_area_check(net, loads, pos, own, **kwargs)
+    same = contact_area_check(net, loads, pos, own, **kwargs)
     assert same["converged"]
     assert same["max_abs_relative_error"] == 0.0
     assert same["area_true_m2"][0] > 0
     rough = own + 2e-6 * np.random.default_rng(0).standard_normal(own.shape)
-    worse = train_camber.contact_area_check(net, loads, pos, np.maximum(rough, 0), **kwargs)
+    worse = contact_area_check(net, loads, pos, np.maximum(rough, 0), **kwargs)
     assert worse["max_abs_relative_error"] > 0.03
 
 
@@ -422,7 +426,7 @@ def test_sides_left_right_are_averaged():
         sides=["left", "right", "right", "left"],
         profiles_m=h,
     )
-    _, _, f, xf, prof, side = train_camber.camber_training_arrays(data)
+    _, _, f, xf, prof, side = camber_training_arrays(data)
     assert side == "left+right"
     np.testing.assert_array_equal(f, [100.0, 200.0])
     np.testing.assert_array_equal(xf, [0.0, 0.1])
@@ -430,9 +434,9 @@ def test_sides_left_right_are_averaged():
     data.sides = ["left", "right", "right", "right"]
     data.load_positions_m = np.array([0.0, 0.0, 0.1, 0.2])
     with pytest.raises(InputError, match="one side only"):
-        train_camber.camber_training_arrays(data)
+        camber_training_arrays(data)
     data.sides = ["mean", "left", "right", "mean"]
-    _, _, f, _, prof, side = train_camber.camber_training_arrays(data)
+    _, _, f, _, prof, side = camber_training_arrays(data)
     assert side == "mean" and f.size == 2
 
 
@@ -461,7 +465,7 @@ def test_demo_ski_network_against_beam_truth(name):
     rng = np.random.default_rng(7)
     f = rng.uniform(a["load_min_n"], a["load_max_n"], 8)
     xf = rng.uniform(a["load_position_min_m"], a["load_position_max_m"], 8)
-    truth = train_camber.beam_truth_profiles(record.beam, net["positions_m"], f, xf)
+    truth = beam_truth_profiles(record.beam, net["positions_m"], f, xf)
     pred = camber.predict_profiles(net, f, xf).gaps_m
     band = truth < camber.CONTACT_BAND_M
     assert np.sqrt(np.mean((pred - truth)[band] ** 2)) < 2.5e-6
@@ -488,8 +492,8 @@ def _demo_area_errors(name: str, n_random: int = 12) -> tuple[np.ndarray, np.nda
     xf = np.concatenate(
         [[-0.160], rng.uniform(a["load_position_min_m"], a["load_position_max_m"], n_random)]
     )
-    truth = train_camber.beam_truth_profiles(record.beam, net["positions_m"], f, xf)
-    check = train_camber.contact_area_check(
+    truth = beam_truth_profiles(record.beam, net["positions_m"], f, xf)
+    check = contact_area_check(
         net,
         f,
         xf,

@@ -25,11 +25,9 @@ log = logging.getLogger(__name__)
 def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -> str:
     """Job ``ski-network``: train the camber network, check it, write the ski file."""
     from skisnow.app.storage.skis import SkiOutline, SkiRecord, read_camber_csv, read_ski, write_ski
-    from skisnow.app.train_camber import (
-        camber_training_arrays,
-        train_camber_network,
-        write_network_to_ski,
-    )
+    from skisnow.app.training.data import camber_training_arrays
+    from skisnow.app.training.files import write_network_to_ski
+    from skisnow.app.training.fit import train_camber_network
 
     item = ctx.item
     data = read_camber_csv(layout.ski_csv(item.id))

@@ -399,7 +399,7 @@ def check_ski_upload(
         The measurements, the outline and figures of the data (cases, spacing, side used).
     """
     from skisnow.app.storage.skis import SkiOutline, read_camber_csv
-    from skisnow.app.train_camber import camber_training_arrays, split_load_cases
+    from skisnow.app.training.data import camber_training_arrays, split_load_cases
 
     if Path(filename).suffix.lower() not in (".csv", ".txt"):
         raise UnsupportedContentError(
