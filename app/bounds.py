@@ -98,7 +98,7 @@ POISSON_RATIO = Bound("poisson_ratio", 0, 0.5, high_open=True)
 BODY_WEIGHT_KG = Bound("body_weight_kg", 0, 300, "kg", low_open=True)
 
 
-#: names of :data:`app.presets.PRESETS` (checked equal in tests/test_presets.py)
+#: names of :data:`app.presets.PRESETS` (checked equal in tests/service/test_presets.py)
 PresetName = Literal["fast", "default", "fine"]
 _PRESET_DOC = (
     "accuracy preset: fast (8 mm × 4), default (4 mm × 8), fine (1 mm × 16) macro pixels; "

@@ -18,12 +18,12 @@ Per quantity it records the five values, the band's components (camber model, ta
 interpolation) and whether the minimum separation is unresolved. Two sets of cases:
 
 ``test``
-    the calibration test's own cases (tests/test_band.py): the camber network's test-split loads
+    the calibration test's own cases (tests/service/test_band.py): the camber network's test-split loads
     of both demo skis (8 per ski, seed 0) at 20, 100 and 500 MPa;
 ``calib``
     cases the test does not use: other held-out loads of the demo skis (the identification's
     held-out cases, 8 per ski not in the test's, seed 1) at 10, 50, 200 and 1000 MPa, and two
-    beam skis of other designs (``tests/test_identify.py``'s 'stiff' and 'soft', answered by
+    beam skis of other designs (``tests/solvers/test_identify.py``'s 'stiff' and 'soft', answered by
     their design beam, which is exact: their error is the grid's alone) at 12 loads each
     (seed 2) and the same four moduli.
 
@@ -59,7 +59,7 @@ from skisnow.solvers.macro import extrude_profile, solve_macro  # noqa: E402
 from skisnow.solvers.multiscale import multiscale  # noqa: E402
 
 TABLES = REPO / "tables"
-#: the two designs unlike the demo skis (also used by tests/test_identify.py)
+#: the two designs unlike the demo skis (also used by tests/solvers/test_identify.py)
 DESIGNS = OTHER_DESIGNS
 
 

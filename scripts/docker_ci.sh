@@ -221,7 +221,7 @@ MAIN=$NAME-main
 run_main() { # the service with a non-default port, a named volume and a short health interval
     ports_free "$PORT" $(seq $((FRESH_PORT0 + 1)) $((FRESH_PORT0 + FRESH)))
     docker volume create --label "$LABEL" "$NAME-data" >/dev/null
-    # small table builds so the upload's job takes seconds (settings of tests/test_uploads.py)
+    # small table builds so the upload's job takes seconds (settings of tests/jobs/test_uploads.py)
     docker run -d --name "$MAIN" --label "$LABEL" --network host \
         -e SKISNOW_PORT="$PORT" -e SKISNOW_TABLE_POINTS=8 -e SKISNOW_TABLE_PROCESSES=false \
         -v "$NAME-data:/srv/skisnow/data" \

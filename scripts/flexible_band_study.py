@@ -23,7 +23,7 @@ preset's grid, then the texture table. Recorded per quantity:
 Two sets of cases:
 
 ``test``
-    the calibration test's own cases (tests/test_band.py, the bending-ski tests): the camber
+    the calibration test's own cases (tests/service/test_band.py, the bending-ski tests): the camber
     network's test-split loads of both demo skis (6 per ski, seed 0) at 5, 20, 200 and
     2000 MPa;
 ``calib``
@@ -73,7 +73,7 @@ from skisnow.solvers.identify import sample_beams  # noqa: E402
 from skisnow.solvers.multiscale import multiscale  # noqa: E402
 
 TABLES = REPO / "tables"
-#: the truth's grid: the reference of ``skisnow bench accuracy`` (as tests/test_band.py)
+#: the truth's grid: the reference of ``skisnow bench accuracy`` (as tests/service/test_band.py)
 REFERENCE_GRID = (0.5e-3, 64)
 SCALES = (1.0, 2.0, 4.0, 8.0, 12.0, 16.0, 24.0, 32.0)
 #: draw counts compared: n antithetic draws are the first n/2 pairs of the 8 (the service's

@@ -1,6 +1,6 @@
 """How reliably do 13 × 9 camber cases identify the test designs' beams? (issue #12)
 
-``tests/test_identify_designs.py`` uploads two beam skis of designs unlike the demo skis
+``tests/service/test_identify_designs.py`` uploads two beam skis of designs unlike the demo skis
 ('stiff', 'soft'), each measured once with the virtual device (3 µm noise, one seeded draw).
 Whether the identification lands in the right basin turns on perturbations of 1e-5 relative
 (the noise draw, rounding the gaps to 0.1 µm as a camber CSV does, BLAS threads). This study

@@ -450,7 +450,7 @@ def line_convolution(pressure_pa: np.ndarray, coupling: np.ndarray, n: int) -> n
     directly: on the few-hundred-pixel windows of the macro solves the public functions spend
     more time checking and padding their arguments than transforming (84 → 39 µs per
     displacement at 120 × 8 pixels); the results are bit for bit the same
-    (tests/test_macro.py)."""
+    (tests/solvers/test_macro.py)."""
     padded = 2 * n
     ny = pressure_pa.shape[1]
     if _pocketfft is None:  # pragma: no cover

@@ -81,7 +81,7 @@ def server(catalogue):
 @pytest.fixture(scope="module")
 def upload_server(catalogue, tmp_path_factory):
     """The app on its own data directory and a copy of the catalogue, with table settings so
-    small that a grind's table builds in seconds (as tests/test_uploads.py)."""
+    small that a grind's table builds in seconds (as tests/jobs/test_uploads.py)."""
     from skisnow.app import service
     from skisnow.app.main import create_app
     from skisnow.app.settings import Settings

@@ -1,7 +1,7 @@
 """The persistent catalogue: items (skis, grinds) and background jobs in a SQL database.
 
 SQLAlchemy 2 Core over any URL it knows; SQLite (one file under the data directory) by default,
-PostgreSQL for several replicas sharing one catalogue (tests/test_postgres.py). The database
+PostgreSQL for several replicas sharing one catalogue (tests/storage/test_postgres.py). The database
 holds the records; the data themselves are the self-describing HDF5 files it points to. The
 schema is made and upgraded by the Alembic revisions of :mod:`app.storage.schema`; the tables
 below mirror the head revision (a test compares them).

@@ -10,7 +10,7 @@
 
 Training needs PyTorch (``pip install 'skisnow[train]'``); torch is imported lazily inside the
 fitting functions, so importing this package (and the service, and inference in
-:mod:`solvers.camber`) does not import torch (tests/test_training_imports.py).
+:mod:`solvers.camber`) does not import torch (tests/training/test_training_imports.py).
 
 May import :mod:`skisnow.app.storage`, :mod:`skisnow.solvers` and the top-level modules of
 ``app/`` (settings, units, presets, errors); never ``api``, ``web``, ``jobs`` or ``commands``.

@@ -38,7 +38,7 @@ requests (640, and 40 to the flex sheet's operations in their own positive run; 
 loaded 2-core machine); a longer run, ten times each test in both
 modes (8800 requests, about 2.5 min), is marked ``slow`` and skipped unless asked for::
 
-    SKISNOW_SLOW_TESTS=1 python -m pytest -q -n 0 -m slow tests/test_fuzz.py
+    SKISNOW_SLOW_TESTS=1 python -m pytest -q -n 0 -m slow tests/api/test_fuzz.py
 
 With ``SKISNOW_FUZZ_COUNTS=path.json`` the run writes its requests per operation and status
 (docs/limits.md, "Fuzzing the API" records the last long run).

@@ -1,6 +1,6 @@
 """The job runner's lease (app/jobs/runner.py): a heartbeat keeps a job, an expired lease is taken
 over, and a runner whose job was taken over writes nothing more about it. SQLite here; the same
-runner on PostgreSQL across two processes is tests/test_postgres.py."""
+runner on PostgreSQL across two processes is tests/storage/test_postgres.py."""
 
 from __future__ import annotations
 

@@ -81,7 +81,7 @@ def test_noisy_misfit_at_the_noise(name, seed):
     strict=True,
     reason="held-out loaded profiles from 42 cases with 3 um noise on a 4 mm grid: 1.0 um RMS "
     "from the truth near contact ('soft'), 2.5 um ('stiff'); target 0.3 um (issue #12), met by "
-    "the demo skis' 340 cases at 1 mm (0.10 / 0.14 um, tests/test_demo_identification.py)",
+    "the demo skis' 340 cases at 1 mm (0.10 / 0.14 um, tests/service/test_demo_identification.py)",
 )
 @pytest.mark.parametrize(("name", "seed"), [("soft", 7), ("stiff", 5)])
 def test_noisy_held_out_profiles(name, seed):

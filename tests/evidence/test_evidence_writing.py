@@ -1,7 +1,7 @@
 """app/evidence: the one writer, no import circle, and prose that follows the numbers.
 
 Renders from the stored ``docs/bench/*.json`` and from small synthetic records; no benchmark is
-run (tests/test_bench_*.py and tests/test_report.py run the stages on small cases).
+run (tests/test_bench_*.py and tests/evidence/test_report.py run the stages on small cases).
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from skisnow.app.evidence import (
 from skisnow.app.storage.common import docs_dir
 
 EVIDENCE = Path(writer.__file__).parent
-BENCH_JSON = Path(__file__).resolve().parents[1] / "docs" / "bench"
+BENCH_JSON = Path(__file__).resolve().parents[2] / "docs" / "bench"
 
 
 def _imports(path: Path) -> set[str]:

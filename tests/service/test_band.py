@@ -30,7 +30,7 @@ from skisnow.solvers.errors import InputError
 from skisnow.solvers.macro import extrude_profile, solve_macro
 from skisnow.solvers.multiscale import multiscale
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 TABLES = ROOT / "tables"
 
 

@@ -9,7 +9,7 @@ with ``POST /v1/skis``. The upload's job identifies the beam with 20 % of the ca
 - the apparent area (rigid model, default macro grid, 200 MPa) is within 3 % of the truth's on
   every held-out load
 
-(the recipe of tests/test_demo_identification.py), ``GET /v1/skis/{name}`` shows the identified
+(the recipe of tests/service/test_demo_identification.py), ``GET /v1/skis/{name}`` shows the identified
 EI and ``/v1/contact`` answers with the flexible ski. Each design is uploaded once per module;
 the network the job also trains is cut to a few epochs (it is not what is checked here).
 """
@@ -31,7 +31,7 @@ from skisnow.solvers.identify import predict_gaps
 from skisnow.solvers.macro import extrude_profile, solve_macro
 from test_uploads import CONTACT, make_client, post_ski, wait_job
 
-#: designs unlike the demo skis (pocket, stiffness, contact points; tests/test_identify.py)
+#: designs unlike the demo skis (pocket, stiffness, contact points; tests/solvers/test_identify.py)
 DESIGNS = {
     "stiff": ClassicSkiDesign(
         camber_height_m=0.0025,

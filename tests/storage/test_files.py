@@ -36,7 +36,7 @@ from skisnow.app.storage.tables import read_table, table_data_sha256, write_mani
 from skisnow.solvers.errors import DataFileError
 from skisnow.solvers.texture import Texture, self_affine_surface
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 SKI = REPO / "tables" / "skis" / "ski-a.h5"
 
 

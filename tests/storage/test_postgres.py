@@ -5,7 +5,7 @@ port in a temp folder; as root it runs as the ``postgres`` user (PostgreSQL refu
 module is skipped, with the reason, only where no ``initdb`` is installed.
 
 Covered: items and names, job claims, schema creation and upgrade races, the Alembic upgrade of
-a pre-migration catalogue with rows in it (tests/test_schema.py has the checks), upload → job →
+a pre-migration catalogue with rows in it (tests/storage/test_schema.py has the checks), upload → job →
 contact in-process, and two ``skisnow serve`` subprocesses on one database (about 35 s).
 """
 
@@ -114,7 +114,7 @@ def test_catalogue_items_and_names(pg_url):
 
 
 def test_team_queries(pg_url, tmp_path):
-    """The job quota's and the team filter's queries (tests/test_safe_defaults.py) on
+    """The job quota's and the team filter's queries (tests/api/test_safe_defaults.py) on
     PostgreSQL, in a database of their own."""
     import psycopg
     from skisnow.app.storage.catalogue import CatalogueDB
@@ -252,12 +252,12 @@ REPLICA_ENV = {
     "SKISNOW_JOB_POLL_S": "0.1",
     "SKISNOW_JOB_STALE_S": "3",
     "SKISNOW_MAX_UPLOAD_BYTES": "1000000",
-    # 20 uploads at once: above the default job quotas (tests/test_safe_defaults.py)
+    # 20 uploads at once: above the default job quotas (tests/api/test_safe_defaults.py)
     "SKISNOW_MAX_JOBS_PER_TEAM": "32",
     "SKISNOW_MAX_QUEUED_JOBS": "32",
     "OMP_NUM_THREADS": "1",
 }
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 def _start_replica(url: str, data_dir: Path, log: Path) -> tuple[subprocess.Popen, str]:

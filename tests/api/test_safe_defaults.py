@@ -1,6 +1,6 @@
 """Safe by default (issue #15, point 5): who may change and see what (app/api/access.py), the job
 quotas, the limit on the grid a table is solved on, and the web form's result cache keyed on
-content. Uploads are the tiny ones of tests/test_uploads.py (64² grind, 8-point tables)."""
+content. Uploads are the tiny ones of tests/jobs/test_uploads.py (64² grind, 8-point tables)."""
 
 from __future__ import annotations
 
@@ -277,7 +277,7 @@ def test_reads_show_only_the_callers_team_and_the_shipped_items(catalogue, tmp_p
 
 def check_team_queries(db) -> None:
     """The database's team queries (jobs a team sees, active jobs per team) on ``db``, an empty
-    catalogue; run on SQLite here and on PostgreSQL in tests/test_postgres.py."""
+    catalogue; run on SQLite here and on PostgreSQL in tests/storage/test_postgres.py."""
     shipped = db.add_item("grind", "shipped", state="ready", read_only=True)
     jobs = {}
     for team in ("team-a", "team-b", None):

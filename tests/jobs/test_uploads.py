@@ -25,7 +25,7 @@ from skisnow.app.storage.catalogue import CatalogueDB
 from skisnow.solvers.beam import BeamSki
 from skisnow.solvers.texture import iso25178_parameters, level_heights, self_affine_surface
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 CONTACT = {"load_kg": 40, "load_position_mm": -160, "snow_modulus_mpa": 200, "porosity": 0.5}
 FAST = {
     "warm_up": False,
@@ -548,7 +548,7 @@ def test_team_tokens_guard_changes(catalogue, tmp_path):
         is_problem(client.delete("/v1/grinds/a-grind", headers=a), 409)
         assert wait_job(client, job_id, headers=a)["state"] == "done"
         # another team's item does not exist for team b, for changes as for reads (404, not
-        # 403: its existence is not leaked; tests/test_safe_defaults.py has the reads)
+        # 403: its existence is not leaked; tests/api/test_safe_defaults.py has the reads)
         is_problem(client.patch("/v1/grinds/a-grind", json={"name": "b"}, headers=b), 404)
         is_problem(client.delete("/v1/grinds/a-grind", headers=b), 404)
         is_problem(client.get("/v1/grinds/a-grind"), 404)  # a reader of no team

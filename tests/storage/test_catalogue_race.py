@@ -100,7 +100,7 @@ def test_serve_exits_non_zero_when_a_worker_fails_to_start(tmp_path):
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    repo = Path(__file__).resolve().parents[1]
+    repo = Path(__file__).resolve().parents[2]
     env = {
         **os.environ,
         "PYTHONPATH": os.pathsep.join([str(tmp_path / "hook"), str(repo)]),
@@ -131,7 +131,7 @@ def test_serve_with_two_workers_stops_cleanly_with_exit_code_0_on_sigterm(tmp_pa
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    repo = Path(__file__).resolve().parents[1]
+    repo = Path(__file__).resolve().parents[2]
     env = {
         **os.environ,
         "PYTHONPATH": str(repo),

@@ -14,7 +14,7 @@ from skisnow.app.cli import main
 from skisnow.app.storage.skis import mean_profiles
 from skisnow.solvers.beam import BeamSki, solve_beam_contact
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 class _Bar:

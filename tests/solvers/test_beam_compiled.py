@@ -20,7 +20,7 @@ from skisnow.solvers.beam import (
     solve_beam_contact,
 )
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 LOADS_KG = (5.0, 40.0, 150.0)
 POSITIONS_MM = (-300.0, -100.0, 100.0)
 #: stiffest stage of the identification's continuation is ~1e-7 m/N (ℓ = 2 nodes)

@@ -139,7 +139,7 @@ def statements_of(engine, fn) -> list[str]:
 
 
 def check_upgrade_keeps_rows(url: str) -> None:
-    """The migration checks shared with tests/test_postgres.py."""
+    """The migration checks shared with tests/storage/test_postgres.py."""
     from skisnow.app.storage.catalogue import CatalogueDB
     from skisnow.app.storage.schema import BASELINE_REVISION, current_revision, head_revision
 
@@ -245,7 +245,7 @@ def test_the_migration_scripts_are_package_data():
 
     from skisnow.app.storage.schema import MIGRATIONS_DIR
 
-    repo = Path(__file__).resolve().parents[1]
+    repo = Path(__file__).resolve().parents[2]
     config = tomllib.loads((repo / "pyproject.toml").read_text())["tool"]["setuptools"]
     assert "skisnow.app.storage.migrations.versions" in config["packages"]
     assert "script.py.mako" in config["package-data"]["skisnow.app.storage.migrations"]
