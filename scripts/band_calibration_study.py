@@ -18,7 +18,8 @@ Per quantity it records the five values, the band's components (camber model, ta
 interpolation) and whether the minimum separation is unresolved. Two sets of cases:
 
 ``test``
-    the calibration test's own cases (tests/service/test_band.py): the camber network's test-split loads
+    the calibration test's own cases (tests/service/test_band.py): the camber network's test-split
+    loads
     of both demo skis (8 per ski, seed 0) at 20, 100 and 500 MPa;
 ``calib``
     cases the test does not use: other held-out loads of the demo skis (the identification's

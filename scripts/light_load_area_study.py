@@ -1,6 +1,7 @@
 """What limits the apparent area of an identified beam at the lightest loads? (issue #12)
 
-The acceptance test (``tests/service/test_demo_identification.py``) compares the apparent area (rigid
+The acceptance test (``tests/service/test_demo_identification.py``) compares the apparent area
+(rigid
 model, default macro grid, E_snow = 200 MPa) of the identified beam's loaded profile with the
 design beam's on the 85 held-out cases. On ski-b two light cases miss 3 % (98 N, +50 mm and
 164 N, +25 mm). This study separates the two candidate causes without any new fit:

@@ -4,7 +4,8 @@ Issue #12 point 2. The loaded profile H*(X) for any (F, x_F) can come from the b
 from the ski's camber measurements (:class:`app.service.profiles.ProfileModel`, flexibility
 cached) or from the camber network retrained on that identified beam's **noise-free** profiles.
 This study measures both on the demo skis, against their true beam (``record.beam``), on the 85
-cases the identification held out (``tests/service/test_demo_identification.py``: ``held_out_index`` of the
+cases the identification held out (``tests/service/test_demo_identification.py``:
+``held_out_index`` of the
 ski file's ``identified`` group, 20 %, seed 0):
 
 - loaded profile: RMS of H* − H*_true where H*_true < 0.2 mm, pooled over the cases (the

@@ -11,7 +11,8 @@ __all__ = ["finite_list"]
 def finite_list(a: np.ndarray, scale: float = 1.0, digits: int = 6) -> list[float | None]:
     """``a · scale`` rounded to ``digits`` significant digits, ``None`` where not finite (after
     scaling, so that an overflow never reaches the JSON encoder as inf): for
-    every value exactly ``float(f"{v:.{digits}g}")`` (tests/service/test_service_rounding.py), without
+    every value exactly ``float(f"{v:.{digits}g}")`` (tests/service/test_service_rounding.py),
+    without
     formatting every value as text (the answer's distributions hold a few thousand values).
 
     The decimal ``m · 10^k`` (``m`` an integer of ``digits`` digits) is rounded to the nearest

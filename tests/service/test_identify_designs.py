@@ -9,7 +9,8 @@ with ``POST /v1/skis``. The upload's job identifies the beam with 20 % of the ca
 - the apparent area (rigid model, default macro grid, 200 MPa) is within 3 % of the truth's on
   every held-out load
 
-(the recipe of tests/service/test_demo_identification.py), ``GET /v1/skis/{name}`` shows the identified
+(the recipe of tests/service/test_demo_identification.py), ``GET /v1/skis/{name}`` shows the
+identified
 EI and ``/v1/contact`` answers with the flexible ski. Each design is uploaded once per module;
 the network the job also trains is cut to a few epochs (it is not what is checked here).
 """

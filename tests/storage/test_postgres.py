@@ -5,7 +5,8 @@ port in a temp folder; as root it runs as the ``postgres`` user (PostgreSQL refu
 module is skipped, with the reason, only where no ``initdb`` is installed.
 
 Covered: items and names, job claims, schema creation and upgrade races, the Alembic upgrade of
-a pre-migration catalogue with rows in it (tests/storage/test_schema.py has the checks), upload → job →
+a pre-migration catalogue with rows in it (tests/storage/test_schema.py has the checks), upload →
+job →
 contact in-process, and two ``skisnow serve`` subprocesses on one database (about 35 s).
 """
 
