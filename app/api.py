@@ -15,11 +15,12 @@ from contextlib import asynccontextmanager
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
-from skisnow.app import api_catalogue, api_flex, service, web, web_flex
+from skisnow.app import api_catalogue, api_flex, service
 from skisnow.app.access import WriteGuardMiddleware, visible_catalogue
 from skisnow.app.profiles import profile_model
 from skisnow.app.schemas import CompareBody, ContactBody
 from skisnow.app.settings import Settings
+from skisnow.app.web import routes as web_routes
 from skisnow.solvers.errors import InputError, NotConvergedError, OutOfRangeError, SkisnowError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
@@ -278,6 +279,5 @@ def create_app(settings: Settings | None = None, catalogue: service.Catalogue | 
 
     api_flex.mount(app)
     api_catalogue.mount(app)
-    web.mount(app)
-    web_flex.mount(app)
+    web_routes.mount(app)
     return app

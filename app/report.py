@@ -28,10 +28,11 @@ from pathlib import Path
 import numpy as np
 from matplotlib import rc_context
 from matplotlib.figure import Figure
-from skisnow.app import plots, units
+from skisnow.app import units
 from skisnow.app.profiles import profile_model
 from skisnow.app.service import Catalogue, ContactInputs, contact, load_catalogue
 from skisnow.app.storage.common import atomic_path, docs_dir, provenance
+from skisnow.app.web import plots
 from skisnow.solvers import lookup
 from skisnow.solvers.elastic import effective_modulus
 from skisnow.solvers.errors import InputError, NotConvergedError, OutOfRangeError, SkisnowError

@@ -759,8 +759,8 @@ def _draw_page_figures(item, path: Path, layout: Layout) -> None:
     """Draw the figures of the ski's page into its figure cache (:mod:`app.ski_figures`), so
     that its first view is fast. A failure is logged, never fails the job: the page then draws
     them on its first view."""
-    from skisnow.app.ski_figures import ski_figures
     from skisnow.app.storage.skis import read_ski
+    from skisnow.app.web.ski_figures import ski_figures
 
     try:
         ski = service.Ski(item.name, path, sha256_file(path), read_ski(path))

@@ -13,11 +13,12 @@ from urllib.parse import quote
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-from skisnow.app import service, web
+from skisnow.app import service
 from skisnow.app.api import create_app
 from skisnow.app.profiles import HELD_OUT_ADDED, HELD_OUT_ERRORS, HELD_OUT_STORED
 from skisnow.app.settings import Settings
 from skisnow.app.storage.skis import mean_profiles
+from skisnow.app.web import contact as web
 from skisnow.solvers.band import Z90
 from skisnow.solvers.beam import BeamFlexibility, BeamSki, solve_beam_contact
 
@@ -277,7 +278,7 @@ def test_an_older_file_computes_the_held_out_errors_on_read(client, catalogue, n
 def test_page_figures_are_kept_on_disk_per_ski_file(catalogue, tmp_path, monkeypatch):
     """The page's figures are drawn once per ski file and read back by another process (a
     fresh record); other numbers, or a damaged cache file, draw anew."""
-    from skisnow.app import ski_figures as sf
+    from skisnow.app.web import ski_figures as sf
 
     a = catalogue.skis["ski-a"]
     drawn = []

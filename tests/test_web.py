@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
-from skisnow.app import web
 from skisnow.app.api import create_app
 from skisnow.app.settings import Settings
+from skisnow.app.web import contact as web
 
 REPO = Path(__file__).resolve().parents[1]
 QUERY = {

@@ -53,13 +53,14 @@ from urllib.parse import quote, urlencode
 from fastapi import FastAPI, Request
 from fastapi.responses import HTMLResponse, Response
 from pydantic import ValidationError
-from skisnow.app import plots, service, units, uploads
+from skisnow.app import service, units, uploads
 from skisnow.app.access import caller, visible_catalogue
 from skisnow.app.presets import DEFAULT_PRESET
 from skisnow.app.presets import PRESETS as ACCURACY_PRESETS
 from skisnow.app.profiles import SERVED_MISFIT_LIMIT
 from skisnow.app.schemas import ContactBody
-from skisnow.app.ski_figures import ski_figures
+from skisnow.app.web import plots
+from skisnow.app.web.ski_figures import ski_figures
 from skisnow.solvers.band import Z90
 from skisnow.solvers.errors import SkisnowError
 from skisnow.solvers.identify import HELD_OUT_LIMIT
@@ -341,11 +342,13 @@ def _failure_field(message: str) -> str:
 # ----------------------------------------------------------------------------- HTML
 
 
-_PAGE = Template(resources.files("skisnow.app").joinpath("templates/page.html").read_text("utf-8"))
-_CSS = resources.files("skisnow.app").joinpath("static/web.css").read_text("utf-8")
-_JS = resources.files("skisnow.app").joinpath("static/web.js").read_text("utf-8")
-_UPLOAD_CSS = resources.files("skisnow.app").joinpath("static/upload.css").read_text("utf-8")
-_UPLOAD_JS = resources.files("skisnow.app").joinpath("static/upload.js").read_text("utf-8")
+_PAGE = Template(
+    resources.files("skisnow.app.web").joinpath("templates/page.html").read_text("utf-8")
+)
+_CSS = resources.files("skisnow.app.web").joinpath("static/web.css").read_text("utf-8")
+_JS = resources.files("skisnow.app.web").joinpath("static/web.js").read_text("utf-8")
+_UPLOAD_CSS = resources.files("skisnow.app.web").joinpath("static/upload.css").read_text("utf-8")
+_UPLOAD_JS = resources.files("skisnow.app.web").joinpath("static/upload.js").read_text("utf-8")
 
 
 def _page(

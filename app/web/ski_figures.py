@@ -25,8 +25,9 @@ import logging
 from pathlib import Path
 
 import matplotlib
-from skisnow.app import plots, service
+from skisnow.app import service
 from skisnow.app.storage.common import atomic_path
+from skisnow.app.web import plots
 
 log = logging.getLogger(__name__)
 

@@ -20,9 +20,9 @@ from fastapi import FastAPI, Request
 from fastapi.responses import HTMLResponse
 from skisnow.app import flex
 from skisnow.app.access import visible_catalogue
-from skisnow.app.plots import flex_profile_svg
 from skisnow.app.service import UnknownItemError
-from skisnow.app.web import _page
+from skisnow.app.web.contact import _page
+from skisnow.app.web.plots import flex_profile_svg
 from skisnow.solvers.errors import SkisnowError
 
 TABS = (("/flex", "Flex sheet"), ("/flex/pair", "Pair"), ("/flex/ranking", "Ranking"))
