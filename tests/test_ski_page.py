@@ -18,7 +18,7 @@ from skisnow.app.api import create_app
 from skisnow.app.profiles import HELD_OUT_ADDED, HELD_OUT_ERRORS, HELD_OUT_STORED
 from skisnow.app.settings import Settings
 from skisnow.app.storage.skis import mean_profiles
-from skisnow.app.web import contact as web
+from skisnow.app.web import form
 from skisnow.solvers.band import Z90
 from skisnow.solvers.beam import BeamFlexibility, BeamSki, solve_beam_contact
 
@@ -77,7 +77,7 @@ def client(catalogue, tmp_path_factory):
 
 
 def _page(client, name: str) -> str:
-    r = client.get(web.ski_url(name))
+    r = client.get(form.ski_url(name))
     assert r.status_code == 200, r.text[:500]
     assert r.headers["content-type"].startswith("text/html")
     return r.text

@@ -11,7 +11,7 @@ import pytest
 from fastapi.testclient import TestClient
 from skisnow.app.api import create_app
 from skisnow.app.settings import Settings
-from skisnow.app.web import contact as web
+from skisnow.app.web import results, upload_page
 
 REPO = Path(__file__).resolve().parents[1]
 QUERY = {
@@ -77,7 +77,7 @@ def test_form_is_prefilled_from_the_query(client):
 
 def test_results_page_has_metrics_plots_and_provenance(results_page, catalogue):
     html = results_page
-    for _, label, unit, _ in web.METRICS:
+    for _, label, unit, _ in results.METRICS:
         assert label in html and f"[{unit}]" in html
     assert html.count('data-metric="total_real_contact_area_mm2"') == 2  # one card per case
     assert "ski-a × tiny-grind" in html and "ski-b × tiny-grind" in html
@@ -440,7 +440,7 @@ def test_bad_ski_uploads_are_shown_next_to_their_field(upload_client, camber_csv
 
 
 def _upload_names(kind: str) -> set[str]:
-    fields = web.GRIND_UPLOAD_FIELDS if kind == "grind" else web.SKI_UPLOAD_FIELDS
+    fields = upload_page.GRIND_UPLOAD_FIELDS if kind == "grind" else upload_page.SKI_UPLOAD_FIELDS
     return {f.name for f in fields}
 
 
@@ -489,18 +489,18 @@ def test_result_cache_is_keyed_on_content_not_names(catalogue):
     from skisnow.app import service
 
     cat = replace(catalogue, skis=dict(catalogue.skis))
-    cache = web._ResultCache()
+    cache = results.ResultCache()
     inp = service.ContactInputs("ski-a", "tiny-grind", 40, -160, 200, 0.5, ski_model="rigid")
 
     class Q:
         def combinations(self):
             return [inp]
 
-    first = web.compute(cat, Q(), cache).results[0]
-    again = web.compute(cat, Q(), cache).results[0]
+    first = results.compute(cat, Q(), cache).results[0]
+    again = results.compute(cat, Q(), cache).results[0]
     assert again is first  # served from the cache
     b = cat.skis["ski-b"]
     cat.skis["ski-a"] = service.Ski("ski-a", b.path, b.sha256, b.record)  # re-uploaded
-    other = web.compute(cat, Q(), cache).results[0]
+    other = results.compute(cat, Q(), cache).results[0]
     assert other is not first
     assert other["apparent"]["contact_area_cm2"] != first["apparent"]["contact_area_cm2"]
