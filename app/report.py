@@ -8,7 +8,7 @@ of ours). It writes ``<out-dir>/paper-case.md`` with tables, figures (SVG) in
 
 Every contact result comes from :func:`app.service.contact` — the same computation as
 ``POST /v1/contact`` — so the report's 2 × 2 tables are the service's answers. The along-the-ski
-figures are those of the web form (:mod:`app.plots`). Our choices where the papers are silent
+figures are those of the web form (:mod:`app.web.plots`). Our choices where the papers are silent
 are stated in the report; the findings of method.md §8 are checked by measurement, with the
 thresholds written next to each verdict.
 """

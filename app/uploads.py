@@ -9,7 +9,7 @@ Storage layout under the data directory (``Settings.data_dir``)::
     grinds/<item id>.h5          finished texture table (schema skisnow.table/…)
     skis/<item id>.h5            finished ski file with its network (schema skisnow.ski/1)
     cache/ski-figures/<stem>.json the figures of a ski's page, drawn by the ski's job or on the
-                                 page's first view (:mod:`app.ski_figures`; ``<stem>``: the
+                                 page's first view (:mod:`app.web.ski_figures`; ``<stem>``: the
                                  ski file's name, ``<item id>`` for an upload; removed with it)
 
 Files are named by item id so renaming touches only the database. Every file is written
@@ -160,7 +160,7 @@ class Layout:
         return self.root / "skis" / f"{item_id}.h5"
 
     def ski_figures(self, stem: str) -> Path:
-        """The ski page's figures of ski file ``{stem}.h5`` (:mod:`app.ski_figures`)."""
+        """The ski page's figures of ski file ``{stem}.h5`` (:mod:`app.web.ski_figures`)."""
         return self.root / "cache" / "ski-figures" / f"{stem}.json"
 
     def remove_item_files(self, item_id: str) -> None:
@@ -756,7 +756,7 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
 
 
 def _draw_page_figures(item, path: Path, layout: Layout) -> None:
-    """Draw the figures of the ski's page into its figure cache (:mod:`app.ski_figures`), so
+    """Draw the figures of the ski's page into its figure cache (:mod:`app.web.ski_figures`), so
     that its first view is fast. A failure is logged, never fails the job: the page then draws
     them on its first view."""
     from skisnow.app.storage.skis import read_ski

@@ -230,7 +230,7 @@ def _multipart_schema(app, route: str) -> dict:
 def page_fields(status: int, body: dict, names: set[str], filename: str) -> set[str]:
     """The form fields the upload page shows a problem+json answer next to.
 
-    The rule of ``problemFields`` in app/static/upload.js (the browser test runs the script on
+    The rule of ``problemFields`` in app/web/static/upload.js (the browser test runs the script on
     these answers): ``errors[].field``, ``field``, the first word(s) of ``detail``, "<a> and
     <b> must be given", 409 "named" → name, 413/415, "line N:" or the file's name → file.
     """

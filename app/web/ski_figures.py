@@ -7,7 +7,7 @@ the numbers they draw and on the drawing code, so they are drawn once and kept:
 - with the ski's record, for the life of the process;
 - on disk, one JSON file per ski file (:meth:`app.uploads.Layout.ski_figures`), stamped with a
   sha256 of the drawn numbers (:func:`app.service.beam_report` at :data:`PLOT_POINTS` points
-  and the identification's report) and of the drawing code (``app/plots.py``, matplotlib's
+  and the identification's report) and of the drawing code (``app/web/plots.py``, matplotlib's
   version). Another worker process, or the service after a restart, reuses them; a changed
   ski file or changed code draws anew and replaces them. An unreadable or unwritable cache is
   logged and the figures drawn.
@@ -40,7 +40,7 @@ CACHE_SCHEMA = "skisnow.ski-figures/1"
 
 @functools.cache
 def _code_digest() -> str:
-    """sha256 of what draws the figures: ``app/plots.py`` and matplotlib's version."""
+    """sha256 of what draws the figures: ``app/web/plots.py`` and matplotlib's version."""
     h = hashlib.sha256(Path(plots.__file__).read_bytes())
     h.update(matplotlib.__version__.encode())
     h.update(f"{PLOT_POINTS}".encode())
