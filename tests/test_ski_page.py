@@ -7,12 +7,13 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
-from html import escape, unescape
+from html import unescape
 from urllib.parse import quote
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from markupsafe import escape
 from skisnow.app import service
 from skisnow.app.api import create_app
 from skisnow.app.profiles import HELD_OUT_ADDED, HELD_OUT_ERRORS, HELD_OUT_STORED

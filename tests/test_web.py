@@ -180,7 +180,7 @@ def test_bad_input_reshows_the_form(client, changes, field, status):
 
 def test_unknown_ski_lists_the_known_ones(client):
     html = client.get("/results", params=_q(ski="ski-z")).text
-    assert "unknown ski &#x27;ski-z&#x27;; known: ski-a, ski-b" in html
+    assert "unknown ski &#39;ski-z&#39;; known: ski-a, ski-b" in html
 
 
 def test_out_of_range_position_says_what_to_change(client):
