@@ -7,10 +7,10 @@ importing :func:`create_app` (tests, scripts) builds nothing.
 
 from __future__ import annotations
 
-from skisnow.app import web, web_flex
 from skisnow.app.api.factory import create_api
 from skisnow.app.service import Catalogue
 from skisnow.app.settings import Settings
+from skisnow.app.web import routes as web_routes
 
 __all__ = ["create_app"]  # and ``app``, made on first access (below)
 
@@ -18,8 +18,7 @@ __all__ = ["create_app"]  # and ``app``, made on first access (below)
 def create_app(settings: Settings | None = None, catalogue: Catalogue | None = None):
     """The API of :func:`app.api.factory.create_api` with the web pages mounted."""
     app = create_api(settings, catalogue)
-    web.mount(app)
-    web_flex.mount(app)
+    web_routes.mount(app)
     return app
 
 

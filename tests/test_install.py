@@ -186,8 +186,8 @@ def installed():
             names = set(zf.namelist())
         for needed in [
             "skisnow/app/cli.py",
-            "skisnow/app/static/web.js",
-            "skisnow/app/templates/page.html",
+            "skisnow/app/web/static/web.js",
+            "skisnow/app/web/templates/page.html",
             # the catalogue's schema (app/storage/schema.py)
             "skisnow/app/storage/migrations/env.py",
             "skisnow/app/storage/migrations/versions/0001_baseline.py",

@@ -46,6 +46,7 @@ TOP_LEVEL = {
     "bounds": "shared",
     "errors": "shared",
     "path_pool": "shared",
+    "plots": "shared",
 }
 #: (importing room, imported module) allowed across one rank: the web pages answer errors and
 #: check callers as the API does (one error module, one access module)

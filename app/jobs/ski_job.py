@@ -109,10 +109,10 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
 
 
 def _draw_page_figures(item, path: Path, layout: Layout) -> None:
-    """Draw the figures of the ski's page into its figure cache (:mod:`app.ski_figures`), so
+    """Draw the figures of the ski's page into its figure cache (:mod:`app.service.ski_figures`), so
     that its first view is fast. A failure is logged, never fails the job: the page then draws
     them on its first view."""
-    from skisnow.app.ski_figures import ski_figures
+    from skisnow.app.service.ski_figures import ski_figures
     from skisnow.app.storage.skis import read_ski
 
     try:

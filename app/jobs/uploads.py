@@ -12,7 +12,7 @@ Storage layout under the data directory (``Settings.data_dir``)::
     grinds/<item id>.h5          finished texture table (schema skisnow.table/…)
     skis/<item id>.h5            finished ski file with its network (schema skisnow.ski/1)
     cache/ski-figures/<stem>.json the figures of a ski's page, drawn by the ski's job or on the
-                                 page's first view (:mod:`app.ski_figures`; ``<stem>``: the
+                                 page's first view (:mod:`app.service.ski_figures`; ``<stem>``: the
                                  ski file's name, ``<item id>`` for an upload; removed with it)
 
 Files are named by item id so renaming touches only the database. Every file is written

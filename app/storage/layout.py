@@ -51,7 +51,7 @@ class Layout:
         return self.root / "skis" / f"{item_id}.h5"
 
     def ski_figures(self, stem: str) -> Path:
-        """The ski page's figures of ski file ``{stem}.h5`` (:mod:`app.ski_figures`)."""
+        """The ski page's figures of ski file ``{stem}.h5`` (:mod:`app.service.ski_figures`)."""
         return self.root / "cache" / "ski-figures" / f"{stem}.json"
 
     def remove_item_files(self, item_id: str) -> None:

@@ -309,7 +309,7 @@ def test_upload_page_polls_its_job_with_the_token():
     """With team tokens a job is shown only to its team: the page's poll sends the token."""
     from importlib import resources
 
-    js = resources.files("skisnow.app").joinpath("static/upload.js").read_text("utf-8")
+    js = resources.files("skisnow.app.web").joinpath("static/upload.js").read_text("utf-8")
     poll = js[js.index("function poll()") : js.index("function poll()") + 600]
     assert "authorization" in poll and '"/v1/jobs/"' in poll
 

@@ -6,7 +6,8 @@ the numbers they draw and on the drawing code, so they are drawn once and kept:
 
 - with the ski's record, for the life of the process;
 - on disk, one JSON file per ski file (:meth:`app.storage.layout.Layout.ski_figures`), stamped
-  with a sha256 of the drawn numbers (:func:`app.service.beam_report` at :data:`PLOT_POINTS` points
+with a
+  sha256 of the drawn numbers (:func:`app.service.beam_report` at :data:`PLOT_POINTS` points
   and the identification's report) and of the drawing code (``app/plots.py``, matplotlib's
   version). Another worker process, or the service after a restart, reuses them; a changed
   ski file or changed code draws anew and replaces them. An unreadable or unwritable cache is

@@ -9,11 +9,11 @@ from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
-from skisnow.app import web
 from skisnow.app.main import create_app
 from skisnow.app.settings import Settings
+from skisnow.app.web import results, upload_page
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 QUERY = {
     "ski": ["ski-a", "ski-b"],
     "grind": "tiny-grind",
@@ -77,7 +77,7 @@ def test_form_is_prefilled_from_the_query(client):
 
 def test_results_page_has_metrics_plots_and_provenance(results_page, catalogue):
     html = results_page
-    for _, label, unit, _ in web.METRICS:
+    for _, label, unit, _ in results.METRICS:
         assert label in html and f"[{unit}]" in html
     assert html.count('data-metric="total_real_contact_area_mm2"') == 2  # one card per case
     assert "ski-a × tiny-grind" in html and "ski-b × tiny-grind" in html
@@ -180,7 +180,7 @@ def test_bad_input_reshows_the_form(client, changes, field, status):
 
 def test_unknown_ski_lists_the_known_ones(client):
     html = client.get("/results", params=_q(ski="ski-z")).text
-    assert "unknown ski &#x27;ski-z&#x27;; known: ski-a, ski-b" in html
+    assert "unknown ski &#39;ski-z&#39;; known: ski-a, ski-b" in html
 
 
 def test_out_of_range_position_says_what_to_change(client):
@@ -230,7 +230,7 @@ def _multipart_schema(app, route: str) -> dict:
 def page_fields(status: int, body: dict, names: set[str], filename: str) -> set[str]:
     """The form fields the upload page shows a problem+json answer next to.
 
-    The rule of ``problemFields`` in app/static/upload.js (the browser test runs the script on
+    The rule of ``problemFields`` in app/web/static/upload.js (the browser test runs the script on
     these answers): ``errors[].field``, ``field``, the first word(s) of ``detail``, "<a> and
     <b> must be given", 409 "named" → name, 413/415, "line N:" or the file's name → file.
     """
@@ -440,7 +440,7 @@ def test_bad_ski_uploads_are_shown_next_to_their_field(upload_client, camber_csv
 
 
 def _upload_names(kind: str) -> set[str]:
-    fields = web.GRIND_UPLOAD_FIELDS if kind == "grind" else web.SKI_UPLOAD_FIELDS
+    fields = upload_page.GRIND_UPLOAD_FIELDS if kind == "grind" else upload_page.SKI_UPLOAD_FIELDS
     return {f.name for f in fields}
 
 
@@ -489,18 +489,18 @@ def test_result_cache_is_keyed_on_content_not_names(catalogue):
     from skisnow.app import service
 
     cat = replace(catalogue, skis=dict(catalogue.skis))
-    cache = web._ResultCache()
+    cache = results.ResultCache()
     inp = service.ContactInputs("ski-a", "tiny-grind", 40, -160, 200, 0.5, ski_model="rigid")
 
     class Q:
         def combinations(self):
             return [inp]
 
-    first = web.compute(cat, Q(), cache).results[0]
-    again = web.compute(cat, Q(), cache).results[0]
+    first = results.compute(cat, Q(), cache).results[0]
+    again = results.compute(cat, Q(), cache).results[0]
     assert again is first  # served from the cache
     b = cat.skis["ski-b"]
     cat.skis["ski-a"] = service.Ski("ski-a", b.path, b.sha256, b.record)  # re-uploaded
-    other = web.compute(cat, Q(), cache).results[0]
+    other = results.compute(cat, Q(), cache).results[0]
     assert other is not first
     assert other["apparent"]["contact_area_cm2"] != first["apparent"]["contact_area_cm2"]

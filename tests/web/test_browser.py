@@ -23,7 +23,7 @@ from pathlib import Path
 import pytest
 
 CHROMIUM = "/usr/bin/chromium"
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 SCREENSHOTS = REPO / "docs" / "screenshots"
 ARGS = [
     "--no-sandbox",
@@ -290,7 +290,7 @@ def test_upload_a_grind_then_compute_with_it(upload_server, page, tmp_path):
 
 @pytest.fixture(scope="module")
 def flex_server(catalogue):
-    """The test catalogue plus the flex sheet's design skis of tests/test_flex.py."""
+    """The test catalogue plus the flex sheet's design skis of tests/web/test_flex.py."""
     import dataclasses
 
     from skisnow.app import service

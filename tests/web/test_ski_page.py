@@ -7,19 +7,21 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
-from html import escape, unescape
+from html import unescape
 from urllib.parse import quote
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-from skisnow.app import service, web
+from markupsafe import escape
+from skisnow.app import service
 from skisnow.app.main import create_app
 from skisnow.app.service.profiles import HELD_OUT_ADDED, HELD_OUT_ERRORS, HELD_OUT_STORED
 from skisnow.app.service.reports import _identification_cases
 from skisnow.app.service.rounding import finite_list
 from skisnow.app.settings import Settings
 from skisnow.app.storage.skis import mean_profiles
+from skisnow.app.web import form
 from skisnow.solvers.band import Z90
 from skisnow.solvers.beam import BeamFlexibility, BeamSki, solve_beam_contact
 
@@ -78,7 +80,7 @@ def client(catalogue, tmp_path_factory):
 
 
 def _page(client, name: str) -> str:
-    r = client.get(web.ski_url(name))
+    r = client.get(form.ski_url(name))
     assert r.status_code == 200, r.text[:500]
     assert r.headers["content-type"].startswith("text/html")
     return r.text
@@ -279,7 +281,7 @@ def test_an_older_file_computes_the_held_out_errors_on_read(client, catalogue, n
 def test_page_figures_are_kept_on_disk_per_ski_file(catalogue, tmp_path, monkeypatch):
     """The page's figures are drawn once per ski file and read back by another process (a
     fresh record); other numbers, or a damaged cache file, draw anew."""
-    from skisnow.app import ski_figures as sf
+    from skisnow.app.service import ski_figures as sf
 
     a = catalogue.skis["ski-a"]
     drawn = []

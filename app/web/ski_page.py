@@ -1,0 +1,214 @@
+"""A ski's page ``/skis/{name}`` and the 404 page of an unknown ski.
+
+The page shows the ski's served profile model and why, the beam identified from its camber
+measurements (provenance, held-out check), EI(X) and c(X) with their bands and the misfit per
+camber case, the same figures as ``GET /v1/skis/{name}``; why there is no beam when there is
+none.
+"""
+
+from __future__ import annotations
+
+from urllib.parse import quote, urlencode
+
+from fastapi import Request
+from fastapi.responses import HTMLResponse
+from skisnow.app import service, units
+from skisnow.app.service.profiles import SERVED_MISFIT_LIMIT
+from skisnow.app.service.ski_figures import ski_figures
+from skisnow.app.web.form import DEFAULTS, NUMERIC, ski_url
+from skisnow.app.web.templating import fmt, page, svg
+from skisnow.solvers.band import Z90
+from skisnow.solvers.identify import HELD_OUT_LIMIT
+
+#: the served profile models (``GET /v1/skis``'s ``profile_model``) as a technician reads them
+PROFILE_MODEL_LABELS = {
+    "identified_beam": "beam identified from the ski's camber measurements",
+    "network": "camber network trained on the ski's measurements",
+    "design_beam": "design beam stored with the ski",
+}
+
+
+def _summary(ski: service.Ski) -> dict:
+    """The numbers of the page's summary line (technician units)."""
+    rec = ski.record
+    m, o = rec.measurements, rec.outline
+    loads_kg = units.n_to_kg(m.loads_n)
+    return {
+        "description": rec.metadata.get("description") or rec.metadata.get("brand_model") or "",
+        "length_mm": o.length_m * 1e3,
+        "width_min_mm": o.width_m.min() * 1e3,
+        "width_max_mm": o.width_m.max() * 1e3,
+        "profiles": m.loads_n.size,
+        "sides": ", ".join(sorted(set(m.sides))),
+        "load_min_kg": loads_kg.min(),
+        "load_max_kg": loads_kg.max(),
+        "position_min_mm": m.load_positions_m.min() * 1e3,
+        "position_max_mm": m.load_positions_m.max() * 1e3,
+        "samples": m.positions_m.size,
+        "step_mm": (m.positions_m[1] - m.positions_m[0]) * 1e3,
+        "file": ski.path.name,
+        "sha256": ski.sha256,
+    }
+
+
+def _numbers(ident: dict) -> list[tuple]:
+    """(key, label, value, unit, format) of the identification's summary numbers."""
+    held = ident["held_out_cases"]
+    numbers = (
+        ("noise_um", "Device noise σ (from the data)", ident["noise_um"], "µm", "{:.3f}"),
+        ("misfit_um", "Misfit, RMS over the identified cases", ident["misfit_um"], "µm", "{:.3f}"),
+        ("misfit_to_noise", "Misfit / noise", ident["misfit_to_noise"], "–", "{:.3f}"),
+        (
+            "held_out_rms_um",
+            f"Held-out error, RMS over {held} cases",
+            ident["held_out_rms_um"],
+            "µm",
+            "{:.3f}",
+        ),
+        ("held_out_to_noise", "Held-out error / noise", ident["held_out_to_noise"], "–", "{:.3f}"),
+    )
+    return [n for n in numbers if n[2] is not None]
+
+
+def _provenance(ident: dict) -> list[tuple[str, str]]:
+    """(term, text) rows of the identification's provenance; empty texts are not shown."""
+    pv = ident.get("provenance", {})
+    solve = pv.get("solve_time_s")
+    return [
+        ("created (UTC)", str(pv.get("created_utc", ""))),
+        ("code version", str(pv.get("code_version", ""))),
+        ("git commit", str(pv.get("git_commit", ""))),
+        ("command", str(pv.get("command_line", ""))),
+        ("profiles", str(pv.get("profiles") or "")),
+        ("held-out draw seed", str(pv.get("held_out_seed", ""))),
+        ("held-out errors", _held_out_origin((ident.get("held_out") or {}).get("provenance"))),
+        (
+            "fit",
+            ""
+            if pv.get("iterations") is None
+            else f"{pv['iterations']} Gauss–Newton steps over {pv.get('contact_passes')} contact "
+            f"passes" + (f", {solve:.1f} s" if solve is not None else ""),
+        ),
+    ]
+
+
+def _held_out_origin(origin: dict | None) -> str:
+    """Where the held-out errors come from: stored in the file (with when and by which command)
+    or computed on reading it."""
+    if not origin:
+        return ""
+    when = ", ".join(
+        f"{label} {origin[k]}"
+        for k, label in (("created_utc", "on"), ("command_line", "by"))
+        if origin.get(k)
+    )
+    return origin.get("source", "") + (f" ({when})" if when else "")
+
+
+def _beam_table(beam: dict) -> dict:
+    """EI(X) and c(X) at the points of ``GET /v1/skis/{name}``, with their bands."""
+    band = beam.get("bending_stiffness_band_90_nm2")
+    cband = beam.get("camber_band_90_um")
+    rows = []
+    for i, x in enumerate(beam["position_mm"]):
+        cells = [fmt(x, "{:g}"), fmt(beam["bending_stiffness_nm2"][i], "{:g}")]
+        if band:
+            cells.append(f"{fmt(band[0][i], '{:g}')} … {fmt(band[1][i], '{:g}')}")
+        cells.append(fmt(beam["camber_um"][i], "{:g}"))
+        if cband:
+            cells.append(f"{fmt(cband[0][i], '{:g}')} … {fmt(cband[1][i], '{:g}')}")
+        rows.append(cells)
+    return {"ei_band": bool(band), "c_band": bool(cband), "rows": rows}
+
+
+def _misfit_rows(ident: dict) -> list[tuple]:
+    """(row class, load [kg], position [mm], error [µm], label) of every identified case and
+    every held-out case."""
+    rows = [
+        ("identified", f, x, e, "identified")
+        for f, x, e in zip(
+            ident["case_load_kg"], ident["case_position_mm"], ident["case_misfit_um"], strict=True
+        )
+    ]
+    held = ident.get("held_out") or {}
+    rows += [
+        ("held-out", f, x, e, "held out")
+        for f, x, e in zip(
+            held.get("load_kg", []),
+            held.get("position_mm", []),
+            held.get("error_um", []),
+            strict=True,
+        )
+    ]
+    return rows
+
+
+def _figures(ski: service.Ski, beam: dict, cache_file=None) -> list[tuple]:
+    """(key, caption, SVG) of the page's figures (EI(X), c(X), misfit per case); drawn once per
+    ski file and kept (:mod:`app.service.ski_figures`)."""
+    svgs = ski_figures(ski, cache_file)
+    if beam.get("bending_stiffness_band_90_nm2"):
+        ei_note = "with its 90 % band from the identification's covariance"
+        c_note = f"with its 90 % band (± {Z90:.3f} σ of the identification)"
+    else:
+        ei_note = c_note = "of the design beam stored with the ski: not identified, no band"
+    captions = {
+        "stiffness": f"Bending stiffness EI(X) [N·m²] {ei_note}",
+        "camber": f"Unloaded camber c(X) [mm] {c_note}",
+        "misfit": "RMS misfit per camber case [µm] against load [kg] and load position [mm], "
+        "with the device noise σ estimated from the data",
+    }
+    return [(k, captions[k], svg(svgs[k])) for k in captions if k in svgs]
+
+
+def render_ski(
+    request: Request, cat: service.Catalogue, ski: service.Ski, figure_cache=None
+) -> HTMLResponse:
+    """A ski's page: profile model and why, identification, EI(X), c(X), misfit per case
+    (``figure_cache``: the file keeping its figures between processes, or None)."""
+    name = ski.name
+    profile = service.profile_report(ski)
+    beam = service.beam_report(ski)
+    ident = beam.get("identification")
+    model = profile["name"]
+    form_url = "/?" + urlencode(
+        [("ski", name)]
+        + [(k, DEFAULTS[k]) for k in (*NUMERIC, "snow_input")]
+        + [("grind", g) for g in sorted(cat.grinds)[:1]]
+    )
+    return page(
+        request,
+        "ski.html",
+        f"skisnow — ski {name}",
+        name=name,
+        summary=_summary(ski),
+        form_url=form_url,
+        api_url="/v1/skis/" + quote(name, safe=""),
+        profile=profile,
+        model=model,
+        model_label=PROFILE_MODEL_LABELS.get(model, str(model)),
+        beam=beam,
+        ident=ident,
+        numbers=_numbers(ident) if ident else [],
+        provenance=_provenance(ident) if ident else [],
+        served_misfit_limit=SERVED_MISFIT_LIMIT,
+        held_out_limit=HELD_OUT_LIMIT,
+        figures=_figures(ski, beam, figure_cache),
+        beam_table=_beam_table(beam) if beam["available"] else None,
+        misfit_rows=_misfit_rows(ident) if ident and "case_load_kg" in ident else [],
+    )
+
+
+def render_unknown_ski(
+    request: Request, cat: service.Catalogue, name: str, state: str | None
+) -> HTMLResponse:
+    """The 404 page of a ski name the catalogue does not serve."""
+    return page(
+        request,
+        "unknown_ski.html",
+        "skisnow — unknown ski",
+        404,
+        name=name,
+        state=state,
+        known=[(n, ski_url(n)) for n in sorted(cat.skis)],
+    )

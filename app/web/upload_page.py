@@ -1,0 +1,205 @@
+"""The upload page ``/upload``: a grind form and a ski form, each with its job panel.
+
+The two forms post multipart to the REST routes (``POST /v1/skis``, ``POST /v1/grinds``, checks
+in :mod:`app.jobs.uploads`) from ``static/upload.js``, show the problem+json errors next to the
+field
+they name, then follow the job (``GET /v1/jobs/{id}`` every second) with a progress bar and,
+when it is done, link back to the form with the new item selected (and, for a ski, to its page
+``/skis/{name}``). This page is the one that needs JavaScript (uploads are multipart, progress
+needs polling). The upload checks and jobs are not here: only the page.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from urllib.parse import urlencode
+
+from fastapi import Request
+from fastapi.responses import HTMLResponse
+from skisnow.app import service
+from skisnow.app.jobs import uploads
+from skisnow.app.web.form import DEFAULTS, NUMERIC, ski_url
+from skisnow.app.web.templating import CSS, UPLOAD_CSS, UPLOAD_JS, page
+
+
+@dataclass(frozen=True)
+class UploadField:
+    """One input of an upload form; ``name`` is the multipart field of the REST route."""
+
+    name: str
+    label: str
+    kind: str = "text"  # text | number | textarea | select | radio | file
+    hint: str = ""
+    required: bool = False
+    options: tuple[tuple[str, str], ...] = ()  # (value, label) of select and radio
+    attrs: tuple[tuple[str, str], ...] = ()  # (name, value) HTML attributes of the input
+    advanced: bool = False
+
+
+def _bounds(lo: float, hi: float) -> tuple[tuple[str, str], ...]:
+    return (("step", "any"), ("min", f"{lo:g}"), ("max", f"{hi:g}"))
+
+
+def _maxlength(n: int, *more: tuple[str, str]) -> tuple[tuple[str, str], ...]:
+    return (("maxlength", str(n)), *more)
+
+
+_NAME_HINT = "letters, digits, '.', '_' or '-' (at most 64); shown in the contact form"
+_NAME_ATTRS = _maxlength(
+    64, ("pattern", "[A-Za-z0-9][A-Za-z0-9._\\-]{0,63}"), ("autocomplete", "off")
+)
+
+#: the grind form: fields of ``POST /v1/grinds`` (docs/uploads.md)
+GRIND_UPLOAD_FIELDS = (
+    UploadField(
+        "file",
+        "Topography file",
+        "file",
+        "x3p, instrument files (SurfaceTopography formats), or a raw height grid .npy / .csv",
+        required=True,
+    ),
+    UploadField("name", "Grind name", hint=_NAME_HINT, required=True, attrs=_NAME_ATTRS),
+    UploadField("shop_code", "Shop code", attrs=_maxlength(64)),
+    UploadField("machine", "Grinding machine", attrs=_maxlength(128)),
+    UploadField(
+        "pattern_family",
+        "Pattern family",
+        hint="e.g. linear, cross, broken",
+        attrs=_maxlength(128),
+    ),
+    UploadField(
+        "coarseness_grade",
+        "Coarseness grade",
+        hint="e.g. fine, medium, coarse",
+        attrs=_maxlength(64),
+    ),
+    UploadField(
+        "temperature_window",
+        "Temperature window",
+        hint="e.g. −10 … −2 °C",
+        attrs=_maxlength(64),
+    ),
+    UploadField("notes", "Notes", "textarea", attrs=_maxlength(2000, ("rows", "3"))),
+    UploadField(
+        "pixel_size_um",
+        "Pixel size [µm]",
+        "number",
+        "raw grids (.npy, .csv) only: calibrated formats carry their own",
+        attrs=_bounds(*uploads.PIXEL_UM_RANGE),
+    ),
+    UploadField(
+        "height_unit",
+        "Height unit",
+        "select",
+        "raw grids (.npy, .csv) only: the unit of the numbers in the file",
+        options=(("", "from the file"), ("m", "m"), ("mm", "mm"), ("um", "µm"), ("nm", "nm")),
+    ),
+    UploadField(
+        "along_ski",
+        "Ski length along the instrument's",
+        "radio",
+        options=(("x", "x axis"), ("y", "y axis")),
+        advanced=True,
+    ),
+    UploadField(
+        "periodic",
+        "Periodic tiling for the solver",
+        "select",
+        "mirror (default for measured maps), window, or none (docs/topography.md)",
+        options=(("mirror", "mirror"), ("window", "window"), ("none", "none")),
+        advanced=True,
+    ),
+    UploadField(
+        "detrend",
+        "Detrending",
+        "select",
+        "removed from the heights before the solve; default: the least-squares plane, or the "
+        "mean when the tiling is none (a periodic map); recorded with the grind",
+        options=(
+            ("", "default (plane; mean if tiling is none)"),
+            ("plane", "plane"),
+            ("mean", "mean"),
+            ("none", "none"),
+        ),
+        advanced=True,
+    ),
+)
+
+#: the ski form: fields of ``POST /v1/skis`` (docs/uploads.md, the neutral CSV of docs/macro.md)
+SKI_UPLOAD_FIELDS = (
+    UploadField(
+        "file",
+        "Camber CSV",
+        "file",
+        "the neutral camber CSV (docs/macro.md): gaps per position for every load case",
+        required=True,
+        attrs=(("accept", ".csv,.txt,text/csv"),),
+    ),
+    UploadField("name", "Ski name", hint=_NAME_HINT, required=True, attrs=_NAME_ATTRS),
+    UploadField("brand_model", "Brand / model", attrs=_maxlength(128)),
+    UploadField(
+        "length_mm",
+        "Ski length [mm]",
+        "number",
+        required=True,
+        attrs=_bounds(*uploads.SKI_LENGTH_MM_RANGE),
+    ),
+    UploadField(
+        "width_mm",
+        "Running-surface width [mm]",
+        hint="one width, or a comma-separated list with the positions below",
+        required=True,
+        attrs=(("inputmode", "decimal"),),
+    ),
+    UploadField("style", "Style", "radio", options=(("classic", "classic"), ("skate", "skate"))),
+    UploadField("owner_team", "Owner / team", attrs=_maxlength(64)),
+    UploadField("notes", "Notes", "textarea", attrs=_maxlength(2000, ("rows", "3"))),
+    UploadField(
+        "width_positions_mm",
+        "Width positions [mm]",
+        hint="from the balance point, one per width, increasing",
+        advanced=True,
+    ),
+)
+
+#: (kind, job kind of app.jobs.uploads, REST route, form fields, title)
+UPLOAD_FORMS = (
+    ("grind", uploads.GRIND_JOB, "/v1/grinds", GRIND_UPLOAD_FIELDS, "Grind: topography"),
+    ("ski", uploads.SKI_JOB, "/v1/skis", SKI_UPLOAD_FIELDS, "Ski: camber measurements"),
+)
+
+
+def _return_query(cat: service.Catalogue, kind: str) -> str:
+    """The contact form's query that the done link extends with ``&{kind}=NAME``: the other
+    kind's first item and the default load and snow."""
+    other, items = ("ski", cat.skis) if kind == "grind" else ("grind", cat.grinds)
+    pairs = [(other, n) for n in sorted(items)[:1]]
+    pairs += [(k, DEFAULTS[k]) for k in (*NUMERIC, "snow_input", "body_weight_kg")]
+    return urlencode(pairs)
+
+
+def render_upload(request: Request, cat: service.Catalogue, settings) -> HTMLResponse:
+    """The upload page: a grind form and a ski form, each with its job panel."""
+    forms = [
+        {
+            "kind": kind,
+            "job_kind": job_kind,
+            "route": route,
+            "fields": fields,
+            "title": title,
+            "return_query": _return_query(cat, kind),
+        }
+        for kind, job_kind, route, fields, title in UPLOAD_FORMS
+    ]
+    return page(
+        request,
+        "upload.html",
+        "skisnow — upload",
+        css=CSS + UPLOAD_CSS,
+        js=UPLOAD_JS,
+        forms=forms,
+        token=bool(settings.team_tokens),
+        max_bytes=settings.max_upload_bytes,
+        max_mib=settings.max_upload_bytes / 2**20,
+        ski_pages=[(n, ski_url(n)) for n in sorted(cat.skis)],
+    )
