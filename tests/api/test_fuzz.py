@@ -504,7 +504,7 @@ def test_fuzz_every_operation_positive(schema, session, app, upload_files):
 def test_fuzz_flex_operations_positive(schema, session, app):
     """The flex sheet, pair and ranking: each called, some answered (200) and some refused
     (422), never a 5xx, errors as problem bodies (which ones succeed depends on the draws;
-    tests/web/test_flex.py checks their answers)."""
+    tests/service/test_flex.py checks their answers)."""
     counts = _fuzz(schema, session, app, GenerationMode.POSITIVE, FLEX_REQUESTS, FLEX_OPERATIONS)
     assert sum(counts.values()) >= FLEX_REQUESTS, counts
     assert {k.rsplit(" ", 1)[0] for k in counts} == FLEX_LABELS, counts

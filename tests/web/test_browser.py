@@ -290,7 +290,7 @@ def test_upload_a_grind_then_compute_with_it(upload_server, page, tmp_path):
 
 @pytest.fixture(scope="module")
 def flex_server(catalogue):
-    """The test catalogue plus the flex sheet's design skis of tests/web/test_flex.py."""
+    """The test catalogue plus the flex sheet's design skis of tests/service/test_flex.py."""
     import dataclasses
 
     from skisnow.app import service
