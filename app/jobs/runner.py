@@ -273,16 +273,18 @@ class JobRunner:
             else:
                 log.exception("job %s (%s) failed", job_id, job.kind)
                 error = f"internal error ({type(exc).__name__}: {exc}); it was logged"
-            owned = self.db.update_job(
-                job_id, owner=me, state="failed", error=error, message="failed"
-            )
+            # clean up first, then say "failed": a client that sees the job failed finds its
+            # item failed too (the other order let a fast client see the item still pending)
+            owned = self.db.update_job(job_id, owner=me, message="failed; cleaning up")
             if not owned:  # another runner has it: its files are not ours to remove
                 log.warning("job %s failed in %s after a takeover; left alone", job_id, me)
-            elif self.on_failure is not None:
-                try:
-                    self.on_failure(ctx, exc)
-                except Exception:  # pragma: no cover
-                    log.exception("clean-up of failed job %s failed", job_id)
+            else:
+                if self.on_failure is not None:
+                    try:
+                        self.on_failure(ctx, exc)
+                    except Exception:  # pragma: no cover
+                        log.exception("clean-up of failed job %s failed", job_id)
+                self.db.update_job(job_id, owner=me, state="failed", error=error, message="failed")
             if not isinstance(exc, Exception):
                 raise
             return
