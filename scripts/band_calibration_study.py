@@ -51,7 +51,10 @@ sys.path.insert(0, str(REPO))
 
 from skisnow.app import service  # noqa: E402
 from skisnow.app.presets import PRESETS  # noqa: E402
-from skisnow.app.service import band  # noqa: E402
+from skisnow.app.service import (  # noqa: E402
+    band,
+    band_sampling,
+)
 from skisnow.app.storage.skis import read_ski  # noqa: E402
 from skisnow.app.storage.tables import read_table  # noqa: E402
 from skisnow.solvers.beam import OTHER_DESIGNS, solve_beam_contact  # noqa: E402
@@ -87,7 +90,7 @@ REFERENCE_GRID = (0.5e-3, 64)
 def case_row(name, rec, table, f, xf, e_mpa, truth_beam, reference=False):
     """Everything about one answer (see the module docstring)."""
     pre, fine = PRESETS["default"], PRESETS["fine"]
-    c2 = _grid(*band.coarse_grid(pre))
+    c2 = _grid(*band_sampling.coarse_grid(pre))
     c4 = _grid(4 * pre.pixel_along_m, max(pre.pixels_across // 4, 2))
     e = effective_modulus(e_mpa * 1e6, 700e6, 0.3)
     ski = service.Ski(name, TABLES, "", rec)
@@ -109,16 +112,16 @@ def case_row(name, rec, table, f, xf, e_mpa, truth_beam, reference=False):
         min_separation_unresolved=band.min_separation_unresolved(gm, m, ms),
     )
     t_band = time.perf_counter() - t0
-    vals = {"default": band._quantities(m, ms)}
+    vals = {"default": band_sampling._quantities(m, ms)}
     for key, p in (("c2", c2), ("c4", c4), ("fine", fine)):
-        vals[key] = band._quantities(*_solve(rec, table, x, g, p, f, xf, e)[1:])
+        vals[key] = band_sampling._quantities(*_solve(rec, table, x, g, p, f, xf, e)[1:])
     truth = solve_beam_contact(truth_beam, f, xf)
-    vals["truth"] = band._quantities(
+    vals["truth"] = band_sampling._quantities(
         *_solve(rec, table, truth.positions_m, truth.gap_m, fine, f, xf, e)[1:]
     )
     if reference:
         ref = _grid(*REFERENCE_GRID)
-        vals["reference"] = band._quantities(
+        vals["reference"] = band_sampling._quantities(
             *_solve(rec, table, truth.positions_m, truth.gap_m, ref, f, xf, e)[1:]
         )
     return {

@@ -62,7 +62,10 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from skisnow.app.presets import PRESETS  # noqa: E402
-from skisnow.app.service import band  # noqa: E402
+from skisnow.app.service import (  # noqa: E402
+    band,
+    band_sampling,
+)
 from skisnow.app.service.profiles import served_beam  # noqa: E402
 from skisnow.app.storage.skis import identification_for_sampling, read_ski  # noqa: E402
 from skisnow.app.storage.tables import read_table  # noqa: E402
@@ -117,7 +120,7 @@ class SkiModels:
 
     def __init__(self, rec, preset):
         self.rec = rec
-        dx, ny = band.coarse_grid(preset)
+        dx, ny = band_sampling.coarse_grid(preset)
         ident = served_beam(rec.identified)
         self.answer = _prepare(ident, rec, preset.pixel_along_m, preset.pixels_across)
         self.coarse = _prepare(ident, rec, dx, ny)
@@ -157,7 +160,7 @@ def case_row(name, models: SkiModels, table, f, xf, e_mpa, preset):
     grid_no_coarse = band.grid_component(preset, m, None)
     tab = band._table_component(table, m, 0.5, e)
     design = solve_flexible(models.design, f, xf, e)
-    design_q = band._quantities(design, multiscale(design, table, 0.5, e))
+    design_q = band_sampling._quantities(design, multiscale(design, table, 0.5, e))
     t0 = time.perf_counter()
     truth = solve_flexible(models.truth, f, xf, e)
     mst = multiscale(truth, table, 0.5, e)
@@ -169,9 +172,9 @@ def case_row(name, models: SkiModels, table, f, xf, e_mpa, preset):
         "e_snow_mpa": e_mpa,
         "converged": bool(m.converged and truth.converged),
         "values": {
-            "answer": band._quantities(m, ms),
+            "answer": band_sampling._quantities(m, ms),
             "c2": None if sampled is None else sampled.grid,
-            "truth": band._quantities(truth, mst),
+            "truth": band_sampling._quantities(truth, mst),
             "design": design_q,
         },
         "camber_model": spreads,

@@ -117,7 +117,7 @@ def _topography():
 
 def _npy_shape(path: Path) -> tuple[int, ...]:
     """Shape declared in a .npy header (read before any array is allocated)."""
-    from skisnow.app.storage.topography import npy_header
+    from skisnow.app.storage.topography_formats import npy_header
 
     with open(path, "rb") as fh:
         shape, dtype = npy_header(fh, "file")

@@ -30,37 +30,43 @@ in quadrature (:func:`solvers.band.combine`):
 ``ski_model``
     When ``auto`` answers with the rigid shape, the measured difference to the bending ski.
 
-Not covered (listed in every answer): the texture table's pixel-size error (the shipped tables
-carry no estimate; ``skisnow bench accuracy`` measures +2–3 % (grind-1) and +8–21 % (grind-2) in
-real contact area against the zero-pixel limit, docs/benchmarks.md), and the physics of the
-method itself (elastic half-spaces, no friction, no snow plasticity; docs/limits.md).
+Not covered (listed in every answer): the texture table's pixel-size error, which is not added
+to the band: a table built on several pixel sizes (the shipped grinds) stores its own estimate
+against the zero-pixel limit, reported beside the band in ``provenance.table.
+pixel_error_estimate`` (docs/tables.md); a table on one pixel size (an upload) stores none
+(:func:`pixel_size_not_covered`). And the physics of the method itself (elastic half-spaces,
+no friction, no snow plasticity; docs/limits.md).
 """
 
 from __future__ import annotations
 
-import hashlib
 import math
 from dataclasses import dataclass
 
 import numpy as np
 from skisnow.app.presets import Preset
-from skisnow.app.service.profiles import served_beam
-from skisnow.app.storage.skis import identification_for_sampling
+from skisnow.app.service.band_sampling import (
+    BAND_SEED,
+    BEAM_SAMPLES,
+    BEAM_SCALE,
+    PROFILE_CORRELATION_M,
+    PROFILE_SAMPLES,
+    QUANTITIES,
+    WIDE_BAND,
+    _beam_sigma,
+    _Case,
+    _sample,
+    _sample_flexible,
+    _Sampled,
+    beam_models,
+    camber_sigma_m,
+)
 from skisnow.solvers.band import (
-    Z90,
     combine,
     end_pixel_share,
-    model_error_sigma,
-    position_error_sigma,
     table_interpolation_error,
-    unit_perturbations,
 )
-from skisnow.solvers.errors import InputError, SkisnowError
-from skisnow.solvers.flexible import FlexibleModel, prepare_flexible, solve_flexible
-from skisnow.solvers.identify import estimate_noise, sample_beams
 from skisnow.solvers.lookup import MicroTable
-from skisnow.solvers.macro import ProfileExtruder, solve_macro
-from skisnow.solvers.multiscale import multiscale
 
 __all__ = [
     "BAND_SEED",
@@ -78,30 +84,6 @@ __all__ = [
     "grid_component",
 ]
 
-#: reported quantities with a band (relative half-widths keyed by these names)
-QUANTITIES = (
-    "apparent_contact_area",
-    "total_real_contact_area",
-    "average_real_contact_pressure",
-    "min_average_separation",
-    "total_reciprocal_separation",
-)
-#: perturbed solves per answer (antithetic pairs); 8 recover the spread to ~25 % (1/√(2·8))
-PROFILE_SAMPLES = 8
-#: correlation length of the camber model's error [m]: the network's actual error against the
-#: beam truth on the demo skis decorrelates over 20–80 mm (autocorrelation 0.49 at 20 mm and
-#: 0.31 at 80 mm for ski-a, 0.13 at 20 mm for ski-b)
-PROFILE_CORRELATION_M = 0.03
-#: solver tolerance of the perturbed solves: their quantities move by ≤ 2e-6 (relative) against
-#: the default 1e-8, and they cost about 25 % less
-SAMPLE_TOL = 1e-6
-#: the perturbations' seed: the same request always gets the same band
-BAND_SEED = 12
-#: the band of the loaded profile where the camber model is judged (as in training) [m]
-CONTACT_BAND_M = 2e-4
-#: an answer whose band is wider than this (relative half-width) carries a warning
-WIDE_BAND = 0.10
-
 
 @dataclass
 class Band:
@@ -118,88 +100,6 @@ class Band:
     #: factor on the identification covariance's deviations of the beam draws (bending-ski
     #: answers of an identified beam), else None
     beam_scale: float | None = None
-
-
-#: moving window of the camber model's error along the ski [m] (:func:`camber_sigma_m`)
-SIGMA_WINDOW_M = 0.1
-_SIGMA_CACHE: dict[int, tuple[object, np.ndarray | float | None, str]] = {}
-
-
-def camber_sigma_m(record, positions_m: np.ndarray) -> tuple[np.ndarray | float | None, str]:
-    """Standard deviation [m] of the ski's loaded-profile model error at ``positions_m`` and
-    where it comes from; ``(0, …)`` for a ski answered by its design beam, ``(None, …)`` when
-    unknown.
-
-    For an identified beam (the profile model of :mod:`app.service.profiles` when its identification
-    passed): the stored ``profile_sd_m``, the spread of the loaded profile over beams drawn
-    from the identification's covariance (:func:`solvers.identify.profile_sigma`).
-
-    For a camber network: its held-out (test split) profiles against the measured ones, inside
-    the contact band H < 0.2 mm, as a moving RMS along the ski with the device noise removed
-    (:func:`solvers.band.position_error_sigma`); the network's error is twice as large near the
-    tip and tail as behind the binding, and light loads touch there."""
-    ident = record.identified
-    if served_beam(ident) is not None:
-        sd = ident.get("profile_sd_m")
-        if sd is None:
-            return None, "the identified beam stores no profile spread"
-        x = np.asarray(ident["positions_m"], dtype=float)
-        sd = np.asarray(sd, dtype=float)
-        return np.interp(np.asarray(positions_m, dtype=float), x, sd), (
-            "identified beam: spread of the loaded profile over plausible beams drawn from the "
-            f"fit's covariance where H < {CONTACT_BAND_M * 1e3:.1f} mm "
-            f"({np.min(sd) * 1e6:.2f}–{np.max(sd) * 1e6:.2f} µm along the ski)"
-        )
-    net = record.network
-    if net is None:
-        if record.beam is not None:
-            return 0.0, "design beam stored with the ski, taken as exact"
-        return None, "the camber model's error is not known for this ski"
-    hit = _SIGMA_CACHE.get(id(record))
-    if hit is None or hit[0] is not record:
-        hit = (record, *_network_sigma(record))
-        _SIGMA_CACHE[id(record)] = hit
-    sigma_nodes, source = hit[1], hit[2]
-    if sigma_nodes is None:
-        return None, source
-    xs, ss = sigma_nodes
-    return np.interp(np.asarray(positions_m, dtype=float), xs, ss), source
-
-
-def _network_sigma(record):
-    from skisnow.solvers import camber
-
-    net, meas = record.network, record.measurements
-    f = np.asarray(net.get("split_test_loads_n", np.empty(0)), dtype=float)
-    xf = np.asarray(net.get("split_test_load_positions_m", np.empty(0)), dtype=float)
-    if f.size == 0:
-        return None, "the camber network stores no held-out cases"
-    mf = np.asarray(meas.loads_n, dtype=float)
-    mx = np.asarray(meas.load_positions_m, dtype=float)
-    profiles = np.asarray(meas.profiles_m, dtype=float)
-    x = np.asarray(meas.positions_m, dtype=float)
-    pred = camber.predict_profiles(net, f, xf)
-    residuals = np.full((f.size, x.size), np.nan)
-    for k in range(f.size):
-        rows = np.flatnonzero(
-            np.isclose(mf, f[k], rtol=1e-9, atol=1e-9) & np.isclose(mx, xf[k], atol=1e-9)
-        )
-        if rows.size == 0:
-            continue
-        measured = profiles[rows].mean(axis=0)
-        model = np.interp(x, pred.positions_m, pred.gaps_m[k])
-        residuals[k] = np.where(measured < CONTACT_BAND_M, model - measured, np.nan)
-    noise = float(estimate_noise(profiles))
-    if not np.isfinite(residuals).any():
-        return None, "the camber network's held-out cases are not among the measurements"
-    overall = model_error_sigma(float(np.sqrt(np.nanmean(residuals**2))), noise)
-    sigma = position_error_sigma(x, residuals, noise, SIGMA_WINDOW_M, floor_m=overall / 2)
-    return (x, sigma), (
-        f"camber network: held-out profiles against the measured ones where H < "
-        f"{CONTACT_BAND_M * 1e3:.1f} mm, device noise {noise * 1e6:.2f} µm removed → model error "
-        f"{overall * 1e6:.2f} µm RMS ({np.min(sigma) * 1e6:.2f}–{np.max(sigma) * 1e6:.2f} µm "
-        "along the ski)"
-    )
 
 
 def touches_profile_end(gap_map, macro) -> bool:
@@ -242,300 +142,6 @@ def min_separation_unresolved(gap_map, macro, ms) -> str | None:
             "pressure, and the minimum moves there as the grid is refined"
         )
     return None
-
-
-def _quantities(macro, ms) -> dict[str, float]:
-    return {
-        "apparent_contact_area": ms.apparent_contact_area_m2,
-        "total_real_contact_area": ms.total_real_contact_area_m2,
-        "average_real_contact_pressure": ms.average_real_contact_pressure_pa,
-        "min_average_separation": ms.min_average_separation_m,
-        "total_reciprocal_separation": ms.total_reciprocal_separation_m,
-    }
-
-
-def _zone_loads(macro, zones) -> np.ndarray:
-    """Load [N] of ``macro`` inside each of the nominal ``zones``: every loaded row belongs to
-    the nearest zone (a perturbed answer may split or merge zones)."""
-    if not zones:
-        return np.zeros(0)
-    x = macro.positions_m
-    row_load = np.nansum(np.nan_to_num(macro.pressure_pa), axis=1) * float(
-        np.prod(macro.pixel_size_m)
-    )
-    starts = np.array([z.start_m for z in zones])
-    ends = np.array([z.end_m for z in zones])
-    dist = np.maximum(starts[None, :] - x[:, None], 0) + np.maximum(x[:, None] - ends[None, :], 0)
-    owner = np.argmin(dist, axis=1)
-    return np.bincount(owner, weights=row_load, minlength=len(zones))
-
-
-def _rel_half_width(nominal: float, values: np.ndarray) -> float:
-    v = np.asarray(values, dtype=float)
-    v = v[np.isfinite(v)]
-    if v.size < 2 or not math.isfinite(nominal) or nominal == 0:
-        return float("nan")
-    return float(Z90 * np.sqrt(np.mean((v - nominal) ** 2)) / abs(nominal))
-
-
-def coarse_grid(preset: Preset) -> tuple[float, int]:
-    """The grid twice as coarse as ``preset`` in both directions: (pixel along [m], pixels
-    across); the perturbed solves and the per-answer grid estimate run on it."""
-    return 2 * preset.pixel_along_m, max(preset.pixels_across // 2, 2)
-
-
-@dataclass
-class _Sampled:
-    widths: dict[str, float]  # camber model, relative 90 % half-widths
-    zone_widths: list[float]
-    line_half_width_pa: np.ndarray | None  # on the nominal answer's positions
-    grid: dict[str, float]  # per-answer grid estimate |q − q_coarse| / |q|
-    zone_grid: list[float]
-    failed: int
-
-
-@dataclass(frozen=True)
-class _Case:
-    """One answer: the rigid loaded profile behind it, its grid, solves and texture."""
-
-    positions_m: np.ndarray
-    gap_m: np.ndarray
-    outline: object
-    preset: Preset
-    macro: object
-    ms: object
-    table: MicroTable
-    porosity: float
-    e_eff: float
-
-
-def _sample(case: _Case, sigma_m: float | np.ndarray, samples: int, seed: int) -> _Sampled | None:
-    """Solve on the coarse grid (:func:`coarse_grid`) the nominal profile and ``samples``
-    perturbed ones. The coarse nominal against the answer gives the grid estimate (first-order
-    convergence: the error of the answer's grid is the difference to a grid twice as coarse);
-    the perturbed ones against the coarse nominal give the camber model's spread."""
-    positions_m, gap_m, outline, preset = case.positions_m, case.gap_m, case.outline, case.preset
-    macro, ms, table, porosity, e_eff = case.macro, case.ms, case.table, case.porosity, case.e_eff
-    dx, ny = coarse_grid(preset)
-
-    extrude = ProfileExtruder(  # the coarse grid and footprint, set up once for all solves
-        positions_m,
-        outline.width_m,
-        width_positions_m=outline.positions_m,
-        pixel_along_m=dx,
-        pixels_across=ny,
-    )
-
-    def solve(g, near, near_pressure_pa):
-        gm = extrude(g)
-        if near_pressure_pa is None:  # the answer's line pressure on the coarse rows
-            line = np.interp(gm.positions_m, near.positions_m, np.nan_to_num(near.pressure_line_pa))
-            near_pressure_pa = np.where(np.isfinite(gm.gap_m), line[:, None], 0.0)
-        m = solve_macro(
-            gm,
-            macro.load_n,
-            macro.load_position_m,
-            e_eff,
-            tol=SAMPLE_TOL,
-            initial_pressure_pa=near_pressure_pa,
-            initial_rigid_body=(near.approach_m, near.tilt_rad),
-            window_gap_m=near.window_gap_m,
-        )
-        if not m.converged:
-            return None
-        return m, multiscale(m, table, porosity, e_eff)
-
-    # every coarse solve starts near its answer: the nominal one from the answer itself (its
-    # approach, tilt, window and line pressure; the window check still grows the window until
-    # it holds, so only the path changes: 8.6 -> 2.9 ms, and the quantities move within the
-    # solver tolerance SAMPLE_TOL), the perturbed ones from the coarse nominal
-    try:
-        base = solve(gap_m, macro, None)
-    except SkisnowError:
-        base = None
-    if base is None:
-        return None
-    m0 = base[0]
-    perturbed, failed = [], 0
-    deltas = (
-        _unit_fields(positions_m, samples, seed) * _nonnegative(sigma_m, positions_m)
-        if np.any(np.asarray(sigma_m) > 0)
-        else np.zeros((0, np.size(positions_m)))
-    )
-    for d in deltas:
-        g = gap_m + d
-        g = g - min(float(np.nanmin(g)), 0.0)  # a rigid approach absorbs a constant
-        try:
-            r = solve(g, m0, m0.pressure_pa)
-        except SkisnowError:
-            r = None
-        if r is None:
-            failed += 1
-            continue
-        perturbed.append(r)
-    return _spread(macro, ms, base, perturbed, failed)
-
-
-def _spread(macro, ms, base, perturbed, failed: int) -> _Sampled:
-    """The answer (``macro``, ``ms``) against its coarse nominal ``base`` (the grid estimate)
-    and the ``perturbed`` coarse solves (pairs of macro and multiscale results) against that
-    nominal (the camber model's spread)."""
-    m0, s0 = base
-    q_nom, q0 = _quantities(macro, ms), _quantities(m0, s0)
-    z_nom, z0 = _zone_loads(macro, ms.zones), _zone_loads(m0, ms.zones)
-    grid = {k: abs(q0[k] / q_nom[k] - 1) if q_nom[k] else float("nan") for k in q_nom}
-    zone_grid = [abs(a / b - 1) if b else float("nan") for a, b in zip(z0, z_nom, strict=True)]
-    qs: dict[str, list[float]] = {k: [] for k in q_nom}
-    zs, lines = [], []
-    for m, s in perturbed:
-        for k, v in _quantities(m, s).items():
-            qs[k].append(v)
-        zs.append(_zone_loads(m, ms.zones))
-        lines.append(np.nan_to_num(m.pressure_line_pa))
-    widths = {k: _rel_half_width(q0[k], np.array(v)) for k, v in qs.items()}
-    zone_w = [
-        _rel_half_width(z0[i], np.array([z[i] for z in zs])) if zs else float("nan")
-        for i in range(z0.size)
-    ]
-    line = None
-    if len(lines) >= 2:
-        half = Z90 * np.sqrt(
-            np.mean((np.array(lines) - np.nan_to_num(m0.pressure_line_pa)) ** 2, 0)
-        )
-        line = np.interp(macro.positions_m, m0.positions_m, half)
-    return _Sampled(widths, zone_w, line, grid, zone_grid, failed)
-
-
-# ----------------------------------------------------------------------------- bending ski
-
-#: plausible beams per answer of the bending ski: antithetic pairs of draws from the
-#: identification's covariance (:func:`solvers.identify.sample_beams`). 4 calibrate as 8 do
-#: (test cases 94.4 % inside at 1.19× the RMS error, against 94.8 % at 1.21×) at about half
-#: the band's cost; 2 need a larger factor and cover the apparent area less (87.5 %)
-#: (``scripts/flexible_band_study.py``; docs/limits.md, Error band)
-BEAM_SAMPLES = 4
-#: factor on the covariance's parameter deviations of those draws [-]: the smallest of the
-#: study's candidates whose camber part alone covers 90 % of the identification's own error in
-#: the ``calib`` cases (the answer against the ski's true beam on the answer's grid; 93.3 %,
-#: test cases 95.8 %). The covariance understates that error far more than the loaded
-#: profile's (about 3×, docs/limits.md): at factor 1 the camber part covers 34 % of it
-BEAM_SCALE = 16.0
-#: models of plausible beams kept per ski record (one entry per coarse grid and draw setting)
-_BEAM_MODELS_MAX = 8
-
-
-def _prepare(beam, outline, dx: float, ny: int) -> FlexibleModel:
-    return prepare_flexible(
-        beam,
-        outline.width_m,
-        pixel_along_m=dx,
-        pixels_across=ny,
-        width_positions_m=outline.positions_m,
-    )
-
-
-def beam_models(
-    record, preset: Preset, *, samples: int, seed: int, scale: float
-) -> tuple[FlexibleModel, list[FlexibleModel]] | None:
-    """The bending ski on the grid twice as coarse as ``preset`` (:func:`coarse_grid`): the
-    nominal model of the beam the ski answers with, and ``samples`` models of plausible beams
-    drawn from its identification's covariance with deviations × ``scale`` (antithetic pairs,
-    seeded: the same request always gets the same band); the second is empty for a design
-    beam (taken as exact). None when the ski has no beam. Prepared once per record, grid and
-    draw setting and kept in ``record.cache`` (~1 s for 8 draws on a loaded machine)."""
-    ident = record.identified
-    beam = served_beam(ident)
-    drawable = beam is not None
-    if beam is None:
-        beam = record.beam
-    if beam is None:
-        return None
-    dx, ny = coarse_grid(preset)
-    key = (float(dx), int(ny), int(samples), int(seed), float(scale))
-    store = record.cache.get("band_beam_models")
-    if store is None or store[0] is not ident or store[1] is not record.beam:
-        store = (ident, record.beam, {})
-        record.cache["band_beam_models"] = store
-    hit = store[2].get(key)
-    if hit is None:
-        nominal = _prepare(beam, record.outline, dx, ny)
-        drawn = []
-        if drawable and samples > 0 and scale > 0:
-            ib = identification_for_sampling(ident)
-            if ib is not None:
-                beams = sample_beams(ib, samples, seed, scale=scale, antithetic=True)
-                drawn = [_prepare(b, record.outline, dx, ny) for b in beams]
-        if len(store[2]) >= _BEAM_MODELS_MAX:
-            store[2].clear()
-        hit = store[2][key] = (nominal, drawn)
-    return hit
-
-
-def _sample_flexible(
-    macro, ms, models: tuple[FlexibleModel, list[FlexibleModel]], table, porosity, e_eff
-) -> _Sampled | None:
-    """The bending-ski answer (``macro``, ``ms``) solved again on the coarse grid: the nominal
-    beam (warm-started from the answer's line pressure) for the grid estimate, the plausible
-    beams (warm-started from that coarse nominal) for the spread. Tolerance
-    :data:`SAMPLE_TOL`."""
-    nominal, drawn = models
-    f, xf = macro.load_n, macro.load_position_m
-
-    def solve(model, start_pa):
-        m = solve_flexible(model, f, xf, e_eff, tol=SAMPLE_TOL, initial_pressure_pa=start_pa)
-        if not m.converged:
-            return None
-        return m, multiscale(m, table, porosity, e_eff)
-
-    inside = np.isfinite(nominal.unloaded_map.gap_m)
-    line = np.interp(nominal.positions_m, macro.positions_m, np.nan_to_num(macro.pressure_line_pa))
-    try:
-        base = solve(nominal, np.where(inside, line[:, None], 0.0))
-    except SkisnowError:
-        base = None
-    if base is None:
-        return None
-    perturbed, failed = [], 0
-    for model in drawn:
-        try:
-            r = solve(model, base[0].pressure_pa)
-        except SkisnowError:
-            r = None
-        if r is None:
-            failed += 1
-            continue
-        perturbed.append(r)
-    return _spread(macro, ms, base, perturbed, failed)
-
-
-#: unit perturbation fields per profile grid (:func:`_unit_fields`); a ski's profile model
-#: answers on one grid, so a process holds a few entries (at most _UNIT_FIELDS_MAX)
-_UNIT_FIELDS: dict[tuple, np.ndarray] = {}
-_UNIT_FIELDS_MAX = 16
-
-
-def _unit_fields(positions_m: np.ndarray, samples: int, seed: int) -> np.ndarray:
-    """:func:`solvers.band.unit_perturbations` on ``positions_m`` (ℓ =
-    :data:`PROFILE_CORRELATION_M`), kept per grid: they depend on the grid, the count and the
-    seed only, and × σ they are :func:`solvers.band.profile_perturbations` exactly (~1 ms of
-    convolutions per answer saved)."""
-    x = np.ascontiguousarray(positions_m, dtype=float)
-    key = (x.size, hashlib.sha1(x.tobytes()).hexdigest(), PROFILE_CORRELATION_M, samples, seed)
-    hit = _UNIT_FIELDS.get(key)
-    if hit is None:
-        hit = unit_perturbations(x, PROFILE_CORRELATION_M, samples, seed)
-        hit.flags.writeable = False
-        if len(_UNIT_FIELDS) >= _UNIT_FIELDS_MAX:
-            _UNIT_FIELDS.clear()
-        _UNIT_FIELDS[key] = hit
-    return hit
-
-
-def _nonnegative(sigma_m, positions_m) -> np.ndarray:
-    sigma = np.broadcast_to(np.asarray(sigma_m, dtype=float), np.shape(positions_m))
-    if not np.all(sigma >= 0):
-        raise InputError("sigma_m must be ≥ 0")
-    return sigma
 
 
 _TABLE_ERRORS: dict[int, tuple[MicroTable, dict[str, np.ndarray]]] = {}
@@ -656,21 +262,18 @@ def grid_component(preset: Preset, macro, sampled: _Sampled | None) -> dict[str,
     return grid
 
 
-def _beam_sigma(identified: dict, scale: float, draws: int) -> tuple[float | None, str]:
-    """RMS [m] of the loaded profile's spread implied by the beam draws (the stored
-    ``profile_sd_m`` × ``scale``; None when not stored) and the band's words for them."""
-    sd = identified.get("profile_sd_m")
-    rms = None if sd is None else scale * float(np.sqrt(np.mean(np.square(sd))))
-    spread = (
-        ""
-        if rms is None
-        else f"; on the flat their loaded profiles spread {rms * 1e6:.2f} µm RMS along the ski"
-    )
-    return rms, (
-        f"identified beam: the bending ski solved again with {draws} plausible beams (EI(X) and "
-        f"c(X)) drawn from the fit's covariance in antithetic pairs, deviations × {scale:g} (the "
-        "covariance understates the identified profile's actual error; factor calibrated "
-        f"against the demo skis' true beams, docs/limits.md){spread}"
+def pixel_size_not_covered(table: MicroTable) -> str:
+    """The band's "not covered" entry for the table's pixel size: where its estimate is (a
+    table on several pixel sizes) or that there is none (one pixel size)."""
+    if table.real_contact_area_fraction_error is None:
+        return (
+            "texture pixel size of the table (a table on one pixel size stores no estimate; on "
+            "the shipped grinds' 1.5 µm grid alone skisnow bench accuracy measured +2–3 % "
+            "(grind-1) and +8–21 % (grind-2) in real contact area, docs/benchmarks.md)"
+        )
+    return (
+        "texture pixel size of the table: not in the band; the table's own estimate against the "
+        "zero-pixel limit is in provenance.table.pixel_error_estimate (docs/tables.md)"
     )
 
 
@@ -706,8 +309,7 @@ def answer_band(
     coarse, whose nominal solve also gives the per-answer grid estimate."""
     components: dict[str, dict[str, float]] = {}
     not_covered = [
-        "texture pixel size of the table (no estimate stored; skisnow bench accuracy measures "
-        "+2–3 % (grind-1) and +8–21 % (grind-2) in real contact area, docs/benchmarks.md)",
+        pixel_size_not_covered(table),
         "the method's physics: elastic half-spaces, no friction, no snow plasticity "
         "(docs/limits.md)",
     ]

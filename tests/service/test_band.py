@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from skisnow.app import service
 from skisnow.app.presets import PRESETS
-from skisnow.app.service import band
+from skisnow.app.service import band, band_sampling
 from skisnow.app.storage.skis import read_ski
 from skisnow.app.storage.tables import read_table
 from skisnow.solvers.band import (
@@ -68,7 +68,7 @@ def test_perturbations_have_the_asked_spread_and_correlation():
 def test_unit_fields_times_sigma_are_the_perturbations_and_are_kept_per_grid():
     """The service keeps the unit fields per profile grid; × σ they are the perturbations of
     profile_perturbations bit for bit, so the band does not depend on what was cached."""
-    from skisnow.app.service import band
+    from skisnow.app.service import band, band_sampling
 
     x = np.linspace(-0.9, 1.0, 2001)
     sigma = np.where(x < 0, 1e-6, 2.5e-6)
@@ -76,12 +76,12 @@ def test_unit_fields_times_sigma_are_the_perturbations_and_are_kept_per_grid():
     assert np.array_equal(
         unit_perturbations(x, band.PROFILE_CORRELATION_M, 8, 12) * sigma, expected
     )
-    first = band._unit_fields(x, 8, 12)
-    assert band._unit_fields(x.copy(), 8, 12) is first  # same grid, another array: kept
+    first = band_sampling._unit_fields(x, 8, 12)
+    assert band_sampling._unit_fields(x.copy(), 8, 12) is first  # same grid, another array: kept
     assert np.array_equal(first * sigma, expected)
-    assert not np.array_equal(band._unit_fields(x, 8, 13), first)  # the seed is in the key
+    assert not np.array_equal(band_sampling._unit_fields(x, 8, 13), first)  # the seed is in the key
     with pytest.raises(InputError):
-        band._nonnegative(-1e-6, x)
+        band_sampling._nonnegative(-1e-6, x)
 
 
 def test_table_interpolation_error_is_zero_for_a_power_law_and_positive_for_a_bend():
@@ -253,7 +253,7 @@ def test_beam_draws_are_antithetic_scaled_and_kept_per_ski():
     assert not np.array_equal(
         other[1][0].unloaded_map.gap_m, first[1][0].unloaded_map.gap_m, equal_nan=True
     )
-    assert first[0].unloaded_map.pixel_size_m[0] == pytest.approx(band.coarse_grid(pre)[0])
+    assert first[0].unloaded_map.pixel_size_m[0] == pytest.approx(band_sampling.coarse_grid(pre)[0])
 
 
 def test_wide_band_warns_and_a_short_zone_has_no_min_separation_band(shipped):
@@ -357,7 +357,7 @@ def _calibration_rows() -> list[dict]:
                 )
                 truth = solve_beam_contact(rec.beam, f, xf)
                 _, _, mst = solve(truth.positions_m, truth.gap_m, fine)
-                got, want = band._quantities(m, ms), band._quantities(None, mst)
+                got, want = band_sampling._quantities(m, ms), band_sampling._quantities(None, mst)
                 for q in band.QUANTITIES:
                     if math.isfinite(b.widths[q]):
                         rows.append(
@@ -451,7 +451,7 @@ def _flexible_calibration_rows() -> list[dict]:
                 assert ans["provenance"]["ski"]["profile_model"] == "identified_beam"
                 e = effective_modulus(e_mpa * 1e6, 700e6, 0.3)
                 truth = solve_flexible(truth_model, f, xf, e)
-                want = band._quantities(truth, multiscale(truth, table, 0.5, e))
+                want = band_sampling._quantities(truth, multiscale(truth, table, 0.5, e))
                 for q, (section, key) in band.ANSWER_KEYS.items():
                     w = ans["band"]["relative_half_width"][q]
                     if w is not None:
@@ -486,3 +486,17 @@ def test_flexible_band_is_not_uselessly_wide():
     """Bending-ski answers: mean half-width ≤ 2× the RMS actual error."""
     err, width, _ = _flexible_calibration()
     assert width.mean() <= 2 * np.sqrt(np.mean(err**2)), (width.mean(), np.sqrt(np.mean(err**2)))
+
+
+def test_not_covered_says_where_the_pixel_size_estimate_is(small_table):
+    """A table on several pixel sizes stores its own estimate (the answer reports it beside the
+    band); one on one pixel size stores none, and the band's list says which."""
+    from skisnow.app.service.band import pixel_size_not_covered
+    from skisnow.app.storage.common import tables_dir
+    from skisnow.app.storage.tables import read_table
+
+    shipped = read_table(tables_dir() / "grind-2.h5")
+    assert shipped.real_contact_area_fraction_error is not None
+    assert "provenance.table.pixel_error_estimate" in pixel_size_not_covered(shipped)
+    assert small_table.real_contact_area_fraction_error is None
+    assert "stores no estimate" in pixel_size_not_covered(small_table)
