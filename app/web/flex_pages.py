@@ -14,7 +14,7 @@ check themselves are in :func:`check_bounds`.
 from __future__ import annotations
 
 import math
-from urllib.parse import urlencode
+from urllib.parse import quote, urlencode
 
 from fastapi import Request
 from fastapi.responses import HTMLResponse
@@ -104,8 +104,8 @@ def render_sheet(request: Request) -> HTMLResponse:
                 context = {
                     "ans": ans,
                     "figure": svg(flex_profile_svg(ans)),
-                    "csv_url": f"/v1/skis/{req.ski}/flex?{urlencode(csv_q)}",
-                    "json_url": f"/v1/skis/{req.ski}/flex?"
+                    "csv_url": f"/v1/skis/{quote(req.ski, safe='')}/flex?{urlencode(csv_q)}",
+                    "json_url": f"/v1/skis/{quote(req.ski, safe='')}/flex?"
                     + urlencode({**csv_q, "format": "json"}),
                 }
             except SkisnowError as exc:

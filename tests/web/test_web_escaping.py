@@ -25,6 +25,7 @@ from urllib.parse import quote
 
 import pytest
 from fastapi.testclient import TestClient
+from markupsafe import escape
 from skisnow.app import service
 from skisnow.app.main import create_app
 from skisnow.app.settings import Settings
@@ -170,6 +171,11 @@ def test_names_with_markup_are_escaped_on_every_page(client):
             assert html.count("<svg") == 6
         if params.get("ski") == SKI and path != "/":
             assert f"ski{ESCAPED}" in html
+    # the sheet's CSV/JSON links carry the name percent-encoded in the path (a raw name would
+    # end the path segment at its first "/" or "?")
+    sheet = client.get("/flex", params={"ski": SKI, "body_weight_kg": "75"}).text
+    link = "/v1/skis/" + quote(SKI, safe="") + "/flex?"
+    assert sheet.count(str(escape(link))) == 2
     # the description of the ski, on the form and on its page
     assert f"desc{ESCAPED}" in client.get("/").text
     assert f"desc{ESCAPED}" in client.get("/skis/" + quote(SKI, safe="")).text
