@@ -246,6 +246,16 @@ def _well_posedness(mi: dict) -> list[str]:
     ]
 
 
+def _shipped_levels_words(rows: list[dict]) -> str:
+    """Which pixel levels each shipped file has, as the run recorded them."""
+    levels = {}
+    for s_ in rows:
+        levels.setdefault(s_["grind"], (s_.get("shipped_table") or {}).get("pixel_levels", "none"))
+    return "; ".join(f"{g}: `--pixel-levels {lv}`" for g, lv in levels.items()) + (
+        "; the shipped tables' own estimates over the whole range are in the table below"
+    )
+
+
 def _before_after_lines(mi: dict) -> list[str]:
     """Shipped tables before (shipped grid alone) and after (two-level extrapolation), against
     the zero-pixel limit of this run's finest grids."""
@@ -261,11 +271,12 @@ def _before_after_lines(mi: dict) -> list[str]:
         f"{SHIPPED_N}² ({_pixel_um(SHIPPED_N):g} µm). After: two levels, {SHIPPED_N}² and "
         f"{fine}² ({_pixel_um(fine):g} µm) of the same surface, extrapolated to zero pixel size "
         f"(a_r {orders['real_contact_area_fraction']}, h̄_n {orders['mean_gap_m']}, (1/h)‾ "
-        f"{orders['mean_reciprocal_gap_per_m']}; `skisnow build-tables --pixel-levels refine`, "
-        f"docs/tables.md). Both against the zero-pixel limit from {finest[0]}² and "
-        f"{finest[1]}² (observed order of the three finest grids where it converges, else the "
-        "finest value); `estimate` is the error the table stores for itself, `table` what the "
-        "shipped file returns there (interpolated).",
+        f"{orders['mean_reciprocal_gap_per_m']}; what `skisnow build-tables --pixel-levels "
+        f"refine` stores, docs/tables.md), computed in this run. Both against the zero-pixel "
+        f"limit from {finest[0]}² and {finest[1]}² (observed order of the three finest grids "
+        "where it converges, else the finest value); `estimate` is the error the two-level "
+        "value carries for itself, `table` what the shipped file returns there (interpolated; "
+        f"{_shipped_levels_words(rows)}).",
         "",
         "| series | a_r before | a_r after | a_r estimate | a_r table (estimate) | h̄_n before "
         "| h̄_n after | (1/h)‾ before | (1/h)‾ after | (1/h)‾ estimate |",
