@@ -36,8 +36,6 @@ from skisnow.app.storage.skis import (
 from skisnow.solvers.errors import InputError
 from tqdm import tqdm
 
-SKI_DIR = SHIPPED_SKI_DIR
-
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -75,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     if args.ski:
         path = Path(args.ski)
         if not path.suffix:
-            path = SKI_DIR / f"{args.ski}.h5"
+            path = SHIPPED_SKI_DIR / f"{args.ski}.h5"
         record = read_ski(path)
         data, design = record.measurements, record.beam
     else:

@@ -26,8 +26,6 @@ from skisnow.solvers.macro import (
 
 __all__ = ["loaded_profile", "register", "run"]
 
-SKI_DIR = SHIPPED_SKI_DIR
-
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``macro`` subcommand."""
@@ -158,7 +156,7 @@ def _check_covered(args: argparse.Namespace, ski) -> None:
 
 def _ski_path(name: str) -> Path:
     path = Path(name)
-    return path if path.suffix else SKI_DIR / f"{name}.h5"
+    return path if path.suffix else SHIPPED_SKI_DIR / f"{name}.h5"
 
 
 def _gap_map(args: argparse.Namespace, si: dict) -> GapMap:

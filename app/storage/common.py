@@ -203,8 +203,6 @@ def read_json_manifest(
     DataFileError
         Missing, unreadable, another schema, or no ``files`` mapping; the message names the file.
     """
-    from skisnow.solvers.errors import DataFileError
-
     path = Path(path)
     try:
         data = json.loads(path.read_text())

@@ -2,7 +2,8 @@
 
 import numpy as np
 import pytest
-from skisnow.app.commands.macro import SKI_DIR, loaded_profile
+from skisnow.app.commands.macro import loaded_profile
+from skisnow.app.storage.skis import SHIPPED_SKI_DIR as SKI_DIR
 from skisnow.app.storage.skis import read_ski
 from skisnow.solvers import reference
 from skisnow.solvers.beam import G_STANDARD, solve_beam_contact
