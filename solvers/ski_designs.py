@@ -1,0 +1,228 @@
+"""A catalogue of ski beams unlike the demo skis, for identification studies and tests (#26).
+
+Three families:
+
+``classic``
+    :class:`solvers.beam.ClassicSkiDesign` with other parameters than the demo skis (a stiff race
+    ski, a soft touring ski).
+``functional``
+    beams written directly from EI(X) and c(X) functions, not from ``ClassicSkiDesign``: an
+    asymmetric stiffness, a binding plate, an off-centre camber peak. Their c(X) is a smooth
+    arch between the two unloaded contact points (shovels beyond), their EI(X) a smooth bell,
+    so the identification's bases (cubic B-splines for c, hats for log(1/EI)) do not contain
+    them exactly.
+``skate``
+    a skate ski written the same way: shorter, one high stiff arch, no wax pocket.
+
+Every design is a pure function of its parameters (no random numbers): ``build(spacing_m)``
+returns a :class:`solvers.beam.BeamSki` on a uniform grid from tail to tip. The camber is put
+on the flat (:func:`solvers.beam_fit.camber_on_flat`): ≥ 0, zero at its two unloaded contacts.
+
+Positions X are from the balance point, positive towards the tip [m]; EI in N·m²; c in m.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .beam import BeamSki, ClassicSkiDesign
+from .beam_fit import camber_on_flat
+from .errors import InputError
+
+__all__ = ["FAMILIES", "STUDY_DESIGNS", "FunctionalSkiDesign", "design_family"]
+
+
+def _smoothstep(s: np.ndarray) -> np.ndarray:
+    """C¹ step from 0 (s ≤ 0) to 1 (s ≥ 1)."""
+    s = np.clip(s, 0.0, 1.0)
+    return s * s * (3.0 - 2.0 * s)
+
+
+@dataclass(frozen=True)
+class FunctionalSkiDesign:
+    """A beam from EI(X) and c(X) functions.
+
+    Camber: an arch ``h · sin(π s)^p`` between the unloaded contacts (``s`` maps the contacts to
+    0 and 1, warped so that the peak sits at ``camber_peak_m``), plus an optional second bump
+    ``bump_height_m · sin²`` over ``bump_m`` (a wax pocket or a twin peak), plus parabolic shovels
+    beyond the contacts.
+
+    Stiffness: ``EI_end + (EI_max − EI_end) · exp(−(d / w)⁴)`` with ``d = X − stiff_centre_m`` and
+    a half-width ``w`` that differs behind (``stiff_rear_width_m``) and ahead
+    (``stiff_front_width_m``) of the centre; times ``1 + plate_gain`` over ``plate_m`` (a binding
+    plate, smooth edges of ``plate_edge_m``).
+    """
+
+    tail_m: float = -0.97
+    tip_m: float = 1.03
+    tail_contact_m: float = -0.88
+    tip_contact_m: float = 0.80
+    camber_height_m: float = 1.1e-3
+    camber_peak_m: float = 0.0
+    camber_power: float = 1.5
+    bump_m: tuple[float, float] = (0.0, 0.0)
+    bump_height_m: float = 0.0
+    tail_rise_m: float = 0.006
+    tip_rise_m: float = 0.035
+    stiffness_max_nm2: float = 900.0
+    stiffness_end_nm2: float = 220.0
+    stiff_centre_m: float = -0.05
+    stiff_rear_width_m: float = 0.45
+    stiff_front_width_m: float = 0.45
+    plate_m: tuple[float, float] = (0.0, 0.0)
+    plate_gain: float = 0.0
+    plate_edge_m: float = 0.03
+
+    def __post_init__(self) -> None:
+        order = (self.tail_m, self.tail_contact_m, self.camber_peak_m, self.tip_contact_m)
+        if not (order[0] < order[1] < order[2] < order[3] < self.tip_m):
+            raise InputError(
+                "FunctionalSkiDesign needs tail_m < tail_contact_m < camber_peak_m < "
+                f"tip_contact_m < tip_m, got {(*order, self.tip_m)}"
+            )
+        for name in (
+            "camber_height_m",
+            "camber_power",
+            "stiffness_max_nm2",
+            "stiffness_end_nm2",
+            "stiff_rear_width_m",
+            "stiff_front_width_m",
+        ):
+            v = getattr(self, name)
+            if not np.isfinite(v) or v <= 0:
+                raise InputError(f"{name} must be finite and > 0, got {v!r}")
+        if self.plate_gain < 0 or self.bump_height_m < 0:
+            raise InputError("plate_gain and bump_height_m must be >= 0")
+
+    def camber(self, x_m: np.ndarray) -> np.ndarray:
+        """Unloaded gap c(X) [m] before it is put on the flat."""
+        x = np.asarray(x_m, dtype=float)
+        xt, xp, xk = self.tail_contact_m, self.tip_contact_m, self.camber_peak_m
+        # warp s = u^alpha so that the peak (s = 1/2) is at xk
+        alpha = np.log(0.5) / np.log((xk - xt) / (xp - xt))
+        u = np.clip((x - xt) / (xp - xt), 0.0, 1.0)
+        c = self.camber_height_m * np.sin(np.pi * u**alpha) ** self.camber_power
+        b0, b1 = self.bump_m
+        if self.bump_height_m > 0 and b1 > b0:
+            inside = (x > b0) & (x < b1)
+            c[inside] += self.bump_height_m * np.sin(np.pi * (x[inside] - b0) / (b1 - b0)) ** 2
+        tail = x < xt
+        tip = x > xp
+        c[tail] = self.tail_rise_m * ((xt - x[tail]) / (xt - self.tail_m)) ** 2
+        c[tip] = self.tip_rise_m * ((x[tip] - xp) / (self.tip_m - xp)) ** 2
+        return c
+
+    def stiffness(self, x_m: np.ndarray) -> np.ndarray:
+        """Bending stiffness EI(X) [N·m²]."""
+        x = np.asarray(x_m, dtype=float)
+        d = x - self.stiff_centre_m
+        w = np.where(d < 0, self.stiff_rear_width_m, self.stiff_front_width_m)
+        ei = self.stiffness_end_nm2 + (self.stiffness_max_nm2 - self.stiffness_end_nm2) * np.exp(
+            -((d / w) ** 4)
+        )
+        p0, p1 = self.plate_m
+        if self.plate_gain > 0 and p1 > p0:
+            e = self.plate_edge_m
+            window = _smoothstep((x - p0) / e) * _smoothstep((p1 - x) / e)
+            ei = ei * (1.0 + self.plate_gain * window)
+        return ei
+
+    def build(self, spacing_m: float = 1e-3) -> BeamSki:
+        """Sample the design on a uniform grid (tail to tip) of spacing ``spacing_m`` [m]."""
+        if not np.isfinite(spacing_m) or spacing_m <= 0:
+            raise InputError(f"spacing_m must be finite and > 0, got {spacing_m!r}")
+        n = round((self.tip_m - self.tail_m) / spacing_m) + 1
+        x = self.tail_m + spacing_m * np.arange(n)
+        return BeamSki(x, self.stiffness(x), camber_on_flat(x, self.camber(x)))
+
+
+#: the study's designs (stable names; #26 point 6): at least six, three families
+STUDY_DESIGNS: dict[str, ClassicSkiDesign | FunctionalSkiDesign] = {
+    # classic: a stiff race ski, high pocket, short kick zone
+    "race-classic": ClassicSkiDesign(
+        camber_height_m=0.0018,
+        pocket_m=(-0.25, 0.40),
+        pocket_height_m=5e-4,
+        stiffness_nm2=2600.0,
+        end_stiffness_ratio=0.12,
+    ),
+    # classic: a soft touring ski, long low camber
+    "touring-classic": ClassicSkiDesign(
+        camber_height_m=0.0009,
+        tail_contact_m=-0.86,
+        tip_contact_m=0.78,
+        pocket_m=(-0.40, 0.45),
+        camber_peak_m=-0.05,
+        pocket_height_m=3e-4,
+        stiffness_nm2=600.0,
+        end_stiffness_ratio=0.4,
+    ),
+    # functional: a stiffer tail than tip (asymmetric bell)
+    "asymmetric": FunctionalSkiDesign(
+        camber_height_m=1.3e-3,
+        camber_peak_m=-0.08,
+        stiffness_max_nm2=1800.0,
+        stiffness_end_nm2=300.0,
+        stiff_centre_m=-0.15,
+        stiff_rear_width_m=0.60,
+        stiff_front_width_m=0.30,
+    ),
+    # functional: a binding plate doubles EI under the foot
+    "binding-plate": FunctionalSkiDesign(
+        camber_height_m=1.1e-3,
+        camber_peak_m=0.0,
+        stiffness_max_nm2=900.0,
+        stiffness_end_nm2=220.0,
+        plate_m=(-0.22, 0.06),
+        plate_gain=1.2,
+    ),
+    # functional: camber peak well ahead of the balance point, with a wax pocket behind it
+    "offcentre-peak": FunctionalSkiDesign(
+        camber_height_m=1.0e-3,
+        camber_peak_m=0.22,
+        camber_power=1.2,
+        bump_m=(-0.30, 0.20),
+        bump_height_m=2.5e-4,
+        stiffness_max_nm2=880.0,
+        stiffness_end_nm2=250.0,
+        stiff_centre_m=0.05,
+    ),
+    # functional: a skate ski (shorter, one high stiff arch, no pocket)
+    "skate": FunctionalSkiDesign(
+        tail_m=-0.88,
+        tip_m=0.98,
+        tail_contact_m=-0.80,
+        tip_contact_m=0.76,
+        camber_height_m=2.2e-3,
+        camber_peak_m=-0.02,
+        camber_power=2.0,
+        tip_rise_m=0.030,
+        stiffness_max_nm2=1900.0,
+        stiffness_end_nm2=350.0,
+        stiff_centre_m=-0.05,
+        stiff_rear_width_m=0.50,
+        stiff_front_width_m=0.50,
+    ),
+}
+
+#: design name -> family: ``classic`` (ClassicSkiDesign), ``functional`` (classic skis written
+#: from EI/c functions), ``skate`` (one high arch, no wax pocket)
+FAMILIES = {
+    name: (
+        "skate"
+        if name.startswith("skate")
+        else "classic"
+        if isinstance(d, ClassicSkiDesign)
+        else "functional"
+    )
+    for name, d in STUDY_DESIGNS.items()
+}
+
+
+def design_family(name: str) -> str:
+    """The family of a study design (``classic`` or ``functional``)."""
+    if name not in FAMILIES:
+        raise InputError(f"unknown design {name!r}; known: {', '.join(FAMILIES)}")
+    return FAMILIES[name]
