@@ -44,6 +44,7 @@ __all__ = [
     "BeamSki",
     "ClassicSkiDesign",
     "measure_camber",
+    "measure_unloaded",
     "solve_beam_contact",
 ]
 
@@ -850,3 +851,32 @@ def measure_camber(
     if noise_m > 0:
         gaps = gaps + gen.normal(0.0, noise_m, size=gaps.shape)
     return cases_n, cases_m, gaps
+
+
+def measure_unloaded(
+    ski: BeamSki,
+    *,
+    noise_m: float = 3e-6,
+    rng: np.random.Generator | int | None = None,
+) -> np.ndarray:
+    """Virtual measuring device, the unloaded case (F = 0) real devices record first.
+
+    With no load the ski rests on the flat on its two unloaded contacts, so the gap is the camber
+    c(X) itself (``ski.unloaded_gap_m``: ≥ 0, zero at the contacts), plus independent Gaussian
+    device noise of standard deviation ``noise_m`` at every node (not clipped), drawn from
+    ``rng`` as :func:`measure_camber` does.
+
+    Returns
+    -------
+    gaps_m : ndarray (N,)
+        Unloaded gap at every beam node [m].
+    """
+    if not np.isfinite(noise_m) or noise_m < 0:
+        raise InputError(f"noise_m must be finite and >= 0, got {noise_m!r}")
+    if noise_m > 0 and rng is None:
+        raise InputError("rng (a numpy.random.Generator or a seed) is required when noise_m > 0")
+    gaps = ski.unloaded_gap_m.copy()
+    if noise_m > 0:
+        gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+        gaps = gaps + gen.normal(0.0, noise_m, size=gaps.shape)
+    return gaps

@@ -56,3 +56,20 @@ def test_invalid_inputs_name_the_parameter():
         ClassicSkiDesign(camber_height_m=-1.0)
     with pytest.raises(InputError, match="rng"):
         measure_camber(ski, [100.0], [0.0], noise_m=1e-6)
+
+
+def test_measure_unloaded_is_the_camber_plus_seeded_noise():
+    """The unloaded case of the virtual device (#26): the gap with no load is c(X) (zero at the
+    two contacts), the noise is seeded and has the asked standard deviation."""
+    from skisnow.solvers.beam import ClassicSkiDesign, measure_unloaded
+
+    ski = ClassicSkiDesign().build(2e-3)
+    clean = measure_unloaded(ski, noise_m=0.0)
+    np.testing.assert_array_equal(clean, ski.unloaded_gap_m)
+    assert clean.min() == 0.0
+    a = measure_unloaded(ski, noise_m=3e-6, rng=7)
+    b = measure_unloaded(ski, noise_m=3e-6, rng=7)
+    np.testing.assert_array_equal(a, b)
+    assert abs(np.std(a - clean) - 3e-6) < 0.3e-6
+    with pytest.raises(InputError):
+        measure_unloaded(ski, noise_m=3e-6)
