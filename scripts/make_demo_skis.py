@@ -13,12 +13,20 @@ Usage::
 
     python scripts/make_demo_skis.py [--out tables/skis] [--ski ski-a]
     python scripts/make_demo_skis.py --remeasure [--ski ski-a]   # keep the calibrated beam
+    python scripts/make_demo_skis.py --add-unloaded [--ski ski-a]   # + the 0 kg profile
 
 ``--remeasure`` keeps the ski in the existing file (beam model, design, outline, calibration
 record) bit for bit and only measures it again on the current grid (MEASURE_LOADS_KG ×
 MEASURE_POSITIONS_M); the camber network is dropped (retrain: ``skisnow train-camber``). Use it
 when only the sampling changes: a fresh calibration depends on the macro solver's version and
 would move the pocket height slightly.
+
+``--add-unloaded`` keeps everything in the existing file (the loaded measurements bit for bit,
+the network, the calibration) and appends the unloaded profile (load 0, method.md §4c), which
+real devices record first: the virtual device's ``measure_unloaded`` of the true beam with the
+same noise model (3 µm) and its own seed (UNLOADED_SEEDS). The stored identification is dropped
+(its held-out indices refer to the old cases): identify again with ``skisnow identify-ski --ski
+NAME --store``.
 """
 
 from __future__ import annotations
@@ -41,6 +49,7 @@ from skisnow.solvers.beam import (
     G_STANDARD,
     ClassicSkiDesign,
     measure_camber,
+    measure_unloaded,
     solve_beam_contact,
 )
 from skisnow.solvers.elastic import effective_modulus
@@ -88,6 +97,8 @@ MEASURE_LOADS_KG = np.linspace(10.0, 90.0, 25)
 MEASURE_POSITIONS_M = np.linspace(-0.300, 0.100, 17)
 NOISE_M = 3e-6
 SEEDS = {"ski-a": 20231001, "ski-b": 20231002}
+#: seeds of the unloaded profile's noise (#26): its own stream, so the loaded cases stay bit for bit
+UNLOADED_SEEDS = {"ski-a": 20261126, "ski-b": 20261127}
 
 
 def bem_for(design: ClassicSkiDesign):
@@ -152,6 +163,35 @@ def remeasure(name: str, out_dir: Path) -> dict:
     return {"cases": int(record.measurements.loads_n.size), "beam": "unchanged"}
 
 
+def add_unloaded(name: str, out_dir: Path) -> dict:
+    """Append the unloaded profile (load 0 N, x_F 0) to the measurements of an existing file;
+    the loaded cases, the network and the ski are kept bit for bit, the identification dropped."""
+    path = out_dir / f"{name}.h5"
+    old = read_ski(path)
+    if old.beam is None:
+        raise SystemExit(f"{path} holds no beam model to measure")
+    m = old.measurements
+    if np.any(m.loads_n == 0):
+        return {"cases": int(m.loads_n.size), "unloaded": "already measured"}
+    with h5py.File(path, "r") as fh:
+        parameters = json.loads(fh.attrs["parameters_json"])
+    gaps = measure_unloaded(
+        old.beam, noise_m=NOISE_M, rng=np.random.default_rng(UNLOADED_SEEDS[name])
+    )
+    data = CamberData(
+        ski_id=m.ski_id,
+        positions_m=m.positions_m,
+        loads_n=np.append(m.loads_n, 0.0),
+        load_positions_m=np.append(m.load_positions_m, 0.0),
+        sides=[*m.sides, "mean"],
+        profiles_m=np.vstack([m.profiles_m, gaps[None, :]]),
+    )
+    metadata = {**old.metadata, "unloaded_seed": UNLOADED_SEEDS[name]}
+    record = SkiRecord(data, old.outline, metadata, old.beam, old.beam_design, network=old.network)
+    write_ski(path, record, parameters={**parameters, "unloaded_profile_added": True})
+    return {"cases": int(data.loads_n.size), "unloaded": "added (identification dropped)"}
+
+
 def build(name: str, out_dir: Path) -> dict:
     design = calibrate(name)
     res = bem_for(design)
@@ -194,11 +234,21 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="keep the calibrated ski of the existing file, only measure it again",
     )
+    parser.add_argument(
+        "--add-unloaded",
+        action="store_true",
+        help="keep the existing file, append the unloaded (0 kg) profile to its measurements",
+    )
     parser.add_argument("-v", "--verbose", action="store_true")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING)
     for name in args.ski or sorted(DESIGNS):
-        summary = remeasure(name, args.out) if args.remeasure else build(name, args.out)
+        if args.add_unloaded:
+            summary = add_unloaded(name, args.out)
+        elif args.remeasure:
+            summary = remeasure(name, args.out)
+        else:
+            summary = build(name, args.out)
         print(name, summary)
     return 0
 

@@ -557,3 +557,35 @@ def test_remeasure_keeps_the_calibrated_beam(tmp_path, monkeypatch):
     assert new.network is None
     with h5py.File(src) as a, h5py.File(tmp_path / "ski-b.h5") as b:
         assert a.attrs["parameters_json"] == b.attrs["parameters_json"]
+
+
+def test_add_unloaded_keeps_the_loaded_cases_and_appends_the_camber(tmp_path):
+    """make_demo_skis --add-unloaded (#26): the loaded cases and the network stay bit for bit, one
+    case of load 0 is appended whose profile is the true camber plus 3 µm noise of its own seed."""
+    import importlib.util
+
+    from skisnow.app.storage.common import REPO_ROOT
+    from skisnow.app.storage.skis import read_ski
+
+    spec = importlib.util.spec_from_file_location(
+        "make_demo_skis", REPO_ROOT / "scripts" / "make_demo_skis.py"
+    )
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    src = REPO_ROOT / "tables" / "skis" / "ski-a.h5"
+    old = read_ski(src)
+    loaded = old.measurements.loads_n > 0
+    (tmp_path / "ski-a.h5").write_bytes(src.read_bytes())
+    script.add_unloaded("ski-a", tmp_path)
+    new = read_ski(tmp_path / "ski-a.h5")
+    m = new.measurements
+    assert m.loads_n.size == int(loaded.sum()) + 1 and m.loads_n[-1] == 0.0
+    np.testing.assert_array_equal(m.profiles_m[:-1], old.measurements.profiles_m[loaded])
+    np.testing.assert_array_equal(m.loads_n[:-1], old.measurements.loads_n[loaded])
+    residual = m.profiles_m[-1] - new.beam.unloaded_gap_m
+    assert 2.7e-6 < residual.std() < 3.3e-6 and abs(residual.mean()) < 0.3e-6
+    for key in ("positions_m", "bending_stiffness_nm2", "unloaded_gap_m"):
+        np.testing.assert_array_equal(getattr(new.beam, key), getattr(old.beam, key))
+    assert new.network is not None and old.network is not None
+    np.testing.assert_array_equal(new.network["attrs"]["schema"], old.network["attrs"]["schema"])
+    assert script.add_unloaded("ski-a", tmp_path)["unloaded"] == "already measured"
