@@ -220,8 +220,13 @@ def _lines(source: str | os.PathLike):
             raise DataFileError(f"camber CSV not found: {path}")
         with open(path, encoding="utf-8-sig", newline="") as fh:
             yield from fh
-    else:
-        yield from io.StringIO(str(source), newline="")
+    else:  # one line at a time: no copy of a large text, read only as far as needed
+        text, start = str(source), 0
+        while start < len(text):
+            end = text.find("\n", start)
+            end = len(text) if end < 0 else end + 1
+            yield text[start:end]
+            start = end
 
 
 def read_camber_csv(
@@ -304,10 +309,10 @@ def read_camber_csv(
                 f"got {load_kg:g}"
             )
         if load_kg > LOAD_KG_RANGE[1]:
-            raise InputError(f"line {lineno}: load_kg must be in [0, 200], got {load_kg:g}")
+            raise InputError(f"line {lineno}: load_kg must be in [0, 200], got {load_kg}")
         for name, v in (("load_position_mm", load_pos), ("position_mm", pos)):
             if abs(v) > POSITION_MM_LIMIT:
-                raise InputError(f"line {lineno}: {name} must be within ±1500 mm, got {v:g}")
+                raise InputError(f"line {lineno}: {name} must be within ±1500 mm, got {v}")
         if not GAP_MM_RANGE[0] <= gap <= GAP_MM_RANGE[1]:
             hint = ""
             if gap > GAP_MM_RANGE[1]:
@@ -317,7 +322,7 @@ def read_camber_csv(
                 )
             raise InputError(
                 f"line {lineno}: gap_mm must be in [{GAP_MM_RANGE[0]}, {GAP_MM_RANGE[1]}] "
-                f"(small negative values are device noise), got {gap:g}{hint}"
+                f"(small negative values are device noise), got {gap}{hint}"
             )
         if load_kg == UNLOADED_LOAD_KG:
             seen = unloaded.setdefault(side, (load_pos, lineno))
@@ -340,8 +345,8 @@ def read_camber_csv(
         xs, gs, _ = cases[key]
         if xs and pos <= xs[-1]:
             raise InputError(
-                f"line {lineno}: position_mm {pos:g} is not greater than the previous position "
-                f"{xs[-1]:g} of case side={side}, load_kg={load_kg:g}, "
+                f"line {lineno}: position_mm {pos} is not greater than the previous position "
+                f"{xs[-1]} of case side={side}, load_kg={load_kg:g}, "
                 f"load_position_mm={load_pos:g} (positions must be strictly increasing within a "
                 "case)"
             )

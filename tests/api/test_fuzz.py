@@ -180,7 +180,7 @@ def _npy(a: np.ndarray) -> bytes:
 
 
 @pytest.fixture(scope="module")
-def upload_files(camber_csv) -> dict:
+def upload_files(upload_csv) -> dict:
     """Valid files per upload route: (file name, bytes, form fields that make them valid)."""
     rng = np.random.default_rng(15)
     maps_um = [
@@ -199,7 +199,7 @@ def upload_files(camber_csv) -> dict:
                 {**height_map, "height_unit": "nm"},
             ),
         ],
-        "/v1/skis": [("camber.csv", camber_csv, {"length_mm": 2000.0, "width_mm": "44"})],
+        "/v1/skis": [("camber.csv", upload_csv, {"length_mm": 2000.0, "width_mm": "44"})],
     }
 
 
