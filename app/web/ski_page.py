@@ -214,7 +214,13 @@ def _uploaded(request: Request, name: str) -> bool:
 def render_unknown_ski(
     request: Request, cat: service.Catalogue, name: str, state: str | None
 ) -> HTMLResponse:
-    """The 404 page of a ski name the catalogue does not serve."""
+    """The 404 page of a ski name the catalogue does not serve; for an upload whose job failed,
+    the reason and a delete button."""
+    from skisnow.app.api.catalogue import failed_views
+
+    failed = None
+    if state == "failed":
+        failed = next((f for f in failed_views(request, "ski") if f["name"] == name), None)
     return page(
         request,
         "unknown_ski.html",
@@ -223,4 +229,8 @@ def render_unknown_ski(
         name=name,
         state=state,
         known=[(n, ski_url(n)) for n in sorted(cat.skis)],
+        failed=failed,
+        delete_url="/v1/skis/" + quote(name, safe="") if failed else None,
+        token=bool(getattr(getattr(request.app.state, "settings", None), "team_tokens", None)),
+        js=JS + DELETE_JS,
     )

@@ -279,6 +279,11 @@ def test_a_failed_job_frees_its_name_and_is_listed_with_its_reason(catalogue, tm
         page = client.get("/upload").text
         assert "accuracy check failed: 50 µm, limit 8 µm" in page
         assert 'data-delete="/v1/skis/again"' in page
+        # its page says why and has a delete button
+        ski_page = client.get("/skis/again")
+        assert ski_page.status_code == 404
+        assert "Its job failed: accuracy check failed: 50 µm, limit 8 µm" in ski_page.text
+        assert 'id="delete-ski" data-delete="/v1/skis/again"' in ski_page.text
         # a refused re-upload leaves the failed item as it was
         is_problem(post_ski(client, upload_csv[:2000], name="again"), 422)
         assert client.get("/v1/skis/again").json()["id"] == old
