@@ -92,7 +92,7 @@ FUZZ_SETTINGS = {
     "max_body_bytes": 4096,
     "max_compare_cells": 4,
     "warm_up": False,
-    "max_upload_bytes": 400_000,
+    "max_upload_bytes": 1_000_000,  # the 9 × 5 camber CSV (upload_csv) is ~570 kB
     "max_grid_points": 64 * 64,
     "max_solve_grid_points": 128 * 128,
     "table_points": 4,

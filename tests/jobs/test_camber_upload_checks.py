@@ -336,3 +336,13 @@ def test_the_upload_and_ski_pages_have_delete_buttons(catalogue, tmp_path):
         origin = {"Origin": "http://testserver"}
         assert client.delete("/v1/skis/mine", headers=origin).status_code == 204
         assert client.get("/skis/mine").status_code == 404
+
+
+def test_the_caps_are_settings_of_the_upload_route(catalogue, tmp_path, upload_csv):
+    with make_client(catalogue, tmp_path, max_camber_cases=40) as client:
+        body = is_problem(post_ski(client, upload_csv, name="capped"), 422)
+        assert body["detail"].startswith("line ") and "more than 40 load cases" in body["detail"]
+        assert client.get("/v1/skis/capped").status_code == 404  # nothing kept
+    with make_client(catalogue, tmp_path, max_camber_rows=1000) as client:
+        body = is_problem(post_ski(client, upload_csv, name="capped"), 422)
+        assert body["detail"].startswith("line 1002: more than 1000 data rows")
