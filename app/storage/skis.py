@@ -172,9 +172,11 @@ def _parse_float(text: str, column: str, lineno: int, decimal: list[str]) -> flo
 CSV_SEPARATORS = ("\t", ";", ",")
 #: load of the unloaded profile [kg]: its case is stored with F = 0 N and x_F = 0 m
 UNLOADED_LOAD_KG = 0.0
-#: caps of a camber CSV: a camber device records a few hundred cases of a few thousand samples
-#: (13 loads × 9 positions × 2 sides at 1 mm over 2 m is 234 cases, 468 000 rows); reading
-#: stops at the first row beyond either cap (``Settings.max_camber_cases``/``max_camber_rows``)
+#: caps of an uploaded camber CSV: a camber device records a few hundred cases of a few
+#: thousand samples (13 loads × 9 positions × 2 sides at 1 mm over 2 m is 234 cases, 468 000
+#: rows); reading stops at the first row beyond either cap. The upload check applies them
+#: (defaults of ``Settings.max_camber_cases`` / ``max_camber_rows``, the same numbers); a
+#: file already accepted (the ski job, the command line) is read without caps
 MAX_CAMBER_CASES = 2000
 MAX_CAMBER_ROWS = 600_000
 
@@ -232,8 +234,8 @@ def _lines(source: str | os.PathLike):
 def read_camber_csv(
     source: str | os.PathLike,
     *,
-    max_cases: int = MAX_CAMBER_CASES,
-    max_rows: int = MAX_CAMBER_ROWS,
+    max_cases: int | None = None,
+    max_rows: int | None = None,
 ) -> CamberData:
     """Read and validate a camber CSV (a path, or the CSV text itself), row by row.
 
@@ -249,9 +251,11 @@ def read_camber_csv(
 
     Parameters
     ----------
-    max_cases, max_rows : int
-        Caps on load cases (side, load, load position) and data rows; reading stops at the
-        first row beyond either, so an oversized file costs no more than the cap.
+    max_cases, max_rows : int, optional
+        Caps on load cases (side, load, load position) and data rows (None: none); reading
+        stops at the first row beyond either, so an oversized file costs no more than the cap.
+        The upload check passes :data:`MAX_CAMBER_CASES` / :data:`MAX_CAMBER_ROWS` or the
+        settings.
 
     Raises
     ------
@@ -274,7 +278,7 @@ def read_camber_csv(
         if not row or all(not c.strip() for c in row):
             continue
         rows += 1
-        if rows > max_rows:
+        if max_rows is not None and rows > max_rows:
             raise InputError(
                 f"line {lineno}: more than {max_rows} data rows, the cap of a camber CSV "
                 "(max_camber_rows, SKISNOW_MAX_CAMBER_ROWS); a camber device records a few "
@@ -335,7 +339,7 @@ def read_camber_csv(
             load_pos = 0.0  # ignored: no load, no load position
         key = (side, load_kg, load_pos)
         if key not in cases:
-            if len(cases) >= max_cases:
+            if max_cases is not None and len(cases) >= max_cases:
                 raise InputError(
                     f"line {lineno}: more than {max_cases} load cases (side, load_kg, "
                     "load_position_mm), the cap of a camber CSV (max_camber_cases, "

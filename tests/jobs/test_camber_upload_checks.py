@@ -176,6 +176,12 @@ def test_the_790000_case_file_is_refused_by_the_case_cap(capsys):
         )
     assert message.startswith(f"line {2 * MAX_CAMBER_CASES + 2}: more than {MAX_CAMBER_CASES}")
     assert "max_camber_cases" in message
+    # the caps are the upload's: a file already accepted (the ski job reads the stored CSV
+    # with the settings of its own process) is read without them
+    head = data[: data.index(b"\n", 45 * 2 * (MAX_CAMBER_CASES + 1)) + 1]
+    many = b"\n".join(head.split(b"\n")[: 2 * (MAX_CAMBER_CASES + 1) + 1]) + b"\n"
+    assert read_camber_csv(many.decode()).loads_n.size == MAX_CAMBER_CASES + 1
+    assert "more than 2000" in refused(many)
     # the row cap stops a file of few cases and many rows the same way
     rows = "".join(f"s,mean,40,0,{x},0.5\n" for x in range(-1500, 1501))
     message = refused(",".join(CSV_COLUMNS) + "\n" + rows, max_rows=1000)
