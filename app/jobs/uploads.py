@@ -466,7 +466,8 @@ def _check_grid(loads_n: np.ndarray, load_positions_m: np.ndarray, spacing_mm: f
     ):
         raise InputError(
             f"file: {n_loads} loads × {n_positions} load positions sampled every "
-            f"{spacing_mm:g} mm are too few to identify the ski's beam; " + minimum_grid_sentence()
+            f"{spacing_mm:g} mm are below the smallest grid that gets the ski a served beam; "
+            + minimum_grid_sentence()
         )
 
 
