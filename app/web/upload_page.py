@@ -283,4 +283,5 @@ def render_upload(request: Request, cat: service.Catalogue, settings) -> HTMLRes
         example_csv_url=EXAMPLE_CSV_URL,
         example_length_mm=EXAMPLE_LENGTH_MM,
         minimum_grid=uploads.minimum_grid_sentence(),
+        min_span_percent=100 * uploads.MIN_SPAN_FRACTION,
     )
