@@ -48,6 +48,18 @@ class Settings(BaseSettings):
         1024 * 1024, ge=64, description="largest uploaded height map (points)"
     )
     min_grid_side: int = Field(16, ge=2, description="smallest side of an uploaded height map")
+    max_camber_cases: int = Field(
+        2000,
+        ge=1,
+        description="most load cases (side, load, load position) of an uploaded camber CSV; "
+        "reading stops at the first case beyond it",
+    )
+    max_camber_rows: int = Field(
+        600_000,
+        ge=2,
+        description="most data rows of an uploaded camber CSV; reading stops at the first row "
+        "beyond it",
+    )
     table_points: int = Field(48, ge=2, le=512, description="pressure grid points of a table")
     table_chunk_size: int = Field(4, ge=1, description="grid points per table-build task")
     table_workers: int = Field(1, ge=1, le=64, description="Dask workers of a table build")

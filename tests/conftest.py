@@ -128,3 +128,27 @@ def camber_csv(tmp_path_factory) -> bytes:
     path = tmp_path_factory.mktemp("csv") / "ski.csv"
     write_camber_csv(path, data)
     return path.read_bytes()
+
+
+#: the grid of :func:`upload_csv`: the smallest that the upload accepts (app.jobs.uploads
+#: MIN_GRID_LOADS × MIN_GRID_LOAD_POSITIONS every ≤ MAX_SAMPLE_SPACING_MM)
+UPLOAD_LOADS_KG = (10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 90.0)
+UPLOAD_POSITIONS_M = (-0.30, -0.20, -0.10, 0.0, 0.10)
+
+
+@pytest.fixture(scope="module")
+def upload_csv(tmp_path_factory) -> bytes:
+    """A camber CSV the upload accepts: demo ski A's beam model measured at 9 loads × 5
+    positions (the smallest grid that gets a served beam), 5 mm sampling, 3 µm noise; no
+    unloaded profile (the ski job does not use one yet)."""
+    from skisnow.app.storage.skis import CamberData, read_ski, write_camber_csv
+    from skisnow.solvers.beam import G_STANDARD, measure_camber
+
+    rec = read_ski(REPO / "tables" / "skis" / "ski-a.h5")
+    loads = np.array(UPLOAD_LOADS_KG) * G_STANDARD
+    f, xf, gaps = measure_camber(rec.beam, loads, np.array(UPLOAD_POSITIONS_M), noise_m=3e-6, rng=7)
+    sel = np.arange(0, rec.beam.positions_m.size, 5)
+    data = CamberData("my-ski", rec.beam.positions_m[sel], f, xf, ["mean"] * f.size, gaps[:, sel])
+    path = tmp_path_factory.mktemp("csv") / "ski.csv"
+    write_camber_csv(path, data)
+    return path.read_bytes()

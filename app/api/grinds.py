@@ -26,7 +26,8 @@ UPLOAD_ERRORS = problems.responses(401, 403, 409, 415, 422, 429)
 
 @router.get("/v1/grinds", response_model=GrindList, responses=problems.responses(401))
 def list_grinds(request: Request) -> dict:
-    """Grinds with their ISO 25178 parameters and table provenance."""
+    """Grinds with their ISO 25178 parameters and table provenance; ``failed``: uploads whose
+    job failed, with the reason (their name can be uploaded again)."""
     cat = visible_catalogue(request, fresh=True)
     out = []
     for g in cat.grinds.values():
@@ -50,7 +51,7 @@ def list_grinds(request: Request) -> dict:
                 "git_commit": t.attrs.get("git_commit"),
             }
         )
-    return {"grinds": out}
+    return {"grinds": out, "failed": C.failed_views(request, "grind")}
 
 
 @router.post(
@@ -89,8 +90,9 @@ def post_grind(
     the answer); its table is built by a background job (``job`` → ``GET /v1/jobs/{id}``)."""
     state = C.catalogue_state(request)
     settings = request.app.state.settings
-    # a taken name first (409), then the job quota (429), both before the file is read
-    uploads.check_name_free(state.db, "grind", name)
+    # a taken name first (409; a failed item of the same team is replaced), then the job
+    # quota (429), both before the file is read
+    uploads.check_name_free(state.db, "grind", name, team)
     uploads.check_job_quota(state.db, team, C.limits(request))
     meta = {
         "shop_code": C.text(shop_code, "shop_code"),

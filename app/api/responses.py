@@ -47,9 +47,23 @@ class SkiSummary(BaseModel):
     sha256: str
 
 
+class FailedItem(BaseModel):
+    """An upload whose job failed: no files are kept, its name may be uploaded again (the
+    upload replaces it) or it can be deleted (``DELETE /v1/{skis|grinds}/{name}``)."""
+
+    model_config = _FIXED
+    name: str
+    reason: str = Field(..., description="why its job failed (the job's error)")
+    job: str | None = Field(None, description="the failed job's id (GET /v1/jobs/{id})")
+    failed_at: str | None = Field(None, description="when the job failed (ISO 8601, UTC)")
+
+
 class SkiList(BaseModel):
     model_config = _FIXED
     skis: list[SkiSummary]
+    failed: list[FailedItem] = Field(
+        default_factory=list, description="uploads whose job failed, with the reason"
+    )
 
 
 class GrindSummary(BaseModel):
@@ -70,6 +84,9 @@ class GrindSummary(BaseModel):
 class GrindList(BaseModel):
     model_config = _FIXED
     grinds: list[GrindSummary]
+    failed: list[FailedItem] = Field(
+        default_factory=list, description="uploads whose job failed, with the reason"
+    )
 
 
 # -------------------------------------------------------------------------- contact

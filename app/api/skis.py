@@ -27,7 +27,8 @@ UPLOAD_ERRORS = problems.responses(401, 403, 409, 415, 422, 429)
 
 @router.get("/v1/skis", response_model=SkiList, responses=problems.responses(401))
 def list_skis(request: Request) -> dict:
-    """Skis with their outline, model and file provenance."""
+    """Skis with their outline, model and file provenance; ``failed``: uploads whose job
+    failed, with the reason (their name can be uploaded again)."""
     cat = visible_catalogue(request, fresh=True)
     out = []
     for s in cat.skis.values():
@@ -48,7 +49,7 @@ def list_skis(request: Request) -> dict:
                 "sha256": s.sha256,
             }
         )
-    return {"skis": out}
+    return {"skis": out, "failed": C.failed_views(request, "ski")}
 
 
 @router.post(
@@ -75,8 +76,9 @@ def post_ski(
     too sparse for the accuracy check are refused); its network is trained by a job."""
     state = C.catalogue_state(request)
     settings = request.app.state.settings
-    # a taken name first (409), then the job quota (429), both before the file is read
-    uploads.check_name_free(state.db, "ski", name)
+    # a taken name first (409; a failed item of the same team is replaced), then the job
+    # quota (429), both before the file is read
+    uploads.check_name_free(state.db, "ski", name, team)
     uploads.check_job_quota(state.db, team, C.limits(request))
     meta = {
         "brand_model": C.text(brand_model, "brand_model"),
@@ -97,6 +99,8 @@ def post_ski(
             width_positions_mm=width_positions_mm,
             team=team,
             limits=C.limits(request),
+            max_cases=settings.max_camber_cases,
+            max_rows=settings.max_camber_rows,
         )
     state.runner.wake()
     return C.accepted(item, job_id, data=figures)

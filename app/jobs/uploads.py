@@ -48,8 +48,17 @@ HDF5_MAGIC = b"\x89HDF\r\n\x1a\n"
 #: plausible ranges of a ski-base texture, to catch wrong units [m]
 SQ_RANGE_M = (1e-9, 1e-3)
 PIXEL_UM_RANGE = (0.01, 1000.0)
-#: coarsest camber sampling that still resolves the contact zones [mm]
-MAX_SAMPLE_SPACING_MM = 10.0
+#: The smallest camber grid that gets a served beam, stated at upload as "measure at least
+#: N loads × M positions every ≤ K mm": N distinct loads > 0 (MIN_GRID_LOADS), M distinct load
+#: positions (MIN_GRID_LOAD_POSITIONS), samples every ≤ K mm (MAX_SAMPLE_SPACING_MM), plus the
+#: unloaded 0 kg profile (recommended, not required). PROVISIONAL values (issue #26 point 5):
+#: the lead sets the final ones from the own-ski study (issue #26 point 6,
+#: scripts/own_ski_study.py), which runs in parallel; change them only here.
+MIN_GRID_LOADS = 9
+MIN_GRID_LOAD_POSITIONS = 5
+MAX_SAMPLE_SPACING_MM = 5.0
+#: the measured span must cover at least this fraction of the ski's length_mm [-]
+MIN_SPAN_FRACTION = 0.8
 SKI_LENGTH_MM_RANGE = (1000.0, 2600.0)
 SKI_WIDTH_MM_RANGE = (30.0, 80.0)
 
@@ -63,15 +72,38 @@ class JobLimits:
     total: int
 
 
-def check_name_free(db: CatalogueDB, kind: str, name: str) -> str:
+def _replaceable(row: ItemRow, team: str | None) -> bool:
+    """Whether an upload of ``team`` may take the name of ``row``: a ``failed`` item (its job
+    failed; no files are left) of the same team (or of no team when teams are off)."""
+    return row.state == "failed" and not row.read_only and row.team == team
+
+
+def check_name_free(db: CatalogueDB, kind: str, name: str, team: str | None = None) -> str:
     """The checked ``name`` (:func:`check_name`) of a new ``kind`` item; :class:`ConflictError`
-    (409) when an item of that kind has it. Asked before the job quota: a name that is taken
-    stays taken, so "retry later" (429) would be the wrong answer. Names are one namespace for
-    all teams; the answer does not say whose the item is."""
+    (409) when an item of that kind has it. A failed item of the same team does not hold its
+    name: the upload replaces it (:func:`free_failed_name`). Asked before the job quota: a
+    name that is taken stays taken, so "retry later" (429) would be the wrong answer. Names
+    are one namespace for all teams; the answer does not say whose the item is."""
     name = check_name(name)
-    if db.item_by_name(kind, name) is not None:
+    row = db.item_by_name(kind, name)
+    if row is not None and not _replaceable(row, team):
         raise ConflictError(f"a {kind} named {name!r} already exists; choose another name")
     return name
+
+
+def free_failed_name(
+    db: CatalogueDB, layout: Layout, kind: str, name: str, team: str | None
+) -> ItemRow | None:
+    """Delete the failed ``kind`` item named ``name`` of ``team`` (and its jobs and any file
+    left), so that a new upload can take the name; the deleted row, or None when there was
+    none. Called once the new upload has passed its checks: a refused upload leaves the failed
+    item (and its reason) as it was."""
+    row = db.item_by_name(kind, name)
+    if row is None or not _replaceable(row, team) or not db.delete_failed_item(row.id):
+        return None
+    layout.remove_item_files(row.id)
+    log.info("%s %r: failed item %s replaced by a new upload", kind, name, row.id)
+    return row
 
 
 def check_job_quota(db: CatalogueDB, team: str | None, limits: JobLimits | None) -> None:
@@ -304,7 +336,7 @@ def accept_grind(
     from skisnow.app.storage.textures import write_texture
     from skisnow.solvers.texture import iso25178_parameters, make_periodic
 
-    name = check_name_free(db, "grind", name)
+    name = check_name_free(db, "grind", name, team)
     if detrend is None and periodic == "none":  # declared periodic: no plane to remove
         detrend = "mean"
     texture = read_grind_upload(
@@ -332,6 +364,7 @@ def accept_grind(
         "iso25178": iso,
     }
     check_job_quota(db, team, limits)
+    free_failed_name(db, layout, "grind", name, team)
     item = _add_item(db, "grind", name, meta, team)
     try:
         stored = replace(
@@ -388,17 +421,80 @@ def _parse_mm_list(text: str, field: str) -> np.ndarray:
     return values
 
 
+def minimum_grid_sentence() -> str:
+    """The smallest grid that gets a served beam, in the words the upload page and the refusal
+    use."""
+    return (
+        f"measure at least {MIN_GRID_LOADS} loads × {MIN_GRID_LOAD_POSITIONS} positions every "
+        f"≤ {MAX_SAMPLE_SPACING_MM:g} mm (plus the unloaded 0 kg profile, recommended)"
+    )
+
+
+def _check_span(x_mm: np.ndarray, length_mm: float) -> None:
+    """The measured span covers at least :data:`MIN_SPAN_FRACTION` of ``length_mm``; a span of
+    about a tenth of it is positions typed in cm, said so."""
+    span_mm = float(x_mm[-1] - x_mm[0])
+    if span_mm > length_mm + 1e-6:
+        raise InputError(
+            f"length_mm {length_mm:g} is shorter than the measured span {span_mm:g} mm"
+        )
+    need_mm = MIN_SPAN_FRACTION * length_mm
+    if span_mm >= need_mm:
+        return
+    if MIN_SPAN_FRACTION * length_mm <= 10 * span_mm <= length_mm + 1e-6:
+        raise InputError(
+            f"file: positions look like cm: the measured span {span_mm:g} mm "
+            f"({x_mm[0]:g} … {x_mm[-1]:g}) is about 1/10 of length_mm {length_mm:g}; "
+            "position_mm and load_position_mm are in mm (multiply cm by 10)"
+        )
+    raise InputError(
+        f"file: the measured span {span_mm:g} mm covers {100 * span_mm / length_mm:.0f} % of "
+        f"length_mm {length_mm:g}; measure at least {100 * MIN_SPAN_FRACTION:.0f} % of the "
+        f"ski's length ({need_mm:g} mm), or check length_mm"
+    )
+
+
+def _check_grid(loads_n: np.ndarray, load_positions_m: np.ndarray, spacing_mm: float) -> None:
+    """Refuse a file below the smallest grid that gets a served beam, with that sentence."""
+    loaded = loads_n > 0
+    n_loads = np.unique(np.round(loads_n[loaded], 9)).size
+    n_positions = np.unique(np.round(load_positions_m[loaded], 9)).size
+    if (
+        n_loads < MIN_GRID_LOADS
+        or n_positions < MIN_GRID_LOAD_POSITIONS
+        or spacing_mm > MAX_SAMPLE_SPACING_MM + 1e-9
+    ):
+        raise InputError(
+            f"file: {n_loads} loads × {n_positions} load positions sampled every "
+            f"{spacing_mm:g} mm are below the smallest grid that gets the ski a served beam; "
+            + minimum_grid_sentence()
+        )
+
+
 def check_ski_upload(
-    data: bytes, filename: str, *, length_mm: float, width_mm: str, width_positions_mm: str | None
+    data: bytes,
+    filename: str,
+    *,
+    length_mm: float,
+    width_mm: str,
+    width_positions_mm: str | None,
+    max_cases: int | None = None,
+    max_rows: int | None = None,
 ):
-    """Validate a camber CSV upload and the outline; refuse data too sparse to train on.
+    """Validate a camber CSV upload and the outline; refuse, in plain words, what the job
+    would fail on: a span under :data:`MIN_SPAN_FRACTION` of ``length_mm`` (positions in cm
+    said so), loads ≤ 0 other than the unloaded profile, a grid below the smallest that gets
+    a served beam (:func:`minimum_grid_sentence`), data too sparse to hold cases out, and
+    files beyond the caps on cases and rows (``max_cases``, ``max_rows``; default
+    :data:`app.storage.skis.MAX_CAMBER_CASES`, ``MAX_CAMBER_ROWS``; reading stops there).
 
     Returns
     -------
     CamberData, SkiOutline, dict
-        The measurements, the outline and figures of the data (cases, spacing, side used).
+        The measurements, the outline and figures of the data (cases, spacing, side used,
+        whether the unloaded profile was measured).
     """
-    from skisnow.app.storage.skis import SkiOutline, read_camber_csv
+    from skisnow.app.storage import skis
     from skisnow.app.training.data import camber_training_arrays, split_load_cases
 
     if Path(filename).suffix.lower() not in (".csv", ".txt"):
@@ -408,30 +504,36 @@ def check_ski_upload(
     text = _decode_text(data, filename)
     if "\n" not in text:
         text += "\n"  # read_camber_csv takes a one-line string for a path: never here
-    camber_data = read_camber_csv(text)
-    _, x, f, xf, _h, side = camber_training_arrays(camber_data)
-    spacing_mm = float(np.median(np.diff(x))) * 1e3
-    if spacing_mm > MAX_SAMPLE_SPACING_MM:
-        raise InputError(
-            f"file: samples every {spacing_mm:g} mm are too sparse to resolve the contact zones; "
-            f"the accuracy check needs at most {MAX_SAMPLE_SPACING_MM:g} mm"
-        )
-    try:
-        split_load_cases(f, xf)
-    except InputError as exc:
-        raise InputError(
-            f"file: data too sparse for the accuracy check on held-out load cases: {exc}"
-        ) from None
+    camber_data = skis.read_camber_csv(
+        text,
+        max_cases=max_cases or skis.MAX_CAMBER_CASES,
+        max_rows=max_rows or skis.MAX_CAMBER_ROWS,
+    )
     if not SKI_LENGTH_MM_RANGE[0] <= length_mm <= SKI_LENGTH_MM_RANGE[1]:
         raise InputError(
             f"length_mm must be in [{SKI_LENGTH_MM_RANGE[0]:g}, {SKI_LENGTH_MM_RANGE[1]:g}], "
             f"got {length_mm:g}"
         )
-    span_mm = (x[-1] - x[0]) * 1e3
-    if span_mm > length_mm + 1e-6:
+    unloaded = skis.unloaded_mask(camber_data)
+    loaded_sides = {camber_data.sides[k] for k in np.flatnonzero(~unloaded)}
+    if "mean" in {camber_data.sides[k] for k in np.flatnonzero(unloaded)} - loaded_sides:
         raise InputError(
-            f"length_mm {length_mm:g} is shorter than the measured span {span_mm:g} mm"
+            "file: the unloaded profile (load_kg 0) is on side mean but the load cases on "
+            f"{', '.join(sorted(loaded_sides)) or 'no side'}: measure it on the same sides"
         )
+    _, x, f_all, xf_all, _h, side = camber_training_arrays(camber_data)
+    _check_span(x * 1e3, length_mm)
+    spacing_mm = float(np.median(np.diff(x))) * 1e3
+    _check_grid(f_all, xf_all, spacing_mm)
+    loaded = f_all > 0  # the unloaded profile is no load case to hold out
+    f, xf = f_all[loaded], xf_all[loaded]
+    try:
+        split_load_cases(f, xf)
+    except InputError as exc:
+        raise InputError(
+            f"file: data too sparse for the accuracy check on held-out load cases: {exc}; "
+            + minimum_grid_sentence()
+        ) from None
     widths = _parse_mm_list(width_mm, "width_mm")
     if widths.min() < SKI_WIDTH_MM_RANGE[0] or widths.max() > SKI_WIDTH_MM_RANGE[1]:
         raise InputError(
@@ -450,7 +552,7 @@ def check_ski_upload(
         widths = np.repeat(widths, 2)
     else:
         raise InputError("width_positions_mm is needed when width_mm lists several widths")
-    outline = SkiOutline(
+    outline = skis.SkiOutline(
         length_m=length_mm * 1e-3,
         balance_point_from_tail_m=-x[0] + (length_mm * 1e-3 - (x[-1] - x[0])) / 2,
         positions_m=positions * 1e-3,
@@ -458,6 +560,7 @@ def check_ski_upload(
     )
     figures = {
         "load_cases": int(f.size),
+        "unloaded_profile": sorted({camber_data.sides[k] for k in np.flatnonzero(unloaded)}),
         "samples_per_case": int(x.size),
         "sample_spacing_mm": spacing_mm,
         "measured_side": side,
@@ -480,16 +583,21 @@ def accept_ski(
     width_positions_mm: str | None,
     team: str | None,
     limits: JobLimits | None = None,
+    max_cases: int | None = None,
+    max_rows: int | None = None,
 ) -> tuple[ItemRow, str, dict]:
-    """Validate a ski upload, store its CSV and queue the network training (``team`` within
-    the job ``limits``, else :class:`QuotaError`)."""
-    name = check_name_free(db, "ski", name)
+    """Validate a ski upload (:func:`check_ski_upload`, caps ``max_cases`` and ``max_rows``),
+    store its CSV and queue the network training (``team`` within the job ``limits``, else
+    :class:`QuotaError`)."""
+    name = check_name_free(db, "ski", name, team)
     _, outline, figures = check_ski_upload(
         data,
         filename,
         length_mm=length_mm,
         width_mm=width_mm,
         width_positions_mm=width_positions_mm,
+        max_cases=max_cases,
+        max_rows=max_rows,
     )
     meta = {
         **metadata,
@@ -503,6 +611,7 @@ def accept_ski(
         "data": figures,
     }
     check_job_quota(db, team, limits)
+    free_failed_name(db, layout, "ski", name, team)
     item = _add_item(db, "ski", name, meta, team)
     try:
         with atomic_path(layout.ski_csv(item.id)) as tmp:

@@ -278,6 +278,34 @@ class CatalogueDB:
             c.execute(JOBS.delete().where(JOBS.c.item_id == item_id))
             c.execute(ITEMS.delete().where(ITEMS.c.id == item_id))
 
+    def delete_failed_item(self, item_id: str) -> bool:
+        """Delete an item and its jobs only if it is ``failed`` and no job of it is queued or
+        running (one transaction); True when it was deleted. A failed item frees its name this
+        way: the re-upload of the same name replaces it."""
+        with self.engine.begin() as c:
+            active = c.execute(
+                JOBS.select().where(
+                    JOBS.c.item_id == item_id, JOBS.c.state.in_(("queued", "running"))
+                )
+            ).first()
+            if active is not None:
+                return False
+            gone = c.execute(
+                ITEMS.delete().where(ITEMS.c.id == item_id, ITEMS.c.state == "failed")
+            ).rowcount
+            if gone:
+                c.execute(JOBS.delete().where(JOBS.c.item_id == item_id))
+        return bool(gone)
+
+    def failed_items(self, kind: str) -> list[tuple[ItemRow, JobRow | None]]:
+        """The ``failed`` items of ``kind`` by name, each with its last failed job (its
+        ``error`` is the reason; None when no job row is left)."""
+        out = []
+        for item in self.items(kind, state="failed"):
+            jobs = self.jobs(item_id=item.id, states=("failed",))
+            out.append((item, max(jobs, key=lambda j: j.updated_at) if jobs else None))
+        return out
+
     # -------------------------------------------------------------------------- jobs
 
     def add_job(self, kind: str, item_id: str | None, message: str = "queued") -> JobRow:

@@ -13,6 +13,12 @@ Neutral camber CSV (one row per sample; see docs/macro.md)::
 - Ranges: 0 ≤ load_kg ≤ 200, |positions| ≤ 1500 mm, −0.05 ≤ gap_mm ≤ 50. Gaps down to −0.05 mm are
   accepted as device noise around a touching point (a real stylus reads a few µm either side of
   zero) and kept as read; the macro solver clips them to zero.
+- ``load_kg`` = 0 is the unloaded profile (at most one case per side, recorded first by real
+  devices): its ``load_position_mm`` is ignored and stored as 0. In :class:`CamberData` (and in
+  :func:`mean_profiles`) a case with F = 0 N is the unloaded profile, with x_F = 0 m
+  (:func:`unloaded_mask`). Every other load is > 0.
+- Spreadsheet dialects: ``,`` with decimal points, ``;`` or tab with decimal commas (or points);
+  headers in any order and case; empty trailing columns ignored (docs/uploads.md).
 
 Units are converted here, once: kg → N with g = 9.82 m/s² (method.md §2), mm → m.
 """
@@ -37,13 +43,17 @@ from .common import atomic_path, provenance, read_json_manifest, sha256_file, ta
 __all__ = [
     "CSV_COLUMNS",
     "GAP_MM_RANGE",
+    "MAX_CAMBER_CASES",
+    "MAX_CAMBER_ROWS",
     "SCHEMA",
     "CamberData",
     "SkiOutline",
     "SkiRecord",
+    "camber_csv_text",
     "read_camber_csv",
     "read_ski",
     "replace_ski_group",
+    "unloaded_mask",
     "write_camber_csv",
     "write_ski",
 ]
@@ -129,46 +139,160 @@ class SkiRecord:
         return self.measurements.ski_id
 
 
-def _parse_float(text: str, column: str, lineno: int) -> float:
+def _parse_float(text: str, column: str, lineno: int, decimal: list[str]) -> float:
+    """One number of the CSV. ``decimal`` holds the file's decimal mark once a number showed
+    it (``[","]`` or ``["."]``; empty: not yet seen, or ``,`` is the separator so ``.``). Only
+    the decimal mark is read: a number with the other mark (a thousands separator, or a file
+    mixing both) is refused, never guessed."""
+    raw = text.strip()
+    if decimal and decimal[0] == "":  # comma-separated file: the decimal mark is "."
+        body = raw
+    else:
+        marks = {m for m in (",", ".") if m in raw}
+        if len(marks) > 1 or (marks and decimal and marks != {decimal[0]}):
+            mark = decimal[0] if decimal else sorted(marks)[0]
+            raise InputError(
+                f"line {lineno}: column {column!r} is {raw!r}: this file's decimal mark is "
+                f"{mark!r} (first number with one decides); thousands separators and mixed "
+                "decimal marks are not read"
+            )
+        if marks and not decimal:
+            decimal.append(marks.pop())
+        body = raw.replace(",", ".")
     try:
-        value = float(text)
+        value = float(body)
     except ValueError:
-        raise InputError(f"line {lineno}: column {column!r} is not a number: {text!r}") from None
+        raise InputError(f"line {lineno}: column {column!r} is not a number: {raw!r}") from None
     if not np.isfinite(value):
-        raise InputError(f"line {lineno}: column {column!r} is {text!r} (NaN/inf not allowed)")
+        raise InputError(f"line {lineno}: column {column!r} is {raw!r} (NaN/inf not allowed)")
     return value
 
 
-def read_camber_csv(source: str | os.PathLike) -> CamberData:
-    """Read and validate a neutral camber CSV (a path, or the CSV text itself).
+#: separators of the spreadsheet dialects, in the order the header line is tried for them
+CSV_SEPARATORS = ("\t", ";", ",")
+#: load of the unloaded profile [kg]: its case is stored with F = 0 N and x_F = 0 m
+UNLOADED_LOAD_KG = 0.0
+#: caps of an uploaded camber CSV: a camber device records a few hundred cases of a few
+#: thousand samples (13 loads × 9 positions × 2 sides at 1 mm over 2 m is 234 cases, 468 000
+#: rows); reading stops at the first row beyond either cap. The upload check applies them
+#: (defaults of ``Settings.max_camber_cases`` / ``max_camber_rows``, the same numbers); a
+#: file already accepted (the ski job, the command line) is read without caps
+MAX_CAMBER_CASES = 2000
+MAX_CAMBER_ROWS = 600_000
 
-    Raises
-    ------
-    InputError
-        With the line number and what is wrong (header, number, range, order, grid).
-    """
+
+def _split_header(line: str) -> tuple[str, list[str]]:
+    """The separator of a header line and its cells (lower case, spaces and BOM stripped)."""
+    line = line.lstrip("\ufeff").rstrip("\r\n")
+    sep = next((s for s in CSV_SEPARATORS if s in line), ",")
+    cells = next(csv.reader([line], delimiter=sep))
+    return sep, [c.strip().strip("\ufeff").strip().lower() for c in cells]
+
+
+def _header_columns(cells: list[str]) -> list[int]:
+    """Index of each of :data:`CSV_COLUMNS` in the header cells; empty trailing cells (a
+    trailing separator, empty spreadsheet columns) are ignored, anything else is refused."""
+    while cells and not cells[-1]:
+        cells = cells[:-1]
+    expected = ",".join(CSV_COLUMNS)
+    unknown = [c or "(empty)" for c in cells if c not in CSV_COLUMNS]
+    missing = [c for c in CSV_COLUMNS if c not in cells]
+    doubled = sorted({c for c in cells if c in CSV_COLUMNS and cells.count(c) > 1})
+    problems = []
+    if missing:
+        problems.append("missing " + ", ".join(missing))
+    if unknown:
+        names = ", ".join(repr(c) for c in unknown)
+        problems.append(f"unknown column(s) {names} (remove them)")
+    if doubled:
+        problems.append("repeated " + ", ".join(doubled))
+    if problems:
+        raise InputError(
+            f"line 1: header must name the columns {expected} (any order, any case), got "
+            f"{','.join(cells) or 'an empty line'}: " + "; ".join(problems)
+        )
+    return [cells.index(c) for c in CSV_COLUMNS]
+
+
+def _lines(source: str | os.PathLike):
+    """The lines of a CSV path (DataFileError when missing) or of the CSV text itself."""
     if isinstance(source, os.PathLike) or (isinstance(source, str) and "\n" not in source):
         path = Path(source)
         if not path.is_file():
             raise DataFileError(f"camber CSV not found: {path}")
-        text = path.read_text(encoding="utf-8-sig")
-    else:
-        text = str(source)
-    reader = csv.reader(io.StringIO(text))
-    try:
-        header = [h.strip() for h in next(reader)]
-    except StopIteration:
-        raise InputError("line 1: empty file, expected header " + ",".join(CSV_COLUMNS)) from None
-    if tuple(header) != CSV_COLUMNS:
-        raise InputError(f"line 1: header must be {','.join(CSV_COLUMNS)}, got {','.join(header)}")
+        with open(path, encoding="utf-8-sig", newline="") as fh:
+            yield from fh
+    else:  # one line at a time: no copy of a large text, read only as far as needed
+        text, start = str(source), 0
+        while start < len(text):
+            end = text.find("\n", start)
+            end = len(text) if end < 0 else end + 1
+            yield text[start:end]
+            start = end
+
+
+def read_camber_csv(
+    source: str | os.PathLike,
+    *,
+    max_cases: int | None = None,
+    max_rows: int | None = None,
+) -> CamberData:
+    """Read and validate a camber CSV (a path, or the CSV text itself), row by row.
+
+    Spreadsheet dialects are read: ``,``-separated with decimal points, ``;``- or
+    tab-separated with decimal commas or points (one decimal mark per file); header names in
+    any order and any case (surrounding spaces and a BOM ignored), empty trailing columns
+    ignored, unknown columns refused by name. Only the decimal mark is read: no number is
+    otherwise changed.
+
+    Rows with ``load_kg`` = 0 are the unloaded profile (at most one case per side): its
+    ``load_position_mm`` is ignored and stored as 0 (F = 0 N, x_F = 0 m; :func:`unloaded_mask`).
+    Every other load must be > 0.
+
+    Parameters
+    ----------
+    max_cases, max_rows : int, optional
+        Caps on load cases (side, load, load position) and data rows (None: none); reading
+        stops at the first row beyond either, so an oversized file costs no more than the cap.
+        The upload check passes :data:`MAX_CAMBER_CASES` / :data:`MAX_CAMBER_ROWS` or the
+        settings.
+
+    Raises
+    ------
+    InputError
+        With the line number and what is wrong (header, number, range, order, grid, caps).
+    """
+    lines = _lines(source)
+    first = next(lines, None)
+    if first is None or not first.strip():
+        raise InputError("line 1: empty file, expected header " + ",".join(CSV_COLUMNS))
+    sep, cells = _split_header(first)
+    idx = _header_columns(cells)
+    width = max(idx) + 1
+    decimal: list[str] = [""] if sep == "," else []
     ski_id: str | None = None
     cases: dict[tuple[str, float, float], tuple[list[float], list[float], int]] = {}
-    for lineno, row in enumerate(reader, start=2):
+    unloaded: dict[str, tuple[float, int]] = {}  # side -> (load position read, first line)
+    rows = 0
+    for lineno, row in enumerate(csv.reader(lines, delimiter=sep), start=2):
         if not row or all(not c.strip() for c in row):
             continue
-        if len(row) != len(CSV_COLUMNS):
+        rows += 1
+        if max_rows is not None and rows > max_rows:
+            raise InputError(
+                f"line {lineno}: more than {max_rows} data rows, the cap of a camber CSV "
+                "(max_camber_rows, SKISNOW_MAX_CAMBER_ROWS); a camber device records a few "
+                "hundred cases of a few thousand samples: send one ski's measurements"
+            )
+        if len(row) < width:
             raise InputError(f"line {lineno}: expected {len(CSV_COLUMNS)} columns, got {len(row)}")
-        sid, side = row[0].strip(), row[1].strip().lower()
+        extra = [k + 1 for k in range(len(row)) if k not in idx and row[k].strip()]
+        if extra:
+            raise InputError(
+                f"line {lineno}: a value in column {extra[0]}, which has no name in the header"
+            )
+        sid, side_raw = row[idx[0]].strip(), row[idx[1]].strip()
+        side = side_raw.lower()
         if not sid:
             raise InputError(f"line {lineno}: ski_id is empty")
         if ski_id is None:
@@ -178,30 +302,57 @@ def read_camber_csv(source: str | os.PathLike) -> CamberData:
                 f"line {lineno}: ski_id {sid!r} differs from {ski_id!r} (one ski per file)"
             )
         if side not in SIDES:
-            raise InputError(f"line {lineno}: side must be left, right or mean, got {row[1]!r}")
-        load_kg = _parse_float(row[2], "load_kg", lineno)
-        load_pos = _parse_float(row[3], "load_position_mm", lineno)
-        pos = _parse_float(row[4], "position_mm", lineno)
-        gap = _parse_float(row[5], "gap_mm", lineno)
-        if not LOAD_KG_RANGE[0] <= load_kg <= LOAD_KG_RANGE[1]:
+            raise InputError(f"line {lineno}: side must be left, right or mean, got {side_raw!r}")
+        load_kg = _parse_float(row[idx[2]], "load_kg", lineno, decimal)
+        load_pos = _parse_float(row[idx[3]], "load_position_mm", lineno, decimal)
+        pos = _parse_float(row[idx[4]], "position_mm", lineno, decimal)
+        gap = _parse_float(row[idx[5]], "gap_mm", lineno, decimal)
+        if load_kg < 0:
+            raise InputError(
+                f"line {lineno}: load_kg must be > 0 (or 0 for the unloaded profile), "
+                f"got {load_kg:g}"
+            )
+        if load_kg > LOAD_KG_RANGE[1]:
             raise InputError(f"line {lineno}: load_kg must be in [0, 200], got {load_kg}")
         for name, v in (("load_position_mm", load_pos), ("position_mm", pos)):
             if abs(v) > POSITION_MM_LIMIT:
                 raise InputError(f"line {lineno}: {name} must be within ±1500 mm, got {v}")
         if not GAP_MM_RANGE[0] <= gap <= GAP_MM_RANGE[1]:
+            hint = ""
+            if gap > GAP_MM_RANGE[1]:
+                hint = (
+                    f"; {gap:g} is above the device's range of {GAP_MM_RANGE[1]:g} mm: values "
+                    "look like µm; gap_mm is in mm (divide µm by 1000)"
+                )
             raise InputError(
                 f"line {lineno}: gap_mm must be in [{GAP_MM_RANGE[0]}, {GAP_MM_RANGE[1]}] "
-                f"(small negative values are device noise), got {gap}"
+                f"(small negative values are device noise), got {gap}{hint}"
             )
+        if load_kg == UNLOADED_LOAD_KG:
+            seen = unloaded.setdefault(side, (load_pos, lineno))
+            prev = cases.get((side, 0.0, 0.0))
+            if seen[0] != load_pos or (prev is not None and pos <= prev[0][0]):
+                raise InputError(
+                    f"line {lineno}: a second unloaded profile (load_kg 0) of side {side}; the "
+                    f"first starts at line {seen[1]}: at most one unloaded profile per side"
+                )
+            load_pos = 0.0  # ignored: no load, no load position
         key = (side, load_kg, load_pos)
         if key not in cases:
+            if max_cases is not None and len(cases) >= max_cases:
+                raise InputError(
+                    f"line {lineno}: more than {max_cases} load cases (side, load_kg, "
+                    "load_position_mm), the cap of a camber CSV (max_camber_cases, "
+                    "SKISNOW_MAX_CAMBER_CASES); a camber device records a few hundred"
+                )
             cases[key] = ([], [], lineno)
         xs, gs, _ = cases[key]
         if xs and pos <= xs[-1]:
             raise InputError(
                 f"line {lineno}: position_mm {pos} is not greater than the previous position "
-                f"{xs[-1]} of case side={side}, load_kg={load_kg:g}, load_position_mm={load_pos:g}"
-                " (positions must be strictly increasing within a case)"
+                f"{xs[-1]} of case side={side}, load_kg={load_kg:g}, "
+                f"load_position_mm={load_pos:g} (positions must be strictly increasing within a "
+                "case)"
             )
         xs.append(pos)
         gs.append(gap)
@@ -210,10 +361,10 @@ def read_camber_csv(source: str | os.PathLike) -> CamberData:
     keys = list(cases)
     grid = np.asarray(cases[keys[0]][0])
     for key in keys[1:]:
-        xs, _, first = cases[key]
+        xs, _, first_line = cases[key]
         if len(xs) != grid.size or not np.allclose(xs, grid, rtol=0, atol=1e-9):
             raise InputError(
-                f"line {first}: case side={key[0]}, load_kg={key[1]:g}, "
+                f"line {first_line}: case side={key[0]}, load_kg={key[1]:g}, "
                 f"load_position_mm={key[2]:g} has {len(xs)} positions "
                 f"({xs[0]:g}..{xs[-1]:g} mm) but the first case has {grid.size} "
                 f"({grid[0]:g}..{grid[-1]:g} mm): all cases must share one sampling grid"
@@ -230,27 +381,45 @@ def read_camber_csv(source: str | os.PathLike) -> CamberData:
     )
 
 
+def unloaded_mask(data: CamberData) -> np.ndarray:
+    """Which cases of ``data`` are the unloaded profile (F = 0 N; its x_F is 0 m).
+
+    Returns
+    -------
+    ndarray of bool, shape (K,)
+    """
+    return np.asarray(data.loads_n, dtype=float) == 0.0
+
+
+def camber_csv_text(data: CamberData, *, decimals: int = 4) -> str:
+    """``data`` as the text of a neutral camber CSV, gaps rounded to ``decimals`` mm (the
+    unloaded profile, F = 0, is written with load_kg 0 and load_position_mm 0)."""
+    buf = io.StringIO()
+    w = csv.writer(buf)
+    w.writerow(CSV_COLUMNS)
+    pos_mm = np.round(data.positions_m * 1e3, 6)
+    for k in range(len(data.sides)):
+        load_kg = round(float(data.loads_n[k]) / G_STANDARD, 6)
+        load_pos = round(float(data.load_positions_m[k]) * 1e3, 6)
+        gaps = np.round(data.profiles_m[k] * 1e3, decimals)
+        for x, g in zip(pos_mm, gaps, strict=True):
+            w.writerow(
+                [
+                    data.ski_id,
+                    data.sides[k],
+                    f"{load_kg:g}",
+                    f"{load_pos:g}",
+                    f"{x:g}",
+                    f"{g:.{decimals}f}",
+                ]
+            )
+    return buf.getvalue()
+
+
 def write_camber_csv(path: str | os.PathLike, data: CamberData, *, decimals: int = 4) -> None:
     """Write ``data`` as a neutral camber CSV (atomic), gaps rounded to ``decimals`` mm."""
     with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(CSV_COLUMNS)
-        pos_mm = np.round(data.positions_m * 1e3, 6)
-        for k in range(len(data.sides)):
-            load_kg = round(float(data.loads_n[k]) / G_STANDARD, 6)
-            load_pos = round(float(data.load_positions_m[k]) * 1e3, 6)
-            gaps = np.round(data.profiles_m[k] * 1e3, decimals)
-            for x, g in zip(pos_mm, gaps, strict=True):
-                w.writerow(
-                    [
-                        data.ski_id,
-                        data.sides[k],
-                        f"{load_kg:g}",
-                        f"{load_pos:g}",
-                        f"{x:g}",
-                        f"{g:.{decimals}f}",
-                    ]
-                )
+        fh.write(camber_csv_text(data, decimals=decimals))
 
 
 def _write_dict(group: h5py.Group, content: dict) -> None:
@@ -531,8 +700,10 @@ def identification_for_sampling(identified: dict | None):
 
 def mean_profiles(data: CamberData) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
     """One profile per (load, position) for beam identification: left and right profiles of a
-    case averaged (the measurements themselves are not changed). Returns F [N], x_F [m],
-    profiles [m] and a note saying what was done."""
+    case averaged (the measurements themselves are not changed). The unloaded profile, if
+    measured, stays one case with F = 0 N and x_F = 0 m (its sides averaged like the others;
+    :func:`unloaded_mask`). Returns F [N], x_F [m], profiles [m] and a note saying what was
+    done."""
     keys = list(zip(np.round(data.loads_n, 9), np.round(data.load_positions_m, 9), strict=True))
     if all(s == "mean" for s in data.sides) and len(set(keys)) == len(keys):
         return data.loads_n, data.load_positions_m, data.profiles_m, "one profile per case"

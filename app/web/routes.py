@@ -10,8 +10,9 @@ schema). Each reads the request, asks one page module for its page, and returns 
     comparison table as CSV (:mod:`.results`).
 ``/skis/{name}``
     One ski's page (:mod:`.ski_page`); an unknown name is a 404 page.
-``/upload``
-    Upload a ski's camber CSV or a grind's topography (:mod:`.upload_page`).
+``/upload``, ``/upload/example-camber.csv``
+    Upload a ski's camber CSV or a grind's topography (:mod:`.upload_page`); an example camber
+    CSV from a demo ski's measurements.
 ``/flex``, ``/flex/pair``, ``/flex/ranking``
     The flex tab (:mod:`.flex_pages`).
 """
@@ -29,7 +30,7 @@ from skisnow.app.web import flex_pages
 from skisnow.app.web.form import Query, failure_field, parse_query, render_form
 from skisnow.app.web.results import ResultCache, compute, render_csv, render_results
 from skisnow.app.web.ski_page import render_ski, render_unknown_ski
-from skisnow.app.web.upload_page import render_upload
+from skisnow.app.web.upload_page import EXAMPLE_CSV_URL, example_camber_csv, render_upload
 
 
 def mount(app: FastAPI) -> None:
@@ -89,6 +90,14 @@ def mount(app: FastAPI) -> None:
     @app.get("/upload", response_class=HTMLResponse, include_in_schema=False)
     def upload(request: Request) -> HTMLResponse:
         return render_upload(request, visible_catalogue(request), request.app.state.settings)
+
+    @app.get(EXAMPLE_CSV_URL, include_in_schema=False)
+    def example_csv() -> Response:
+        return Response(
+            example_camber_csv(),
+            media_type="text/csv; charset=utf-8",
+            headers={"Content-Disposition": 'attachment; filename="example-camber.csv"'},
+        )
 
     @app.get("/results.csv", include_in_schema=False)
     def results_csv(request: Request) -> Response:

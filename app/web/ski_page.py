@@ -3,7 +3,7 @@
 The page shows the ski's served profile model and why, the beam identified from its camber
 measurements (provenance, held-out check), EI(X) and c(X) with their bands and the misfit per
 camber case, the same figures as ``GET /v1/skis/{name}``; why there is no beam when there is
-none.
+none. An uploaded ski's page has a delete button (``static/delete.js``).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from skisnow.app import service, units
 from skisnow.app.service.profiles import SERVED_MISFIT_LIMIT
 from skisnow.app.service.ski_figures import ski_figures
 from skisnow.app.web.form import DEFAULTS, NUMERIC, ski_url
-from skisnow.app.web.templating import fmt, page, svg
+from skisnow.app.web.templating import DELETE_JS, JS, fmt, page, svg
 from skisnow.solvers.band import Z90
 from skisnow.solvers.identify import HELD_OUT_LIMIT
 
@@ -171,6 +171,7 @@ def render_ski(
     beam = service.beam_report(ski)
     ident = beam.get("identification")
     model = profile["name"]
+    deletable = _uploaded(request, name)
     form_url = "/?" + urlencode(
         [("ski", name)]
         + [(k, DEFAULTS[k]) for k in (*NUMERIC, "snow_input")]
@@ -196,13 +197,30 @@ def render_ski(
         figures=_figures(ski, beam, figure_cache),
         beam_table=_beam_table(beam) if beam["available"] else None,
         misfit_rows=_misfit_rows(ident) if ident and "case_load_kg" in ident else [],
+        delete_url=("/v1/skis/" + quote(name, safe="")) if deletable else None,
+        token=bool(getattr(getattr(request.app.state, "settings", None), "team_tokens", None)),
+        js=JS + DELETE_JS,
     )
+
+
+def _uploaded(request: Request, name: str) -> bool:
+    """Whether ``name`` is an uploaded ski of the catalogue database (not a shipped, read-only
+    one): its page has a delete button (``DELETE /v1/skis/{name}``, ``static/delete.js``)."""
+    state = getattr(request.app.state, "uploads", None)
+    row = state.db.item_by_name("ski", name) if state is not None else None
+    return row is not None and not row.read_only
 
 
 def render_unknown_ski(
     request: Request, cat: service.Catalogue, name: str, state: str | None
 ) -> HTMLResponse:
-    """The 404 page of a ski name the catalogue does not serve."""
+    """The 404 page of a ski name the catalogue does not serve; for an upload whose job failed,
+    the reason and a delete button."""
+    from skisnow.app.api.catalogue import failed_views
+
+    failed = None
+    if state == "failed":
+        failed = next((f for f in failed_views(request, "ski") if f["name"] == name), None)
     return page(
         request,
         "unknown_ski.html",
@@ -211,4 +229,8 @@ def render_unknown_ski(
         name=name,
         state=state,
         known=[(n, ski_url(n)) for n in sorted(cat.skis)],
+        failed=failed,
+        delete_url="/v1/skis/" + quote(name, safe="") if failed else None,
+        token=bool(getattr(getattr(request.app.state, "settings", None), "team_tokens", None)),
+        js=JS + DELETE_JS,
     )

@@ -65,6 +65,7 @@ CSS = _static("web.css")
 JS = _static("web.js")
 UPLOAD_CSS = _static("upload.css")
 UPLOAD_JS = _static("upload.js")
+DELETE_JS = _static("delete.js")
 
 ENV = Environment(
     loader=PackageLoader("skisnow.app.web", "templates"),

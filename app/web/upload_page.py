@@ -5,21 +5,27 @@ in :mod:`app.jobs.uploads`) from ``static/upload.js``, show the problem+json err
 field
 they name, then follow the job (``GET /v1/jobs/{id}`` every second) with a progress bar and,
 when it is done, link back to the form with the new item selected (and, for a ski, to its page
-``/skis/{name}``). This page is the one that needs JavaScript (uploads are multipart, progress
-needs polling). The upload checks and jobs are not here: only the page.
+``/skis/{name}``). The ski form states the smallest grid that gets a served beam and links an
+example CSV (:func:`example_camber_csv`); the uploads whose job failed are listed with their
+reason and a delete button (``static/delete.js``, ``DELETE /v1/{skis|grinds}/{name}``), as is
+the item of a job that fails while the page follows it. This page is the one that needs
+JavaScript (uploads are multipart, progress needs polling). The upload checks and jobs are not
+here: only the page.
 """
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
-from urllib.parse import urlencode
+from urllib.parse import quote, urlencode
 
+import numpy as np
 from fastapi import Request
 from fastapi.responses import HTMLResponse
 from skisnow.app import service
 from skisnow.app.jobs import uploads
 from skisnow.app.web.form import DEFAULTS, NUMERIC, ski_url
-from skisnow.app.web.templating import CSS, UPLOAD_CSS, UPLOAD_JS, page
+from skisnow.app.web.templating import CSS, DELETE_JS, UPLOAD_CSS, UPLOAD_JS, page
 
 
 @dataclass(frozen=True)
@@ -162,6 +168,70 @@ SKI_UPLOAD_FIELDS = (
     ),
 )
 
+#: the example camber CSV of the upload page (:func:`example_camber_csv`)
+EXAMPLE_CSV_URL = "/upload/example-camber.csv"
+#: shipped demo ski it is sub-sampled from, its loads [kg], load positions [mm], step [mm]
+EXAMPLE_SKI = "ski-a"
+EXAMPLE_LOADS_KG = (10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 90.0)
+EXAMPLE_LOAD_POSITIONS_MM = (-300.0, -200.0, -100.0, 0.0, 100.0)
+EXAMPLE_STEP_MM = 5.0
+#: the demo ski's length, the example's length_mm [mm]
+EXAMPLE_LENGTH_MM = 2000.0
+
+
+@functools.lru_cache(maxsize=1)
+def example_camber_csv() -> str:
+    """A realistic camber-device file in the neutral format, from shipped demo ski A's
+    measurements: the unloaded profile (0 kg) first, then :data:`EXAMPLE_LOADS_KG` ×
+    :data:`EXAMPLE_LOAD_POSITIONS_MM`, sampled every :data:`EXAMPLE_STEP_MM` mm (every 5th
+    sample of the 1 mm shipped grid; the gaps as measured, 0.1 µm rounding).
+
+    The unloaded profile is the shipped one when the demo file has it (a case with F = 0);
+    otherwise it is measured from the demo ski's beam by the same virtual device and noise
+    (:func:`solvers.beam.measure_unloaded`, the ski's ``noise_m``, seed = the ski's seed + 1;
+    docs/uploads.md says so).
+    """
+    from skisnow.app.storage.skis import (
+        SHIPPED_SKI_DIR,
+        CamberData,
+        camber_csv_text,
+        read_ski,
+        unloaded_mask,
+    )
+    from skisnow.solvers.beam import G_STANDARD, measure_unloaded
+
+    rec = read_ski(SHIPPED_SKI_DIR / f"{EXAMPLE_SKI}.h5")
+    m = rec.measurements
+    x_mm = m.positions_m * 1e3
+    step = np.round(np.diff(x_mm).min(), 9)
+    sel = np.arange(0, x_mm.size, round(float(EXAMPLE_STEP_MM / step)))
+    kg = np.round(m.loads_n / G_STANDARD, 6)
+    xf = np.round(m.load_positions_m * 1e3, 6)
+    cases = []
+    for load in EXAMPLE_LOADS_KG:
+        for pos in EXAMPLE_LOAD_POSITIONS_MM:
+            hit = np.flatnonzero((kg == load) & (xf == pos) & (np.asarray(m.sides) == "mean"))
+            if hit.size != 1:
+                raise LookupError(f"{EXAMPLE_SKI}: no single case {load:g} kg at {pos:g} mm")
+            cases.append(int(hit[0]))
+    unloaded = np.flatnonzero(unloaded_mask(m))
+    if unloaded.size:
+        zero = m.profiles_m[unloaded[0]]
+    else:
+        seed = int(rec.metadata.get("seed", 0)) + 1
+        zero = measure_unloaded(rec.beam, noise_m=float(rec.metadata["noise_m"]), rng=seed)
+        zero = np.interp(m.positions_m, rec.beam.positions_m, zero)
+    data = CamberData(
+        f"example-{EXAMPLE_SKI}",
+        m.positions_m[sel],
+        np.concatenate([[0.0], m.loads_n[cases]]),
+        np.concatenate([[0.0], m.load_positions_m[cases]]),
+        ["mean"] * (1 + len(cases)),
+        np.vstack([zero[sel], m.profiles_m[cases][:, sel]]),
+    )
+    return camber_csv_text(data)
+
+
 #: (kind, job kind of app.jobs.uploads, REST route, form fields, title)
 UPLOAD_FORMS = (
     ("grind", uploads.GRIND_JOB, "/v1/grinds", GRIND_UPLOAD_FIELDS, "Grind: topography"),
@@ -191,15 +261,27 @@ def render_upload(request: Request, cat: service.Catalogue, settings) -> HTMLRes
         }
         for kind, job_kind, route, fields, title in UPLOAD_FORMS
     ]
+    from skisnow.app.api.catalogue import failed_views
+
+    failed = [
+        (kind, {**item, "delete_url": f"/v1/{kind}s/{quote(item['name'], safe='')}"})
+        for kind in ("ski", "grind")
+        for item in failed_views(request, kind)
+    ]
     return page(
         request,
         "upload.html",
         "skisnow — upload",
         css=CSS + UPLOAD_CSS,
-        js=UPLOAD_JS,
+        js=UPLOAD_JS + DELETE_JS,
+        failed=failed,
         forms=forms,
         token=bool(settings.team_tokens),
         max_bytes=settings.max_upload_bytes,
         max_mib=settings.max_upload_bytes / 2**20,
         ski_pages=[(n, ski_url(n)) for n in sorted(cat.skis)],
+        example_csv_url=EXAMPLE_CSV_URL,
+        example_length_mm=EXAMPLE_LENGTH_MM,
+        minimum_grid=uploads.minimum_grid_sentence(),
+        min_span_percent=100 * uploads.MIN_SPAN_FRACTION,
     )

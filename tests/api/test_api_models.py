@@ -128,7 +128,7 @@ def _same(model: type[BaseModel], answer) -> None:
     assert json.dumps(dumped, sort_keys=True) == json.dumps(answer, sort_keys=True)
 
 
-def test_answers_are_their_response_models(app, client, camber_csv):
+def test_answers_are_their_response_models(app, client, upload_csv):
     body = dict(CONTACT_BODY)
     case = {k: v for k, v in body.items() if k not in ("ski", "grind")}
     fast = {"preset": "fast", "ski_model": "rigid"}
@@ -179,7 +179,7 @@ def test_answers_are_their_response_models(app, client, camber_csv):
             "/v1/skis",
             {
                 "data": {"name": "s-models", "length_mm": "2000", "width_mm": "44"},
-                "files": {"file": ("ski.csv", camber_csv, "text/csv")},
+                "files": {"file": ("ski.csv", upload_csv, "text/csv")},
             },
         ),
         ("GET", "/v1/jobs", "/v1/jobs", {}),

@@ -92,7 +92,7 @@ FUZZ_SETTINGS = {
     "max_body_bytes": 4096,
     "max_compare_cells": 4,
     "warm_up": False,
-    "max_upload_bytes": 400_000,
+    "max_upload_bytes": 1_000_000,  # the 9 × 5 camber CSV (upload_csv) is ~570 kB
     "max_grid_points": 64 * 64,
     "max_solve_grid_points": 128 * 128,
     "table_points": 4,
@@ -180,7 +180,7 @@ def _npy(a: np.ndarray) -> bytes:
 
 
 @pytest.fixture(scope="module")
-def upload_files(camber_csv) -> dict:
+def upload_files(upload_csv) -> dict:
     """Valid files per upload route: (file name, bytes, form fields that make them valid)."""
     rng = np.random.default_rng(15)
     maps_um = [
@@ -199,7 +199,7 @@ def upload_files(camber_csv) -> dict:
                 {**height_map, "height_unit": "nm"},
             ),
         ],
-        "/v1/skis": [("camber.csv", camber_csv, {"length_mm": 2000.0, "width_mm": "44"})],
+        "/v1/skis": [("camber.csv", upload_csv, {"length_mm": 2000.0, "width_mm": "44"})],
     }
 
 

@@ -140,7 +140,7 @@ def _stop_runner(client) -> None:
     client.app.state.uploads.runner.stop()
 
 
-def test_per_team_quota_and_queue_cap(catalogue, tmp_path, camber_csv):
+def test_per_team_quota_and_queue_cap(catalogue, tmp_path, upload_csv):
     limits = {"team_tokens": TOKENS, "max_jobs_per_team": 2, "max_queued_jobs": 3}
     with make_client(catalogue, tmp_path, **limits) as client:
         _stop_runner(client)
@@ -150,7 +150,7 @@ def test_per_team_quota_and_queue_cap(catalogue, tmp_path, camber_csv):
         body = is_problem(r, 429)
         assert "max_jobs_per_team" in body["detail"] and "team-a" in body["detail"]
         assert int(r.headers["retry-after"]) > 0
-        is_problem(post_ski(client, camber_csv, name="a-ski", headers=A), 429)
+        is_problem(post_ski(client, upload_csv, name="a-ski", headers=A), 429)
         # a taken name is refused as such (409), not with "retry later": it stays taken
         body = is_problem(post_grind(client, name="a-0", headers=A), 409)
         assert "already exists" in body["detail"]

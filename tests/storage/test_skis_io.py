@@ -42,7 +42,7 @@ def test_read_good_csv():
 @pytest.mark.parametrize(
     ("text", "match"),
     [
-        ("ski,side,load,pos,x,gap\n" + GOOD[0] + "\n", r"line 1: header must be"),
+        ("ski,side,load,pos,x,gap\n" + GOOD[0] + "\n", r"line 1: header must name the columns"),
         (_csv([GOOD[0], "s1,mean,40,-160,-20,0.1"]), r"line 3: position_mm -20.0 is not greater"),
         (_csv([GOOD[0], "s1,mean,40,-160,0,nan"]), r"line 3: column 'gap_mm' is 'nan'"),
         (_csv([GOOD[0], "s1,mean,40,-160,0,-0.2"]), r"line 3: gap_mm must be in \[-0.05, 50"),

@@ -362,3 +362,47 @@ def test_flex_sheet_pair_ranking(flex_server, page, tmp_path):
     for name in ("flex-sheet.png", "flex-pair.png", "flex-ranking.png"):
         shutil.copyfile(tmp_path / name, SCREENSHOTS / name)
     assert errors == []
+
+
+def test_delete_buttons_delete_from_the_upload_and_ski_pages(catalogue, page, tmp_path):
+    """A failed upload on /upload and a ready uploaded ski on its page: each Delete button asks
+    to confirm, sends DELETE from the page (the same-origin check lets it through) and the item
+    is gone; the failed item's reason is shown."""
+    from skisnow.app import service
+    from skisnow.app.main import create_app
+    from skisnow.app.settings import Settings
+    from skisnow.app.storage.common import sha256_file
+
+    cat = service.Catalogue(
+        tables_dir=catalogue.tables_dir, skis=dict(catalogue.skis), grinds=dict(catalogue.grinds)
+    )
+    app = create_app(Settings(data_dir=tmp_path / "data", warm_up=False), catalogue=cat)
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    page.on("dialog", lambda dialog: dialog.accept())
+    with _serve(app) as url:
+        state = app.state.uploads
+        state.runner.stop()  # the jobs below are set by hand
+        broken = state.db.add_item("ski", "broken", metadata={})
+        job = state.db.add_job("ski-network", broken.id)
+        state.db.update_job(job.id, state="failed", error="beam test failure: 5 loads")
+        state.db.update_item(broken.id, state="failed")
+        mine = state.db.add_item("ski", "mine", metadata={})
+        path = state.layout.ski_file(mine.id)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(REPO / "tables" / "skis" / "ski-a.h5", path)
+        state.db.update_item(mine.id, state="ready", file_path=str(path), sha256=sha256_file(path))
+        state.live.sync()
+
+        page.goto(url + "/upload")
+        row = page.locator('li[data-item="ski:broken"]')
+        expect(row).to_contain_text("beam test failure: 5 loads")
+        row.locator("button[data-delete]").click()
+        expect(row.locator(".delete-result")).to_contain_text("ski broken deleted")
+        assert state.db.item_by_name("ski", "broken") is None
+
+        page.goto(url + "/skis/mine")
+        page.click("#delete-ski")
+        expect(page.locator(".delete-result")).to_contain_text("ski mine deleted")
+        assert state.db.item_by_name("ski", "mine") is None and not path.exists()
+    assert errors == []

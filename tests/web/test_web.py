@@ -418,17 +418,17 @@ def test_bad_grind_upload_is_shown_next_to_its_field(
     _check_shown(upload_client, r, status, shown, _upload_names("grind"), filename)
 
 
-def test_bad_ski_uploads_are_shown_next_to_their_field(upload_client, camber_csv):
+def test_bad_ski_uploads_are_shown_next_to_their_field(upload_client, upload_csv):
     cases = [
         ({}, "ski.csv", b"position_mm,gap\n1,2\n", 422, "file"),
-        ({}, "ski.npy", camber_csv, 415, "file"),
-        ({"length_mm": "500"}, "ski.csv", camber_csv, 422, "length_mm"),
-        ({"length_mm": "long"}, "ski.csv", camber_csv, 422, "length_mm"),
-        ({"width_mm": "wide"}, "ski.csv", camber_csv, 422, "width_mm"),
-        ({"width_mm": "40,44"}, "ski.csv", camber_csv, 422, "width_positions_mm"),
-        ({"style": "telemark"}, "ski.csv", camber_csv, 422, "style"),
-        ({"name": "ski-a"}, "ski.csv", camber_csv, 409, "name"),
-        ({"width_mm": None}, "ski.csv", camber_csv, 422, "width_mm"),
+        ({}, "ski.npy", upload_csv, 415, "file"),
+        ({"length_mm": "500"}, "ski.csv", upload_csv, 422, "length_mm"),
+        ({"length_mm": "long"}, "ski.csv", upload_csv, 422, "length_mm"),
+        ({"width_mm": "wide"}, "ski.csv", upload_csv, 422, "width_mm"),
+        ({"width_mm": "40,44"}, "ski.csv", upload_csv, 422, "width_positions_mm"),
+        ({"style": "telemark"}, "ski.csv", upload_csv, 422, "style"),
+        ({"name": "ski-a"}, "ski.csv", upload_csv, 409, "name"),
+        ({"width_mm": None}, "ski.csv", upload_csv, 422, "width_mm"),
     ]
     for fields, filename, content, status, shown in cases:
         data = {"name": "my-ski", "length_mm": "2000", "width_mm": "44", **fields}

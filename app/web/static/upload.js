@@ -131,6 +131,8 @@
     panel.querySelector(".accepted").textContent = note || "";
     error.hidden = true;
     link.hidden = true;
+    var oldDelete = document.getElementById(kind + "-delete-failed");
+    if (oldDelete) { oldDelete.parentNode.hidden = true; }
     var oldItemLink = document.getElementById(kind + "-item-link");
     if (oldItemLink) { oldItemLink.hidden = true; }
     bar.value = 0;
@@ -172,8 +174,15 @@
             }
           } else if (job.state === "failed") {
             error.textContent = "The job failed: " + (job.error || "no reason given") +
-              ". Nothing was kept; correct the data and upload again.";
+              ". Nothing was kept but the reason; correct the data and upload again (the " +
+              "same name replaces the failed " + kind + "), or delete it.";
             error.hidden = false;
+            var del = document.getElementById(kind + "-delete-failed");
+            if (del && job.item) {
+              del.dataset.delete = "/v1/" + kind + "s/" + encodeURIComponent(job.item);
+              del.dataset.label = kind + " " + job.item;
+              del.parentNode.hidden = false;
+            }
           } else {
             setTimeout(poll, POLL_MS);
           }

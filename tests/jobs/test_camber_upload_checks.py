@@ -1,0 +1,354 @@
+"""Upload-time checks of a ski's camber CSV (issue #26 point 5, docs/uploads.md): every
+realistic file is accepted, or refused at upload with a message that says what to change.
+
+The files are the issue's: a 5 × 5 grid, the unloaded 0 kg profile, positions in cm, gaps in
+µm, a 33 MB file of 790 000 two-sample cases, a spreadsheet export; and a failed job's name,
+which the next upload may take. The ski job itself is not run here (tests/jobs/test_uploads.py).
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from skisnow.app.jobs import uploads
+from skisnow.app.storage.common import sha256_file
+from skisnow.app.storage.skis import (
+    CSV_COLUMNS,
+    MAX_CAMBER_CASES,
+    read_camber_csv,
+    unloaded_mask,
+)
+from skisnow.app.web.upload_page import EXAMPLE_CSV_URL, example_camber_csv
+from skisnow.solvers.errors import InputError
+from test_uploads import is_problem, make_client, post_ski
+
+REPO = Path(__file__).resolve().parents[2]
+OUTLINE = {"length_mm": 2000.0, "width_mm": "44", "width_positions_mm": None}
+MINIMUM_GRID = "measure at least 9 loads × 5 positions every ≤ 5 mm"
+
+
+def check(text: str | bytes, **outline):
+    data = text.encode() if isinstance(text, str) else text
+    return uploads.check_ski_upload(data, "ski.csv", **{**OUTLINE, **outline})
+
+
+def refused(text: str | bytes, **outline) -> str:
+    with pytest.raises(InputError) as info:
+        check(text, **outline)
+    return str(info.value)
+
+
+def rows_of(csv_bytes: bytes) -> tuple[str, list[list[str]]]:
+    lines = csv_bytes.decode().splitlines()
+    return lines[0], [line.split(",") for line in lines[1:]]
+
+
+def with_unloaded(csv_bytes: bytes, sides=("mean",), load_position_mm="-160") -> str:
+    """The CSV with an unloaded profile (0 kg, the first case's gaps less 0.1 mm as a
+    stand-in) recorded first on each of ``sides``."""
+    header, rows = rows_of(csv_bytes)
+    first = [r for r in rows if r[2:4] == rows[0][2:4]]
+    zero = []
+    for side in sides:
+        for r in first:
+            zero.append([r[0], side, "0", load_position_mm, r[4], f"{float(r[5]) + 0.1:.4f}"])
+    return "\n".join([header, *(",".join(r) for r in zero + rows)]) + "\n"
+
+
+def test_the_smallest_grid_is_one_sentence_with_the_named_constants():
+    assert uploads.minimum_grid_sentence().startswith(
+        f"measure at least {uploads.MIN_GRID_LOADS} loads × "
+        f"{uploads.MIN_GRID_LOAD_POSITIONS} positions every ≤ "
+        f"{uploads.MAX_SAMPLE_SPACING_MM:g} mm"
+    )
+    assert uploads.minimum_grid_sentence().startswith(MINIMUM_GRID)
+
+
+def test_a_5_by_5_grid_is_refused_at_upload_with_the_minimum_grid(camber_csv, upload_csv):
+    message = refused(camber_csv)
+    assert "5 loads × 5 load positions sampled every 5 mm" in message
+    assert MINIMUM_GRID in message and "unloaded 0 kg profile" in message
+    _, _, figures = check(upload_csv)  # 9 × 5 every 5 mm: accepted
+    assert figures["load_cases"] == 45 and figures["unloaded_profile"] == []
+
+
+def test_sampling_coarser_than_the_minimum_is_refused(upload_csv):
+    header, rows = rows_of(upload_csv)
+    xs = sorted({float(r[4]) for r in rows})
+    every_2nd = {f"{x:g}" for x in xs[::2]}  # 10 mm
+    text = "\n".join([header, *(",".join(r) for r in rows if r[4] in every_2nd)]) + "\n"
+    message = refused(text)
+    assert "9 loads × 5 load positions sampled every 10 mm" in message and MINIMUM_GRID in message
+
+
+def test_the_unloaded_profile_is_accepted_as_one_case_with_no_load(upload_csv):
+    text = with_unloaded(upload_csv, load_position_mm="-160")
+    data, _, figures = check(text)
+    assert figures["unloaded_profile"] == ["mean"] and figures["load_cases"] == 45
+    assert figures["load_range_kg"] == [10.0, 90.0]
+    mask = unloaded_mask(data)
+    assert mask.tolist() == [True] + [False] * 45
+    # its load position is ignored: stored as 0 (the convention x_F = 0 for F = 0)
+    assert data.loads_n[0] == 0.0 and data.load_positions_m[0] == 0.0
+    _, rows = rows_of(upload_csv)
+    first = [float(r[5]) + 0.1 for r in rows if r[2:4] == rows[0][2:4]]
+    np.testing.assert_allclose(data.profiles_m[0], np.round(first, 4) * 1e-3, rtol=0, atol=1e-12)
+    # left and right unloaded profiles: one per side, averaged into one F = 0 case
+    from skisnow.app.storage.skis import mean_profiles
+
+    lr = read_camber_csv(with_unloaded(upload_csv, sides=("left", "right")))
+    assert unloaded_mask(lr).sum() == 2
+    f, xf, _, _ = mean_profiles(lr)
+    assert (f == 0).sum() == 1 and xf[f == 0][0] == 0.0
+
+
+def test_two_unloaded_profiles_of_one_side_are_refused_with_the_line(upload_csv):
+    once = with_unloaded(upload_csv, load_position_mm="-160")
+    lines = once.splitlines()
+    n = sum(1 for line in lines if ",0,-160," in line)
+    # a second one at another (ignored) load position
+    second = [line.replace(",0,-160,", ",0,0,") for line in lines[1 : n + 1]]
+    message = refused("\n".join([*lines[: n + 1], *second, *lines[n + 1 :]]) + "\n")
+    assert message.startswith(f"line {n + 2}: a second unloaded profile (load_kg 0) of side mean")
+    assert "first starts at line 2" in message
+    # the same profile twice
+    message = refused("\n".join([*lines[: n + 1], *lines[1 : n + 1], *lines[n + 1 :]]) + "\n")
+    assert message.startswith(f"line {n + 2}: a second unloaded profile")
+    # one per side is fine
+    check(with_unloaded(upload_csv, sides=("mean",)))
+
+
+def test_negative_loads_are_refused_with_the_line(upload_csv):
+    header, rows = rows_of(upload_csv)
+    rows[7][2] = "-20"
+    message = refused("\n".join([header, *(",".join(r) for r in rows)]) + "\n")
+    assert message == "line 9: load_kg must be > 0 (or 0 for the unloaded profile), got -20"
+
+
+def test_positions_in_cm_are_refused_with_the_cm_hint(upload_csv):
+    header, rows = rows_of(upload_csv)
+    for r in rows:
+        r[3], r[4] = f"{float(r[3]) / 10:g}", f"{float(r[4]) / 10:g}"
+    message = refused("\n".join([header, *(",".join(r) for r in rows)]) + "\n")
+    assert message.startswith("file: positions look like cm: the measured span 200 mm")
+    assert "position_mm and load_position_mm are in mm" in message
+
+
+def test_a_span_under_80_percent_of_the_length_is_refused_with_the_numbers(upload_csv):
+    header, rows = rows_of(upload_csv)
+    half = [r for r in rows if -500 <= float(r[4]) <= 500]  # 1000 mm of 2000 mm
+    message = refused("\n".join([header, *(",".join(r) for r in half)]) + "\n")
+    assert "the measured span 1000 mm covers 50 % of length_mm 2000" in message
+    assert "at least 80 % of the ski's length (1600 mm)" in message
+
+
+def test_gaps_in_um_are_refused_with_the_um_hint(upload_csv):
+    header, rows = rows_of(upload_csv)
+    for r in rows:
+        r[5] = f"{float(r[5]) * 1000:.1f}"
+    message = refused("\n".join([header, *(",".join(r) for r in rows)]) + "\n")
+    assert message.startswith("line ")
+    assert "values look like µm; gap_mm is in mm" in message
+
+
+def test_the_790000_case_file_is_refused_by_the_case_cap(capsys):
+    import time
+
+    # the issue's file: 790 000 cases of two samples each, 33 MB
+    loads = np.repeat(np.round(np.linspace(1, 200, 1000), 3), 790)
+    pos = np.tile(np.arange(-395, 395), 1000)
+    body = "".join(
+        f"s,mean,{f:g},{x},-1000,0.5\ns,mean,{f:g},{x},1000,0.5\n"
+        for f, x in zip(loads, pos, strict=True)
+    )
+    data = (",".join(CSV_COLUMNS) + "\n" + body).encode()
+    assert len(data) > 33e6
+    t0 = time.perf_counter()
+    message = refused(data)
+    with capsys.disabled():
+        print(
+            f"\n790 000-case file ({len(data) / 1e6:.1f} MB) refused in "
+            f"{time.perf_counter() - t0:.3f} s"
+        )
+    assert message.startswith(f"line {2 * MAX_CAMBER_CASES + 2}: more than {MAX_CAMBER_CASES}")
+    assert "max_camber_cases" in message
+    # the caps are the upload's: a file already accepted (the ski job reads the stored CSV
+    # with the settings of its own process) is read without them
+    head = data[: data.index(b"\n", 45 * 2 * (MAX_CAMBER_CASES + 1)) + 1]
+    many = b"\n".join(head.split(b"\n")[: 2 * (MAX_CAMBER_CASES + 1) + 1]) + b"\n"
+    assert read_camber_csv(many.decode()).loads_n.size == MAX_CAMBER_CASES + 1
+    assert "more than 2000" in refused(many)
+    # the row cap stops a file of few cases and many rows the same way
+    rows = "".join(f"s,mean,40,0,{x},0.5\n" for x in range(-1500, 1501))
+    message = refused(",".join(CSV_COLUMNS) + "\n" + rows, max_rows=1000)
+    assert (
+        message.startswith("line 1002: more than 1000 data rows") and "max_camber_rows" in message
+    )
+
+
+def _spreadsheet(neutral: str) -> str:
+    """The neutral CSV as a spreadsheet exports it: `;`, decimal commas, capitalised headers in
+    another order with spaces, a BOM, CRLF, an empty trailing column and trailing separators."""
+    order = [5, 0, 2, 1, 4, 3]
+    lines = neutral.splitlines()
+    head = [c.capitalize() for c in lines[0].split(",")]
+    out = ["\ufeff" + ";".join(f" {head[k]} " for k in order) + ";;"]
+    for line in lines[1:]:
+        cells = line.split(",")
+        out.append(";".join(cells[k].replace(".", ",") for k in order) + ";;")
+    return "\r\n".join(out) + "\r\n"
+
+
+def test_a_spreadsheet_csv_reads_to_the_same_data_as_the_neutral_file(upload_csv):
+    neutral = with_unloaded(upload_csv)
+    sheet = _spreadsheet(neutral)
+    assert sheet.count(";;") > 1000 and "0,1" in sheet and sheet.startswith("\ufeff Gap_mm ;")
+    a, _, fig_a = check(neutral)
+    b, _, fig_b = check(sheet)
+    assert fig_a == fig_b
+    assert a.ski_id == b.ski_id and a.sides == b.sides
+    for name in ("positions_m", "loads_n", "load_positions_m", "profiles_m"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    # tab-separated, decimal points
+    tabbed = neutral.replace(",", "\t")
+    c = read_camber_csv(tabbed)
+    np.testing.assert_array_equal(c.profiles_m, a.profiles_m)
+
+
+def test_spreadsheet_problems_are_named(upload_csv):
+    neutral = upload_csv.decode()
+    lines = neutral.splitlines()
+    extra = "\n".join([lines[0] + ",Temp_C", *(line + ",-5" for line in lines[1:])]) + "\n"
+    assert "unknown column(s) 'temp_c' (remove them)" in refused(extra)
+    missing = "\n".join(line.rsplit(",", 1)[0] for line in lines) + "\n"
+    assert "missing gap_mm" in refused(missing)
+    sheet = _spreadsheet(neutral).splitlines()
+    sheet[5] = sheet[5].replace(",", ".", 1)  # one number with a decimal point among commas
+    assert re.match(
+        r"line 6: column '\w+' is '[^']*': this file's decimal mark is ','",
+        refused("\n".join(sheet) + "\n"),
+    )
+
+
+def test_the_example_csv_is_a_realistic_device_file_the_upload_accepts():
+    text = example_camber_csv()
+    data, _, figures = check(text)
+    assert figures["load_cases"] == 45 and figures["unloaded_profile"] == ["mean"]
+    assert figures["sample_spacing_mm"] == pytest.approx(5.0)
+    assert unloaded_mask(data)[0] and unloaded_mask(data).sum() == 1  # the 0 kg profile first
+    assert text.splitlines()[1].startswith("example-ski-a,mean,0,0,")
+
+
+def test_the_example_csv_is_downloadable_from_the_upload_page(catalogue, tmp_path):
+    with make_client(catalogue, tmp_path) as client:
+        page = client.get("/upload").text
+        assert f'href="{EXAMPLE_CSV_URL}"' in page and MINIMUM_GRID in page
+        r = client.get(EXAMPLE_CSV_URL)
+        assert r.status_code == 200 and r.headers["content-type"].startswith("text/csv")
+        assert "attachment" in r.headers["content-disposition"]
+        assert r.text == example_camber_csv()
+
+
+# --------------------------------------------------------------- failed items, delete
+
+
+def _fail(client, job_id: str, error: str) -> str:
+    """Fail a job as the runner does (its error, the item failed, its files removed)."""
+    state = client.app.state.uploads
+    job = state.db.job(job_id)
+    state.db.update_job(job_id, state="failed", error=error)
+    state.db.update_item(job.item_id, state="failed", file_path=None, sha256=None)
+    state.layout.remove_item_files(job.item_id)
+    return job.item_id
+
+
+def test_a_failed_job_frees_its_name_and_is_listed_with_its_reason(catalogue, tmp_path, upload_csv):
+    with make_client(catalogue, tmp_path) as client:
+        client.app.state.uploads.runner.stop()  # the jobs stay queued: failed by hand
+        r = post_ski(client, upload_csv, name="again")
+        assert r.status_code == 202, r.text[:300]
+        old = _fail(client, r.json()["job"], "accuracy check failed: 50 µm, limit 8 µm")
+        listed = client.get("/v1/skis").json()
+        assert listed["failed"] == [
+            {
+                "name": "again",
+                "reason": "accuracy check failed: 50 µm, limit 8 µm",
+                "job": r.json()["job"],
+                "failed_at": listed["failed"][0]["failed_at"],
+            }
+        ]
+        assert client.get("/v1/grinds").json()["failed"] == []
+        page = client.get("/upload").text
+        assert "accuracy check failed: 50 µm, limit 8 µm" in page
+        assert 'data-delete="/v1/skis/again"' in page
+        # its page says why and has a delete button
+        ski_page = client.get("/skis/again")
+        assert ski_page.status_code == 404
+        assert "Its job failed: accuracy check failed: 50 µm, limit 8 µm" in ski_page.text
+        assert 'id="delete-ski" data-delete="/v1/skis/again"' in ski_page.text
+        # a refused re-upload leaves the failed item as it was
+        is_problem(post_ski(client, upload_csv[:2000], name="again"), 422)
+        assert client.get("/v1/skis/again").json()["id"] == old
+        # the same name again: accepted, it replaces the failed item
+        r = post_ski(client, upload_csv, name="again")
+        assert r.status_code == 202, r.text[:300]
+        new = client.get("/v1/skis/again").json()
+        assert new["id"] != old and new["state"] == "pending"
+        assert client.app.state.uploads.db.item(old) is None
+        assert client.get("/v1/skis").json()["failed"] == []
+        # a name that is not failed stays taken
+        is_problem(post_ski(client, upload_csv, name="again"), 409)
+
+
+def test_another_teams_failed_item_keeps_its_name(catalogue, tmp_path, upload_csv):
+    tokens = {"token-a": "team-a", "token-b": "team-b"}
+    a, b = ({"Authorization": f"Bearer {t}"} for t in tokens)
+    with make_client(catalogue, tmp_path, team_tokens=tokens) as client:
+        client.app.state.uploads.runner.stop()
+        r = post_ski(client, upload_csv, name="theirs", headers=a)
+        assert r.status_code == 202, r.text[:300]
+        _fail(client, r.json()["job"], "beam failed")
+        assert client.get("/v1/skis", headers=b).json()["failed"] == []
+        assert client.get("/v1/skis", headers=a).json()["failed"][0]["name"] == "theirs"
+        is_problem(post_ski(client, upload_csv, name="theirs", headers=b), 409)
+        assert post_ski(client, upload_csv, name="theirs", headers=a).status_code == 202
+
+
+def test_the_upload_and_ski_pages_have_delete_buttons(catalogue, tmp_path):
+    with make_client(catalogue, tmp_path) as client:
+        state = client.app.state.uploads
+        # an uploaded, ready ski (a copy of demo ski A's file, as a finished job leaves it)
+        item = state.db.add_item("ski", "mine", metadata={})
+        path = state.layout.ski_file(item.id)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(REPO / "tables" / "skis" / "ski-a.h5", path)
+        state.db.update_item(item.id, state="ready", file_path=str(path), sha256=sha256_file(path))
+        state.live.sync()
+        page = client.get("/skis/mine")
+        assert page.status_code == 200
+        assert 'id="delete-ski" data-delete="/v1/skis/mine"' in page.text
+        assert 'method: "DELETE"' in page.text  # the script that sends it
+        # a shipped ski is read-only: no button
+        assert "data-delete" not in client.get("/skis/ski-a").text.split("<script>")[0]
+        # the upload page: a delete button in each job panel for a failed job, and the script
+        upload = client.get("/upload").text
+        assert 'id="ski-delete-failed"' in upload and 'id="grind-delete-failed"' in upload
+        assert 'method: "DELETE"' in upload
+        # the route the buttons call, from the page's origin (the write guard lets it through)
+        origin = {"Origin": "http://testserver"}
+        assert client.delete("/v1/skis/mine", headers=origin).status_code == 204
+        assert client.get("/skis/mine").status_code == 404
+
+
+def test_the_caps_are_settings_of_the_upload_route(catalogue, tmp_path, upload_csv):
+    with make_client(catalogue, tmp_path, max_camber_cases=40) as client:
+        body = is_problem(post_ski(client, upload_csv, name="capped"), 422)
+        assert body["detail"].startswith("line ") and "more than 40 load cases" in body["detail"]
+        assert client.get("/v1/skis/capped").status_code == 404  # nothing kept
+    with make_client(catalogue, tmp_path, max_camber_rows=1000) as client:
+        body = is_problem(post_ski(client, upload_csv, name="capped"), 422)
+        assert body["detail"].startswith("line 1002: more than 1000 data rows")
