@@ -88,7 +88,10 @@ def study(name, beam, args) -> dict:
         for fac in factors:
             fe = np.full(EVAL_POSITIONS_M.size, base * fac)
             true = np.stack(
-                [solve_beam_contact(beam, a, b).gap_m[::step] for a, b in zip(fe, EVAL_POSITIONS_M)]
+                [
+                    solve_beam_contact(beam, a, b).gap_m[::step]
+                    for a, b in zip(fe, EVAL_POSITIONS_M, strict=True)
+                ]
             )
             pn = camber._forward(net, np.stack([fe, EVAL_POSITIONS_M], axis=1))
             row = {"side": kind, "factor": fac, "load_kg": float(base * fac / G_STANDARD)}
@@ -100,7 +103,8 @@ def study(name, beam, args) -> dict:
             print(name, row, flush=True)
     # the network at F = 0 against the true camber
     p0 = camber._forward(net, np.stack([np.zeros(5), EVAL_POSITIONS_M], axis=1))
-    out["network_unloaded_um"] = rms(p0, np.repeat(beam.unloaded_gap_m[::step][None], 5, 0))[1] * 1e6
+    c0 = np.repeat(beam.unloaded_gap_m[::step][None], 5, 0)
+    out["network_unloaded_um"] = rms(p0, c0)[1] * 1e6
     out["rows"] = rows
     return out
 

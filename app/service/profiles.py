@@ -137,7 +137,8 @@ def held_out_comparison(
         Device noise σ [m] (the identification's estimate, or
         :func:`solvers.identify.estimate_noise`).
     params : dict
-        Provenance parameters (the draw's seed and fraction among them).
+        Provenance parameters; its ``seed`` and ``fraction`` (the held-out draw's) are also
+        stored as the attributes ``seed`` and ``held_out_fraction``.
 
     Returns
     -------
@@ -171,6 +172,9 @@ def held_out_comparison(
         "tie_m2": float(noise_m**2 * np.sqrt(2.0 / max(n_band, 1))),
         **provenance(params),
     }
+    for key in ("seed", "fraction"):  # the draw, readable without parsing the provenance
+        if params and key in params:
+            attrs[f"held_out_{key}" if key == "fraction" else key] = params[key]
     out: dict = {
         "case_index": idx,
         "held_out_loads_n": f,
