@@ -46,9 +46,10 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
     _, x, f, xf, h, side = camber_training_arrays(data)
     # one held-out draw (seeded, recorded) for both models: the network is trained and the beam
     # identified without these cases, and both are judged on them (app.service.profiles)
+    # (drawn on the network's cases; every one of them is also a case of the identification)
     fm, xfm, ym, _ = mean_profiles(data)
-    held_m = draw_held_out(fm, xfm, fraction=HELD_OUT_FRACTION, seed=HELD_OUT_SEED)
-    held_t = _same_cases(fm[held_m], xfm[held_m], f, xf)
+    held_t = draw_held_out(f, xf, fraction=HELD_OUT_FRACTION, seed=HELD_OUT_SEED)
+    held_m = np.sort(_same_cases(f[held_t], xf[held_t], fm, xfm))
     total = settings.train_ensemble * (settings.train_epochs + settings.train_lbfgs_epochs)
     calls = 0
 

@@ -1,20 +1,23 @@
 """The loaded camber profile H*(X) of a stored ski for any load (method.md §4 step 2).
 
-Three profile models, in the order a ski uses them (``source`` names the one that answers, as
+Three profile models (``source`` names the one that answers, as
 ``provenance.ski.profile_model`` of every answer does):
 
 1. ``identified_beam``: the beam identified from the ski's own camber measurements
-   (:mod:`solvers.identify`, stored in the ski file's ``identified`` group, used when its
+   (:mod:`solvers.identify`, stored in the ski file's ``identified`` group, when its
    identification passed the held-out check), pressed on the rigid flat by the virtual device
-   (:func:`solvers.beam.solve_beam_contact`, flexibility cached per ski). Measured on the demo
-   skis: 0.07–0.2 µm RMS from the beam truth near contact on held-out loads, against 0.5–1.1 µm
-   for the camber network (docs/camber-identification.md). A network retrained on the identified
-   beam's noise-free profiles is 21–43× faster but 2.5–19× further from the truth near contact
-   on the held-out cases (docs/camber-network.md, "Identified beam or network on its profiles";
-   ``scripts/network_vs_identified_beam.py``), so the beam serves.
-2. ``network``: the per-ski network of the papers (:mod:`solvers.camber`), for skis whose
-   beam could not be identified.
+   (:func:`solvers.beam.solve_beam_contact`, flexibility cached per ski).
+2. ``network``: the per-ski network of the papers (:mod:`solvers.camber`).
 3. ``design_beam``: a beam stored with the ski (demo skis), when nothing else is available.
+
+Which of the first two serves is decided once, in the ski job, on measured data: both are
+fitted without the same held-out cases and judged on them (:func:`held_out_comparison`, the
+rule :data:`CHOICE_RULE`, stored as the ``identified`` group's :data:`MODEL_CHOICE`
+subgroup). A file without that comparison (the demo skis, uploads before it) serves its
+identified beam when the identification passed. The loads a ski answers follow one rule
+(:attr:`ProfileModel.load_range_n`, :data:`LOAD_EXTRAPOLATION_FACTOR`) whichever model serves:
+above the heaviest measured load the identified beam answers, the network never extrapolates
+(docs/camber-network.md, "Which model serves, and how far in load").
 """
 
 from __future__ import annotations
