@@ -326,7 +326,8 @@ def test_ski_upload_train_and_contact(catalogue, tmp_path, camber_csv):
         assert r.status_code == 202, r.text[:500]
         figures = r.json()["data"]
         assert figures["load_cases"] == 25 and figures["sample_spacing_mm"] == pytest.approx(5)
-        job = wait_job(client, r.json()["job"])
+        # the identification's forward fit takes minutes on a loaded machine
+        job = wait_job(client, r.json()["job"], timeout_s=900.0)
         assert job["state"] == "done", job
         assert "held-out RMSE" in job["message"]
         listed = {s["name"]: s for s in client.get("/v1/skis").json()["skis"]}
@@ -404,7 +405,10 @@ def test_ski_upload_train_and_contact(catalogue, tmp_path, camber_csv):
             assert flex.json()["provenance"]["ski_model"]["used"] == "flexible"
             assert "flexible_unavailable" not in codes
         else:
-            assert "beam not identified" in job["message"] or "not used" in job["message"]
+            assert (
+                "beam not identified" in job["message"]
+                or "profile model: network" in job["message"]
+            )
             assert flex.status_code == 422 and "no beam model" in flex.json()["detail"]
             assert auto["provenance"]["ski_model"]["used"] == "rigid"
             assert "flexible_unavailable" in codes
