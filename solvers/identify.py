@@ -1240,6 +1240,7 @@ def identify_beam_checked(
     *,
     holdout: float = 0.2,
     seed: int = 0,
+    held_out_index=None,
     **kwargs,
 ) -> tuple[IdentifiedBeam, dict]:
     """:func:`identify_beam` on the cases left after a seeded held-out draw, then a check on
@@ -1247,6 +1248,8 @@ def identify_beam_checked(
     freedom to spare), so the beam must also predict cases it has not seen, within
     ``HELD_OUT_LIMIT`` × the noise. Returns the identification (``ok=False`` with the reason
     when the check fails) and the check's figures (held-out RMS [m], count, indices, seed).
+    ``held_out_index`` (indices into the cases), if given, is the held-out choice instead of
+    the draw (a ski job holds the same cases out of its camber network).
     """
     loads = np.asarray(loads_n, dtype=float).ravel()
     xfs = np.asarray(load_positions_m, dtype=float).ravel()
@@ -1255,7 +1258,9 @@ def identify_beam_checked(
         raise InputError(f"holdout must be in [0, 0.9), got {holdout!r}")
     held = np.zeros(loads.size, dtype=bool)
     count = round(holdout * loads.size)
-    if count:
+    if held_out_index is not None:
+        held[np.asarray(held_out_index, dtype=int)] = True
+    elif count:
         held[np.random.default_rng(seed).choice(loads.size, count, replace=False)] = True
     ident = identify_beam(positions_m, loads[~held], xfs[~held], y[~held], **kwargs)
     check = {

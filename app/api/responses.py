@@ -176,7 +176,12 @@ class SkiProvenance(BaseModel):
     model_config = _FIXED
     file: str
     sha256: str
-    profile_model: str
+    profile_model: str = Field(
+        ..., description="the model that answered this load: identified_beam, network, design_beam"
+    )
+    profile_model_reason: str = Field(
+        ..., description="why it answered (the held-out comparison, or the load range rule)"
+    )
 
 
 class MacroProvenance(BaseModel):

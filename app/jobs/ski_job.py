@@ -24,14 +24,32 @@ log = logging.getLogger(__name__)
 
 def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -> str:
     """Job ``ski-network``: train the camber network, check it, write the ski file."""
-    from skisnow.app.storage.skis import SkiOutline, SkiRecord, read_camber_csv, read_ski, write_ski
-    from skisnow.app.training.data import camber_training_arrays
+    from skisnow.app.storage.skis import (
+        SkiOutline,
+        SkiRecord,
+        mean_profiles,
+        read_camber_csv,
+        read_ski,
+        write_ski,
+    )
+    from skisnow.app.training.data import (
+        HELD_OUT_FRACTION,
+        HELD_OUT_SEED,
+        camber_training_arrays,
+        draw_held_out,
+    )
     from skisnow.app.training.files import write_network_to_ski
     from skisnow.app.training.fit import train_camber_network
 
     item = ctx.item
     data = read_camber_csv(layout.ski_csv(item.id))
     _, x, f, xf, h, side = camber_training_arrays(data)
+    # one held-out draw (seeded, recorded) for both models: the network is trained and the beam
+    # identified without these cases, and both are judged on them (app.service.profiles)
+    # (drawn on the network's cases; every one of them is also a case of the identification)
+    fm, xfm, ym, _ = mean_profiles(data)
+    held_t = draw_held_out(f, xf, fraction=HELD_OUT_FRACTION, seed=HELD_OUT_SEED)
+    held_m = np.sort(_same_cases(f[held_t], xf[held_t], fm, xfm))
     total = settings.train_ensemble * (settings.train_epochs + settings.train_lbfgs_epochs)
     calls = 0
 
@@ -52,6 +70,7 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
         ski_id=item.name,
         metadata={"measured_side": side, "measurements_source": f"upload {item.id}.csv"},
         progress=progress,
+        test_index=held_t,
     )
     m = result.metrics
     rmse_um = float(m.get("test_rmse_band_m", math.nan)) * 1e6
@@ -87,6 +106,10 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
         data,
         item,
         lambda frac, msg: ctx.progress(0.96 + 0.03 * frac, f"identifying the ski's beam: {msg}"),
+        held_out_index=held_m,
+    )
+    record.identified, choice_note = _choose_model(
+        record.identified, result.network, (fm, xfm, ym), held_m, item
     )
     work = layout.work(item.id)
     work.mkdir(parents=True, exist_ok=True)
@@ -105,7 +128,7 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
         item.id, state="ready", file_path=str(final), sha256=sha256_file(final), metadata=meta
     )
     on_ready(db_item)
-    return f"network trained; {figures}; {beam_note}"
+    return f"network trained; {figures}; {beam_note}; {choice_note}"
 
 
 def _draw_page_figures(item, path: Path, layout: Layout) -> None:
@@ -124,13 +147,49 @@ def _draw_page_figures(item, path: Path, layout: Layout) -> None:
         )
 
 
-def _identify(data, item, callback=None) -> tuple[dict, str]:
+def _same_cases(f_n, xf_m, loads_n, positions_m) -> np.ndarray:
+    """Indices into (``loads_n``, ``positions_m``) of the cases (``f_n``, ``xf_m``) (the
+    network's cases and the identification's may be ordered differently)."""
+    keys = {
+        (round(float(a), 9), round(float(b), 9)): k
+        for k, (a, b) in enumerate(zip(loads_n, positions_m, strict=True))
+    }
+    return np.array(
+        [keys[(round(float(a), 9), round(float(b), 9))] for a, b in zip(f_n, xf_m, strict=True)],
+        dtype=int,
+    )
+
+
+def _choose_model(identified: dict, network: dict, cases, held_m, item) -> tuple[dict, str]:
+    """The ``identified`` group with the held-out comparison of the two profile models
+    (:func:`app.service.profiles.held_out_comparison`) and one sentence for the job result."""
+    from skisnow.app.service.profiles import MODEL_CHOICE, held_out_comparison
+    from skisnow.app.storage.skis import identified_beam
+    from skisnow.app.training.data import HELD_OUT_FRACTION, HELD_OUT_SEED
+    from skisnow.solvers.identify import estimate_noise
+
+    f, xf, y = cases
+    noise = float(identified.get("attrs", {}).get("noise_m", math.nan))
+    if not (math.isfinite(noise) and noise > 0):
+        noise = estimate_noise(y)
+    params = {"item": item.id, "seed": HELD_OUT_SEED, "fraction": HELD_OUT_FRACTION}
+    group = held_out_comparison(
+        network, identified_beam(identified), f, xf, y, held_m, noise, params
+    )
+    a = group["attrs"]
+    note = f"profile model: {a['served']} ({a['reason']})"
+    return {**identified, MODEL_CHOICE: group}, note
+
+
+def _identify(data, item, callback=None, held_out_index=None) -> tuple[dict, str]:
     """Identify the beam of an uploaded ski (method.md §4c): the stored ``identified`` group and
     one sentence for the job result. A failure is recorded, never raised: the ski still works
     with the rigid model and its network. ``callback(fraction, message)``: the
-    identification's progress (the job shows it; minutes on a loaded machine)."""
+    identification's progress (the job shows it; minutes on a loaded machine).
+    ``held_out_index``: the job's held-out cases (indices into the cases of
+    :func:`app.storage.skis.mean_profiles`), not identified, the check's cases."""
     from skisnow.app.path_pool import path_pool
-    from skisnow.app.service.profiles import identification_group, served_beam_note
+    from skisnow.app.service.profiles import identification_group
     from skisnow.app.storage.skis import mean_profiles
     from skisnow.solvers.identify import identify_beam_checked
 
@@ -138,7 +197,13 @@ def _identify(data, item, callback=None) -> tuple[dict, str]:
         f, xf, y, note = mean_profiles(data)
         with path_pool() as pmap:
             ident, check = identify_beam_checked(
-                data.positions_m, f, xf, y, callback=callback, path_map=pmap
+                data.positions_m,
+                f,
+                xf,
+                y,
+                held_out_index=held_out_index,
+                callback=callback,
+                path_map=pmap,
             )
     except SkisnowError as exc:
         reason = f"beam not identified: {exc}"
@@ -147,8 +212,6 @@ def _identify(data, item, callback=None) -> tuple[dict, str]:
     group = identification_group(ident, check, note, f, xf, {"item": item.id}, y)
     if not ident.ok:
         return group, f"beam not identified: {ident.reason} (rigid model only)"
-    if served_beam_note(group):
-        return group, f"beam identified but not used: {served_beam_note(group)}"
     return group, (
         f"beam identified: misfit {ident.misfit_m * 1e6:.2f} µm against device noise "
         f"{ident.noise_m * 1e6:.2f} µm over {f.size - check['held_out_cases']} cases, "

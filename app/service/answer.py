@@ -174,8 +174,8 @@ def contact(
     if not (f_lo * (1 - 1e-9) <= load_n <= f_hi * (1 + 1e-9)):
         raise OutOfRangeError(
             f"load_kg {inp.load_kg:g} is outside the range the ski {ski.name!r} covers "
-            f"({units.n_to_kg(f_lo):.4g} … {units.n_to_kg(f_hi):.4g} kg): its camber model is "
-            "not extrapolated"
+            f"({units.n_to_kg(f_lo):.4g} … {units.n_to_kg(f_hi):.4g} kg): "
+            f"{profile_model(ski.record).load_range_rule}"
         )
     e_eff = effective_modulus(
         units.mpa_to_pa(inp.snow_modulus_mpa),
@@ -291,7 +291,8 @@ def contact(
             "ski": {
                 "file": ski.path.name,
                 "sha256": ski.sha256,
-                "profile_model": profile_model(ski.record).source,
+                "profile_model": profile_model(ski.record).answer_source(load_n),
+                "profile_model_reason": profile_model(ski.record).answer_reason(load_n),
             },
             "ski_model": model_info,
             "macro": {

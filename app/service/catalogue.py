@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 from skisnow.app.service.profiles import (
+    LOAD_EXTRAPOLATION_FACTOR,
     no_beam_reason,
     profile_model,
     served_beam,
@@ -49,8 +50,9 @@ class ModelUnavailableError(SkisnowError):
 
 #: ski models a request can ask for (method.md §4 step 3 and §4b)
 SKI_MODELS = ("rigid", "flexible", "auto")
-#: an identified beam answers loads up to this × the heaviest measured load (docs/limits.md)
-BEAM_LOAD_FACTOR = 1.5
+#: an identified beam answers loads up to this × the heaviest measured load (the one rule:
+#: :class:`app.service.profiles.ProfileModel.load_range_n`; docs/camber-network.md)
+BEAM_LOAD_FACTOR = LOAD_EXTRAPOLATION_FACTOR
 #: ``auto`` answers with the rigid shape when every compared quantity is within this of the
 #: flexible solve [-]
 AUTO_RIGID_TOLERANCE = 0.02
@@ -140,15 +142,11 @@ class Ski:
 
     @property
     def load_range_n(self) -> tuple[float, float]:
-        """Loads the ski's camber model covers [N]. An identified beam answers up to
-        :data:`BEAM_LOAD_FACTOR` × the heaviest measured load (positions stay in the measured
-        range): measured on the demo skis at 110–150 kg, ≤ 0.33 µm from the truth near contact
-        and ≤ 3.4 % in apparent area; lighter loads than measured and positions outside the
-        measured range err by up to 8 µm and 47 % (ski-b), so they are refused."""
-        lo, hi = self._covered("load_min_n", "load_max_n", self.record.measurements.loads_n)
-        if profile_model(self.record).source == "identified_beam":
-            hi *= BEAM_LOAD_FACTOR
-        return lo, hi
+        """Loads the ski's camber model covers [N]: the one rule of
+        :attr:`app.service.profiles.ProfileModel.load_range_n` (an identified beam that passed
+        answers up to :data:`BEAM_LOAD_FACTOR` × the heaviest measured load, whichever model
+        serves inside; lighter loads than measured are refused)."""
+        return profile_model(self.record).load_range_n
 
     @property
     def position_range_m(self) -> tuple[float, float]:

@@ -1,20 +1,23 @@
 """The loaded camber profile H*(X) of a stored ski for any load (method.md §4 step 2).
 
-Three profile models, in the order a ski uses them (``source`` names the one that answers, as
+Three profile models (``source`` names the one that answers, as
 ``provenance.ski.profile_model`` of every answer does):
 
 1. ``identified_beam``: the beam identified from the ski's own camber measurements
-   (:mod:`solvers.identify`, stored in the ski file's ``identified`` group, used when its
+   (:mod:`solvers.identify`, stored in the ski file's ``identified`` group, when its
    identification passed the held-out check), pressed on the rigid flat by the virtual device
-   (:func:`solvers.beam.solve_beam_contact`, flexibility cached per ski). Measured on the demo
-   skis: 0.07–0.2 µm RMS from the beam truth near contact on held-out loads, against 0.5–1.1 µm
-   for the camber network (docs/camber-identification.md). A network retrained on the identified
-   beam's noise-free profiles is 21–43× faster but 2.5–19× further from the truth near contact
-   on the held-out cases (docs/camber-network.md, "Identified beam or network on its profiles";
-   ``scripts/network_vs_identified_beam.py``), so the beam serves.
-2. ``network``: the per-ski network of the papers (:mod:`solvers.camber`), for skis whose
-   beam could not be identified.
+   (:func:`solvers.beam.solve_beam_contact`, flexibility cached per ski).
+2. ``network``: the per-ski network of the papers (:mod:`solvers.camber`).
 3. ``design_beam``: a beam stored with the ski (demo skis), when nothing else is available.
+
+Which of the first two serves is decided once, in the ski job, on measured data: both are
+fitted without the same held-out cases and judged on them (:func:`held_out_comparison`, the
+rule :data:`CHOICE_RULE`, stored as the ``identified`` group's :data:`MODEL_CHOICE`
+subgroup). A file without that comparison (the demo skis, uploads before it) serves its
+identified beam when the identification passed. The loads a ski answers follow one rule
+(:attr:`ProfileModel.load_range_n`, :data:`LOAD_EXTRAPOLATION_FACTOR`) whichever model serves:
+above the heaviest measured load the identified beam answers, the network never extrapolates
+(docs/camber-network.md, "Which model serves, and how far in load").
 """
 
 from __future__ import annotations
@@ -28,22 +31,33 @@ from skisnow.app.storage.skis import (
     identified_to_dict,
     mean_profiles,
 )
-from skisnow.solvers.beam import BeamFlexibility, BeamResult, BeamSki, solve_beam_contact
+from skisnow.solvers.beam import (
+    G_STANDARD,
+    BeamFlexibility,
+    BeamResult,
+    BeamSki,
+    solve_beam_contact,
+)
 from skisnow.solvers.errors import DataFileError, InputError, NotConvergedError, SkisnowError
 from skisnow.solvers.identify import predict_gaps, profile_sigma
 
 __all__ = [
+    "CHOICE_RULE",
     "HELD_OUT_ADDED",
     "HELD_OUT_ERRORS",
     "HELD_OUT_STORED",
+    "LOAD_EXTRAPOLATION_FACTOR",
+    "MODEL_CHOICE",
     "PROFILE_SIGMA_CASES",
-    "SERVED_MISFIT_LIMIT",
     "ProfileModel",
     "add_held_out_errors",
+    "choose_profile_model",
     "held_out_case_errors",
+    "held_out_comparison",
     "held_out_errors_group",
     "held_out_mask",
     "identification_group",
+    "model_choice",
     "no_beam_reason",
     "profile_model",
     "served_beam",
@@ -56,34 +70,170 @@ PROFILE_SIGMA_CASES = 40
 PROFILE_SIGMA_SEED = 0
 
 
-#: an identified beam serves as profile model and bending beam only when its misfit is within
-#: this factor of the device noise: a forward fit that stopped above it sits in a local minimum
-#: (measured: the demo skis 1.000 / 1.002; the 'soft' test design from 94 cases 1.069 with
-#: 1.2 µm held-out error, from 340 cases 1.000 with 0.25 µm; docs/camber-identification.md)
-SERVED_MISFIT_LIMIT = 1.02
+#: subgroup of the ``identified`` group: both profile models judged on the job's held-out cases
+MODEL_CHOICE = "model_choice"
+#: the decision rule, as stored with every choice and shown where the choice is shown
+CHOICE_RULE = (
+    "each model's held-out error above the device noise, e = sqrt(max(RMS² − σ², 0)) where the "
+    "measured H* < 0.2 mm, on the same held-out measured cases neither model was fitted to; the "
+    "camber network serves only when e_network² + t < e_beam², t = σ²·sqrt(2/n) the standard "
+    "deviation of a mean of n squared noise readings (the resolution of the estimate): within "
+    "it the beam is preferred (it is physics: it extrapolates in load and bends on the snow)"
+)
+
+
+def choose_profile_model(
+    beam_excess_m: float, network_excess_m: float, tie_m2: float
+) -> tuple[str, str]:
+    """The profile model a ski serves from the held-out comparison (:data:`CHOICE_RULE`):
+    ``("identified_beam" | "network", why)``. ``beam_excess_m`` is NaN when no beam passed
+    the identification; ``network_excess_m`` NaN when there is no network."""
+    b, n = float(beam_excess_m), float(network_excess_m)
+    if not np.isfinite(b):
+        return "network", "no identified beam to compare"
+    if not np.isfinite(n):
+        return "identified_beam", "no camber network to compare"
+    if n * n + tie_m2 < b * b:
+        return "network", (
+            f"the camber network predicts the held-out cases to {n * 1e6:.2f} µm above the device "
+            f"noise where H* < 0.2 mm, the identified beam to {b * 1e6:.2f} µm: the network is "
+            "better by more than the resolution of the estimate"
+        )
+    better = "better than" if b <= n else "within the resolution of the estimate of"
+    return "identified_beam", (
+        f"the identified beam predicts the held-out cases to {b * 1e6:.2f} µm above the device "
+        f"noise where H* < 0.2 mm, the camber network to {n * 1e6:.2f} µm: the beam is "
+        f"{better} the network"
+    )
+
+
+def _excess(rms_m: float, noise_m: float) -> float:
+    return float(np.sqrt(max(rms_m * rms_m - noise_m * noise_m, 0.0)))
+
+
+def held_out_comparison(
+    network: dict | None,
+    beam: BeamSki | None,
+    loads_n: np.ndarray,
+    positions_m: np.ndarray,
+    profiles_m: np.ndarray,
+    case_index: np.ndarray,
+    noise_m: float,
+    params: dict | None,
+) -> dict:
+    """The :data:`MODEL_CHOICE` group: the camber network and the identified beam judged on the
+    same held-out measured cases (neither was fitted to them), and the model the ski serves.
+
+    Parameters
+    ----------
+    network : dict or None
+        The ski's camber network (:mod:`solvers.camber`), trained without the held-out cases.
+    beam : BeamSki or None
+        The identified beam (None: the identification failed), identified without them.
+    loads_n, positions_m : ndarray (K,)
+        F [N] and x_F [m] of every case (:func:`app.storage.skis.mean_profiles`).
+    profiles_m : ndarray (K, N)
+        Measured profiles [m] on the network's and the identification's nodes.
+    case_index : ndarray of int
+        The held-out cases (indices into the K cases).
+    noise_m : float
+        Device noise σ [m] (the identification's estimate, or
+        :func:`solvers.identify.estimate_noise`).
+    params : dict
+        Provenance parameters; its ``seed`` and ``fraction`` (the held-out draw's) are also
+        stored as the attributes ``seed`` and ``held_out_fraction``.
+
+    Returns
+    -------
+    dict
+        Attributes ``served``, ``reason``, ``rule``, the held-out errors of each model (RMS where
+        the measured H* < 0.2 mm and over the whole profile, and the same above the noise) [m],
+        ``tie_m2``, counts; arrays of the held-out cases and each model's per-case RMS [m].
+    """
+    from skisnow.solvers import camber
+
+    idx = np.asarray(case_index, dtype=int)
+    f = np.asarray(loads_n, dtype=float)[idx]
+    xf = np.asarray(positions_m, dtype=float)[idx]
+    y = np.asarray(profiles_m, dtype=float)[idx]
+    band = y < camber.CONTACT_BAND_M
+    n_band = int(band.sum())
+    preds = {}
+    if network is not None and idx.size:
+        preds["network"] = camber.predict_profiles(network, f, xf).gaps_m
+    if beam is not None and idx.size:
+        preds["beam"] = predict_gaps(beam, f, xf)
+    attrs: dict = {
+        "description": "the camber network and the identified beam judged on the same held-out "
+        "measured cases (fitted without them); the served model is the one with the lower "
+        "held-out error above the device noise",
+        "rule": CHOICE_RULE,
+        "units": "m",
+        "noise_m": float(noise_m),
+        "held_out_cases": int(idx.size),
+        "band_points": n_band,
+        "tie_m2": float(noise_m**2 * np.sqrt(2.0 / max(n_band, 1))),
+        **provenance(params),
+    }
+    for key in ("seed", "fraction"):  # the draw, readable without parsing the provenance
+        if params and key in params:
+            attrs[f"held_out_{key}" if key == "fraction" else key] = params[key]
+    out: dict = {
+        "case_index": idx,
+        "held_out_loads_n": f,
+        "held_out_load_positions_m": xf,
+    }
+    for name in ("beam", "network"):
+        pred = preds.get(name)
+        if pred is None:
+            for key in ("rms_band_m", "rms_all_m", "excess_band_m", "excess_all_m"):
+                attrs[f"{name}_{key}"] = float("nan")
+            continue
+        d = pred - y
+        rms_band = float(np.sqrt(np.mean(d[band] ** 2))) if n_band else float("nan")
+        rms_all = float(np.sqrt(np.mean(d**2)))
+        attrs[f"{name}_rms_band_m"] = rms_band
+        attrs[f"{name}_rms_all_m"] = rms_all
+        attrs[f"{name}_excess_band_m"] = _excess(rms_band, noise_m)
+        attrs[f"{name}_excess_all_m"] = _excess(rms_all, noise_m)
+        out[f"{name}_case_rms_m"] = np.sqrt(np.mean(d**2, axis=1))
+    served, why = choose_profile_model(
+        attrs["beam_excess_band_m"], attrs["network_excess_band_m"], attrs["tie_m2"]
+    )
+    attrs["served"] = served
+    attrs["reason"] = why
+    out["attrs"] = attrs
+    return out
+
+
+def model_choice(identified: dict | None) -> dict | None:
+    """The attributes of the stored :data:`MODEL_CHOICE` group, or None (a file written before
+    the comparison, or no identification)."""
+    group = (identified or {}).get(MODEL_CHOICE)
+    if not isinstance(group, dict) or "served" not in group.get("attrs", {}):
+        return None
+    return group["attrs"]
 
 
 def served_beam(identified: dict | None) -> BeamSki | None:
     """The identified beam a ski answers with, or None: the identification passed (held-out
-    check included) and its misfit is within :data:`SERVED_MISFIT_LIMIT` × the noise."""
+    check included) and the held-out comparison (:data:`MODEL_CHOICE`) chose it. A file
+    written before the comparison was stored (the demo skis' shipped identification, uploads
+    before it) has none: its beam serves when its identification passed (the fallback)."""
     beam = identified_beam(identified)
     if beam is None:
         return None
-    a = identified["attrs"]
-    ratio = float(a.get("misfit_m", np.inf)) / max(float(a.get("noise_m", 0.0)), 1e-300)
-    return beam if ratio <= SERVED_MISFIT_LIMIT else None
+    choice = model_choice(identified)
+    if choice is None:
+        return beam
+    return beam if choice["served"] == "identified_beam" else None
 
 
 def served_beam_note(identified: dict | None) -> str:
     """Why an identification that passed is not served ('' when it is, or did not pass)."""
     if identified_beam(identified) is None or served_beam(identified) is not None:
         return ""
-    a = identified["attrs"]
-    return (
-        f"misfit {a['misfit_m'] * 1e6:.2f} µm is {a['misfit_m'] / a['noise_m']:.3f}× the device "
-        f"noise (more than {SERVED_MISFIT_LIMIT:g}×): the fit stopped in a local minimum, so the "
-        "beam is not used"
-    )
+    return str(model_choice(identified)["reason"])
 
 
 def no_beam_reason(identified: dict | None) -> str:
@@ -96,6 +246,16 @@ def no_beam_reason(identified: dict | None) -> str:
         or (identified or {}).get("attrs", {}).get("reason")
         or "no identification was run"
     )
+
+
+#: a ski with an identified beam that passed its held-out check answers loads up to this × its
+#: heaviest measured load, whichever model serves inside the measured range (above it the beam
+#: answers); without one, nothing beyond the heaviest measured load. Nothing below the lightest
+#: measured load (the unloaded profile aside). Measured with the heaviest levels held out
+#: (scripts/load_extrapolation_study.py, docs/camber-network.md "How far each model may answer
+#: in load", demo skis and six designs): 10 % beyond its edge the camber network errs 1.2–2.8 ×
+#: its error there, at 1.5 × 2.6–12 × (up to 36 µm); the identified beam 1.02–2.3 × at 1.5 ×
+LOAD_EXTRAPOLATION_FACTOR = 1.5
 
 
 class ProfileModel:
@@ -112,33 +272,48 @@ class ProfileModel:
         ``identified_beam``, ``network`` or ``design_beam``.
     reason : str
         Why this model serves (the words of ``GET /v1/skis`` and the ski's page).
+    extrapolation_beam : BeamSki or None
+        The identified beam that answers loads above the heaviest measured one (the served beam,
+        or, when the network serves, the identified beam that passed its held-out check).
     """
 
     def __init__(self, record: SkiRecord) -> None:
         self.record = record
         self.beam: BeamSki | None = served_beam(record.identified)
+        self.extrapolation_beam: BeamSki | None = self.beam
         self._flex: BeamFlexibility | None = None
+        self._xflex: BeamFlexibility | None = None
         if self.beam is not None:
             self.source = "identified_beam"
             a = record.identified["attrs"]
+            choice = model_choice(record.identified)
+            if choice is not None:
+                self.reason = f"held-out comparison: {choice['reason']}"
+                return
             held = float(a.get("held_out_rms_m", np.nan))
             self.reason = (
                 f"the beam identified from the ski's camber measurements fits them to "
-                f"{a['misfit_m'] * 1e6:.2f} µm against device noise {a['noise_m'] * 1e6:.2f} µm "
-                f"(within {SERVED_MISFIT_LIMIT:g}× the noise)"
+                f"{a['misfit_m'] * 1e6:.2f} µm against device noise {a['noise_m'] * 1e6:.2f} µm"
                 + (
                     f" and predicts {int(a.get('held_out_cases', 0))} held-out cases to "
                     f"{held * 1e6:.2f} µm RMS"
                     if np.isfinite(held)
                     else ""
                 )
+                + " (no held-out comparison with the camber network stored: an identified beam "
+                "that passed serves)"
             )
             return
         why = no_beam_reason(record.identified)
         if record.network is not None:
             self.source = "network"
-            self.reason = f"no identified beam ({why}): the camber network trained on the ski's "
-            self.reason += "measurements answers"
+            self.extrapolation_beam = identified_beam(record.identified)
+            choice = model_choice(record.identified)
+            if choice is not None and choice["served"] == "network":
+                self.reason = f"held-out comparison: {choice['reason']}"
+            else:
+                self.reason = f"no identified beam ({why}): the camber network trained on the "
+                self.reason += "ski's measurements answers"
         elif record.beam is not None:
             self.beam = record.beam
             self.source = "design_beam"
@@ -152,8 +327,71 @@ class ProfileModel:
                 "network and no design beam"
             )
 
+    @property
+    def measured_load_range_n(self) -> tuple[float, float]:
+        """Lightest and heaviest measured loaded case [N] (the unloaded profile, F = 0, aside)."""
+        f = np.asarray(self.record.measurements.loads_n, dtype=float)
+        f = f[f > 0]
+        if not f.size:  # cannot happen for a stored ski; guards a hand-made record
+            raise DataFileError(f"ski {self.record.ski_id!r} has no loaded camber case")
+        return float(f.min()), float(f.max())
+
+    @property
+    def load_range_n(self) -> tuple[float, float]:
+        """Loads this ski answers [N], the one rule of :data:`LOAD_EXTRAPOLATION_FACTOR`: from
+        the lightest measured load to the heaviest, × the factor when an identified beam passed
+        its held-out check (whichever model serves inside the measured range)."""
+        lo, hi = self.measured_load_range_n
+        if self.extrapolation_beam is not None:
+            hi *= LOAD_EXTRAPOLATION_FACTOR
+        return lo, hi
+
+    @property
+    def load_range_rule(self) -> str:
+        """The load range's rule in words (the refusal of an out-of-range load quotes it)."""
+        lo, hi = self.measured_load_range_n
+        if self.extrapolation_beam is not None:
+            return (
+                f"measured {lo / G_STANDARD:.4g} … {hi / G_STANDARD:.4g} kg; the identified beam "
+                f"answers up to {LOAD_EXTRAPOLATION_FACTOR:g}× the heaviest measured load, "
+                "nothing lighter than the lightest is answered"
+            )
+        return (
+            f"measured {lo / G_STANDARD:.4g} … {hi / G_STANDARD:.4g} kg; without an identified "
+            "beam the camber model is not extrapolated"
+        )
+
+    def answer_source(self, load_n: float) -> str:
+        """The model that answers ``load_n`` [N]: :attr:`source`, or ``identified_beam`` for a
+        load above the heaviest measured one when the network serves (the beam extrapolates)."""
+        if self._extrapolates(load_n):
+            return "identified_beam"
+        return self.source
+
+    def answer_reason(self, load_n: float) -> str:
+        """Why :meth:`answer_source` answers ``load_n`` [N]."""
+        if self._extrapolates(load_n):
+            return (
+                f"{load_n / G_STANDARD:.4g} kg is above the heaviest measured load: the camber "
+                "network is not extrapolated, the identified beam answers up to "
+                f"{LOAD_EXTRAPOLATION_FACTOR:g}× it ({self.reason})"
+            )
+        return self.reason
+
+    def _extrapolates(self, load_n: float) -> bool:
+        return (
+            self.beam is None
+            and self.extrapolation_beam is not None
+            and float(load_n) > self.measured_load_range_n[1] * (1 + 1e-9)
+        )
+
     def __call__(self, load_n: float, load_position_m: float) -> tuple[np.ndarray, np.ndarray]:
         """Positions X [m] and loaded gap H*(X) [m] under F [N] at x_F [m] on the rigid flat."""
+        if self._extrapolates(load_n):
+            if self._xflex is None:
+                self._xflex = BeamFlexibility(self.extrapolation_beam)
+            res = _solve_flat(self.extrapolation_beam, load_n, load_position_m, self._xflex)
+            return res.positions_m, res.gap_m
         if self.beam is None:
             from skisnow.solvers import camber
 
@@ -175,13 +413,17 @@ class ProfileModel:
         :mod:`app.service.flex` needs the reactions). Raises :class:`InputError` for a network."""
         if self.beam is None:
             raise InputError("the camber network has no beam: no reactions on the flat")
-        # no warm start from earlier requests: the answer must not depend on what this process
-        # solved before (a warm start gives the same contact set up to rounding, and rounding
-        # moved 3 of 1000 answers of the load test)
-        res = solve_beam_contact(self.beam, load_n, load_position_m, flexibility=self.flexibility)
-        if not res.converged:
-            raise NotConvergedError(f"the ski's beam on the flat did not converge: {res.message}")
-        return res
+        return _solve_flat(self.beam, load_n, load_position_m, self.flexibility)
+
+
+def _solve_flat(beam: BeamSki, load_n, load_position_m, flexibility) -> BeamResult:
+    # no warm start from earlier requests: the answer must not depend on what this process
+    # solved before (a warm start gives the same contact set up to rounding, and rounding
+    # moved 3 of 1000 answers of the load test)
+    res = solve_beam_contact(beam, load_n, load_position_m, flexibility=flexibility)
+    if not res.converged:
+        raise NotConvergedError(f"the ski's beam on the flat did not converge: {res.message}")
+    return res
 
 
 def profile_model(record: SkiRecord) -> ProfileModel:

@@ -15,6 +15,7 @@ from skisnow.app.service.catalogue import Ski
 from skisnow.app.service.profiles import (
     held_out_case_errors,
     held_out_mask,
+    model_choice,
     profile_model,
     stored_held_out_errors,
 )
@@ -33,9 +34,31 @@ def profile_report(ski: Ski) -> dict:
     an error message instead when the ski has none."""
     try:
         model = profile_model(ski.record)
+        lo, hi = model.load_range_n
     except SkisnowError as exc:
         return {"name": None, "reason": str(exc)}
-    return {"name": model.source, "reason": model.reason}
+    out = {
+        "name": model.source,
+        "reason": model.reason,
+        "load_range_kg": [units.n_to_kg(lo), units.n_to_kg(hi)],
+        "load_range_rule": model.load_range_rule,
+        "held_out_comparison": None,
+    }
+    choice = model_choice(ski.record.identified)
+    if choice is not None:  # both models on the same held-out cases, in µm
+        out["held_out_comparison"] = {
+            "served": choice["served"],
+            "reason": choice["reason"],
+            "rule": choice.get("rule", ""),
+            "held_out_cases": int(choice.get("held_out_cases", 0)),
+            "seed": choice.get("seed"),
+            **{
+                k[:-2] + "_um": (float(v) * 1e6 if math.isfinite(float(v)) else None)
+                for k, v in choice.items()
+                if k.endswith("_m") and k.startswith(("beam_", "network_", "noise"))
+            },
+        }
+    return out
 
 
 #: attributes of the identification's provenance shown with the beam (technician names)

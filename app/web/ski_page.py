@@ -13,7 +13,7 @@ from urllib.parse import quote, urlencode
 from fastapi import Request
 from fastapi.responses import HTMLResponse
 from skisnow.app import service, units
-from skisnow.app.service.profiles import SERVED_MISFIT_LIMIT
+from skisnow.app.service.profiles import CHOICE_RULE, model_choice
 from skisnow.app.service.ski_figures import ski_figures
 from skisnow.app.web.form import DEFAULTS, NUMERIC, ski_url
 from skisnow.app.web.templating import DELETE_JS, JS, fmt, page, svg
@@ -68,6 +68,21 @@ def _numbers(ident: dict) -> list[tuple]:
         ("held_out_to_noise", "Held-out error / noise", ident["held_out_to_noise"], "–", "{:.3f}"),
     )
     return [n for n in numbers if n[2] is not None]
+
+
+def _choice(identified: dict | None) -> dict | None:
+    """The held-out comparison of the two profile models in µm (None: not stored)."""
+    a = model_choice(identified)
+    if a is None:
+        return None
+    um = {k: float(a.get(k, float("nan"))) * 1e6 for k in a if k.endswith("_m")}
+    return {
+        "served": str(a["served"]),
+        "reason": str(a["reason"]),
+        "cases": int(a.get("held_out_cases", 0)),
+        "seed": a.get("seed"),
+        **{k[:-2] + "_um": v for k, v in um.items()},
+    }
 
 
 def _provenance(ident: dict) -> list[tuple[str, str]]:
@@ -192,7 +207,8 @@ def render_ski(
         ident=ident,
         numbers=_numbers(ident) if ident else [],
         provenance=_provenance(ident) if ident else [],
-        served_misfit_limit=SERVED_MISFIT_LIMIT,
+        choice=_choice(ski.record.identified),
+        choice_rule=CHOICE_RULE,
         held_out_limit=HELD_OUT_LIMIT,
         figures=_figures(ski, beam, figure_cache),
         beam_table=_beam_table(beam) if beam["available"] else None,

@@ -410,10 +410,81 @@ def test_ski_upload_train_and_contact(catalogue, tmp_path, upload_csv):
             assert flex.json()["provenance"]["ski_model"]["used"] == "flexible"
             assert "flexible_unavailable" not in codes
         else:
-            assert "beam not identified" in job["message"] or "not used" in job["message"]
+            assert (
+                "beam not identified" in job["message"]
+                or "profile model: network" in job["message"]
+            )
             assert flex.status_code == 422 and "no beam model" in flex.json()["detail"]
             assert auto["provenance"]["ski_model"]["used"] == "rigid"
             assert "flexible_unavailable" in codes
+
+
+@pytest.fixture(scope="module")
+def camber_csv_unloaded(tmp_path_factory) -> bytes:
+    """A 9 × 5 camber CSV (the smallest grid the upload accepts) with the unloaded profile first
+    (load_kg 0, load position 0: ignored), as a camber device records it: demo ski A's beam,
+    3 µm noise, every 5 mm."""
+    from skisnow.app.storage.skis import CamberData, read_ski, write_camber_csv
+    from skisnow.solvers.beam import G_STANDARD, measure_camber, measure_unloaded
+
+    rec = read_ski(REPO / "tables" / "skis" / "ski-a.h5")
+    loads = np.linspace(10.0, 90.0, 9) * G_STANDARD
+    f, xf, gaps = measure_camber(rec.beam, loads, np.linspace(-0.30, 0.10, 5), noise_m=3e-6, rng=7)
+    g0 = measure_unloaded(rec.beam, noise_m=3e-6, rng=8)
+    sel = np.arange(0, rec.beam.positions_m.size, 5)
+    data = CamberData(
+        "my-ski",
+        rec.beam.positions_m[sel],
+        np.concatenate([[0.0], f]),
+        np.concatenate([[0.0], xf]),
+        ["mean"] * (f.size + 1),
+        np.vstack([g0[sel], gaps[:, sel]]),
+    )
+    path = tmp_path_factory.mktemp("csv0") / "ski.csv"
+    write_camber_csv(path, data)
+    return path.read_bytes()
+
+
+def test_ski_upload_with_the_unloaded_profile_ends_done(catalogue, tmp_path, camber_csv_unloaded):
+    """A CSV with the unloaded profile (load_kg 0) trains: the network's range starts at 0 N and
+    answers the measured unloaded profile at F = 0; both models are judged on the same held-out
+    cases (seeded, recorded, never the unloaded one) and the better one serves."""
+    from skisnow.app.service.profiles import MODEL_CHOICE
+    from skisnow.app.storage.skis import mean_profiles, read_ski
+    from skisnow.solvers import camber
+
+    with make_client(catalogue, tmp_path) as client:
+        r = post_ski(client, camber_csv_unloaded, name="zero-ski")
+        assert r.status_code == 202, r.text[:500]
+        job = wait_job(client, r.json()["job"])
+        assert job["state"] == "done", job
+        shown = client.get("/v1/skis/zero-ski").json()
+        record = read_ski(tmp_path / "skis" / f"{shown['id']}.h5")
+        net = record.network
+        assert net["attrs"]["load_min_n"] == 0.0 and net["attrs"]["unloaded_cases"] == 1
+        f, _, y, _ = mean_profiles(record.measurements)
+        assert f.size == 46 and (f == 0).sum() == 1
+        choice = record.identified[MODEL_CHOICE]
+        held = np.asarray(choice["case_index"])
+        assert held.size == 9 and (f[held] > 0).all()
+        assert choice["attrs"]["seed"] == 0
+        np.testing.assert_allclose(np.sort(net["split_test_loads_n"]), np.sort(f[held]))
+        # the network never saw the held-out cases, and neither did the identification
+        assert not np.isin(held, np.flatnonzero(f == 0)).any()
+        if "held_out_index" in record.identified:
+            assert np.array_equal(np.sort(record.identified["held_out_index"]), held)
+        served = choice["attrs"]["served"]
+        assert shown["profile_model"]["name"] == served
+        comparison = shown["profile_model"]["held_out_comparison"]
+        assert comparison["served"] == served and comparison["held_out_cases"] == 9
+        assert f"profile model: {served}" in job["message"]
+        # F = 0 answers the measured unloaded profile (to the 300-epoch network's own fit of its
+        # loaded training cases, tests/training/test_unloaded.py)
+        pred = camber.predict_profiles(net, np.zeros(5), np.linspace(-0.3, 0.1, 5)).gaps_m
+        rms = np.sqrt(np.mean((pred - y[f == 0]) ** 2, axis=1))
+        assert rms.max() < 1.5 * net["attrs"]["metric_train_rmse_m"] + 3e-6, rms
+        page = client.get("/skis/zero-ski")
+        assert page.status_code == 200 and 'id="model-choice-table"' in page.text
 
 
 def test_ski_refused_by_accuracy_check(catalogue, tmp_path, upload_csv):
