@@ -478,11 +478,13 @@ def test_ski_upload_with_the_unloaded_profile_ends_done(catalogue, tmp_path, cam
         comparison = shown["profile_model"]["held_out_comparison"]
         assert comparison["served"] == served and comparison["held_out_cases"] == 9
         assert f"profile model: {served}" in job["message"]
-        # F = 0 answers the measured unloaded profile (to the 300-epoch network's own fit of its
-        # loaded training cases, tests/training/test_unloaded.py)
+        # F = 0 answers the measured unloaded profile where it matters (H* < 0.2 mm), to the
+        # 300-epoch network's own fit of its loaded training cases there (plus the 3 µm noise);
+        # whatever x_F (tests/training/test_unloaded.py)
         pred = camber.predict_profiles(net, np.zeros(5), np.linspace(-0.3, 0.1, 5)).gaps_m
-        rms = np.sqrt(np.mean((pred - y[f == 0]) ** 2, axis=1))
-        assert rms.max() < 1.5 * net["attrs"]["metric_train_rmse_m"] + 3e-6, rms
+        band = [camber.contact_band_rmse_m(p, y[f == 0][0]) for p in pred]
+        limit = 1.5 * net["attrs"]["metric_train_rmse_band_m"] + 3e-6
+        assert max(band) < limit, (band, limit)
         page = client.get("/skis/zero-ski")
         assert page.status_code == 200 and 'id="model-choice-table"' in page.text
 
