@@ -45,6 +45,13 @@ from dataclasses import dataclass
 
 import numpy as np
 from skisnow.app.presets import Preset
+from skisnow.app.service.band_calibration import (
+    FLAT_GAP_M,
+    FLAT_MIN_WIDTH,
+    FLAT_SIGMA_M,
+    FLAT_STRETCH_M,
+    bending_ignored_widths,
+)
 from skisnow.app.service.band_sampling import (
     BAND_SEED,
     BEAM_SAMPLES,
@@ -64,6 +71,7 @@ from skisnow.app.service.band_sampling import (
 from skisnow.solvers.band import (
     combine,
     end_pixel_share,
+    flat_stretch,
     table_interpolation_error,
 )
 from skisnow.solvers.lookup import MicroTable
@@ -100,6 +108,11 @@ class Band:
     #: factor on the identification covariance's deviations of the beam draws (bending-ski
     #: answers of an identified beam), else None
     beam_scale: float | None = None
+    #: the flat-base regime (:mod:`app.service.band_calibration`): length [m] and midpoint [m]
+    #: of the stretch near the flat and the apparent area's half-width from it; None outside
+    flat_base: tuple[float, float, float] | None = None
+    #: ``auto`` answered with the rigid shape without comparing it to the bending ski
+    bending_ignored: str | None = None
 
 
 def touches_profile_end(gap_map, macro) -> bool:
@@ -291,6 +304,7 @@ def answer_band(
     ski_model_used: str,
     beam_is_design: bool,
     rigid_minus_flexible: dict[str, float] | None = None,
+    bending_ignored: str | None = None,
     min_separation_unresolved: str | None = None,
     samples: int = PROFILE_SAMPLES,
     seed: int = BAND_SEED,
@@ -306,7 +320,17 @@ def answer_band(
     loaded profiles (:func:`camber_sigma_m`); an answer of the bending ski with
     ``beam_samples`` plausible beams drawn from the identification's covariance, deviations
     × ``beam_scale`` (:func:`beam_models`; none for a design beam). Both on the grid twice as
-    coarse, whose nominal solve also gives the per-answer grid estimate."""
+    coarse, whose nominal solve also gives the per-answer grid estimate.
+
+    A rigid answer whose loaded profile lies within :data:`FLAT_GAP_M` of the flat over at
+    least :data:`FLAT_STRETCH_M` is also solved with that stretch perturbed by
+    :data:`FLAT_SIGMA_M`; a spread of its apparent area above :data:`FLAT_MIN_WIDTH` puts it
+    in the flat-base regime (component ``flat_base``, ``Band.flat_base``).
+
+    ``bending_ignored``: why ``auto`` answered with the rigid shape without a comparison to
+    the bending ski (no beam, or the flexible solve failed); the band then adds the measured
+    rigid-versus-bending difference of comparable skis (component ``ski_model``,
+    :func:`app.service.band_calibration.bending_ignored_widths`)."""
     components: dict[str, dict[str, float]] = {}
     not_covered = [
         pixel_size_not_covered(table),
@@ -322,7 +346,11 @@ def answer_band(
         if sigma is None:
             not_covered.insert(0, "the camber model (" + source + ")")
         case = _Case(positions_m, gap_m, record.outline, preset, macro, ms, table, porosity, e_eff)
-        sampled = _sample(case, 0.0 if sigma is None else sigma, samples, seed)
+        from skisnow.app.service.band_sampling import PROFILE_CORRELATION_M as ell
+
+        stretch, stretch_mid, weight = flat_stretch(positions_m, gap_m, FLAT_GAP_M, ell)
+        flat_sigma = FLAT_SIGMA_M * weight if stretch >= FLAT_STRETCH_M else None
+        sampled = _sample(case, 0.0 if sigma is None else sigma, samples, seed, flat_sigma)
     else:
         models = beam_models(record, preset, samples=beam_samples, seed=seed, scale=beam_scale)
         if models is not None:
@@ -338,15 +366,41 @@ def answer_band(
     has_sigma = sigma is not None and bool(np.any(np.asarray(sigma) > 0))
     if sampled is not None and has_sigma:
         components["camber_model"] = sampled.widths
+    flat = None if sampled is None else sampled.flat
+    flat_base = None
+    if flat is not None and flat.widths.get("apparent_contact_area", 0.0) > FLAT_MIN_WIDTH:
+        components["flat_base"] = flat.widths
+        flat_base = (stretch, stretch_mid, flat.widths["apparent_contact_area"])
+        not_covered.insert(
+            0,
+            f"the flat-base regime: the loaded base lies within {FLAT_GAP_M * 1e6:g} µm of the "
+            f"flat over {stretch * 1e3:.0f} mm; camber data at a few µm of noise do not fix "
+            f"that stretch, and the band's flat_base part (the profile there perturbed by "
+            f"{FLAT_SIGMA_M * 1e6:g} µm) is an estimate of that freedom, not a bound",
+        )
+    else:
+        flat = None
     grid = grid_component(preset, macro, sampled)
     if not rigid:
         grid = {q: w * FLEXIBLE_GRID_FACTOR.get(q, 1.0) for q, w in grid.items()}
     components["macro_grid"] = grid
     components["table_interpolation"] = _table_component(table, macro, porosity, e_eff)
     if rigid and rigid_minus_flexible:
-        components["ski_model"] = {
-            k: abs(v) for k, v in rigid_minus_flexible.items() if k in QUANTITIES
+        # the comparison names the apparent area "apparent_area"
+        diff = {
+            ("apparent_contact_area" if k == "apparent_area" else k): v
+            for k, v in rigid_minus_flexible.items()
         }
+        components["ski_model"] = {k: abs(v) for k, v in diff.items() if k in QUANTITIES}
+    elif rigid and bending_ignored:
+        components["ski_model"] = bending_ignored_widths(e_eff)
+        not_covered.insert(
+            0,
+            f"the ski's bending on the snow: auto answered with the rigid shape ({bending_ignored})"
+            "; the band's ski_model part is the largest rigid-versus-bending difference measured "
+            "on eight comparable ski designs at this snow modulus "
+            "(docs/studies/auto-without-beam.json), not this ski's own",
+        )
     widths = combine(components)
     if min_separation_unresolved:
         widths["min_average_separation"] = float("nan")
@@ -368,6 +422,8 @@ def answer_band(
                 g = max(g, sampled.zone_grid[i])
             if has_sigma and math.isfinite(sampled.zone_widths[i]):
                 parts.append(sampled.zone_widths[i])
+            if flat is not None and math.isfinite(flat.zone_widths[i]):
+                parts.append(flat.zone_widths[i])
         parts.append(g)
         if "ski_model" in components and z.load_share > 0:
             parts.append(abs(rigid_minus_flexible.get("rear_load_share", 0.0)) / z.load_share)
@@ -389,6 +445,8 @@ def answer_band(
         camber_source=source,
         not_covered=not_covered,
         beam_scale=beam_scale if (not rigid and has_sigma) else None,
+        flat_base=flat_base,
+        bending_ignored=bending_ignored if "ski_model" in components and bending_ignored else None,
     )
 
 
@@ -433,6 +491,19 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
                 "detail": f"the 90 % error band is wider than ±{WIDE_BAND:.0%} for "
                 f"{', '.join(sorted(wide))} (largest: {worst} ±{wide[worst]:.1%}); see "
                 "band.components for the sources",
+            }
+        )
+    if band.flat_base is not None:
+        length, mid, w_flat = band.flat_base
+        warnings.append(
+            {
+                "code": "flat_base",
+                "detail": f"the loaded base lies within {FLAT_GAP_M * 1e6:g} µm of the flat over "
+                f"{length * 1e3:.0f} mm around {mid * 1e3:.0f} mm: camber measurements with a "
+                "few µm of noise cannot fix which part of that stretch touches the snow first, "
+                f"and a {FLAT_SIGMA_M * 1e6:g} µm change there moves the apparent contact area "
+                f"by ±{w_flat:.0%} (90 %); the band includes it (band.components.flat_base). "
+                "A heavier load or a load position nearer the middle presses the stretch down",
             }
         )
     out = {
