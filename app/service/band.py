@@ -425,8 +425,12 @@ def answer_band(
             if flat is not None and math.isfinite(flat.zone_widths[i]):
                 parts.append(flat.zone_widths[i])
         parts.append(g)
-        if "ski_model" in components and z.load_share > 0:
+        if rigid_minus_flexible and "ski_model" in components and z.load_share > 0:
             parts.append(abs(rigid_minus_flexible.get("rear_load_share", 0.0)) / z.load_share)
+        elif "ski_model" in components:
+            # bending ignored: the study measured no zone loads; the apparent area's width
+            # stands in for them (a stand-in, not a measurement)
+            parts.append(components["ski_model"].get("apparent_contact_area", 0.0))
         zone_widths.append(math.sqrt(sum(p * p for p in parts)))
     line_band = None
     if sampled is not None and sampled.line_half_width_pa is not None:
