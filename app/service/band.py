@@ -27,8 +27,19 @@ in quadrature (:func:`solvers.band.combine`):
     The texture table's interpolation error between its own nodes, estimated by leaving nodes
     out (:func:`solvers.band.table_interpolation_error`), weighted by where the answer loads the
     table.
+``flat_base``
+    A rigid answer in the flat-base regime (method.md §4c): the spread of the answer when the
+    stretch of its loaded profile within ``FLAT_GAP_M`` of the flat is perturbed by
+    ``FLAT_SIGMA_M`` (:mod:`app.service.band_calibration`); such an answer also warns.
 ``ski_model``
-    When ``auto`` answers with the rigid shape, the measured difference to the bending ski.
+    When ``auto`` answers with the rigid shape, the measured difference to the bending ski; when
+    it could not compare (no beam, or the flexible solve failed), the largest difference measured
+    on comparable skis at the answer's snow modulus
+    (:func:`app.service.band_calibration.bending_ignored_widths`), and ``not_covered`` says that
+    the bending is ignored.
+
+A camber network's σ(X) is multiplied by ``NETWORK_SIGMA_SCALE``, calibrated across 20–2000 MPa
+(:mod:`app.service.band_calibration`, ``scripts/network_band_study.py``).
 
 Not covered (listed in every answer): the texture table's pixel-size error, which is not added
 to the band: a table built on several pixel sizes (the shipped grinds) stores its own estimate
@@ -507,7 +518,7 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
                 "few µm of noise cannot fix which part of that stretch touches the snow first, "
                 f"and a {FLAT_SIGMA_M * 1e6:g} µm change there moves the apparent contact area "
                 f"by ±{w_flat:.0%} (90 %); the band includes it (band.components.flat_base). "
-                "A heavier load or a load position nearer the middle presses the stretch down",
+                "A heavier load makes the answer less sensitive to that stretch",
             }
         )
     out = {
@@ -537,7 +548,9 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
         "plausible beams drawn from the identification), macro grid (the answer's end-pixel "
         "share and its difference to the grid twice as coarse, and the preset's width measured "
         "by skisnow bench accuracy), table interpolation (leave-one-out on the table's nodes), "
-        "and, when auto answers with the rigid shape, its measured difference to the bending "
-        "ski (docs/limits.md, Error band)",
+        "in the flat-base regime the answer solved again with the stretch near the flat "
+        "perturbed by the data's blind spot, and, when auto answers with the rigid shape, its "
+        "measured difference to the bending ski (or, without a beam, the largest difference "
+        "measured on comparable skis) (docs/limits.md, Error band)",
     }
     return out, warnings

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from skisnow.app.presets import Preset
+from skisnow.app.service import band_calibration
 from skisnow.app.service.profiles import served_beam
 from skisnow.app.storage.skis import identification_for_sampling
 from skisnow.solvers.band import (
@@ -96,7 +97,13 @@ def camber_sigma_m(record, positions_m: np.ndarray) -> tuple[np.ndarray | float 
     if sigma_nodes is None:
         return None, source
     xs, ss = sigma_nodes
-    return np.interp(np.asarray(positions_m, dtype=float), xs, ss), source
+    scale = band_calibration.NETWORK_SIGMA_SCALE  # read at call time: the study varies it
+    if scale != 1.0:
+        source += (
+            f", × {scale:g} (calibrated across 20–2000 MPa against true beams, "
+            "app/service/band_calibration.py)"
+        )
+    return scale * np.interp(np.asarray(positions_m, dtype=float), xs, ss), source
 
 
 def _network_sigma(record):

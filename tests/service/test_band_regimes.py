@@ -4,6 +4,7 @@ every answer more than 3 % off lies inside its band or carries a warning."""
 
 from __future__ import annotations
 
+import functools
 from dataclasses import replace
 from pathlib import Path
 
@@ -172,3 +173,121 @@ def test_bending_ignored_width_follows_the_study_and_is_held_at_the_ends():
         assert got["apparent_contact_area"] == pytest.approx(expect)
     low = band_calibration.bending_ignored_widths(effective_modulus(0.5e6, 700e6, 0.3))
     assert low["apparent_contact_area"] == pytest.approx(w[0])
+
+
+# ----------------------------------------------------------------------------- the rule
+
+#: the rule's cases: (ski, served by, load kg, position mm) at each of RULE_MODULI_MPA
+RULE_CASES = [
+    # the camber network's fallback (the ski's identification left out), light to heavy
+    *(
+        (name, "network", kg, mm)
+        for name in ("ski-a", "ski-b")
+        for kg, mm in ((13.3, -25.0), (16.7, -25.0), (36.7, -250.0), (46.7, 25.0), (63.4, -50.0))
+    ),
+    # the identified beam at ski-b's light loads ahead of the balance point
+    *(("ski-b", "identified", kg, 50.0) for kg in (10.0, 12.0, 15.0, 20.0)),
+]
+RULE_MODULI_MPA = (20.0, 200.0, 2000.0)
+
+
+def _rule_catalogue(shipped, name, served):
+    if served == "identified":
+        return shipped
+    ski = shipped.ski(name)
+    rec = replace(ski.record, identified=None, cache={})
+    return replace(shipped, skis={**shipped.skis, name: replace(ski, record=rec, _flexible={})})
+
+
+@functools.cache
+def _rule_rows() -> list[dict]:
+    shipped = service.load_catalogue(TABLES)
+    rows = []
+    for name, served, kg, mm in RULE_CASES:
+        cat = _rule_catalogue(shipped, name, served)
+        for e_mpa in RULE_MODULI_MPA:
+            ans = service.contact(
+                cat, service.ContactInputs(name, "grind-1", kg, mm, e_mpa, 0.5, ski_model="rigid")
+            )
+            assert ans["provenance"]["ski"]["profile_model"] == (
+                "network" if served == "network" else "identified_beam"
+            )
+            truth = _rigid_truth_area_cm2(
+                cat.ski(name).record,
+                ans["inputs"]["load_n"],
+                mm * 1e-3,
+                ans["inputs"]["effective_modulus_mpa"] * 1e6,
+            )
+            a, lo, hi = _area_and_interval(ans)
+            rows.append(
+                {
+                    "case": (name, served, kg, mm, e_mpa),
+                    "error": a / truth - 1,
+                    "inside": lo <= truth <= hi,
+                    "warnings": [w["code"] for w in ans["warnings"]],
+                }
+            )
+    return rows
+
+
+@pytest.mark.slow
+def test_every_answer_more_than_3_percent_off_is_inside_its_band_or_warned():
+    """Issue #26's rule on the rigid answers of the network fallback and of ski-b's identified
+    beam at light loads, 20–2000 MPa, against the true beam's profile on the answer's grid."""
+    rows = _rule_rows()
+    off = [r for r in rows if abs(r["error"]) > 0.03]
+    assert len(off) >= 5  # the rule is exercised: several answers are that far off
+    broken = [r for r in off if not r["inside"] and not r["warnings"]]
+    assert not broken, broken
+
+
+# ----------------------------------------------------------------------------- network band
+
+
+def _study():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "network_band_study", ROOT / "scripts" / "network_band_study.py"
+    )
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@functools.cache
+def _network_rows() -> list[dict]:
+    """The study's ``test`` cases (held-out loads its factor was not fitted on) at the service's
+    NETWORK_SIGMA_SCALE."""
+    study = _study()
+    cat = service.load_catalogue(TABLES)
+    table = cat.grind("grind-1").table
+    scale = band_calibration.NETWORK_SIGMA_SCALE
+    rows = []
+    try:
+        for name in ("ski-a", "ski-b"):
+            rec = study.network_record(cat.ski(name).record)
+            for f, xf in study.pick_cases(rec)["test"]:
+                for e in study.E_SNOW_MPA:
+                    rows += study.case_rows(name, rec, table, f, xf, e, [scale])
+    finally:
+        band_calibration.NETWORK_SIGMA_SCALE = scale
+    return rows
+
+
+@pytest.mark.slow
+def test_network_band_covers_its_truth_at_every_snow_modulus():
+    """Skis served by their camber network: the apparent area's truth (design beam, fine grid)
+    inside the band in ≥ 90 % of the held-out cases at each of 20, 200 and 2000 MPa, with a mean
+    half-width ≤ 2.5 × the RMS error (measured: 100 % at each, 1.88 ×; before the factor 95 /
+    100 / 85 %)."""
+    rows = _network_rows()
+    q = "apparent_contact_area"
+    for e in (20.0, 200.0, 2000.0):
+        sel = [r for r in rows if r["e_snow_mpa"] == e]
+        assert len(sel) == 20
+        inside = np.mean([abs(r["error"][q]) <= r["width"][q] for r in sel])
+        assert inside >= 0.9, (e, inside)
+    err = np.array([r["error"][q] for r in rows])
+    width = np.array([r["width"][q] for r in rows])
+    assert width.mean() <= 2.5 * np.sqrt(np.mean(err**2))
