@@ -380,14 +380,20 @@ def answer_band(
     flat = None if sampled is None else sampled.flat
     flat_base = None
     if flat is not None and flat.widths.get("apparent_contact_area", 0.0) > FLAT_MIN_WIDTH:
-        components["flat_base"] = flat.widths
+        # the apparent area (and with it the mean apparent pressure and the zone loads) is what
+        # the regime leaves unfixed (method.md §4c); the other quantities' spread is not added
+        # (docs/limits.md: it would take the held-out calibration's width past its target
+        # without covering one more case)
+        components["flat_base"] = {"apparent_contact_area": flat.widths["apparent_contact_area"]}
         flat_base = (stretch, stretch_mid, flat.widths["apparent_contact_area"])
         not_covered.insert(
             0,
             f"the flat-base regime: the loaded base lies within {FLAT_GAP_M * 1e6:g} µm of the "
             f"flat over {stretch * 1e3:.0f} mm; camber data at a few µm of noise do not fix "
             f"that stretch, and the band's flat_base part (the profile there perturbed by "
-            f"{FLAT_SIGMA_M * 1e6:g} µm) is an estimate of that freedom, not a bound",
+            f"{FLAT_SIGMA_M * 1e6:g} µm) is an estimate of that freedom on the apparent area and "
+            "the zone loads, not a bound; its smaller effect on the real area and the "
+            "separations is not added",
         )
     else:
         flat = None
