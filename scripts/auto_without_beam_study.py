@@ -14,7 +14,7 @@ Usage::
 
     python scripts/auto_without_beam_study.py --out docs/studies/auto-without-beam.json
 
-About 3 min on a loaded 2-core machine.
+About 1 min on a loaded 2-core machine (44 s measured).
 """
 
 from __future__ import annotations
