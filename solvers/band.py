@@ -28,6 +28,7 @@ __all__ = [
     "Z90",
     "combine",
     "end_pixel_share",
+    "flat_stretch",
     "model_error_sigma",
     "position_error_sigma",
     "profile_perturbations",
@@ -212,3 +213,36 @@ def position_error_sigma(
     with np.errstate(invalid="ignore", divide="ignore"):
         rms = np.where(tot_n > 0, np.sqrt((cs[hi] - cs[lo]) / np.maximum(tot_n, 1)), overall)
     return np.sqrt(np.maximum(rms**2 - noise_m**2, floor_m**2))
+
+
+def flat_stretch(
+    positions_m: np.ndarray, gap_m: np.ndarray, flat_gap_m: float, taper_m: float
+) -> tuple[float, float, np.ndarray]:
+    """Where a loaded profile lies near the flat (method.md §4c, the flat-base regime).
+
+    Returns the length [m] and midpoint [m] of the longest run of positions with
+    ``gap_m < flat_gap_m`` (contact points, gap 0, included), and a weight in [0, 1] per
+    position: 1 where the gap is below ``flat_gap_m``, tapered to 0 over ``taper_m`` on either
+    side (a moving average), so that a perturbation weighted by it has no step. Positions are
+    sorted ascending; non-finite gaps count as far from the flat."""
+    x = np.asarray(positions_m, dtype=float)
+    g = np.asarray(gap_m, dtype=float)
+    if x.ndim != 1 or g.shape != x.shape or x.size < 2:
+        raise InputError("positions_m and gap_m must be 1-D of the same size ≥ 2")
+    if not (flat_gap_m > 0 and taper_m >= 0):
+        raise InputError("flat_gap_m must be > 0 and taper_m ≥ 0")
+    near = np.isfinite(g) & (g < flat_gap_m)
+    best, mid = 0.0, float("nan")
+    edges = np.diff(np.concatenate([[0], near.astype(np.int8), [0]]))
+    for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1, strict=True):
+        # a run of k points stands for k pixels of the profile's spacing
+        length = float(x[b] - x[a]) + float(np.median(np.diff(x)))
+        if length > best:
+            best, mid = length, 0.5 * float(x[a] + x[b])
+    weight = near.astype(float)
+    dx = float(np.median(np.diff(x)))
+    n = round(taper_m / dx) if dx > 0 else 0
+    if n >= 1 and near.any():
+        k = np.ones(2 * n + 1) / (2 * n + 1)
+        weight = np.maximum(weight, np.clip(np.convolve(weight, k, mode="same"), 0.0, 1.0))
+    return (best if near.any() else 0.0), mid, weight

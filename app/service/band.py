@@ -27,8 +27,19 @@ in quadrature (:func:`solvers.band.combine`):
     The texture table's interpolation error between its own nodes, estimated by leaving nodes
     out (:func:`solvers.band.table_interpolation_error`), weighted by where the answer loads the
     table.
+``flat_base``
+    A rigid answer in the flat-base regime (method.md §4c): the spread of the answer when the
+    stretch of its loaded profile within ``FLAT_GAP_M`` of the flat is perturbed by
+    ``FLAT_SIGMA_M`` (:mod:`app.service.band_calibration`); such an answer also warns.
 ``ski_model``
-    When ``auto`` answers with the rigid shape, the measured difference to the bending ski.
+    When ``auto`` answers with the rigid shape, the measured difference to the bending ski; when
+    it could not compare (no beam, or the flexible solve failed), the largest difference measured
+    on comparable skis at the answer's snow modulus
+    (:func:`app.service.band_calibration.bending_ignored_widths`), and ``not_covered`` says that
+    the bending is ignored.
+
+A camber network's σ(X) is multiplied by ``NETWORK_SIGMA_SCALE``, calibrated across 20–2000 MPa
+(:mod:`app.service.band_calibration`, ``scripts/network_band_study.py``).
 
 Not covered (listed in every answer): the texture table's pixel-size error, which is not added
 to the band: a table built on several pixel sizes (the shipped grinds) stores its own estimate
@@ -45,6 +56,13 @@ from dataclasses import dataclass
 
 import numpy as np
 from skisnow.app.presets import Preset
+from skisnow.app.service.band_calibration import (
+    FLAT_GAP_M,
+    FLAT_MIN_WIDTH,
+    FLAT_SIGMA_M,
+    FLAT_STRETCH_M,
+    bending_ignored_widths,
+)
 from skisnow.app.service.band_sampling import (
     BAND_SEED,
     BEAM_SAMPLES,
@@ -64,6 +82,7 @@ from skisnow.app.service.band_sampling import (
 from skisnow.solvers.band import (
     combine,
     end_pixel_share,
+    flat_stretch,
     table_interpolation_error,
 )
 from skisnow.solvers.lookup import MicroTable
@@ -100,6 +119,11 @@ class Band:
     #: factor on the identification covariance's deviations of the beam draws (bending-ski
     #: answers of an identified beam), else None
     beam_scale: float | None = None
+    #: the flat-base regime (:mod:`app.service.band_calibration`): length [m] and midpoint [m]
+    #: of the stretch near the flat and the apparent area's half-width from it; None outside
+    flat_base: tuple[float, float, float] | None = None
+    #: ``auto`` answered with the rigid shape without comparing it to the bending ski
+    bending_ignored: str | None = None
 
 
 def touches_profile_end(gap_map, macro) -> bool:
@@ -291,6 +315,7 @@ def answer_band(
     ski_model_used: str,
     beam_is_design: bool,
     rigid_minus_flexible: dict[str, float] | None = None,
+    bending_ignored: str | None = None,
     min_separation_unresolved: str | None = None,
     samples: int = PROFILE_SAMPLES,
     seed: int = BAND_SEED,
@@ -306,7 +331,17 @@ def answer_band(
     loaded profiles (:func:`camber_sigma_m`); an answer of the bending ski with
     ``beam_samples`` plausible beams drawn from the identification's covariance, deviations
     × ``beam_scale`` (:func:`beam_models`; none for a design beam). Both on the grid twice as
-    coarse, whose nominal solve also gives the per-answer grid estimate."""
+    coarse, whose nominal solve also gives the per-answer grid estimate.
+
+    A rigid answer whose loaded profile lies within :data:`FLAT_GAP_M` of the flat over at
+    least :data:`FLAT_STRETCH_M` is also solved with that stretch perturbed by
+    :data:`FLAT_SIGMA_M`; a spread of its apparent area above :data:`FLAT_MIN_WIDTH` puts it
+    in the flat-base regime (component ``flat_base``, ``Band.flat_base``).
+
+    ``bending_ignored``: why ``auto`` answered with the rigid shape without a comparison to
+    the bending ski (no beam, or the flexible solve failed); the band then adds the measured
+    rigid-versus-bending difference of comparable skis (component ``ski_model``,
+    :func:`app.service.band_calibration.bending_ignored_widths`)."""
     components: dict[str, dict[str, float]] = {}
     not_covered = [
         pixel_size_not_covered(table),
@@ -322,7 +357,11 @@ def answer_band(
         if sigma is None:
             not_covered.insert(0, "the camber model (" + source + ")")
         case = _Case(positions_m, gap_m, record.outline, preset, macro, ms, table, porosity, e_eff)
-        sampled = _sample(case, 0.0 if sigma is None else sigma, samples, seed)
+        from skisnow.app.service.band_sampling import PROFILE_CORRELATION_M as ell
+
+        stretch, stretch_mid, weight = flat_stretch(positions_m, gap_m, FLAT_GAP_M, ell)
+        flat_sigma = FLAT_SIGMA_M * weight if stretch >= FLAT_STRETCH_M else None
+        sampled = _sample(case, 0.0 if sigma is None else sigma, samples, seed, flat_sigma)
     else:
         models = beam_models(record, preset, samples=beam_samples, seed=seed, scale=beam_scale)
         if models is not None:
@@ -338,15 +377,47 @@ def answer_band(
     has_sigma = sigma is not None and bool(np.any(np.asarray(sigma) > 0))
     if sampled is not None and has_sigma:
         components["camber_model"] = sampled.widths
+    flat = None if sampled is None else sampled.flat
+    flat_base = None
+    if flat is not None and flat.widths.get("apparent_contact_area", 0.0) > FLAT_MIN_WIDTH:
+        # the apparent area (and with it the mean apparent pressure and the zone loads) is what
+        # the regime leaves unfixed (method.md §4c); the other quantities' spread is not added
+        # (docs/limits.md: it would take the held-out calibration's width past its target
+        # without covering one more case)
+        components["flat_base"] = {"apparent_contact_area": flat.widths["apparent_contact_area"]}
+        flat_base = (stretch, stretch_mid, flat.widths["apparent_contact_area"])
+        not_covered.insert(
+            0,
+            f"the flat-base regime: the loaded base lies within {FLAT_GAP_M * 1e6:g} µm of the "
+            f"flat over {stretch * 1e3:.0f} mm; camber data at a few µm of noise do not fix "
+            f"that stretch, and the band's flat_base part (the profile there perturbed by "
+            f"{FLAT_SIGMA_M * 1e6:g} µm) is an estimate of that freedom on the apparent area and "
+            "the zone loads, not a bound; its smaller effect on the real area and the "
+            "separations is not added",
+        )
+    else:
+        flat = None
     grid = grid_component(preset, macro, sampled)
     if not rigid:
         grid = {q: w * FLEXIBLE_GRID_FACTOR.get(q, 1.0) for q, w in grid.items()}
     components["macro_grid"] = grid
     components["table_interpolation"] = _table_component(table, macro, porosity, e_eff)
     if rigid and rigid_minus_flexible:
-        components["ski_model"] = {
-            k: abs(v) for k, v in rigid_minus_flexible.items() if k in QUANTITIES
+        # the comparison names the apparent area "apparent_area"
+        diff = {
+            ("apparent_contact_area" if k == "apparent_area" else k): v
+            for k, v in rigid_minus_flexible.items()
         }
+        components["ski_model"] = {k: abs(v) for k, v in diff.items() if k in QUANTITIES}
+    elif rigid and bending_ignored:
+        components["ski_model"] = bending_ignored_widths(e_eff)
+        not_covered.insert(
+            0,
+            f"the ski's bending on the snow: auto answered with the rigid shape ({bending_ignored})"
+            "; the band's ski_model part is the largest rigid-versus-bending difference measured "
+            "on eight comparable ski designs at this snow modulus "
+            "(docs/studies/auto-without-beam.json), not this ski's own",
+        )
     widths = combine(components)
     if min_separation_unresolved:
         widths["min_average_separation"] = float("nan")
@@ -368,9 +439,15 @@ def answer_band(
                 g = max(g, sampled.zone_grid[i])
             if has_sigma and math.isfinite(sampled.zone_widths[i]):
                 parts.append(sampled.zone_widths[i])
+            if flat is not None and math.isfinite(flat.zone_widths[i]):
+                parts.append(flat.zone_widths[i])
         parts.append(g)
-        if "ski_model" in components and z.load_share > 0:
+        if rigid_minus_flexible and "ski_model" in components and z.load_share > 0:
             parts.append(abs(rigid_minus_flexible.get("rear_load_share", 0.0)) / z.load_share)
+        elif "ski_model" in components:
+            # bending ignored: the study measured no zone loads; the apparent area's width
+            # stands in for them (a stand-in, not a measurement)
+            parts.append(components["ski_model"].get("apparent_contact_area", 0.0))
         zone_widths.append(math.sqrt(sum(p * p for p in parts)))
     line_band = None
     if sampled is not None and sampled.line_half_width_pa is not None:
@@ -389,6 +466,8 @@ def answer_band(
         camber_source=source,
         not_covered=not_covered,
         beam_scale=beam_scale if (not rigid and has_sigma) else None,
+        flat_base=flat_base,
+        bending_ignored=bending_ignored if "ski_model" in components and bending_ignored else None,
     )
 
 
@@ -435,6 +514,19 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
                 "band.components for the sources",
             }
         )
+    if band.flat_base is not None:
+        length, mid, w_flat = band.flat_base
+        warnings.append(
+            {
+                "code": "flat_base",
+                "detail": f"the loaded base lies within {FLAT_GAP_M * 1e6:g} µm of the flat over "
+                f"{length * 1e3:.0f} mm around {mid * 1e3:.0f} mm: camber measurements with a "
+                "few µm of noise cannot fix which part of that stretch touches the snow first, "
+                f"and a {FLAT_SIGMA_M * 1e6:g} µm change there moves the apparent contact area "
+                f"by ±{w_flat:.0%} (90 %); the band includes it (band.components.flat_base). "
+                "A heavier load makes the answer less sensitive to that stretch",
+            }
+        )
     out = {
         "level": 0.9,
         "relative_half_width": rel,
@@ -462,7 +554,9 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
         "plausible beams drawn from the identification), macro grid (the answer's end-pixel "
         "share and its difference to the grid twice as coarse, and the preset's width measured "
         "by skisnow bench accuracy), table interpolation (leave-one-out on the table's nodes), "
-        "and, when auto answers with the rigid shape, its measured difference to the bending "
-        "ski (docs/limits.md, Error band)",
+        "in the flat-base regime the answer solved again with the stretch near the flat "
+        "perturbed by the data's blind spot, and, when auto answers with the rigid shape, its "
+        "measured difference to the bending ski (or, without a beam, the largest difference "
+        "measured on comparable skis) (docs/limits.md, Error band)",
     }
     return out, warnings

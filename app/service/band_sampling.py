@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from skisnow.app.presets import Preset
+from skisnow.app.service import band_calibration
 from skisnow.app.service.profiles import served_beam
 from skisnow.app.storage.skis import identification_for_sampling
 from skisnow.solvers.band import (
@@ -96,7 +97,13 @@ def camber_sigma_m(record, positions_m: np.ndarray) -> tuple[np.ndarray | float 
     if sigma_nodes is None:
         return None, source
     xs, ss = sigma_nodes
-    return np.interp(np.asarray(positions_m, dtype=float), xs, ss), source
+    scale = band_calibration.NETWORK_SIGMA_SCALE  # read at call time: the study varies it
+    if scale != 1.0:
+        source += (
+            f", × {scale:g} (calibrated across 20–2000 MPa against true beams, "
+            "app/service/band_calibration.py)"
+        )
+    return scale * np.interp(np.asarray(positions_m, dtype=float), xs, ss), source
 
 
 def _network_sigma(record):
@@ -183,6 +190,8 @@ class _Sampled:
     grid: dict[str, float]  # per-answer grid estimate |q − q_coarse| / |q|
     zone_grid: list[float]
     failed: int
+    #: the spread under the flat-base regime's perturbations (:func:`_sample`), when asked
+    flat: _Sampled | None = None
 
 
 @dataclass(frozen=True)
@@ -200,11 +209,21 @@ class _Case:
     e_eff: float
 
 
-def _sample(case: _Case, sigma_m: float | np.ndarray, samples: int, seed: int) -> _Sampled | None:
+def _sample(
+    case: _Case,
+    sigma_m: float | np.ndarray,
+    samples: int,
+    seed: int,
+    flat_sigma_m: np.ndarray | None = None,
+) -> _Sampled | None:
     """Solve on the coarse grid (:func:`coarse_grid`) the nominal profile and ``samples``
     perturbed ones. The coarse nominal against the answer gives the grid estimate (first-order
     convergence: the error of the answer's grid is the difference to a grid twice as coarse);
-    the perturbed ones against the coarse nominal give the camber model's spread."""
+    the perturbed ones against the coarse nominal give the camber model's spread.
+
+    ``flat_sigma_m`` (per position; the flat-base regime, :mod:`app.service.band_calibration`):
+    ``samples`` more solves with perturbations of that size (seed ``seed + 1``, independent of
+    the camber model's), whose spread is returned as ``_Sampled.flat``."""
     positions_m, gap_m, outline, preset = case.positions_m, case.gap_m, case.outline, case.preset
     macro, ms, table, porosity, e_eff = case.macro, case.ms, case.table, case.porosity, case.e_eff
     dx, ny = coarse_grid(preset)
@@ -264,7 +283,24 @@ def _sample(case: _Case, sigma_m: float | np.ndarray, samples: int, seed: int) -
             failed += 1
             continue
         perturbed.append(r)
-    return _spread(macro, ms, base, perturbed, failed)
+    out = _spread(macro, ms, base, perturbed, failed)
+    if flat_sigma_m is not None and np.any(np.asarray(flat_sigma_m) > 0):
+        flat, flat_failed = [], 0
+        for d in _unit_fields(positions_m, samples, seed + 1) * _nonnegative(
+            flat_sigma_m, positions_m
+        ):
+            g = gap_m + d
+            g = g - min(float(np.nanmin(g)), 0.0)
+            try:
+                r = solve(g, m0, m0.pressure_pa)
+            except SkisnowError:
+                r = None
+            if r is None:
+                flat_failed += 1
+                continue
+            flat.append(r)
+        out.flat = _spread(macro, ms, base, flat, flat_failed)
+    return out
 
 
 def _spread(macro, ms, base, perturbed, failed: int) -> _Sampled:

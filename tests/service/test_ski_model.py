@@ -89,7 +89,11 @@ def test_ski_without_beam(catalogue):
         assert r.status_code == 200
         out = r.json()
         assert out["provenance"]["ski_model"]["used"] == "rigid"
-        assert [w["code"] for w in out["warnings"]] == ["flexible_unavailable"]
+        codes = [w["code"] for w in out["warnings"]]
+        assert codes[0] == "flexible_unavailable"
+        # the band holds the bending it ignores (issue #26 point 4): wide, and it says so
+        assert set(codes) <= {"flexible_unavailable", "wide_error_band"}
+        assert "ski_model" in out["band"]["components"]
         assert c.post("/v1/contact", json={**body, "ski_model": "rigid"}).status_code == 200
 
 

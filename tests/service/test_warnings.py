@@ -74,3 +74,54 @@ def test_api_answer_carries_warnings(catalogue):
     assert isinstance(ok["warnings"], list)
     assert "porosity_near_one" in [w["code"] for w in loose["warnings"]]
     assert all(w["detail"] for w in loose["warnings"])
+
+
+def _band(flat_base=None):
+    from skisnow.app.service.band import Band
+
+    return Band(
+        widths={"apparent_contact_area": 0.05},
+        components={},
+        zone_load_widths=[],
+        pressure_line_band_pa=None,
+        samples=0,
+        camber_sigma_m=None,
+        camber_source="",
+        not_covered=[],
+        flat_base=flat_base,
+    )
+
+
+def _answer():
+    return {
+        "apparent": {"contact_area_cm2": 150.0, "mean_pressure_kpa": 6.5, "zones": []},
+        "metrics": {
+            "total_real_contact_area_mm2": 1.0,
+            "average_real_contact_pressure_mpa": 1.0,
+            "min_average_separation_um": 1.0,
+            "total_reciprocal_separation_m": 1.0,
+        },
+    }
+
+
+def test_flat_base_regime_warns_in_plain_words_with_units():
+    from skisnow.app.service.band import band_json
+
+    _, none = band_json(_band(), _answer())
+    assert "flat_base" not in [w["code"] for w in none]
+    _, warned = band_json(_band(flat_base=(0.104, 0.05, 0.245)), _answer())
+    detail = {w["code"]: w["detail"] for w in warned}["flat_base"]
+    assert "within 1 µm of the flat over 104 mm around 50 mm" in detail
+    assert "±24%" in detail or "±25%" in detail
+    assert "cannot fix" in detail
+
+
+def test_bending_ignored_only_when_auto_answers_rigid_without_comparing():
+    from skisnow.app.service.answer import bending_ignored
+
+    why = "ski 'x' has no beam model"
+    assert bending_ignored({"requested": "auto", "used": "rigid", "reason": why}) == why
+    compared = {"requested": "auto", "used": "rigid", "reason": "", "rigid_minus_flexible": {}}
+    assert bending_ignored(compared) is None
+    assert bending_ignored({"requested": "rigid", "used": "rigid", "reason": "requested"}) is None
+    assert bending_ignored({"requested": "auto", "used": "flexible", "reason": ""}) is None
