@@ -131,7 +131,7 @@ def test_add_held_out_errors_to_an_older_file(tmp_path, capsys):
     np.testing.assert_allclose(
         added[HELD_OUT_ERRORS]["rms_error_m"],
         stored[HELD_OUT_ERRORS]["rms_error_m"],
-        rtol=1e-12,
+        rtol=1e-9,  # stored by another machine, whose LAPACK rounds the beam solve differently
         atol=0,
     )
     assert np.array_equal(added[HELD_OUT_ERRORS]["case_index"], stored["held_out_index"])

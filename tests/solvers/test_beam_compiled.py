@@ -1,8 +1,12 @@
 """The compiled active-set loop of solvers.beam against the numpy reference loop.
 
-Both loops visit the same active sets in the same order and solve the same KKT systems, so the
-answers agree to rounding: bit for bit on the demo skis, and within 1e-12 of the largest reaction
-/ gap / displacement whatever the summation order of the gap update (a few ulps).
+Both loops visit the same active sets in the same order and solve the same KKT systems (the
+contact sets and iteration counts are compared exactly), so the answers agree to rounding. Small
+sets are solved by the LAPACK numba links, the reference by numpy's: on some processors the two
+round the same system differently, by up to cond(KKT) × eps of the largest value (measured
+4.6e-12 of the largest reaction on the identified ski-a, 150 kg at −100 mm, on this project's
+CI machine of 2026-11-26, where an earlier machine gave bit-for-bit equality). The bound is
+RTOL = 1e-10: far below any physical significance, far above the rounding.
 """
 
 from __future__ import annotations
@@ -25,6 +29,8 @@ LOADS_KG = (5.0, 40.0, 150.0)
 POSITIONS_MM = (-300.0, -100.0, 100.0)
 #: stiffest stage of the identification's continuation is ~1e-7 m/N (ℓ = 2 nodes)
 COMPLIANCES = (0.0, 1e-7)
+#: relative agreement of reactions, gaps and displacements (rounding of two LAPACK builds)
+RTOL = 1e-10
 
 
 def _beams(name: str) -> list[tuple[str, BeamSki]]:
@@ -44,9 +50,9 @@ def _assert_same(ref, new, label: str) -> None:
     for field in ("reaction_n", "gap_m", "displacement_m"):
         a, b = getattr(ref, field), getattr(new, field)
         scale = max(float(np.abs(a).max()), 1e-300)
-        assert np.abs(a - b).max() <= 1e-12 * scale, (label, field, np.abs(a - b).max() / scale)
+        assert np.abs(a - b).max() <= RTOL * scale, (label, field, np.abs(a - b).max() / scale)
     for field in ("force_residual", "moment_residual", "residual"):
-        assert abs(getattr(new, field) - getattr(ref, field)) <= 1e-12, (label, field)
+        assert abs(getattr(new, field) - getattr(ref, field)) <= RTOL, (label, field)
 
 
 @pytest.mark.parametrize("name", ["ski-a", "ski-b"])

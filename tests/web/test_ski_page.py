@@ -232,7 +232,9 @@ def test_stored_held_out_errors_equal_a_recomputation_from_the_beam(catalogue, n
     )
     expected = np.sqrt(np.mean((gaps - profiles_m[held]) ** 2, axis=1))
     assert np.all(expected > 0)
-    np.testing.assert_allclose(stored["rms_error_m"], expected, rtol=1e-12, atol=0)
+    # stored by another machine: its LAPACK rounds the beam solve differently (2e-11 relative
+    # measured on 2026-11-26), far below the µm the errors are read in
+    np.testing.assert_allclose(stored["rms_error_m"], expected, rtol=1e-9, atol=0)
     # the overall held-out RMS of the identification's check is their RMS (same nodes per case)
     overall = math.sqrt(np.mean(np.asarray(stored["rms_error_m"]) ** 2))
     assert overall == pytest.approx(ident["attrs"]["held_out_rms_m"], rel=1e-12)
@@ -266,7 +268,8 @@ def test_an_older_file_computes_the_held_out_errors_on_read(client, catalogue, n
     *_, held, error_m, origin = _identification_cases(ski)
     assert origin == {"source": service.HELD_OUT_COMPUTED}
     assert np.array_equal(held, base["case_index"])
-    np.testing.assert_allclose(error_m, base["rms_error_m"], rtol=1e-12, atol=0)
+    # recomputed here against errors stored by another machine (rounding of its LAPACK)
+    np.testing.assert_allclose(error_m, base["rms_error_m"], rtol=1e-9, atol=0)
     api = client.get(f"/v1/skis/{name}").json()["beam"]["identification"]["held_out"]
     demo = client.get("/v1/skis/ski-a").json()["beam"]["identification"]["held_out"]
     assert api["provenance"] == {"source": service.HELD_OUT_COMPUTED}
