@@ -479,6 +479,20 @@ def _active_set_reference(
 _COMPILED_SOLVE_MAX_NODES = 8
 
 
+def _numpy_kkt_solve(kkt, rhs):
+    """``(solution, singular)`` of ``kkt @ x = rhs`` by numpy's LAPACK; ``(rhs, True)`` when the
+    matrix is singular.
+
+    Plain Python, called from the object-mode block of :func:`_kkt_solve`: a ``try`` written
+    inside a ``numba.objmode`` block does not compile on Python 3.12 and 3.13 (numba 0.68:
+    "POP_BLOCK peephole failed"), a call to a function that has one does.
+    """
+    try:
+        return np.linalg.solve(kkt, rhs), False
+    except np.linalg.LinAlgError:
+        return rhs, True
+
+
 @numba.njit(cache=True)
 def _kkt_solve(g_mat, c, xs, g_load, load_n, compliance, idx):
     """Reactions [N] on the nodes ``idx`` and the rigid motion (a [m], b [-]) with zero gap there
@@ -501,13 +515,9 @@ def _kkt_solve(g_mat, c, xs, g_load, load_n, compliance, idx):
     if m > _COMPILED_SOLVE_MAX_NODES:
         # numpy's LAPACK, as the reference loop: the LAPACK linked by numba rounds differently
         # on larger sets (1.9e-10 of the largest reaction at m = 150, cond(KKT) = 1.2e8)
+        # no try/except in this block (Python 3.12+): the helper catches LinAlgError
         with numba.objmode(sol="float64[:]", singular="boolean"):
-            try:
-                sol = np.linalg.solve(kkt, rhs)
-                singular = False
-            except np.linalg.LinAlgError:
-                sol = rhs
-                singular = True
+            sol, singular = _numpy_kkt_solve(kkt, rhs)
         if singular:
             return rhs[:m], 0.0, 0.0, False
     else:
