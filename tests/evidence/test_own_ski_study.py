@@ -5,8 +5,8 @@ modulus, a network of a few epochs, against the test catalogue's small grind: th
 (:func:`own_ski_study.run_study`) uploads the ski through ``POST /v1/skis``, waits for its job and
 asks ``POST /v1/contact`` rigid, flexible and auto. Checked: the results file's structure, that
 every case has its truth and its answers (or a refusal that names its cause), that the error and
-the band verdict follow from the recorded numbers, that the truth of the rigid answer is the
-true beam's profile pressed into the snow (recomputed here with :mod:`solvers.macro`), the
+the band verdict follow from the recorded numbers, that the truths are the true beam's (recomputed
+here with :mod:`solvers.macro` and :mod:`solvers.flexible`), the
 summary's counts, and that a second run resumes from the per-ski cache.
 
 What the numbers are (served model, errors, coverage) is the study's result, not checked here:
@@ -26,6 +26,7 @@ from skisnow.app.presets import get_preset
 from skisnow.app.storage.skis import write_camber_csv
 from skisnow.solvers.beam import G_STANDARD
 from skisnow.solvers.elastic import effective_modulus
+from skisnow.solvers.flexible import prepare_flexible, solve_flexible
 from skisnow.solvers.identify import predict_gaps
 from skisnow.solvers.macro import extrude_profile, solve_macro
 from skisnow.solvers.ski_designs import STUDY_DESIGNS
@@ -118,31 +119,31 @@ def test_every_case_has_truth_and_answers(study):
         assert case["rigid"]["used"] == "rigid"
 
 
-def test_rigid_truth_is_the_true_profile_pressed_into_the_snow(study):
-    """The truth of a rigid answer, recomputed here: the true beam's loaded profile
-    (:func:`solvers.identify.predict_gaps`) extruded on the default preset's grid and pressed
-    by :func:`solvers.macro.solve_macro`."""
+def test_truths_are_the_true_beam_on_the_answers_grid(study):
+    """The truths, recomputed here from the true beam on the default preset's grid and the
+    uploaded ski's outline: rigid, its loaded profile on the flat
+    (:func:`solvers.identify.predict_gaps`) pressed by :func:`solvers.macro.solve_macro`;
+    flexible, the bending ski :func:`solvers.flexible.solve_flexible`."""
     doc, _, _ = study
     (ski,) = doc["skis"]
     truth = STUDY_DESIGNS[DESIGN].build(oss.SPACING_M)
-    outline = ski["outline"]
+    width_m = np.asarray(ski["outline"]["width_mm"]) * 1e-3
+    width_x_m = np.asarray(ski["outline"]["positions_mm"]) * 1e-3
     preset = get_preset("default")
+    grid = {"pixel_along_m": preset.pixel_along_m, "pixels_across": preset.pixels_across}
+    flexible = prepare_flexible(truth, width_m, width_positions_m=width_x_m, **grid)
+    e = effective_modulus(units.mpa_to_pa(MODULUS_MPA))
     for case in ski["answers"]:
         f = case["load_kg"] * G_STANDARD
         xf = case["load_position_mm"] * 1e-3
         gap = predict_gaps(truth, np.array([f]), np.array([xf]))[0]
-        gm = extrude_profile(
-            truth.positions_m,
-            gap,
-            np.asarray(outline["width_mm"]) * 1e-3,
-            width_positions_m=np.asarray(outline["positions_mm"]) * 1e-3,
-            pixel_along_m=preset.pixel_along_m,
-            pixels_across=preset.pixels_across,
-        )
-        e = effective_modulus(units.mpa_to_pa(MODULUS_MPA))
+        gm = extrude_profile(truth.positions_m, gap, width_m, width_positions_m=width_x_m, **grid)
         res = solve_macro(gm, f, xf, e)
         assert res.converged
         assert case["truth_cm2"]["rigid"] == pytest.approx(res.apparent_contact_area_m2 * 1e4)
+        flex = solve_flexible(flexible, f, xf, e)
+        assert flex.converged
+        assert case["truth_cm2"]["flexible"] == pytest.approx(flex.apparent_contact_area_m2 * 1e4)
 
 
 def test_summary_counts_follow_the_answers(study):
