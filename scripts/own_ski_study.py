@@ -436,7 +436,13 @@ def study_ski(
             "width_mm": (np.asarray(o.width_m) * 1e3).tolist(),
         }
         out["identification"] = {
-            k: (float(v) if isinstance(v, (int, float, np.floating, np.integer)) else str(v))
+            k: (
+                bool(v)
+                if isinstance(v, (bool, np.bool_))
+                else float(v)
+                if isinstance(v, (int, float, np.floating, np.integer))
+                else str(v)
+            )
             for k, v in ident.items()
             if k in ("ok", "reason", "misfit_m", "noise_m", "held_out_rms_m", "held_out_cases")
         }
