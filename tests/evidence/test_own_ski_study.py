@@ -110,7 +110,8 @@ def test_every_case_has_truth_and_answers(study):
                 continue
             assert a["status"] == 200, a
             t = truth["rigid"] if model == "rigid" else truth["flexible"]
-            assert a["error_pct"] == pytest.approx(100 * (a["area_cm2"] / t - 1), rel=1e-12)
+            # the results file keeps 7 significant digits
+            assert a["error_pct"] == pytest.approx(100 * (a["area_cm2"] / t - 1), abs=1e-4)
             lo, hi = a["band_cm2"]
             assert lo < a["area_cm2"] < hi
             assert a["band_half_width"] > 0
@@ -140,10 +141,14 @@ def test_truths_are_the_true_beam_on_the_answers_grid(study):
         gm = extrude_profile(truth.positions_m, gap, width_m, width_positions_m=width_x_m, **grid)
         res = solve_macro(gm, f, xf, e)
         assert res.converged
-        assert case["truth_cm2"]["rigid"] == pytest.approx(res.apparent_contact_area_m2 * 1e4)
+        assert case["truth_cm2"]["rigid"] == pytest.approx(
+            res.apparent_contact_area_m2 * 1e4, rel=1e-6
+        )
         flex = solve_flexible(flexible, f, xf, e)
         assert flex.converged
-        assert case["truth_cm2"]["flexible"] == pytest.approx(flex.apparent_contact_area_m2 * 1e4)
+        assert case["truth_cm2"]["flexible"] == pytest.approx(
+            flex.apparent_contact_area_m2 * 1e4, rel=1e-6
+        )
 
 
 def test_summary_counts_follow_the_answers(study):
@@ -161,7 +166,7 @@ def test_summary_counts_follow_the_answers(study):
         assert st["inside_band"] == sum(bool(a["inside_band"]) for a in ok)
         if ok:
             rms = np.sqrt(np.mean([a["error_pct"] ** 2 for a in ok]))
-            assert st["rms_error_pct"] == pytest.approx(rms)
+            assert st["rms_error_pct"] == pytest.approx(rms, rel=1e-6)
     assert "dense" not in doc["summary"]
 
 
