@@ -1023,6 +1023,8 @@ def identify_beam(
         beam = _uniform_stiffness_start(x, loads, xfs, y, c)
         return beam, _device_misfit(beam, loads[sub], xfs[sub], y[sub]), source
 
+    rejected: list[tuple[str, float | None, BeamSki]] = []
+
     def checked_projection(st: IdentifiedBeam, uniform_miss: float) -> BeamSki | None:
         miss = float(st.extra["device_misfit_m"])
         entry = {
@@ -1043,6 +1045,7 @@ def identify_beam(
                 f"({miss / noise:.0f}× the noise, more than {START_RETRY_RATIO:g}× and more "
                 f"than the uniform-EI start's {uniform_miss * 1e6:.1f} µm)"
             )
+            rejected.append(("projection", entry["smoothing"], st.beam))
             return None
         return st.beam
 
@@ -1068,16 +1071,12 @@ def identify_beam(
             f"; not used: misses by {u_miss * 1e6:.0f} µm, more than {START_DROP_RATIO:g}× "
             "the noise"
         )
+        rejected.append(("uniform", None, u_beam))
     elif "uniform" in starts:
         jobs.append(("uniform", None, u_beam))
     no_start_used = not jobs
-    if no_start_used:  # every start missed by far: the forward fit still runs, from the best
-        best_entry = min(starts_report, key=lambda e: e["device_misfit_m"])
-        jobs.append(
-            (best_entry["start"], best_entry["smoothing"], p_beam or start.beam)
-            if best_entry["start"] == "projection"
-            else ("uniform", None, u_beam)
-        )
+    if no_start_used:  # every start missed by far: the forward fit still runs, from them all
+        jobs, rejected = rejected, []
 
     forward = functools.partial(
         fit_forward,
@@ -1130,6 +1129,16 @@ def identify_beam(
             if beam2 is not None:
                 restarted = True
                 candidates += run_all([("projection", RESTART_SMOOTHING_FACTOR * smoothing, beam2)])
+    # "not one beam" rests on several starts: a failing fit from fewer than two starts is
+    # tried again from the starts the device check set aside
+    tried_rejected = False
+    if (
+        best(candidates)[3].misfit_m > MISFIT_LIMIT * noise
+        and len({(c[2], c[1]) for c in candidates}) < 2
+        and rejected
+    ):
+        tried_rejected = True
+        candidates += run_all(rejected)
     chosen_spacing, chosen_sm, chosen_start, fwd = best(candidates)
     nc = fwd.camber_coefficients.size
     cov_g = fwd.covariance[nc:, nc:]
@@ -1144,18 +1153,18 @@ def identify_beam(
     if fwd.misfit_m > MISFIT_LIMIT * noise and fwd.misfit_m > 1e-6:
         ok = False
         n_conv_starts = len({(c[2], c[1]) for c in converged})
-        if no_start_used:
-            reason = (
-                "no start reached the forward fit's basin: every start's device model missed "
-                f"the cases by far ({_starts_summary(starts_report)}); the best fit ends at "
-                f"{fwd.misfit_m * 1e6:.2f} µm, {fwd.misfit_m / noise:.2f}× the device noise"
-            )
-        elif n_conv_starts >= 2 and all(c[3].misfit_m > MISFIT_LIMIT * noise for c in converged):
+        if n_conv_starts >= 2 and all(c[3].misfit_m > MISFIT_LIMIT * noise for c in converged):
             reason = (
                 f"misfit {fwd.misfit_m * 1e6:.2f} µm is {fwd.misfit_m / noise:.1f}× the device "
                 f"noise {noise * 1e6:.2f} µm, and the fits from {n_conv_starts} different starts "
                 f"all stay above {MISFIT_LIMIT:g}× it: the cases are not explained by one beam "
                 "(sides differ, the device has systematic errors, or the ski is not a clean beam)"
+            )
+        elif no_start_used:
+            reason = (
+                "no start reached the forward fit's basin: every start's device model missed "
+                f"the cases by far ({_starts_summary(starts_report)}); the best fit ends at "
+                f"{fwd.misfit_m * 1e6:.2f} µm, {fwd.misfit_m / noise:.2f}× the device noise"
             )
         else:
             reason = (
@@ -1197,6 +1206,7 @@ def identify_beam(
             "forward_coarse_spacing_m": chosen_spacing,
             "start_smoothing": chosen_sm,
             "restarted": restarted,
+            "tried_rejected_starts": tried_rejected,
             "forward_candidates": [
                 {
                     "start": label,
@@ -1424,9 +1434,15 @@ def profile_sigma(
     Gauss–Newton covariance: ``draws`` plausible beams (:func:`sample_beams`) solved for every
     case (F_k, x_k), the spread about the identified beam's own profile taken where that
     profile is within ``contact_band_m`` of the flat (where the apparent contact is decided),
-    RMS over the cases; nodes never near contact get the median of the others. (N,)"""
+    RMS over the cases; nodes never near contact get the median of the others; cases of 0 N
+    (the unloaded profile) are left out. (N,)"""
     loads = np.atleast_1d(np.asarray(loads_n, dtype=float))
     pos = np.atleast_1d(np.asarray(load_positions_m, dtype=float))
+    _check_loads(loads)
+    # the loaded profile's spread: an unloaded case (0 N) is not a loaded profile
+    pos, loads = pos[loads > 0], loads[loads > 0]
+    if loads.size == 0:
+        raise InputError("profile_sigma needs at least one loaded case (> 0 N)")
     nominal = predict_gaps(ident.beam, loads, pos)
     near = nominal < contact_band_m
     sq = np.zeros(nominal.shape)

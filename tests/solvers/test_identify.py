@@ -263,20 +263,28 @@ def test_a_fit_above_the_noise_is_redone_from_a_stiffer_start(monkeypatch):
     again = _restart_run(monkeypatch, -1e9)
     cands = again.extra["forward_candidates"]
     assert again.extra["restarted"] is True
+    # both projection starts were made and checked on the device model (a start that misses
+    # by far runs no fit; see test_a_start_whose_device_model_misses_by_far_is_not_used)
     factors = sorted(
-        c["start_smoothing"] / identify.DEFAULT_SMOOTHING
-        for c in cands
-        if c["start"] == "projection"
+        s["smoothing"] / identify.DEFAULT_SMOOTHING
+        for s in again.extra["starts"]
+        if s["start"] == "projection"
     )
     assert factors == pytest.approx(
         [identify.START_SMOOTHING_FACTOR, identify.RESTART_SMOOTHING_FACTOR]
     )
+    used = {
+        s["smoothing"] for s in again.extra["starts"] if s["start"] == "projection" and s["used"]
+    }
+    assert {c["start_smoothing"] for c in cands if c["start"] == "projection"} == used
     kept = min(cands, key=lambda c: (not c["converged"], c["objective"]))
     assert again.extra["start_smoothing"] == kept["start_smoothing"]
     assert again.misfit_m == pytest.approx(kept["misfit_m"], rel=1e-12)
     once = _restart_run(monkeypatch, 1e9)
     assert once.extra["restarted"] is False
-    assert [c["start"] for c in once.extra["forward_candidates"]] == ["projection", "uniform"]
+    assert {s["start"] for s in once.extra["starts"]} == {"projection", "uniform"}
+    used = [s["start"] for s in once.extra["starts"] if s["used"]]
+    assert [c["start"] for c in once.extra["forward_candidates"]] == used
 
 
 # ----------------------------------------------------------------- #26: the unloaded profile,
