@@ -38,10 +38,11 @@ def _held_out(ski, beam, seed, count=12):
 
 _EI_XFAIL = pytest.mark.xfail(
     strict=True,
-    reason="EI(X) in the middle from 42 noise-free cases on a 4 mm grid: 5 % off ('stiff') and "
-    "15 % off ('soft') while held-out profiles agree to 1 um; the forward fit stalls on the "
-    "small smooth pieces of the discrete contact model (issue #12; the demo skis' 340 cases at "
-    "1 mm give EI within 1-2 % in the middle)",
+    reason="EI(X) in the middle from 42 noise-free cases on a 4 mm grid: 15 % off ('soft') "
+    "while held-out profiles agree to 1 um; the forward fit stalls on the small smooth pieces "
+    "of the discrete contact model (issue #12; the demo skis' 340 cases at 1 mm give EI within "
+    "1-2 % in the middle). 'stiff' (5 % off from one start) is within 3 % since the fits run "
+    "from several starts (#26)",
 )
 
 
@@ -57,7 +58,7 @@ def test_noise_free_profiles(name):
     assert np.sqrt(np.mean((pred - truth)[near] ** 2)) < 1.5e-6
 
 
-@pytest.mark.parametrize("name", [pytest.param(n, marks=_EI_XFAIL) for n in ("soft", "stiff")])
+@pytest.mark.parametrize("name", [pytest.param("soft", marks=_EI_XFAIL), "stiff"])
 def test_noise_free_stiffness(name):
     ski, ident = _identified(name, 4e-3, 0.0, None, 3e-6)
     mid = np.abs(ski.positions_m) < 0.25
