@@ -30,6 +30,13 @@ Structure used (no lucky start needed)
   where moments vanish (beyond the outermost contacts), where EI does not change any measured
   case.
 
+The unloaded profile: a case of 0 N is the ski resting on the flat with no load (x_F ignored);
+its model is c plus a line (here) and ``camber_on_flat(x, c)`` on the device
+(:func:`predict_gaps`, :func:`solvers.beam_fit.fit_forward`). :func:`identify_beam` runs the
+forward fit from several starts, each checked on the device model first (the projection start
+of this module, and a uniform-EI start whose c is the unloaded profile), and keeps the lowest
+objective (docs/camber-identification.md, #26).
+
 Uncertainty: the Gauss–Newton covariance ``σ̂² S⁻¹`` (σ̂ from the residual) gives bands on c(X)
 and EI(X) and draws of plausible beams (:func:`sample_beams`) that downstream solves propagate.
 
