@@ -107,7 +107,7 @@ def main() -> None:
     ap.add_argument("--out", default="docs/studies/identify-designs.jsonl")
     a = ap.parse_args()
     n_loads, n_pos = (int(v) for v in a.grid.split("x"))
-    for i, name in enumerate(a.designs.split(",")):
+    for name in a.designs.split(","):
         seed = 2600 + list(DESIGNS).index(name)
         row = run(name, n_loads, n_pos, seed, not a.no_unloaded)
         print(
@@ -120,7 +120,6 @@ def main() -> None:
         )
         with open(a.out, "a") as fh:
             fh.write(json.dumps(row, default=float) + "\n")
-        del i
 
 
 if __name__ == "__main__":
