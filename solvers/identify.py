@@ -34,7 +34,7 @@ The unloaded profile: a case of 0 N is the ski resting on the flat with no load 
 its model is c plus a line (here) and ``camber_on_flat(x, c)`` on the device
 (:func:`predict_gaps`, :func:`solvers.beam_fit.fit_forward`). :func:`identify_beam` runs the
 forward fit from several starts, each checked on the device model first (the projection start
-of this module, and a shape start whose c is the unloaded profile), and keeps the lowest
+of this module, and a uniform-EI start whose c is the unloaded profile), and keeps the lowest
 objective (docs/camber-identification.md, #26).
 
 Uncertainty: the Gauss–Newton covariance ``σ̂² S⁻¹`` (σ̂ from the residual) gives bands on c(X)
@@ -836,12 +836,12 @@ RESTART_SIGMAS = 3.0
 RESTART_SMOOTHING_FACTOR = 30.0
 #: the starts the forward fit runs from (each on every path of DEFAULT_FORWARD_PATHS, side by
 #: side through ``path_map``; the lowest objective is kept): "projection" (the variable-
-#: projection start, always computed: it is checked on the device model and the shape start
-#: takes its camber when no unloaded profile was measured) and "shape" (c from the unloaded
+#: projection start, always computed: it is checked on the device model and the uniform start
+#: takes its camber when no unloaded profile was measured) and "uniform" (c from the unloaded
 #: profile, or from the projection start, with one EI from a line search on the device model)
-DEFAULT_STARTS = ("projection", "shape")
+DEFAULT_STARTS = ("projection", "uniform")
 #: a start whose device model misses its cases by more than this × the noise is not used
-#: (a shape start, which has no better alternative, only beyond this) [-]
+#: (a uniform-EI start, which has no better alternative, only beyond this) [-]
 START_DROP_RATIO = 100.0
 
 
@@ -915,7 +915,7 @@ def identify_beam(
         the converged fit with the lowest objective is kept (``extra["forward_candidates"]``).
     starts : tuple of str
         The starts the forward paths run from (DEFAULT_STARTS): "projection" (the variable-
-        projection start) and "shape" (c from the unloaded profile when a 0 N case is given,
+        projection start) and "uniform" (c from the unloaded profile when a 0 N case is given,
         else the projection start's; one EI from a line search of the device model). Each is
         checked on the device model first and not used when it misses by far
         (``extra["starts"]`` says why); every (start, path) fit runs through ``path_map``.
@@ -1020,19 +1020,19 @@ def identify_beam(
     # the data) before it is used: a start whose device model misses by far is not used (#26:
     # a projection start at 2.95 µm on its own model missed by 1221 µm on the device's and sent
     # the forward fit to EI 2.5e7 N·m²)
-    def shape_start() -> tuple[BeamSki, float, str]:
+    def uniform_start() -> tuple[BeamSki, float, str]:
         if unloaded.any():
             c = np.mean(y[unloaded], axis=0)
             source = "the unloaded profile"
         else:
             c = start.beam.unloaded_gap_m
             source = "the projection start's camber"
-        beam = _shape_start(x, loads, xfs, y, c)
+        beam = _uniform_stiffness_start(x, loads, xfs, y, c)
         return beam, _device_misfit(beam, loads[sub], xfs[sub], y[sub]), source
 
     rejected: list[tuple[str, float | None, BeamSki]] = []
 
-    def checked_projection(st: IdentifiedBeam, shape_miss: float) -> BeamSki | None:
+    def checked_projection(st: IdentifiedBeam, uniform_miss: float) -> BeamSki | None:
         miss = float(st.extra["device_misfit_m"])
         entry = {
             "start": "projection",
@@ -1044,33 +1044,32 @@ def identify_beam(
             "note": "",
         }
         starts_report.append(entry)
-        if miss > START_RETRY_RATIO * noise and miss > shape_miss:
+        if miss > START_RETRY_RATIO * noise and miss > uniform_miss:
             entry["used"] = False
             entry["note"] = (
                 f"not used: fits its own model to {st.misfit_m * 1e6:.2f} µm but its beam "
                 f"misses the cases on the device model by {miss * 1e6:.1f} µm "
                 f"({miss / noise:.0f}× the noise, more than {START_RETRY_RATIO:g}× and more "
-                f"than the shape start's {shape_miss * 1e6:.1f} µm)"
+                f"than the uniform-EI start's {uniform_miss * 1e6:.1f} µm)"
             )
             rejected.append(("projection", entry["smoothing"], st.beam))
             return None
         return st.beam
 
     t_u = time.perf_counter()
-    u_beam, u_miss, u_source = shape_start()
+    u_beam, u_miss, u_source = uniform_start()
     jobs: list[tuple[str, float | None, BeamSki]] = []
     p_beam = checked_projection(start, u_miss)
     if p_beam is not None and "projection" in starts:
         jobs.append(("projection", float(start.extra["start_smoothing"]), p_beam))
     u_entry = {
-        "start": "shape",
+        "start": "uniform",
         "smoothing": None,
         "device_misfit_m": u_miss,
         "time_s": time.perf_counter() - t_u,
         "used": True,
-        "note": f"c from {u_source}, EI a bell {u_beam.bending_stiffness_nm2.max():.0f} N·m² "
-        f"in the middle, {u_beam.bending_stiffness_nm2[0]:.0f} N·m² at the ends (searched on "
-        "the device model)",
+        "note": f"c from {u_source}, EI {u_beam.bending_stiffness_nm2[0]:.0f} N·m² uniform "
+        "(line search on the device model)",
     }
     starts_report.append(u_entry)
     if u_miss > START_DROP_RATIO * noise:
@@ -1079,9 +1078,9 @@ def identify_beam(
             f"; not used: misses by {u_miss * 1e6:.0f} µm, more than {START_DROP_RATIO:g}× "
             "the noise"
         )
-        rejected.append(("shape", None, u_beam))
-    elif "shape" in starts:
-        jobs.append(("shape", None, u_beam))
+        rejected.append(("uniform", None, u_beam))
+    elif "uniform" in starts:
+        jobs.append(("uniform", None, u_beam))
     no_start_used = not jobs
     if no_start_used:  # every start missed by far: the forward fit still runs, from them all
         jobs, rejected = rejected, []
@@ -1292,27 +1291,20 @@ def _device_misfit(beam: BeamSki, loads: np.ndarray, xfs: np.ndarray, y: np.ndar
     return float(np.sqrt(np.mean((predict_gaps(beam, loads, xfs) - y) ** 2)))
 
 
-#: the shape start: a search of EI [N·m²] (a bell, BELL_END_RATIOS) on the device model, with c
+#: the uniform-stiffness start: a line search of one EI [N·m²] on the device model, with c
 #: fixed (from the unloaded profile when measured), on at most LINE_SEARCH_CASES loaded cases
 #: and nodes about LINE_SEARCH_SPACING_M [m] apart (a start only has to land in the basin)
 LINE_SEARCH_CASES = 12
 LINE_SEARCH_SPACING_M = 0.004
 LINE_SEARCH_EI_NM2 = (10.0, 1.0e5)
-#: the shape start's EI family: a bell, stiff in the middle, its ends at one of these ratios of
-#: the middle (1: uniform), half-width BELL_WIDTH × the length. Measured on the binding-plate
-#: design (13 × 9 + unloaded, every-node path): from the shape start 1.026 × the noise,
-#: held-out 0.70 µm; from the bell (ratio 0.125) 1.0015 ×, 0.28 µm (from the truth 1.0000 ×)
-BELL_END_RATIOS = (1.0, 0.5, 0.25, 0.125)
-BELL_WIDTH = 0.3
 
 
-def _shape_start(
+def _uniform_stiffness_start(
     x: np.ndarray, loads: np.ndarray, xfs: np.ndarray, y: np.ndarray, camber_m: np.ndarray
 ) -> BeamSki:
-    """A start that needs no variable projection: c(X) given (the unloaded profile), EI a
-    bell (:func:`_bell`, BELL_END_RATIOS; uniform among them) whose end ratio and level are the
-    minimum of the device model's misfit over a grid, the level refined by a bounded scalar
-    search (LINE_SEARCH_*)."""
+    """A start that needs no variable projection: c(X) given (the unloaded profile), EI
+    uniform, its value the minimum of the device model's misfit over a log grid refined by a
+    bounded scalar search (LINE_SEARCH_*)."""
     from scipy.optimize import minimize_scalar
 
     idx = np.flatnonzero(loads > 0)
@@ -1325,8 +1317,8 @@ def _shape_start(
     ys = y[idx][:, ::stride]
     warm: dict[int, np.ndarray] = {}
 
-    def miss(log_ei: float, shape: np.ndarray) -> float:
-        beam = BeamSki(xs, 10.0**log_ei * shape, cs)
+    def miss(log_ei: float) -> float:
+        beam = BeamSki(xs, np.full(xs.size, 10.0**log_ei), cs)
         flex = BeamFlexibility(beam)
         sq = 0.0
         for j, k in enumerate(idx):
@@ -1339,30 +1331,12 @@ def _shape_start(
 
     lo, hi = np.log10(LINE_SEARCH_EI_NM2[0]), np.log10(LINE_SEARCH_EI_NM2[1])
     grid = np.linspace(lo, hi, 13)
-    best = (np.inf, 0.0, 1.0)
-    for ratio in BELL_END_RATIOS:
-        shape = _bell(xs, x, ratio)
-        vals = [miss(g, shape) for g in grid]
-        i = int(np.argmin(vals))
-        if vals[i] < best[0]:
-            best = (vals[i], float(grid[i]), ratio)
-    _, log_ei, ratio = best
-    shape = _bell(xs, x, ratio)
-    a, b = log_ei - (grid[1] - grid[0]), log_ei + (grid[1] - grid[0])
-    res = minimize_scalar(
-        miss, bounds=(a, b), args=(shape,), method="bounded", options={"xatol": 0.005}
-    )
-    if res.fun < best[0]:
-        log_ei = float(res.x)
-    return BeamSki(x, 10.0**log_ei * _bell(x, x, ratio), camber_on_flat(x, camber_m))
-
-
-def _bell(at: np.ndarray, x: np.ndarray, end_ratio: float) -> np.ndarray:
-    """A ski's stiffness shape [-]: 1 in the middle, ``end_ratio`` at the ends,
-    ``r + (1 − r) exp(−((X − X_mid) / w)⁴)`` with w = BELL_WIDTH × the length; r = 1 is uniform."""
-    mid = 0.5 * (x[0] + x[-1])
-    w = BELL_WIDTH * (x[-1] - x[0])
-    return end_ratio + (1.0 - end_ratio) * np.exp(-(((at - mid) / w) ** 4))
+    vals = [miss(g) for g in grid]
+    i = int(np.argmin(vals))
+    a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    res = minimize_scalar(miss, bounds=(a, b), method="bounded", options={"xatol": 0.005})
+    best_log = float(res.x) if res.fun < vals[i] else float(grid[i])
+    return BeamSki(x, np.full(x.size, 10.0**best_log), camber_on_flat(x, camber_m))
 
 
 def _beam_of(x: np.ndarray, prob: _Problem, fit: _Fit) -> BeamSki:

@@ -229,7 +229,7 @@ def test_forward_paths_side_by_side_give_the_same_beam():
     with path_pool(2) as pmap:
         assert pmap is not None
         pooled = run(path_map=pmap)
-    # every start (projection, shape) on both paths
+    # every start (projection, uniform) on both paths
     cands = here.extra["forward_candidates"]
     assert len(cands) == 2 * len({c["start"] for c in cands}) >= 4
     assert {c["coarse_spacing_m"] for c in cands} == {0.004, 0.0}
@@ -283,7 +283,7 @@ def test_a_fit_above_the_noise_is_redone_from_a_stiffer_start(monkeypatch):
     assert again.misfit_m == pytest.approx(kept["misfit_m"], rel=1e-12)
     once = _restart_run(monkeypatch, 1e9)
     assert once.extra["restarted"] is False
-    assert {s["start"] for s in once.extra["starts"]} == {"projection", "shape"}
+    assert {s["start"] for s in once.extra["starts"]} == {"projection", "uniform"}
     used = [s["start"] for s in once.extra["starts"] if s["used"]]
     assert [c["start"] for c in once.extra["forward_candidates"]] == used
 
@@ -321,16 +321,15 @@ def test_unloaded_case_through_predict_gaps_and_identify_start():
         identify.identify_start(ski.positions_m, np.r_[-1.0, f[1:]], xf, y)
 
 
-def test_shape_start_takes_c_from_the_unloaded_profile_and_finds_ei():
-    """The unloaded-profile start: c is the measured unloaded profile (on the flat) and EI (a
-    bell whose end ratio and level are searched on the device model, uniform among them); on
-    a uniform beam, noise-free, it finds that EI (13 levels per 4 decades refined to 0.005 in
-    log10)."""
+def test_uniform_start_takes_c_from_the_unloaded_profile_and_finds_ei():
+    """The unloaded-profile start: c is the measured unloaded profile (on the flat) and a
+    uniform EI comes from a line search of the device model; on a uniform beam, noise-free,
+    it finds that EI (grid 13 points per 4 decades refined to 0.005 in log10)."""
     d = DESIGNS["stiff"].build(4e-3)
     ski = identify.BeamSki(d.positions_m, np.full(d.positions_m.size, 1700.0), d.unloaded_gap_m)
     f, xf, y = measure_camber(ski, LOADS_N[::2], POSITIONS_M[::2], noise_m=0.0)
-    start = identify._shape_start(ski.positions_m, f, xf, y, ski.unloaded_gap_m)
-    np.testing.assert_allclose(start.bending_stiffness_nm2, 1700.0, rtol=0.03)
+    start = identify._uniform_stiffness_start(ski.positions_m, f, xf, y, ski.unloaded_gap_m)
+    assert start.bending_stiffness_nm2 == pytest.approx(1700.0, rel=0.03)
     np.testing.assert_allclose(
         start.unloaded_gap_m, camber_on_flat(ski.positions_m, ski.unloaded_gap_m), atol=1e-12
     )
@@ -344,7 +343,7 @@ def _with_unloaded_identified(seed=5):
 
 
 def test_several_starts_are_checked_run_and_reported():
-    """identify_beam with an unloaded case: two starts (projection, shape from the unloaded
+    """identify_beam with an unloaded case: two starts (projection, uniform from the unloaded
     profile), each checked on the device model and reported; every (start, path) fit is a
     candidate; the lowest objective is kept; how far apart the converged candidates are is
     reported (misfits, objectives, max |Δc| and |Δ log EI| in the middle of the ski)."""
@@ -352,11 +351,11 @@ def test_several_starts_are_checked_run_and_reported():
     assert ident.ok, ident.reason
     assert ident.extra["unloaded_cases"] == 1
     starts = {s["start"]: s for s in ident.extra["starts"]}
-    assert set(starts) == {"projection", "shape"}
-    assert "unloaded profile" in starts["shape"]["note"]
+    assert set(starts) == {"projection", "uniform"}
+    assert "unloaded profile" in starts["uniform"]["note"]
     assert all(np.isfinite(s["device_misfit_m"]) for s in starts.values())
     cands = ident.extra["forward_candidates"]
-    assert {c["start"] for c in cands} == {"projection", "shape"}
+    assert {c["start"] for c in cands} == {"projection", "uniform"}
     kept = min((c for c in cands if c["converged"]), key=lambda c: c["objective"])
     assert ident.misfit_m == pytest.approx(kept["misfit_m"], rel=1e-12)
     assert kept["max_dc_middle_m"] == 0.0 and kept["max_dlog_ei_middle"] == 0.0
@@ -391,7 +390,7 @@ def test_a_start_whose_device_model_misses_by_far_is_not_used(monkeypatch):
     assert proj and not any(s["used"] for s in proj)
     assert "device model" in proj[0]["note"] and "not used" in proj[0]["note"]
     assert proj[0]["device_misfit_m"] > 100 * ident.noise_m
-    assert {c["start"] for c in ident.extra["forward_candidates"]} == {"shape"}
+    assert {c["start"] for c in ident.extra["forward_candidates"]} == {"uniform"}
 
 
 def test_failure_names_its_cause(monkeypatch):
