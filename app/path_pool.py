@@ -16,7 +16,12 @@ from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 
-__all__ = ["path_pool"]
+__all__ = ["fixed_blas_threads", "identify_with_pool", "path_pool"]
+
+#: BLAS threads of an identification, in this process and in every worker: the beam must not
+#: depend on the machine's thread count (#26: the basin of a fit turns on perturbations of 1e-5
+#: relative, and a different BLAS thread count changes the rounding)
+IDENTIFICATION_BLAS_THREADS = 1
 
 
 def _one_thread() -> None:
@@ -27,7 +32,7 @@ def _one_thread() -> None:
     import scipy.sparse  # noqa: F401
     from threadpoolctl import threadpool_limits
 
-    threadpool_limits(1)
+    threadpool_limits(IDENTIFICATION_BLAS_THREADS)
 
 
 @contextmanager
@@ -44,3 +49,26 @@ def path_pool(workers: int | None = None) -> Iterator:
     ctx = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_one_thread) as pool:
         yield pool.map
+
+
+@contextmanager
+def fixed_blas_threads(threads: int = IDENTIFICATION_BLAS_THREADS) -> Iterator[None]:
+    """Hold every BLAS/OpenMP library of this process to ``threads`` threads for the block
+    (numpy's and scipy's OpenBLAS both: scipy's is loaded first, threadpoolctl only limits the
+    libraries already loaded), restored afterwards."""
+    import scipy.linalg
+    import scipy.sparse  # noqa: F401
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(threads):
+        yield
+
+
+def identify_with_pool(identify, *args, workers: int | None = None, **kwargs):
+    """Run an identification (``identify(*args, path_map=..., **kwargs)``, e.g.
+    :func:`solvers.identify.identify_beam_checked`) with its thread counts fixed: this process
+    at IDENTIFICATION_BLAS_THREADS BLAS threads (the start and the held-out check run here) and
+    its forward fits in :func:`path_pool`'s workers, each held to the same count. The same data
+    and seed then give the same beam whatever the machine's default thread count."""
+    with fixed_blas_threads(), path_pool(workers) as pmap:
+        return identify(*args, path_map=pmap, **kwargs)

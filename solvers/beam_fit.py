@@ -56,6 +56,7 @@ __all__ = [
     "camber_basis",
     "detect_camber_kinks",
     "fit_forward",
+    "flat_supports",
 ]
 
 #: knot spacing of the camber's cubic B-spline [m]: on the demo skis' true cambers (with their
@@ -217,7 +218,16 @@ def double_integral(kappa: np.ndarray, dx: float) -> np.ndarray:
 def camber_on_flat(x: np.ndarray, c: np.ndarray) -> np.ndarray:
     """c minus the supporting line of its lower convex hull that spans the middle of the ski:
     ≥ 0, zero at two nodes (the unloaded ski resting on the flat). Only c's shape matters to the
-    contact model; the line is a convention."""
+    contact model; the line is a convention. It is also the device model of the unloaded case
+    (F = 0): the ski rests on its two end contacts and nothing deflects."""
+    i0, i1 = flat_supports(x, c)
+    slope = (c[i1] - c[i0]) / (x[i1] - x[i0])
+    return np.maximum(c - (c[i0] + slope * (x - x[i0])), 0.0)
+
+
+def flat_supports(x: np.ndarray, c: np.ndarray) -> tuple[int, int]:
+    """The two nodes (i0 < i1) on which the unloaded camber ``c`` rests on the flat: the edge of
+    its lower convex hull that spans the middle of the ski (:func:`camber_on_flat`)."""
     hull: list[int] = []
     for i in range(x.size):
         while len(hull) >= 2:
@@ -232,8 +242,7 @@ def camber_on_flat(x: np.ndarray, c: np.ndarray) -> np.ndarray:
     for i0, i1 in itertools.pairwise(hull):
         if x[i0] <= mid <= x[i1]:
             break
-    slope = (c[i1] - c[i0]) / (x[i1] - x[i0])
-    return np.maximum(c - (c[i0] + slope * (x - x[i0])), 0.0)
+    return int(i0), int(i1)
 
 
 def _continuation(
@@ -365,6 +374,25 @@ class _Model:
         if jacobian:
             jtj[sl_c, sl_c] = self.loads.size * self.bc_gram
         for k, (load, xf) in enumerate(zip(self.loads, self.xfs, strict=True)):
+            if load == 0.0:
+                # the unloaded case: c resting on its two end contacts (no deflection). For a
+                # fixed pair of supports the gap is linear in c's coefficients:
+                # J = Bc − v R, with v the two supports' interpolation weights, R their rows
+                c_now = self.bc @ theta[: self.nc]
+                i0, i1 = flat_supports(x, c_now)
+                gap = camber_on_flat(x, c_now)
+                rho = gap - self.y[k]
+                per[k] = float(rho @ rho)
+                if not jacobian:
+                    continue
+                s1 = (x - x[i0]) / (x[i1] - x[i0])
+                v = np.stack([1.0 - s1, s1], axis=1)  # (N, 2)
+                rows = self.bc[[i0, i1]]  # (2, nc)
+                btv = self.bc_sparse_t @ v  # (nc, 2)
+                cross = btv @ rows
+                jtj[sl_c, sl_c] += rows.T @ (v.T @ v) @ rows - cross - cross.T
+                jtr[sl_c] += self.bc_sparse_t @ rho - rows.T @ (v.T @ rho)
+                continue
             res = solve_beam_contact(
                 beam,
                 load,
@@ -449,7 +477,8 @@ def fit_forward(
     positions_m : ndarray (N,)
         Uniform measurement nodes X [m].
     loads_n, load_positions_m : ndarray (K,)
-        F_k [N] and x_k [m] of each case.
+        F_k [N] (≥ 0) and x_k [m] of each case. A case of 0 N is the unloaded profile: its
+        device model is c resting on the flat (:func:`camber_on_flat`), x_k is ignored.
     profiles_m : ndarray (K, N)
         Measured gaps [m].
     start : BeamSki
@@ -491,6 +520,10 @@ def fit_forward(
     y = np.asarray(profiles_m, dtype=float)
     if start.positions_m.shape != x.shape:
         raise InputError("start beam must be on the measurement nodes")
+    if not np.all(loads >= 0):
+        raise InputError(
+            f"loads_n must be > 0 (0 N: the unloaded profile), got min {loads.min():g} N"
+        )
     kinks = detect_camber_kinks(x, y, noise_m) if kinks_m is None else np.asarray(kinks_m, float)
     bc, knots_c = camber_basis(x, camber_spacing_m, kinks)
     knots_q = np.asarray(stiffness_knots_m, dtype=float)
@@ -599,7 +632,14 @@ def fit_forward(
         rows = slice(None, None, level)
         cases = np.arange(loads.size)
         if not rigid and loads.size > STAGE_CASES:
-            cases = np.unique(np.linspace(0, loads.size - 1, STAGE_CASES).round().astype(int))
+            cases = np.unique(
+                np.concatenate(
+                    [
+                        np.linspace(0, loads.size - 1, STAGE_CASES).round().astype(int),
+                        np.flatnonzero(loads == 0.0),  # the unloaded profile is always fitted
+                    ]
+                )
+            )
         if last:
             stage_model = model
         else:

@@ -30,6 +30,13 @@ Structure used (no lucky start needed)
   where moments vanish (beyond the outermost contacts), where EI does not change any measured
   case.
 
+The unloaded profile: a case of 0 N is the ski resting on the flat with no load (x_F ignored);
+its model is c plus a line (here) and ``camber_on_flat(x, c)`` on the device
+(:func:`predict_gaps`, :func:`solvers.beam_fit.fit_forward`). :func:`identify_beam` runs the
+forward fit from several starts, each checked on the device model first (the projection start
+of this module, and a uniform-EI start whose c is the unloaded profile), and keeps the lowest
+objective (docs/camber-identification.md, #26).
+
 Uncertainty: the Gauss–Newton covariance ``σ̂² S⁻¹`` (σ̂ from the residual) gives bands on c(X)
 and EI(X) and draws of plausible beams (:func:`sample_beams`) that downstream solves propagate.
 
@@ -53,6 +60,7 @@ from .beam_fit import (
     ForwardFit,
     camber_basis,
     camber_on_flat,
+    detect_camber_kinks,
     fit_forward,
     hats,
 )
@@ -164,6 +172,15 @@ def estimate_noise(profiles_m: np.ndarray) -> float:
     d4 = np.diff(y, n=4, axis=-1)
     mad = float(np.median(np.abs(d4 - np.median(d4))))
     return mad / 0.6744897501960817 / np.sqrt(70.0)
+
+
+def _check_loads(loads: np.ndarray) -> None:
+    """Loads must be ≥ 0: a case of 0 N is the unloaded profile (#26), a negative one is an
+    error in the data."""
+    if loads.size and not np.all(loads >= 0):
+        raise InputError(
+            f"loads_n must be > 0 (0 N: the unloaded profile), got min {loads.min():g} N"
+        )
 
 
 @dataclass
@@ -357,6 +374,12 @@ class _Problem:
     def set_contacts(self, points: list[np.ndarray]) -> None:
         self.cases = []
         for k, pts in enumerate(points):
+            if self.loads[k] == 0.0:
+                # the unloaded profile: c plus a free line, no deflection, no contact unknowns
+                n = self.x.size
+                st = _Case(np.zeros(0), np.zeros((0, 0)), np.zeros(n), np.zeros((0, n)), pts)
+                self.cases.append(st)
+                continue
             st = _statics(self.x, self.loads[k], self.xfs[k], pts)
             if st is None:
                 raise InputError(f"case {k}: contacts {pts} cannot balance the load")
@@ -589,7 +612,8 @@ def identify_start(
     positions_m : ndarray (N,)
         Measurement nodes X [m], uniformly spaced, increasing.
     loads_n, load_positions_m : ndarray (K,)
-        Load F_k [N] (> 0) and position x_k [m] of each case.
+        Load F_k [N] (≥ 0) and position x_k [m] of each case; a case of 0 N is the unloaded
+        profile (the camber on the flat, x_k ignored).
     profiles_m : ndarray (K, N)
         Measured loaded gaps [m] (noise included, not clipped).
     noise_m : float, optional
@@ -629,11 +653,11 @@ def identify_start(
         )
     if not (np.all(np.isfinite(y)) and np.all(np.isfinite(loads)) and np.all(np.isfinite(xfs))):
         raise InputError("profiles, loads and load positions must be finite")
-    if not np.all(loads > 0):
-        raise InputError("loads_n must be > 0 in every case (a zero load identifies nothing)")
+    _check_loads(loads)
+    unloaded = loads == 0.0
     if not (np.isfinite(knot_spacing_m) and knot_spacing_m > 0):
         raise InputError(f"knot_spacing_m must be finite and > 0, got {knot_spacing_m!r}")
-    inside = (xfs > x[0]) & (xfs < x[-1])
+    inside = ((xfs > x[0]) & (xfs < x[-1])) | (loads == 0.0)  # x_F of 0 N is ignored
     if not inside.all():
         raise InputError(f"{int((~inside).sum())} load positions lie outside the measured nodes")
     noise = float(noise_m) if noise_m is not None else estimate_noise(y)
@@ -671,16 +695,23 @@ def identify_start(
             solve_time_s=time.perf_counter() - t0,
         )
 
-    if loads.size < min_cases:
+    n_loaded = int((~unloaded).sum())
+    if n_loaded < min_cases:
         return fail_result(
-            f"{loads.size} load cases; at least {min_cases} are needed to identify a beam", None, 0
+            f"too few cases: {n_loaded} loaded cases; at least {min_cases} are needed to "
+            "identify a beam",
+            None,
+            0,
         )
-    if np.unique(np.round(loads, 6)).size < 2:
+    if np.unique(np.round(loads[~unloaded], 6)).size < 2:
         return fail_result(
             "all cases have the same load: stiffness cannot be told from camber", None, 0
         )
 
-    data_points = [_contacts_from_data(x, y[k], noise, xfs[k]) for k in range(loads.size)]
+    data_points = [
+        np.zeros(0) if unloaded[k] else _contacts_from_data(x, y[k], noise, xfs[k])
+        for k in range(loads.size)
+    ]
     points = data_points
     prob.set_contacts(points)
     fit = prob.linear_start()
@@ -697,6 +728,9 @@ def identify_start(
         flex = BeamFlexibility(beam)
         new_points = []
         for k in range(loads.size):
+            if unloaded[k]:
+                new_points.append(points[k])
+                continue
             res = solve_beam_contact(beam, loads[k], xfs[k], flexibility=flex)
             # the beam's own contacts, plus the current points whose fitted reaction is not
             # negative (a negative reaction is no contact: dropped, as in an active-set step)
@@ -800,6 +834,15 @@ START_SMOOTHING_FACTOR = 10.0
 #: 0.14 µm held-out
 RESTART_SIGMAS = 3.0
 RESTART_SMOOTHING_FACTOR = 30.0
+#: the starts the forward fit runs from (each on every path of DEFAULT_FORWARD_PATHS, side by
+#: side through ``path_map``; the lowest objective is kept): "projection" (the variable-
+#: projection start, always computed: it is checked on the device model and the uniform start
+#: takes its camber when no unloaded profile was measured) and "uniform" (c from the unloaded
+#: profile, or from the projection start, with one EI from a line search on the device model)
+DEFAULT_STARTS = ("projection", "uniform")
+#: a start whose device model misses its cases by more than this × the noise is not used
+#: (a uniform-EI start, which has no better alternative, only beyond this) [-]
+START_DROP_RATIO = 100.0
 
 
 def _forward_path(job: tuple) -> ForwardFit:
@@ -824,6 +867,7 @@ def identify_beam(
     start_smoothing: float | None = None,
     start_spacing_m: float = DEFAULT_START_SPACING_M,
     forward_coarse_spacings_m: tuple[float, ...] = DEFAULT_FORWARD_PATHS,
+    starts: tuple[str, ...] = DEFAULT_STARTS,
     min_cases: int = 6,
     max_steps: int = 80,
     callback=None,
@@ -841,7 +885,8 @@ def identify_beam(
     positions_m : ndarray (N,)
         Measurement nodes X [m], uniformly spaced, increasing.
     loads_n, load_positions_m : ndarray (K,)
-        Load F_k [N] (> 0) and position x_k [m] of each case.
+        Load F_k [N] (≥ 0) and position x_k [m] of each case; a case of 0 N is the unloaded
+        profile (the camber on the flat, x_k ignored).
     profiles_m : ndarray (K, N)
         Measured loaded gaps [m] (noise included, not clipped).
     noise_m : float, optional
@@ -868,8 +913,14 @@ def identify_beam(
         The forward fit runs once per entry, with that ``coarse_spacing_m`` of
         :func:`solvers.beam_fit.fit_forward` (0: every node throughout), all from the one start;
         the converged fit with the lowest objective is kept (``extra["forward_candidates"]``).
+    starts : tuple of str
+        The starts the forward paths run from (DEFAULT_STARTS): "projection" (the variable-
+        projection start) and "uniform" (c from the unloaded profile when a 0 N case is given,
+        else the projection start's; one EI from a line search of the device model). Each is
+        checked on the device model first and not used when it misses by far
+        (``extra["starts"]`` says why); every (start, path) fit runs through ``path_map``.
     min_cases : int
-        Fewer valid cases than this cannot identify a beam (``ok=False``).
+        Fewer loaded cases than this cannot identify a beam (``ok=False``).
     max_steps : int
         Accepted Levenberg–Marquardt steps of the forward fit at most (per path).
     callback : callable, optional
@@ -893,9 +944,14 @@ def identify_beam(
     kwargs = {"noise_m": noise_m, "knot_spacing_m": knot_spacing_m, "smoothing": sm0}
     if y.ndim != 2 or y.shape[0] != loads.size or xfs.size != loads.size:
         return identify_start(x, loads, xfs, y, **kwargs)  # raises, naming the shapes
+    _check_loads(loads)
+    unloaded = loads == 0.0
+    loaded_idx = np.flatnonzero(~unloaded)
+    # the start's cases: spread over the loaded cases, plus every unloaded profile (it pins c)
     sub = np.arange(loads.size)
-    if loads.size > start_cases:
-        sub = np.unique(np.round(np.linspace(0, loads.size - 1, start_cases)).astype(int))
+    if loaded_idx.size > start_cases:
+        pick = np.unique(np.round(np.linspace(0, loaded_idx.size - 1, start_cases)).astype(int))
+        sub = np.sort(np.concatenate([loaded_idx[pick], np.flatnonzero(unloaded)]))
     if callback is not None:
         callback(0.0, f"start: variable projection on {sub.size} of {loads.size} cases")
     # with ``start_spacing_m``, the start sees every k-th node only: its c node by node costs
@@ -915,7 +971,7 @@ def identify_beam(
                 loads[sub],
                 xfs[sub],
                 y[sub][:, ::level],
-                min_cases=min(min_cases, sub.size),
+                min_cases=min(min_cases, int((~unloaded[sub]).sum())),
                 max_contact_passes=START_PASSES,
                 **{**kwargs, "smoothing": start_sm},
             )
@@ -928,9 +984,7 @@ def identify_beam(
                     np.interp(x, xs, start.beam.bending_stiffness_nm2),
                     np.interp(x, xs, start.beam.unloaded_gap_m),
                 )
-            miss = float(
-                np.sqrt(np.mean((predict_gaps(start.beam, loads[sub], xfs[sub]) - y[sub]) ** 2))
-            )
+            miss = _device_misfit(start.beam, loads[sub], xfs[sub], y[sub])
             start.extra["device_misfit_m"] = miss
             start.extra["start_stride"] = level
             start.extra["start_smoothing"] = float(start_sm)
@@ -940,15 +994,18 @@ def identify_beam(
         return min(starts, key=lambda s: s.extra["device_misfit_m"]) if starts else start
 
     start = make_start(sm0)
-    if loads.size < min_cases:
+    if loaded_idx.size < min_cases:
         start.reason = (
-            f"{loads.size} load cases; at least {min_cases} are needed to identify a beam"
+            f"too few cases: {loaded_idx.size} loaded cases; at least {min_cases} are needed "
+            "to identify a beam"
         )
         start.ok = False
         return start
     if not np.isfinite(start.log_compliance).all():
         return start  # the start could not run (one load only, ...): its reason stands
     noise = max(float(noise_m) if noise_m is not None else estimate_noise(y), 1e-9)
+    if kinks_m is None:
+        kinks_m = detect_camber_kinks(x, y, noise)  # once for every forward fit
 
     # paths that see the same nodes are one path (a coarse spacing at or below the node spacing)
     dx = float(x[1] - x[0])
@@ -957,95 +1014,176 @@ def identify_beam(
         for sp in forward_coarse_spacings_m
     }
     paths = list(by_stride.values()) or [0.0]
-    path = [0]
+    starts_report: list[dict] = []
 
-    def progress(step: int, misfit: float) -> None:
-        if callback is not None:
-            done = (path[0] + min(step / max_steps, 1.0)) / len(paths)
-            callback(
-                min(0.2 + 0.8 * done, 0.99),
-                f"forward fit {path[0] + 1}/{len(paths)} step {step}: misfit {misfit * 1e6:.2f} µm",
-            )
-
-    # several forward paths from the one start, the lowest objective kept: the forward fit has
-    # local minima that the misfit/noise ratio cannot tell apart (ski-b: 677 170 vs 676 259 at
-    # 3.0063 / 3.0043 µm, held-out 0.14 vs 0.05 µm; docs/camber-identification.md)
-    def run_paths(start: IdentifiedBeam) -> list[tuple[float, float, ForwardFit]]:
-        forward = functools.partial(
-            fit_forward,
-            x,
-            loads,
-            xfs,
-            y,
-            start.beam,
-            noise_m=noise,
-            stiffness_knots_m=start.knots_m,
-            smoothing=smoothing,
-            camber_spacing_m=camber_spacing_m,
-            kinks_m=kinks_m,
-            max_steps=max_steps,
-        )
-        if path_map is not None and len(paths) > 1:
-            # the paths are independent: side by side (e.g. one process each); a worker's
-            # progress cannot reach this process, so the bar says what runs
-            if callback is not None:
-                callback(0.2, f"{len(paths)} forward fits side by side")
-            fits = list(path_map(_forward_path, [(forward, sp) for sp in paths]))
+    # --- the starts, each checked as a device model (its beam's exact contact solve against
+    # the data) before it is used: a start whose device model misses by far is not used (#26:
+    # a projection start at 2.95 µm on its own model missed by 1221 µm on the device's and sent
+    # the forward fit to EI 2.5e7 N·m²)
+    def uniform_start() -> tuple[BeamSki, float, str]:
+        if unloaded.any():
+            c = np.mean(y[unloaded], axis=0)
+            source = "the unloaded profile"
         else:
-            fits = []
-            for i, spacing in enumerate(paths):
-                path[0] = i
-                fits.append(forward(coarse_spacing_m=spacing, callback=progress))
-        sm = float(start.extra.get("start_smoothing", sm0))
-        return [(float(sp), sm, fit) for sp, fit in zip(paths, fits, strict=True)]
+            c = start.beam.unloaded_gap_m
+            source = "the projection start's camber"
+        beam = _uniform_stiffness_start(x, loads, xfs, y, c)
+        return beam, _device_misfit(beam, loads[sub], xfs[sub], y[sub]), source
 
-    def best(cands: list[tuple[float, float, ForwardFit]]) -> tuple[float, float, ForwardFit]:
-        finite = [c for c in cands if np.isfinite(c[2].objective)] or cands
-        return min(finite, key=lambda c: (not c[2].converged, c[2].objective))
+    rejected: list[tuple[str, float | None, BeamSki]] = []
 
-    candidates = run_paths(start)
+    def checked_projection(st: IdentifiedBeam, uniform_miss: float) -> BeamSki | None:
+        miss = float(st.extra["device_misfit_m"])
+        entry = {
+            "start": "projection",
+            "smoothing": float(st.extra["start_smoothing"]),
+            "own_model_misfit_m": float(st.misfit_m),
+            "device_misfit_m": miss,
+            "time_s": float(st.solve_time_s),
+            "used": True,
+            "note": "",
+        }
+        starts_report.append(entry)
+        if miss > START_RETRY_RATIO * noise and miss > uniform_miss:
+            entry["used"] = False
+            entry["note"] = (
+                f"not used: fits its own model to {st.misfit_m * 1e6:.2f} µm but its beam "
+                f"misses the cases on the device model by {miss * 1e6:.1f} µm "
+                f"({miss / noise:.0f}× the noise, more than {START_RETRY_RATIO:g}× and more "
+                f"than the uniform-EI start's {uniform_miss * 1e6:.1f} µm)"
+            )
+            rejected.append(("projection", entry["smoothing"], st.beam))
+            return None
+        return st.beam
+
+    t_u = time.perf_counter()
+    u_beam, u_miss, u_source = uniform_start()
+    jobs: list[tuple[str, float | None, BeamSki]] = []
+    p_beam = checked_projection(start, u_miss)
+    if p_beam is not None and "projection" in starts:
+        jobs.append(("projection", float(start.extra["start_smoothing"]), p_beam))
+    u_entry = {
+        "start": "uniform",
+        "smoothing": None,
+        "device_misfit_m": u_miss,
+        "time_s": time.perf_counter() - t_u,
+        "used": True,
+        "note": f"c from {u_source}, EI {u_beam.bending_stiffness_nm2[0]:.0f} N·m² uniform "
+        "(line search on the device model)",
+    }
+    starts_report.append(u_entry)
+    if u_miss > START_DROP_RATIO * noise:
+        u_entry["used"] = False
+        u_entry["note"] += (
+            f"; not used: misses by {u_miss * 1e6:.0f} µm, more than {START_DROP_RATIO:g}× "
+            "the noise"
+        )
+        rejected.append(("uniform", None, u_beam))
+    elif "uniform" in starts:
+        jobs.append(("uniform", None, u_beam))
+    no_start_used = not jobs
+    if no_start_used:  # every start missed by far: the forward fit still runs, from them all
+        jobs, rejected = rejected, []
+
+    forward = functools.partial(
+        fit_forward,
+        x,
+        loads,
+        xfs,
+        y,
+        noise_m=noise,
+        stiffness_knots_m=start.knots_m,
+        smoothing=smoothing,
+        camber_spacing_m=camber_spacing_m,
+        kinks_m=kinks_m,
+        max_steps=max_steps,
+    )
+
+    def run_all(todo: list[tuple[str, float | None, BeamSki]]) -> list[tuple]:
+        """Every (start, path) forward fit, side by side through ``path_map`` when given."""
+        work = [(label, sm, beam, sp) for label, sm, beam in todo for sp in paths]
+        if callback is not None:
+            callback(0.2, f"{len(work)} forward fits ({len(todo)} starts × {len(paths)} paths)")
+        args = [(functools.partial(forward, start=beam), sp) for _, _, beam, sp in work]
+        if path_map is not None and len(work) > 1:
+            fits = list(path_map(_forward_path, args))
+        else:
+            fits = [_forward_path(a) for a in args]
+        return [(sp, sm, label, fit) for (label, sm, _, sp), fit in zip(work, fits, strict=True)]
+
+    def best(cands: list[tuple]) -> tuple:
+        finite = [c for c in cands if np.isfinite(c[3].objective)] or cands
+        return min(finite, key=lambda c: (not c[3].converged, c[3].objective))
+
+    candidates = run_all(jobs)
     restarted = False
-    # a global step on demand: every path from this start may end in one wrong basin (measured
-    # on the 'soft' test design from 94 cases: 1.007-1.03 x the noise, held-out 0.6-0.95 um,
-    # areas up to 8.6 % off, the basin flipped by rounding the data to 0.1 um). A fit that
-    # stays RESTART_SIGMAS standard deviations above the noise is redone from a start with a stiffer
-    # prior (RESTART_SMOOTHING_FACTOR), and the lowest objective of all paths is kept; fits
-    # at the noise (the demo skis, 'stiff') never pay for it, nor do fits beyond MISFIT_LIMIT
-    # (data that are not one beam: redoing them doubles the time of a failure)
+    # a global step on demand: every path from these starts may end in one wrong basin
+    # (measured on the 'soft' test design from 94 cases: 1.007-1.03 x the noise, held-out
+    # 0.6-0.95 um). A fit that stays RESTART_SIGMAS standard deviations above the noise is redone
+    # from a projection start with a stiffer prior (RESTART_SMOOTHING_FACTOR), and the lowest
+    # objective of all paths is kept; fits at the noise never pay for it. Fits beyond
+    # MISFIT_LIMIT are redone too: "not one beam" is claimed only after several starts
     if (
         start_smoothing is None
-        and (1.0 + RESTART_SIGMAS / np.sqrt(2.0 * y.size)) * noise
-        < best(candidates)[2].misfit_m
-        <= MISFIT_LIMIT * noise
+        and (1.0 + RESTART_SIGMAS / np.sqrt(2.0 * y.size)) * noise < best(candidates)[3].misfit_m
         and RESTART_SMOOTHING_FACTOR * smoothing != sm0
     ):
         if callback is not None:
             callback(0.6, "misfit above the noise: a second start with a stiffer prior")
         start2 = make_start(RESTART_SMOOTHING_FACTOR * smoothing)
         if np.isfinite(start2.log_compliance).all():
-            restarted = True
-            more = run_paths(start2)
-            if best(more)[2].objective < best(candidates)[2].objective:
-                start = start2
-            candidates += more
-    chosen_spacing, chosen_sm, fwd = best(candidates)
+            beam2 = checked_projection(start2, u_miss)
+            if beam2 is not None:
+                restarted = True
+                candidates += run_all([("projection", RESTART_SMOOTHING_FACTOR * smoothing, beam2)])
+    # "not one beam" rests on several starts: a failing fit from fewer than two starts is
+    # tried again from the starts the device check set aside
+    tried_rejected = False
+    if (
+        best(candidates)[3].misfit_m > MISFIT_LIMIT * noise
+        and len({(c[2], c[1]) for c in candidates}) < 2
+        and rejected
+    ):
+        tried_rejected = True
+        candidates += run_all(rejected)
+    chosen_spacing, chosen_sm, chosen_start, fwd = best(candidates)
     nc = fwd.camber_coefficients.size
     cov_g = fwd.covariance[nc:, nc:]
     phi = hats(x, start.knots_m)
     bc, _ = camber_basis(x, camber_spacing_m, fwd.kinks_m)
     cov_c = fwd.covariance[:nc, :nc]
     camber_sd = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", bc, cov_c, bc), 0.0))
+    spread, per_candidate = _candidate_spread(x, fwd, [c[3] for c in candidates])
     ok, reason = True, ""
+    converged = [c for c in candidates if c[3].converged and np.isfinite(c[3].misfit_m)]
+    n_starts = len({(c[2], c[1]) for c in candidates})
     if fwd.misfit_m > MISFIT_LIMIT * noise and fwd.misfit_m > 1e-6:
         ok = False
-        reason = (
-            f"misfit {fwd.misfit_m * 1e6:.2f} µm is {fwd.misfit_m / noise:.1f}× the device noise "
-            f"{noise * 1e6:.2f} µm: the cases are not explained by one beam (sides differ, the "
-            "device has systematic errors, or the ski is not a clean beam)"
-        )
+        n_conv_starts = len({(c[2], c[1]) for c in converged})
+        if n_conv_starts >= 2 and all(c[3].misfit_m > MISFIT_LIMIT * noise for c in converged):
+            reason = (
+                f"misfit {fwd.misfit_m * 1e6:.2f} µm is {fwd.misfit_m / noise:.1f}× the device "
+                f"noise {noise * 1e6:.2f} µm, and the fits from {n_conv_starts} different starts "
+                f"all stay above {MISFIT_LIMIT:g}× it: the cases are not explained by one beam "
+                "(sides differ, the device has systematic errors, or the ski is not a clean beam)"
+            )
+        elif no_start_used:
+            reason = (
+                "no start reached the forward fit's basin: every start's device model missed "
+                f"the cases by far ({_starts_summary(starts_report)}); the best fit ends at "
+                f"{fwd.misfit_m * 1e6:.2f} µm, {fwd.misfit_m / noise:.2f}× the device noise"
+            )
+        else:
+            reason = (
+                f"no start reached the forward fit's basin: the best of {len(candidates)} fits "
+                f"from {n_starts} start(s) ends at {fwd.misfit_m * 1e6:.2f} µm, "
+                f"{fwd.misfit_m / noise:.2f}× the device noise {noise * 1e6:.2f} µm "
+                f"({len(converged)} converged; {_starts_summary(starts_report)}); a beam may "
+                "still explain the cases"
+            )
     elif not fwd.converged:
         ok = False
-        reason = f"the forward fit did not converge: {fwd.message}"
+        reason = f"the forward fit did not converge after {fwd.iterations} steps: {fwd.message}"
     return IdentifiedBeam(
         beam=fwd.beam,
         ok=ok,
@@ -1065,15 +1203,20 @@ def identify_beam(
         solve_time_s=time.perf_counter() - t0,
         extra={
             "start_cases": int(sub.size),
+            "unloaded_cases": int(unloaded.sum()),
             "start_misfit_m": float(start.misfit_m),
             "start_time_s": float(start.solve_time_s),
             "start_device_misfit_m": float(start.extra.get("device_misfit_m", np.nan)),
             "start_stride": int(start.extra.get("start_stride", 1)),
+            "starts": starts_report,
+            "start": chosen_start,
             "forward_coarse_spacing_m": chosen_spacing,
             "start_smoothing": chosen_sm,
             "restarted": restarted,
+            "tried_rejected_starts": tried_rejected,
             "forward_candidates": [
                 {
+                    "start": label,
                     "coarse_spacing_m": sp,
                     "start_smoothing": sm,
                     "objective": float(f.objective),
@@ -1081,9 +1224,11 @@ def identify_beam(
                     "converged": bool(f.converged),
                     "steps": int(f.iterations),
                     "time_s": float(f.solve_time_s),
+                    **d,
                 }
-                for sp, sm, f in candidates
+                for (sp, sm, label, f), d in zip(candidates, per_candidate, strict=True)
             ],
+            "candidate_spread": spread,
             "forward_steps": int(fwd.iterations),
             "forward_message": fwd.message,
             "forward_time_s": float(fwd.solve_time_s),
@@ -1096,6 +1241,102 @@ def identify_beam(
         camber_coefficients=fwd.camber_coefficients,
         parameter_covariance=fwd.covariance,
     )
+
+
+def _starts_summary(report: list[dict]) -> str:
+    """One phrase per start: its name and how far its device model missed [µm]."""
+    return ", ".join(
+        f"{e['start']} start {e['device_misfit_m'] * 1e6:.1f} µm"
+        + ("" if e["used"] else " (not used)")
+        for e in report
+    )
+
+
+#: the middle of the ski where candidate beams are compared: the middle half of the nodes
+SPREAD_MIDDLE_FRACTION = 0.5
+
+
+def _candidate_spread(x: np.ndarray, chosen: ForwardFit, fits: list[ForwardFit]):
+    """How far apart the converged forward fits are: per fit, max |Δc| [m] and max |Δ log EI|
+    [-] against the chosen fit over the middle half of the ski; overall, the range of misfits
+    [m] and objectives [-] and the largest beam distances among converged fits."""
+    span = x[-1] - x[0]
+    mid = np.abs(x - 0.5 * (x[0] + x[-1])) <= 0.5 * SPREAD_MIDDLE_FRACTION * span
+    c0 = chosen.beam.unloaded_gap_m[mid]
+    le0 = np.log(chosen.beam.bending_stiffness_nm2[mid])
+    per = []
+    for f in fits:
+        dc = float(np.max(np.abs(f.beam.unloaded_gap_m[mid] - c0)))
+        dl = float(np.max(np.abs(np.log(f.beam.bending_stiffness_nm2[mid]) - le0)))
+        per.append({"max_dc_middle_m": dc, "max_dlog_ei_middle": dl})
+    conv = [(f, d) for f, d in zip(fits, per, strict=True) if f.converged]
+    if not conv:
+        return {"converged": 0}, per
+    mis = [f.misfit_m for f, _ in conv]
+    obj = [f.objective for f, _ in conv]
+    return {
+        "converged": len(conv),
+        "misfit_min_m": float(min(mis)),
+        "misfit_max_m": float(max(mis)),
+        "objective_min": float(min(obj)),
+        "objective_range": float(max(obj) - min(obj)),
+        "max_dc_middle_m": float(max(d["max_dc_middle_m"] for _, d in conv)),
+        "max_dlog_ei_middle": float(max(d["max_dlog_ei_middle"] for _, d in conv)),
+        "middle_m": [float(x[mid][0]), float(x[mid][-1])],
+    }, per
+
+
+def _device_misfit(beam: BeamSki, loads: np.ndarray, xfs: np.ndarray, y: np.ndarray) -> float:
+    """RMS [m] of the beam's device model (exact contact solves) against measured cases."""
+    return float(np.sqrt(np.mean((predict_gaps(beam, loads, xfs) - y) ** 2)))
+
+
+#: the uniform-stiffness start: a line search of one EI [N·m²] on the device model, with c
+#: fixed (from the unloaded profile when measured), on at most LINE_SEARCH_CASES loaded cases
+#: and nodes about LINE_SEARCH_SPACING_M [m] apart (a start only has to land in the basin)
+LINE_SEARCH_CASES = 12
+LINE_SEARCH_SPACING_M = 0.004
+LINE_SEARCH_EI_NM2 = (10.0, 1.0e5)
+
+
+def _uniform_stiffness_start(
+    x: np.ndarray, loads: np.ndarray, xfs: np.ndarray, y: np.ndarray, camber_m: np.ndarray
+) -> BeamSki:
+    """A start that needs no variable projection: c(X) given (the unloaded profile), EI
+    uniform, its value the minimum of the device model's misfit over a log grid refined by a
+    bounded scalar search (LINE_SEARCH_*)."""
+    from scipy.optimize import minimize_scalar
+
+    idx = np.flatnonzero(loads > 0)
+    if idx.size > LINE_SEARCH_CASES:
+        idx = idx[np.unique(np.linspace(0, idx.size - 1, LINE_SEARCH_CASES).round().astype(int))]
+    dx = float(x[1] - x[0])
+    stride = max(1, min(round(LINE_SEARCH_SPACING_M / dx), (x.size - 1) // 200))
+    xs = x[::stride]
+    cs = camber_on_flat(xs, np.asarray(camber_m, dtype=float)[::stride])
+    ys = y[idx][:, ::stride]
+    warm: dict[int, np.ndarray] = {}
+
+    def miss(log_ei: float) -> float:
+        beam = BeamSki(xs, np.full(xs.size, 10.0**log_ei), cs)
+        flex = BeamFlexibility(beam)
+        sq = 0.0
+        for j, k in enumerate(idx):
+            res = solve_beam_contact(
+                beam, loads[k], xfs[k], flexibility=flex, initial_contacts=warm.get(j)
+            )
+            warm[j] = np.flatnonzero(res.reaction_n > 0)
+            sq += float(np.sum((res.gap_m - ys[j]) ** 2))
+        return sq
+
+    lo, hi = np.log10(LINE_SEARCH_EI_NM2[0]), np.log10(LINE_SEARCH_EI_NM2[1])
+    grid = np.linspace(lo, hi, 13)
+    vals = [miss(g) for g in grid]
+    i = int(np.argmin(vals))
+    a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    res = minimize_scalar(miss, bounds=(a, b), method="bounded", options={"xatol": 0.005})
+    best_log = float(res.x) if res.fun < vals[i] else float(grid[i])
+    return BeamSki(x, np.full(x.size, 10.0**best_log), camber_on_flat(x, camber_m))
 
 
 def _beam_of(x: np.ndarray, prob: _Problem, fit: _Fit) -> BeamSki:
@@ -1200,9 +1441,15 @@ def profile_sigma(
     Gauss–Newton covariance: ``draws`` plausible beams (:func:`sample_beams`) solved for every
     case (F_k, x_k), the spread about the identified beam's own profile taken where that
     profile is within ``contact_band_m`` of the flat (where the apparent contact is decided),
-    RMS over the cases; nodes never near contact get the median of the others. (N,)"""
+    RMS over the cases; nodes never near contact get the median of the others; cases of 0 N
+    (the unloaded profile) are left out. (N,)"""
     loads = np.atleast_1d(np.asarray(loads_n, dtype=float))
     pos = np.atleast_1d(np.asarray(load_positions_m, dtype=float))
+    _check_loads(loads)
+    # the loaded profile's spread: an unloaded case (0 N) is not a loaded profile
+    pos, loads = pos[loads > 0], loads[loads > 0]
+    if loads.size == 0:
+        raise InputError("profile_sigma needs at least one loaded case (> 0 N)")
     nominal = predict_gaps(ident.beam, loads, pos)
     near = nominal < contact_band_m
     sq = np.zeros(nominal.shape)
@@ -1218,13 +1465,18 @@ def profile_sigma(
 
 
 def predict_gaps(beam: BeamSki, loads_n: np.ndarray, load_positions_m: np.ndarray) -> np.ndarray:
-    """Loaded gaps (K, N) [m] of ``beam`` on the rigid flat for each case (the device model)."""
+    """Loaded gaps (K, N) [m] of ``beam`` on the rigid flat for each case (the device model). A
+    case of 0 N is the unloaded profile: the camber resting on the flat (x_F ignored)."""
     flex = BeamFlexibility(beam)
     loads = np.atleast_1d(np.asarray(loads_n, dtype=float))
     pos = np.atleast_1d(np.asarray(load_positions_m, dtype=float))
     out = np.empty((loads.size, beam.positions_m.size))
+    _check_loads(loads)
     for k, (f, xf) in enumerate(zip(loads, pos, strict=True)):
-        out[k] = solve_beam_contact(beam, f, xf, flexibility=flex).gap_m
+        if f == 0.0:  # the unloaded profile: the camber on the flat, x_F ignored
+            out[k] = camber_on_flat(beam.positions_m, beam.unloaded_gap_m)
+        else:
+            out[k] = solve_beam_contact(beam, f, xf, flexibility=flex).gap_m
     return out
 
 
@@ -1249,19 +1501,32 @@ def identify_beam_checked(
     ``HELD_OUT_LIMIT`` × the noise. Returns the identification (``ok=False`` with the reason
     when the check fails) and the check's figures (held-out RMS [m], count, indices, seed).
     ``held_out_index`` (indices into the cases), if given, is the held-out choice instead of
-    the draw (a ski job holds the same cases out of its camber network).
+    the draw (a ski job holds the same cases out of its camber network). A case of 0 N (the
+    unloaded profile) is never held out.
     """
     loads = np.asarray(loads_n, dtype=float).ravel()
     xfs = np.asarray(load_positions_m, dtype=float).ravel()
     y = np.asarray(profiles_m, dtype=float)
     if not (0.0 <= holdout < 0.9):
         raise InputError(f"holdout must be in [0, 0.9), got {holdout!r}")
+    _check_loads(loads)
+    # the unloaded profile (0 N) is never held out: it is always used for the fit (it pins c);
+    # without one the draw is the one it always was
+    loaded_idx = np.flatnonzero(loads > 0)
     held = np.zeros(loads.size, dtype=bool)
-    count = round(holdout * loads.size)
+    count = round(holdout * loaded_idx.size)
     if held_out_index is not None:
-        held[np.asarray(held_out_index, dtype=int)] = True
+        index = np.asarray(held_out_index, dtype=int).ravel()
+        if index.size and (index.min() < 0 or index.max() >= loads.size):
+            raise InputError(f"held_out_index must lie in [0, {loads.size}), got {index.tolist()}")
+        if np.any(loads[index] == 0):
+            raise InputError(
+                "held_out_index names the unloaded profile (0 N): it is never held out"
+            )
+        held[index] = True
     elif count:
-        held[np.random.default_rng(seed).choice(loads.size, count, replace=False)] = True
+        pick = np.random.default_rng(seed).choice(loaded_idx.size, count, replace=False)
+        held[loaded_idx[pick]] = True
     ident = identify_beam(positions_m, loads[~held], xfs[~held], y[~held], **kwargs)
     check = {
         "held_out_cases": int(held.sum()),

@@ -188,23 +188,24 @@ def _identify(data, item, callback=None, held_out_index=None) -> tuple[dict, str
     identification's progress (the job shows it; minutes on a loaded machine).
     ``held_out_index``: the job's held-out cases (indices into the cases of
     :func:`app.storage.skis.mean_profiles`), not identified, the check's cases."""
-    from skisnow.app.path_pool import path_pool
+    from skisnow.app.path_pool import identify_with_pool
     from skisnow.app.service.profiles import identification_group
     from skisnow.app.storage.skis import mean_profiles
     from skisnow.solvers.identify import identify_beam_checked
 
     try:
         f, xf, y, note = mean_profiles(data)
-        with path_pool() as pmap:
-            ident, check = identify_beam_checked(
-                data.positions_m,
-                f,
-                xf,
-                y,
-                held_out_index=held_out_index,
-                callback=callback,
-                path_map=pmap,
-            )
+        # thread counts fixed (this process and the workers): the same data and seed give
+        # the same beam whatever the machine's BLAS default (#26)
+        ident, check = identify_with_pool(
+            identify_beam_checked,
+            data.positions_m,
+            f,
+            xf,
+            y,
+            held_out_index=held_out_index,
+            callback=callback,
+        )
     except SkisnowError as exc:
         reason = f"beam not identified: {exc}"
         failed = {"attrs": {"ok": False, "reason": reason, **provenance({"item": item.id})}}

@@ -72,3 +72,47 @@ def test_gradient_matches_finite_differences():
         down[i] -= h
         fd = (model.evaluate(up, False)[0] - model.evaluate(down, False)[0]) / (2 * h)
         assert 0.5 * fd == pytest.approx(jtr[i], rel=2e-3, abs=1e-6 * np.abs(jtr).max())
+
+
+def test_unloaded_case_is_the_camber_on_the_flat_with_its_exact_jacobian():
+    """A 0 N case is the unloaded profile (#26): its device model is c resting on its two end
+    contacts (no deflection, no contact solve), its residual enters the sum, and its Jᵀρ and
+    JᵀJ (c's block only; γ does not move it) match central differences."""
+    ski = DESIGN.build(4e-3)
+    x = ski.positions_m
+    f, xf, y = measure_camber(ski, LOADS_N[::3], POSITIONS_M[::2], noise_m=3e-6, rng=6)
+    y0 = ski.unloaded_gap_m + np.random.default_rng(1).normal(0.0, 3e-6, x.size)
+    bc, _ = beam_fit.camber_basis(x, 0.02, np.array([DESIGN.tail_contact_m, DESIGN.tip_contact_m]))
+    knots = np.linspace(x[0], x[-1], 21)
+    cc = np.linalg.lstsq(bc, ski.unloaded_gap_m, rcond=None)[0]
+    gamma = np.log(1.0 / np.interp(knots, x, ski.bending_stiffness_nm2))
+    theta = np.concatenate([cc + 2e-6 * np.cos(np.arange(cc.size)), gamma])
+    one = beam_fit._Model(x, np.zeros(1), np.zeros(1), y0[None, :], 3e-6, bc, knots, 10.0)
+    ssr, _per, jtj, jtr, ok = one.evaluate(theta, jacobian=True)
+    assert ok
+    gap = beam_fit.camber_on_flat(x, bc @ theta[: bc.shape[1]])
+    assert ssr == pytest.approx(float(np.sum((gap - y0) ** 2)), rel=1e-12)
+    nc = bc.shape[1]
+    assert np.all(jtr[nc:] == 0) and np.all(jtj[nc:] == 0)
+    # the Jacobian by differences (the supports do not move for these small steps)
+    h = 1e-10
+    jac = np.empty((x.size, nc))
+    for i in range(nc):
+        up, down = theta.copy(), theta.copy()
+        up[i] += h
+        down[i] -= h
+        jac[:, i] = (
+            beam_fit.camber_on_flat(x, bc @ up[:nc]) - beam_fit.camber_on_flat(x, bc @ down[:nc])
+        ) / (2 * h)
+    np.testing.assert_allclose(jtr[:nc], jac.T @ (gap - y0), atol=1e-6 * np.abs(jtr).max())
+    np.testing.assert_allclose(jtj[:nc, :nc], jac.T @ jac, atol=1e-6 * np.abs(jtj).max())
+    # with the loaded cases: the sum of both parts
+    both = beam_fit._Model(
+        x, np.r_[0.0, f], np.r_[0.0, xf], np.vstack([y0, y]), 3e-6, bc, knots, 10.0
+    )
+    loaded = beam_fit._Model(x, f, xf, y, 3e-6, bc, knots, 10.0)
+    s2, _, jtj2, jtr2, _ = both.evaluate(theta, jacobian=True)
+    s3, _, jtj3, jtr3, _ = loaded.evaluate(theta, jacobian=True)
+    assert s2 == pytest.approx(ssr + s3, rel=1e-12)
+    np.testing.assert_allclose(jtr2, jtr + jtr3, atol=1e-9 * np.abs(jtr2).max())
+    np.testing.assert_allclose(jtj2, jtj + jtj3, atol=1e-9 * np.abs(jtj2).max())

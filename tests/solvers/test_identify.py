@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from skisnow.solvers import identify
 from skisnow.solvers.beam import OTHER_DESIGNS, measure_camber, solve_beam_contact
+from skisnow.solvers.beam_fit import camber_on_flat
 from skisnow.solvers.errors import InputError
 
 LOADS_N = np.linspace(10, 90, 7) * 9.82
@@ -37,10 +38,11 @@ def _held_out(ski, beam, seed, count=12):
 
 _EI_XFAIL = pytest.mark.xfail(
     strict=True,
-    reason="EI(X) in the middle from 42 noise-free cases on a 4 mm grid: 5 % off ('stiff') and "
-    "15 % off ('soft') while held-out profiles agree to 1 um; the forward fit stalls on the "
-    "small smooth pieces of the discrete contact model (issue #12; the demo skis' 340 cases at "
-    "1 mm give EI within 1-2 % in the middle)",
+    reason="EI(X) in the middle from 42 noise-free cases on a 4 mm grid: 15 % off ('soft') "
+    "while held-out profiles agree to 1 um; the forward fit stalls on the small smooth pieces "
+    "of the discrete contact model (issue #12; the demo skis' 340 cases at 1 mm give EI within "
+    "1-2 % in the middle). 'stiff' (5 % off from one start) is within 3 % since the fits run "
+    "from several starts (#26)",
 )
 
 
@@ -56,7 +58,7 @@ def test_noise_free_profiles(name):
     assert np.sqrt(np.mean((pred - truth)[near] ** 2)) < 1.5e-6
 
 
-@pytest.mark.parametrize("name", [pytest.param(n, marks=_EI_XFAIL) for n in ("soft", "stiff")])
+@pytest.mark.parametrize("name", [pytest.param("soft", marks=_EI_XFAIL), "stiff"])
 def test_noise_free_stiffness(name):
     ski, ident = _identified(name, 4e-3, 0.0, None, 3e-6)
     mid = np.abs(ski.positions_m) < 0.25
@@ -227,11 +229,10 @@ def test_forward_paths_side_by_side_give_the_same_beam():
     with path_pool(2) as pmap:
         assert pmap is not None
         pooled = run(path_map=pmap)
-    assert len(here.extra["forward_candidates"]) == 2
-    assert (
-        here.extra["forward_candidates"][0]["coarse_spacing_m"]
-        != (here.extra["forward_candidates"][1]["coarse_spacing_m"])
-    )
+    # every start (projection, uniform) on both paths
+    cands = here.extra["forward_candidates"]
+    assert len(cands) == 2 * len({c["start"] for c in cands}) >= 4
+    assert {c["coarse_spacing_m"] for c in cands} == {0.004, 0.0}
     for a, b in zip(
         here.extra["forward_candidates"], pooled.extra["forward_candidates"], strict=True
     ):
@@ -263,13 +264,181 @@ def test_a_fit_above_the_noise_is_redone_from_a_stiffer_start(monkeypatch):
     again = _restart_run(monkeypatch, -1e9)
     cands = again.extra["forward_candidates"]
     assert again.extra["restarted"] is True
-    factors = sorted(c["start_smoothing"] / identify.DEFAULT_SMOOTHING for c in cands)
+    # both projection starts were made and checked on the device model (a start that misses
+    # by far runs no fit; see test_a_start_whose_device_model_misses_by_far_is_not_used)
+    factors = sorted(
+        s["smoothing"] / identify.DEFAULT_SMOOTHING
+        for s in again.extra["starts"]
+        if s["start"] == "projection"
+    )
     assert factors == pytest.approx(
         [identify.START_SMOOTHING_FACTOR, identify.RESTART_SMOOTHING_FACTOR]
     )
+    used = {
+        s["smoothing"] for s in again.extra["starts"] if s["start"] == "projection" and s["used"]
+    }
+    assert {c["start_smoothing"] for c in cands if c["start"] == "projection"} == used
     kept = min(cands, key=lambda c: (not c["converged"], c["objective"]))
     assert again.extra["start_smoothing"] == kept["start_smoothing"]
     assert again.misfit_m == pytest.approx(kept["misfit_m"], rel=1e-12)
     once = _restart_run(monkeypatch, 1e9)
     assert once.extra["restarted"] is False
-    assert len(once.extra["forward_candidates"]) == 1
+    assert {s["start"] for s in once.extra["starts"]} == {"projection", "uniform"}
+    used = [s["start"] for s in once.extra["starts"] if s["used"]]
+    assert [c["start"] for c in once.extra["forward_candidates"]] == used
+
+
+# ----------------------------------------------------------------- #26: the unloaded profile,
+# several starts checked on the device model, honest failure
+
+
+def _with_unloaded(ski, f, xf, y, seed):
+    """The cases plus the unloaded profile: the camber on the flat plus 3 µm noise (the device
+    model of 0 N; on these coarse grids a ClassicSkiDesign's sampled camber does not touch
+    zero, min 2.6 µm at 4 mm, so measure_unloaded's raw camber would carry a line)."""
+    y0 = identify.predict_gaps(ski, np.zeros(1), np.zeros(1))[0]
+    y0 = y0 + np.random.default_rng(seed).normal(0.0, 3e-6, y0.size)
+    return np.r_[0.0, f], np.r_[0.0, xf], np.vstack([y0, y])
+
+
+def test_unloaded_case_through_predict_gaps_and_identify_start():
+    """A 0 N case is the unloaded profile: predict_gaps answers the camber on the flat (x_F
+    ignored), identify_start fits it (no 'loads_n must be > 0'); a negative load is still an
+    error that names it."""
+    ski, f, xf, y = _data(DESIGNS["stiff"], 4e-3, 3e-6, 5)
+    g = identify.predict_gaps(ski, np.array([0.0, f[0]]), np.array([0.55, xf[0]]))
+    np.testing.assert_array_equal(g[0], camber_on_flat(ski.positions_m, ski.unloaded_gap_m))
+    assert g[0].min() == 0.0
+    np.testing.assert_allclose(g[1], solve_beam_contact(ski, f[0], xf[0]).gap_m)
+    f0, xf0, y0 = _with_unloaded(ski, f, xf, y, 6)
+    start = identify.identify_start(ski.positions_m, f0, xf0, y0)
+    assert start.ok, start.reason
+    assert start.case_misfit_m.size == f0.size
+    assert start.case_misfit_m[0] < 1.5 * start.noise_m  # c + a line fits the unloaded profile
+    with pytest.raises(InputError, match="loads_n must be > 0"):
+        identify.predict_gaps(ski, np.array([-1.0]), np.array([0.0]))
+    with pytest.raises(InputError, match="loads_n must be > 0"):
+        identify.identify_start(ski.positions_m, np.r_[-1.0, f[1:]], xf, y)
+
+
+def test_uniform_start_takes_c_from_the_unloaded_profile_and_finds_ei():
+    """The unloaded-profile start: c is the measured unloaded profile (on the flat) and a
+    uniform EI comes from a line search of the device model; on a uniform beam, noise-free,
+    it finds that EI (grid 13 points per 4 decades refined to 0.005 in log10)."""
+    d = DESIGNS["stiff"].build(4e-3)
+    ski = identify.BeamSki(d.positions_m, np.full(d.positions_m.size, 1700.0), d.unloaded_gap_m)
+    f, xf, y = measure_camber(ski, LOADS_N[::2], POSITIONS_M[::2], noise_m=0.0)
+    start = identify._uniform_stiffness_start(ski.positions_m, f, xf, y, ski.unloaded_gap_m)
+    assert start.bending_stiffness_nm2 == pytest.approx(1700.0, rel=0.03)
+    np.testing.assert_allclose(
+        start.unloaded_gap_m, camber_on_flat(ski.positions_m, ski.unloaded_gap_m), atol=1e-12
+    )
+
+
+@functools.lru_cache(maxsize=2)
+def _with_unloaded_identified(seed=5):
+    ski, f, xf, y = _data(DESIGNS["stiff"], 4e-3, 3e-6, seed)
+    f0, xf0, y0 = _with_unloaded(ski, f, xf, y, seed + 1)
+    return ski, identify.identify_beam(ski.positions_m, f0, xf0, y0)
+
+
+def test_several_starts_are_checked_run_and_reported():
+    """identify_beam with an unloaded case: two starts (projection, uniform from the unloaded
+    profile), each checked on the device model and reported; every (start, path) fit is a
+    candidate; the lowest objective is kept; how far apart the converged candidates are is
+    reported (misfits, objectives, max |Δc| and |Δ log EI| in the middle of the ski)."""
+    _ski, ident = _with_unloaded_identified()
+    assert ident.ok, ident.reason
+    assert ident.extra["unloaded_cases"] == 1
+    starts = {s["start"]: s for s in ident.extra["starts"]}
+    assert set(starts) == {"projection", "uniform"}
+    assert "unloaded profile" in starts["uniform"]["note"]
+    assert all(np.isfinite(s["device_misfit_m"]) for s in starts.values())
+    cands = ident.extra["forward_candidates"]
+    assert {c["start"] for c in cands} == {"projection", "uniform"}
+    kept = min((c for c in cands if c["converged"]), key=lambda c: c["objective"])
+    assert ident.misfit_m == pytest.approx(kept["misfit_m"], rel=1e-12)
+    assert kept["max_dc_middle_m"] == 0.0 and kept["max_dlog_ei_middle"] == 0.0
+    spread = ident.extra["candidate_spread"]
+    assert spread["converged"] >= 2
+    assert spread["misfit_min_m"] == pytest.approx(ident.misfit_m, rel=1e-12)
+    assert spread["objective_range"] >= 0 and spread["max_dc_middle_m"] >= 0
+    assert spread["max_dlog_ei_middle"] == max(
+        c["max_dlog_ei_middle"] for c in cands if c["converged"]
+    )
+    # the unloaded case is fitted like the others: its residual is at the noise
+    assert ident.case_misfit_m[0] < 1.5 * ident.noise_m
+
+
+def test_a_start_whose_device_model_misses_by_far_is_not_used(monkeypatch):
+    """A projection start that fits its own model but whose beam, solved on the device model,
+    misses the cases by far (constructed: its EI × 1000, the failure #26 measured: 1221 µm)
+    is not used; the reason is recorded and the fit comes from the other start."""
+    real = identify.identify_start
+
+    def stiff_start(*args, **kwargs):
+        out = real(*args, **kwargs)
+        b = out.beam
+        out.beam = identify.BeamSki(b.positions_m, 1e3 * b.bending_stiffness_nm2, b.unloaded_gap_m)
+        return out
+
+    monkeypatch.setattr(identify, "identify_start", stiff_start)
+    ski, f, xf, y = _data(DESIGNS["stiff"], 4e-3, 3e-6, 5)
+    f0, xf0, y0 = _with_unloaded(ski, f, xf, y, 6)
+    ident = identify.identify_beam(ski.positions_m, f0, xf0, y0, max_steps=5)
+    proj = [s for s in ident.extra["starts"] if s["start"] == "projection"]
+    assert proj and not any(s["used"] for s in proj)
+    assert "device model" in proj[0]["note"] and "not used" in proj[0]["note"]
+    assert proj[0]["device_misfit_m"] > 100 * ident.noise_m
+    assert {c["start"] for c in ident.extra["forward_candidates"]} == {"uniform"}
+
+
+def test_failure_names_its_cause(monkeypatch):
+    """Honest failure (#26): with one start only, a fit above the limit is 'no start reached
+    the forward fit's basin', never 'not one beam'; 'not one beam' needs fits from several
+    starts all above the limit (forced here by a limit below the noise)."""
+    monkeypatch.setattr(identify, "MISFIT_LIMIT", 0.5)
+    ski, f, xf, y = _data(DESIGNS["stiff"], 4e-3, 3e-6, 5)
+    f0, xf0, y0 = _with_unloaded(ski, f, xf, y, 6)
+    one = identify.identify_beam(
+        ski.positions_m, f0, xf0, y0, starts=("projection",), start_smoothing=100.0, max_steps=8
+    )
+    assert not one.ok
+    assert "no start reached the forward fit's basin" in one.reason
+    assert "not explained by one beam" not in one.reason
+    several = identify.identify_beam(ski.positions_m, f0, xf0, y0, max_steps=8)
+    assert not several.ok
+    conv = {(c["start"], c["start_smoothing"]) for c in several.extra["forward_candidates"]}
+    if len(conv) >= 2 and all(c["converged"] for c in several.extra["forward_candidates"]):
+        assert "not explained by one beam" in several.reason
+        assert "different starts" in several.reason
+    else:
+        assert "no start reached" in several.reason or "did not converge" in several.reason
+
+
+def test_the_unloaded_case_is_never_held_out():
+    """identify_beam_checked draws the held-out cases among the loaded ones; without an
+    unloaded case the draw is the one it always was (stored identifications keep theirs)."""
+    n = 30
+    for seed in range(5):
+        f = np.r_[0.0, np.linspace(100, 800, n - 1)]
+        held = _held_index(f, seed)
+        assert 0 not in held and len(held) == round(0.2 * (n - 1))
+    f = np.linspace(100, 800, n)
+    assert _held_index(f, 3) == sorted(
+        np.random.default_rng(3).choice(n, round(0.2 * n), replace=False).tolist()
+    )
+
+
+def _held_index(f, seed):
+    """The held-out indices identify_beam_checked draws (the identification itself stubbed)."""
+    import unittest.mock
+
+    def fake(x, loads, xfs, y, **kw):
+        return unittest.mock.Mock(ok=False, reason="stub")
+
+    with unittest.mock.patch.object(identify, "identify_beam", fake):
+        _, check = identify.identify_beam_checked(
+            np.linspace(0, 1, 50), f, np.zeros(f.size), np.zeros((f.size, 50)), seed=seed
+        )
+    return check["held_out_index"]
