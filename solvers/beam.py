@@ -872,9 +872,12 @@ def measure_unloaded(
     """Virtual measuring device, the unloaded case (F = 0) real devices record first.
 
     With no load the ski rests on the flat on its two unloaded contacts, so the gap is the camber
-    c(X) itself (``ski.unloaded_gap_m``: ≥ 0, zero at the contacts), plus independent Gaussian
-    device noise of standard deviation ``noise_m`` at every node (not clipped), drawn from
-    ``rng`` as :func:`measure_camber` does.
+    on the flat (:func:`solvers.beam_fit.camber_on_flat` of ``ski.unloaded_gap_m``: ≥ 0, zero at
+    the two supports of its lower hull; c itself when c is zero at two nodes, as on fine grids —
+    a coarse sampling of a design may leave c a few µm above zero at its contacts), plus
+    independent Gaussian device noise of standard deviation ``noise_m`` at every node (not
+    clipped), drawn from ``rng`` as :func:`measure_camber` does. The same model as
+    :func:`solvers.identify.predict_gaps` for a 0 N case.
 
     Returns
     -------
@@ -885,7 +888,9 @@ def measure_unloaded(
         raise InputError(f"noise_m must be finite and >= 0, got {noise_m!r}")
     if noise_m > 0 and rng is None:
         raise InputError("rng (a numpy.random.Generator or a seed) is required when noise_m > 0")
-    gaps = ski.unloaded_gap_m.copy()
+    from .beam_fit import camber_on_flat  # beam_fit imports this module
+
+    gaps = camber_on_flat(ski.positions_m, ski.unloaded_gap_m)
     if noise_m > 0:
         gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
         gaps = gaps + gen.normal(0.0, noise_m, size=gaps.shape)
