@@ -8,7 +8,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from skisnow.app.path_pool import path_pool
+from skisnow.app.path_pool import identify_with_pool
 from skisnow.app.storage.skis import CamberData, mean_profiles
 from skisnow.solvers.errors import InputError
 from skisnow.solvers.identify import identify_beam_checked, predict_gaps
@@ -35,10 +35,17 @@ def identify_report(
         raise InputError(f"--holdout must be in [0, 0.9), got {holdout}")
     f, xf, y, sides_note = mean_profiles(data)
     t0 = time.perf_counter()
-    with path_pool() as pmap:
-        ident, check = identify_beam_checked(
-            data.positions_m, f, xf, y, holdout=holdout, seed=seed, callback=callback, path_map=pmap
-        )
+    # thread counts fixed as in the ski job: the same data and seed give the same beam
+    ident, check = identify_with_pool(
+        identify_beam_checked,
+        data.positions_m,
+        f,
+        xf,
+        y,
+        holdout=holdout,
+        seed=seed,
+        callback=callback,
+    )
     elapsed = time.perf_counter() - t0
     if keep is not None:
         keep.update(
