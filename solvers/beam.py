@@ -43,6 +43,8 @@ __all__ = [
     "BeamResult",
     "BeamSki",
     "ClassicSkiDesign",
+    "camber_on_flat",
+    "flat_supports",
     "measure_camber",
     "measure_unloaded",
     "solve_beam_contact",
@@ -809,6 +811,36 @@ OTHER_DESIGNS = {
 }
 
 
+def flat_supports(x: np.ndarray, c: np.ndarray) -> tuple[int, int]:
+    """The two nodes (i0 < i1) on which the unloaded camber ``c`` rests on the flat: the edge of
+    its lower convex hull that spans the middle of the ski (:func:`camber_on_flat`)."""
+    hull: list[int] = []
+    for i in range(x.size):
+        while len(hull) >= 2:
+            i0, i1 = hull[-2], hull[-1]
+            cross = (x[i1] - x[i0]) * (c[i] - c[i0]) - (c[i1] - c[i0]) * (x[i] - x[i0])
+            if cross <= 0:
+                hull.pop()
+            else:
+                break
+        hull.append(i)
+    mid = 0.5 * (x[0] + x[-1])
+    for i0, i1 in itertools.pairwise(hull):
+        if x[i0] <= mid <= x[i1]:
+            break
+    return int(i0), int(i1)
+
+
+def camber_on_flat(x: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """c minus the supporting line of its lower convex hull that spans the middle of the ski:
+    ≥ 0, zero at two nodes (the unloaded ski resting on the flat). Only c's shape matters to the
+    contact model; the line is a convention. It is also the device model of the unloaded case
+    (F = 0): the ski rests on its two end contacts and nothing deflects."""
+    i0, i1 = flat_supports(x, c)
+    slope = (c[i1] - c[i0]) / (x[i1] - x[i0])
+    return np.maximum(c - (c[i0] + slope * (x - x[i0])), 0.0)
+
+
 def measure_camber(
     ski: BeamSki,
     loads_n: np.ndarray,
@@ -872,7 +904,7 @@ def measure_unloaded(
     """Virtual measuring device, the unloaded case (F = 0) real devices record first.
 
     With no load the ski rests on the flat on its two unloaded contacts, so the gap is the camber
-    on the flat (:func:`solvers.beam_fit.camber_on_flat` of ``ski.unloaded_gap_m``: ≥ 0, zero at
+    on the flat (:func:`camber_on_flat` of ``ski.unloaded_gap_m``: ≥ 0, zero at
     the two supports of its lower hull; c itself when c is zero at two nodes, as on fine grids —
     a coarse sampling of a design may leave c a few µm above zero at its contacts), plus
     independent Gaussian device noise of standard deviation ``noise_m`` at every node (not
@@ -888,8 +920,6 @@ def measure_unloaded(
         raise InputError(f"noise_m must be finite and >= 0, got {noise_m!r}")
     if noise_m > 0 and rng is None:
         raise InputError("rng (a numpy.random.Generator or a seed) is required when noise_m > 0")
-    from .beam_fit import camber_on_flat  # beam_fit imports this module
-
     gaps = camber_on_flat(ski.positions_m, ski.unloaded_gap_m)
     if noise_m > 0:
         gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)

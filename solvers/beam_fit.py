@@ -38,7 +38,6 @@ Units: SI throughout (m, N, N·m²).
 
 from __future__ import annotations
 
-import itertools
 import time
 from dataclasses import dataclass, field
 
@@ -47,7 +46,7 @@ import scipy.linalg
 import scipy.sparse
 from scipy.interpolate import BSpline
 
-from .beam import BeamFlexibility, BeamSki, solve_beam_contact
+from .beam import BeamFlexibility, BeamSki, camber_on_flat, flat_supports, solve_beam_contact
 from .errors import InputError
 
 __all__ = [
@@ -213,36 +212,6 @@ def double_integral(kappa: np.ndarray, dx: float) -> np.ndarray:
     w = np.zeros_like(kappa)
     np.cumsum(dx * slope[..., :-1] + dx * dx * (2.0 * k0 + k1) / 6.0, axis=-1, out=w[..., 1:])
     return w
-
-
-def camber_on_flat(x: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """c minus the supporting line of its lower convex hull that spans the middle of the ski:
-    ≥ 0, zero at two nodes (the unloaded ski resting on the flat). Only c's shape matters to the
-    contact model; the line is a convention. It is also the device model of the unloaded case
-    (F = 0): the ski rests on its two end contacts and nothing deflects."""
-    i0, i1 = flat_supports(x, c)
-    slope = (c[i1] - c[i0]) / (x[i1] - x[i0])
-    return np.maximum(c - (c[i0] + slope * (x - x[i0])), 0.0)
-
-
-def flat_supports(x: np.ndarray, c: np.ndarray) -> tuple[int, int]:
-    """The two nodes (i0 < i1) on which the unloaded camber ``c`` rests on the flat: the edge of
-    its lower convex hull that spans the middle of the ski (:func:`camber_on_flat`)."""
-    hull: list[int] = []
-    for i in range(x.size):
-        while len(hull) >= 2:
-            i0, i1 = hull[-2], hull[-1]
-            cross = (x[i1] - x[i0]) * (c[i] - c[i0]) - (c[i1] - c[i0]) * (x[i] - x[i0])
-            if cross <= 0:
-                hull.pop()
-            else:
-                break
-        hull.append(i)
-    mid = 0.5 * (x[0] + x[-1])
-    for i0, i1 in itertools.pairwise(hull):
-        if x[i0] <= mid <= x[i1]:
-            break
-    return int(i0), int(i1)
 
 
 def _continuation(

@@ -1099,11 +1099,12 @@ def identify_beam(
         max_steps=max_steps,
     )
 
-    def run_all(todo: list[tuple[str, float | None, BeamSki]]) -> list[tuple]:
-        """Every (start, path) forward fit, side by side through ``path_map`` when given."""
+    def run_all(todo: list[tuple[str, float | None, BeamSki]], at: float = 0.2) -> list[tuple]:
+        """Every (start, path) forward fit, side by side through ``path_map`` when given;
+        ``at``: the progress fraction announced (rising: a progress bar never goes back)."""
         work = [(label, sm, beam, sp) for label, sm, beam in todo for sp in paths]
         if callback is not None:
-            callback(0.2, f"{len(work)} forward fits ({len(todo)} starts × {len(paths)} paths)")
+            callback(at, f"{len(work)} forward fits ({len(todo)} starts × {len(paths)} paths)")
         args = [(functools.partial(forward, start=beam), sp) for _, _, beam, sp in work]
         if path_map is not None and len(work) > 1:
             fits = list(path_map(_forward_path, args))
@@ -1135,7 +1136,9 @@ def identify_beam(
             beam2 = checked_projection(start2, u_miss)
             if beam2 is not None:
                 restarted = True
-                candidates += run_all([("projection", RESTART_SMOOTHING_FACTOR * smoothing, beam2)])
+                candidates += run_all(
+                    [("projection", RESTART_SMOOTHING_FACTOR * smoothing, beam2)], at=0.65
+                )
     # "not one beam" rests on several starts: a failing fit from fewer than two starts is
     # tried again from the starts the device check set aside
     tried_rejected = False
@@ -1145,7 +1148,9 @@ def identify_beam(
         and rejected
     ):
         tried_rejected = True
-        candidates += run_all(rejected)
+        if callback is not None:
+            callback(0.8, "no fit at the noise: the starts set aside are tried too")
+        candidates += run_all(rejected, at=0.85)
     chosen_spacing, chosen_sm, chosen_start, fwd = best(candidates)
     nc = fwd.camber_coefficients.size
     cov_g = fwd.covariance[nc:, nc:]

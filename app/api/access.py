@@ -48,6 +48,7 @@ __all__ = [
     "bearer_team",
     "caller",
     "cross_origin_reason",
+    "failed_views",
     "visible_catalogue",
 ]
 
@@ -222,3 +223,26 @@ class WriteGuardMiddleware:
             if reason is not None:
                 return await problem(403, "Forbidden", reason)(scope, receive, send)
         return await self.app(scope, receive, send)
+
+
+def failed_views(request: Request, kind: str) -> list[dict]:
+    """The failed ``kind`` items the request's caller may see, each with its reason (the
+    failed job's error), for the lists ``GET /v1/skis`` and ``/v1/grinds`` and the upload
+    page."""
+    state = getattr(request.app.state, "uploads", None)
+    if state is None:
+        return []
+    who = caller(request)
+    out = []
+    for item, job in state.db.failed_items(kind):
+        if not who.sees(item.team, item.read_only):
+            continue
+        out.append(
+            {
+                "name": item.name,
+                "reason": (job.error if job else None) or "no reason recorded",
+                "job": job.id if job else None,
+                "failed_at": (job or item).updated_at.isoformat(timespec="seconds"),
+            }
+        )
+    return out

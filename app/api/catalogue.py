@@ -22,7 +22,7 @@ from typing import Annotated
 from fastapi import Depends, FastAPI, Request, UploadFile
 from fastapi.responses import JSONResponse
 from skisnow.app.api import access
-from skisnow.app.api.access import Caller
+from skisnow.app.api.access import Caller, failed_views
 from skisnow.app.errors import (
     ConflictError,
     ForbiddenError,
@@ -162,29 +162,6 @@ def job_view(db: CatalogueDB, job: JobRow) -> dict:
         "created_at": job.created_at.isoformat(timespec="seconds"),
         "updated_at": job.updated_at.isoformat(timespec="seconds"),
     }
-
-
-def failed_views(request: Request, kind: str) -> list[dict]:
-    """The failed ``kind`` items the request's caller may see, each with its reason (the
-    failed job's error), for the lists ``GET /v1/skis`` and ``/v1/grinds`` and the upload
-    page."""
-    state = getattr(request.app.state, "uploads", None)
-    if state is None:
-        return []
-    who = access.caller(request)
-    out = []
-    for item, job in state.db.failed_items(kind):
-        if not who.sees(item.team, item.read_only):
-            continue
-        out.append(
-            {
-                "name": item.name,
-                "reason": (job.error if job else None) or "no reason recorded",
-                "job": job.id if job else None,
-                "failed_at": (job or item).updated_at.isoformat(timespec="seconds"),
-            }
-        )
-    return out
 
 
 def item_or_404(state: CatalogueState, kind: str, name: str, who: Caller) -> ItemRow:

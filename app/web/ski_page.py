@@ -232,7 +232,7 @@ def render_unknown_ski(
 ) -> HTMLResponse:
     """The 404 page of a ski name the catalogue does not serve; for an upload whose job failed,
     the reason and a delete button."""
-    from skisnow.app.api.catalogue import failed_views
+    from skisnow.app.api.access import failed_views
 
     failed = None
     if state == "failed":

@@ -261,7 +261,7 @@ def render_upload(request: Request, cat: service.Catalogue, settings) -> HTMLRes
         }
         for kind, job_kind, route, fields, title in UPLOAD_FORMS
     ]
-    from skisnow.app.api.catalogue import failed_views
+    from skisnow.app.api.access import failed_views
 
     failed = [
         (kind, {**item, "delete_url": f"/v1/{kind}s/{quote(item['name'], safe='')}"})

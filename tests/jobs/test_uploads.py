@@ -393,8 +393,9 @@ def test_ski_upload_train_and_contact(catalogue, tmp_path, upload_csv):
         held = np.sort(record.identified["held_out_index"])
         assert held.size == n_held and np.array_equal(stored["case_index"], held)
         f, xf, y, _ = mean_profiles(record.measurements)
-        beam = BeamSki(*(record.identified[k] for k in BEAM_ARRAYS))
-        expected = np.sqrt(np.mean((predict_gaps(beam, f[held], xf[held]) - y[held]) ** 2, axis=1))
+        stored_beam = BeamSki(*(record.identified[k] for k in BEAM_ARRAYS))
+        gaps = predict_gaps(stored_beam, f[held], xf[held])
+        expected = np.sqrt(np.mean((gaps - y[held]) ** 2, axis=1))
         np.testing.assert_allclose(stored["rms_error_m"], expected, rtol=1e-12, atol=0)
         assert ident["held_out"]["error_um"] == [float(f"{e * 1e6:.4g}") for e in expected]
         body = {"ski": "my-ski", "grind": "tiny-grind", **CONTACT}

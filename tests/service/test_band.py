@@ -238,7 +238,8 @@ def test_beam_draws_are_antithetic_scaled_and_kept_per_ski():
     assert np.max(np.abs(d1)) > 1e-3
     # log EI = −log(Σ φ_m exp(γ_m)): odd in Δγ to first order, so pairs cancel to second order
     np.testing.assert_allclose(d1[:2] + d1[2:], 0.0, atol=20 * np.max(np.abs(d1)) ** 2)
-    np.testing.assert_allclose(d2, 2 * d1, rtol=0.05, atol=1e-4)
+    # twice the scale, twice the deviation, up to the same second-order term (of order d²)
+    np.testing.assert_allclose(d2, 2 * d1, rtol=0.05, atol=2 * np.max(np.abs(d1)) ** 2)
     zero = sample_beams(ident, 2, 7, antithetic=True, scale=0.0)
     np.testing.assert_allclose(zero[0].bending_stiffness_nm2, ident.beam.bending_stiffness_nm2)
     with pytest.raises(InputError):

@@ -182,7 +182,9 @@ def test_misfit_per_case_equals_the_api_and_is_consistent(demo, catalogue):
     )
     # every measured case is either identified or held out, each (load, position) once
     data = catalogue.skis[name].record.measurements
-    assert len(fitted) + len(held) == data.loads_n.size == 425
+    # 425 loaded cases and the unloaded profile (load 0, always fitted, never held out)
+    assert len(fitted) + len(held) == data.loads_n.size == 426
+    assert ("0", "0") in {(r[0], r[1]) for r in fitted}
     assert len(held) == ident["held_out_cases"]
     cases = {(round(f, 2), round(x, 1)) for f, x, *_ in map(lambda r: map(float, r[:2]), rows)}
     measured = {
@@ -367,7 +369,7 @@ def test_ski_without_an_identified_beam_says_why(client, name, model, why):
     if name == "rejected":
         # a fit that failed its held-out check still shows its misfit per case
         assert "plot-misfit" in html
-        assert len(_rows(html, "misfit-table")) == 425
+        assert len(_rows(html, "misfit-table")) == 426  # 425 loaded cases + the unloaded
     if name == "net-only":
         assert "plot-misfit" not in html and "misfit-table" not in html
         assert 'data-number="misfit_um"' not in html  # nothing to show, no empty cards
