@@ -124,3 +124,23 @@ def test_identified_beam_answers_heavier_loads_than_measured_but_not_lighter(cli
     assert r.status_code == 422 and "10 … 135 kg" in r.json()["detail"]
     r = client.post("/v1/contact", json={**body, "load_kg": 5})
     assert r.status_code == 422 and "load_kg 5" in r.json()["detail"]
+
+
+_SKI_B_EI_XFAIL = pytest.mark.xfail(
+    strict=True,
+    reason="ski-b identified with its unloaded profile (#26): c(X) within 0.71 µm of the design "
+    "(7.8 µm before) and held-out profiles 0.16 µm, but EI 44 % above the design at -0.42 m "
+    "(6 % before), where the 90 % band says about ±1 %: a local minimum the data barely see "
+    "(the load positions are -0.30..0.10 m), and a band that does not cover it",
+)
+
+
+@pytest.mark.parametrize("name", ["ski-a", pytest.param("ski-b", marks=_SKI_B_EI_XFAIL)])
+def test_identified_stiffness_within_10_percent_of_the_design_mid_ski(name):
+    """EI(X) of the stored identification within 10 % of the design beam's where |X| < 0.6 m
+    (the moments of the device's loads are large there)."""
+    rec = read_ski(REPO / "tables" / "skis" / f"{name}.h5")
+    beam = identified_beam(rec.identified)
+    mid = np.abs(beam.positions_m) < 0.6
+    rel = beam.bending_stiffness_nm2[mid] / rec.beam.bending_stiffness_nm2[mid] - 1.0
+    assert np.abs(rel).max() < 0.10, f"{np.abs(rel).max():.1%}"
