@@ -383,6 +383,23 @@ def _solve_beam_contact_reference(
     )
 
 
+def _kkt_system(g_mat, c, xs, g_load, load_n, compliance, idx):
+    """The KKT matrix and right-hand side of the active set ``idx`` (reactions on it, rigid
+    motion a, b; zero gap there, force and moment equilibrium), as the reference loop solves
+    it; :func:`_kkt_solve` assembles the same system element by element."""
+    m = idx.size
+    kkt = np.zeros((m + 2, m + 2))
+    kkt[:m, :m] = g_mat[np.ix_(idx, idx)]
+    if compliance > 0.0:
+        kkt[np.arange(m), np.arange(m)] += compliance
+    kkt[:m, m] = 1.0
+    kkt[:m, m + 1] = xs[idx]
+    kkt[m, :m] = 1.0
+    kkt[m + 1, :m] = xs[idx]
+    rhs = np.concatenate([-c[idx] - g_load[idx], [load_n, 0.0]])
+    return kkt, rhs
+
+
 def _active_set_reference(
     g_mat: np.ndarray,
     c: np.ndarray,
@@ -404,15 +421,7 @@ def _active_set_reference(
 
     def solve_set(idx: np.ndarray) -> tuple[np.ndarray, float, float]:
         m = idx.size
-        kkt = np.zeros((m + 2, m + 2))
-        kkt[:m, :m] = g_mat[np.ix_(idx, idx)]
-        if compliance > 0.0:
-            kkt[np.arange(m), np.arange(m)] += compliance
-        kkt[:m, m] = 1.0
-        kkt[:m, m + 1] = xs[idx]
-        kkt[m, :m] = 1.0
-        kkt[m + 1, :m] = xs[idx]
-        rhs = np.concatenate([-c[idx] - g_load[idx], [load_n, 0.0]])
+        kkt, rhs = _kkt_system(g_mat, c, xs, g_load, load_n, compliance, idx)
         try:
             sol = np.linalg.solve(kkt, rhs)
         except np.linalg.LinAlgError:

@@ -36,22 +36,6 @@ def _system(seed: int = 3):
     return g_mat, c, xs, g_load, 400.0
 
 
-def _reference_kkt(g_mat, c, xs, g_load, load_n, compliance, idx):
-    """The KKT matrix and right-hand side as the numpy reference loop assembles them
-    (``_active_set_reference``)."""
-    m = idx.size
-    kkt = np.zeros((m + 2, m + 2))
-    kkt[:m, :m] = g_mat[np.ix_(idx, idx)]
-    if compliance > 0.0:
-        kkt[np.arange(m), np.arange(m)] += compliance
-    kkt[:m, m] = 1.0
-    kkt[:m, m + 1] = xs[idx]
-    kkt[m, :m] = 1.0
-    kkt[m + 1, :m] = xs[idx]
-    rhs = np.concatenate([-c[idx] - g_load[idx], [load_n, 0.0]])
-    return kkt, rhs
-
-
 @pytest.mark.parametrize("compliance", [0.0, 1e-7])
 def test_large_set_is_numpys_solve_bit_for_bit(compliance):
     """More than _COMPILED_SOLVE_MAX_NODES nodes: the object-mode path, numpy's solve of the
@@ -60,7 +44,7 @@ def test_large_set_is_numpys_solve_bit_for_bit(compliance):
     idx = np.arange(3, N_NODES, 2, dtype=np.int64)
     assert idx.size > B._COMPILED_SOLVE_MAX_NODES
     r, a, b, ok = B._kkt_solve(g_mat, c, xs, g_load, load_n, compliance, idx)
-    kkt, rhs = _reference_kkt(g_mat, c, xs, g_load, load_n, compliance, idx)
+    kkt, rhs = B._kkt_system(g_mat, c, xs, g_load, load_n, compliance, idx)
     sol = np.linalg.solve(kkt, rhs)
     assert ok
     np.testing.assert_array_equal(r, sol[: idx.size])
@@ -73,7 +57,7 @@ def test_small_set_matches_numpys_solve():
     g_mat, c, xs, g_load, load_n = _system()
     idx = np.array([2, 9, 17, 30, 38], dtype=np.int64)
     r, a, b, ok = B._kkt_solve(g_mat, c, xs, g_load, load_n, 0.0, idx)
-    kkt, rhs = _reference_kkt(g_mat, c, xs, g_load, load_n, 0.0, idx)
+    kkt, rhs = B._kkt_system(g_mat, c, xs, g_load, load_n, 0.0, idx)
     sol = np.linalg.solve(kkt, rhs)
     assert ok
     got = np.concatenate([r, [a, b]])
