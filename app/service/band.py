@@ -485,6 +485,13 @@ def _round(v: float, digits: int = 4) -> float | None:
     return float(f"{v:.{digits}g}") if v is not None and math.isfinite(v) else None
 
 
+def _interval(value: float, width: float) -> list[float]:
+    """The 90 % interval of a non-negative quantity (areas, pressures, separations, loads) of
+    relative half-width ``width``: value × (1 ± width), the lower end at 0 when the band is
+    wider than the value itself (a zone load cannot be negative)."""
+    return [_round(max(value * (1 - width), 0.0), 6), _round(value * (1 + width), 6)]
+
+
 def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
     """The ``band`` section of an answer (intervals in the answer's units), and the warnings it
     raises. Adds ``load_band_90_n`` to each zone of ``answer["apparent"]["zones"]``."""
@@ -493,15 +500,13 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
         w = band.widths.get(q, float("nan"))
         v = answer[section][key]
         rel[q] = _round(w)
-        intervals[key] = (
-            [_round(v * (1 - w), 6), _round(v * (1 + w), 6)] if math.isfinite(w) else None
-        )
+        intervals[key] = _interval(v, w) if math.isfinite(w) else None
     # the mean apparent pressure is F / A: the apparent area's relative band
     w_a = band.widths.get("apparent_contact_area", float("nan"))
     v = answer["apparent"]["mean_pressure_kpa"]
     intervals["mean_pressure_kpa"] = [_round(v / (1 + w_a), 6), _round(v / max(1 - w_a, 1e-9), 6)]
     for z, w in zip(answer["apparent"]["zones"], band.zone_load_widths, strict=False):
-        z["load_band_90_n"] = [_round(z["load_n"] * (1 - w), 6), _round(z["load_n"] * (1 + w), 6)]
+        z["load_band_90_n"] = _interval(z["load_n"], w)
     warnings = []
     wide = {q: w for q, w in band.widths.items() if w > WIDE_BAND}
     if wide:

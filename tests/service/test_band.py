@@ -501,3 +501,10 @@ def test_not_covered_says_where_the_pixel_size_estimate_is(small_table):
     assert "provenance.table.pixel_error_estimate" in pixel_size_not_covered(shipped)
     assert small_table.real_contact_area_fraction_error is None
     assert "stores no estimate" in pixel_size_not_covered(small_table)
+
+
+def test_intervals_of_non_negative_quantities_stop_at_zero():
+    """A band wider than the value (a flat-base zone load, ±120 %) ends at 0, not below: areas,
+    pressures, separations and zone loads are never negative; the upper end is unchanged."""
+    assert band._interval(10.0, 0.25) == [7.5, 12.5]
+    assert band._interval(0.19, 2.2) == [0.0, pytest.approx(0.608)]
