@@ -27,6 +27,7 @@ COMMAND_MODULES = [
     "skisnow.app.commands.solve",
     "skisnow.app.commands.worker",
     "skisnow.app.commands.report",
+    "skisnow.app.commands.adopt",
 ]
 
 

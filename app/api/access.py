@@ -21,6 +21,22 @@ Changes
     CORS headers), and the CPU it costs is open to anyone who reaches the port through those
     routes anyway (``max_compare_cells`` bounds it).
 
+The login cookie
+    People use the pages, and a browser adds no ``Authorization`` header: the login page
+    (``/login``, :mod:`app.web.login`) turns a team token into the cookie
+    :data:`TOKEN_COOKIE` (HttpOnly, SameSite=Strict, Secure over https), which every page and
+    route honour as that token (:func:`request_team`; an ``Authorization`` header, when sent,
+    decides). A browser sends the cookie on its own, so a change it authorises must also pass
+    the same-origin check (403 otherwise): SameSite=Strict keeps it from other sites, the
+    check from other origins of the same site (another port of the same host). The login and
+    logout forms (:data:`LOGIN_PATHS`) need no token, only the same-origin check. A cookie
+    whose token is no longer configured reads as no team, and a change with it is 401.
+
+Items of no team
+    With team tokens the uploads of no team (made before teams were configured) are seen by
+    every team but changed by none (403, :func:`team_may_change`), until ``skisnow adopt``
+    assigns them to a team (docs/deployment.md).
+
 Reads
     Without team tokens everyone sees everything. With team tokens a caller (:class:`Caller`,
     the team of its bearer token; no token: a caller of no team) sees the shipped items, the
@@ -38,17 +54,22 @@ from urllib.parse import urlsplit
 from skisnow.app import service
 from skisnow.app.errors import UnauthorizedError
 from starlette.datastructures import Headers
-from starlette.requests import Request
+from starlette.requests import Request, cookie_parser
 
 __all__ = [
+    "LOGIN_PATHS",
     "READ_ONLY_POSTS",
+    "TOKEN_COOKIE",
     "WRITE_METHODS",
     "Caller",
     "WriteGuardMiddleware",
     "bearer_team",
     "caller",
+    "cookie_token",
     "cross_origin_reason",
     "failed_views",
+    "request_team",
+    "team_may_change",
     "visible_catalogue",
 ]
 
@@ -56,6 +77,10 @@ __all__ = [
 WRITE_METHODS = frozenset({"POST", "PUT", "PATCH", "DELETE"})
 #: POST routes that only compute and change nothing (not checked, see the module docstring)
 READ_ONLY_POSTS = frozenset({"/v1/contact", "/v1/compare", "/v1/flex/ranking"})
+#: the login and logout forms of the pages: no token needed, the same-origin check applies
+LOGIN_PATHS = frozenset({"/login", "/logout"})
+#: the cookie of the login page that carries a team token (see the module docstring)
+TOKEN_COOKIE = "skisnow_token"
 _DEFAULT_PORTS = {"http": 80, "https": 443}
 #: at most this many names of each kind per request are looked up in the database when this
 #: process does not serve them (see :func:`visible_catalogue`)
@@ -81,8 +106,54 @@ def bearer_team(headers: Mapping[str, str], tokens: Mapping[str, str], *, requir
     token = token.strip()
     if scheme.lower() != "bearer" or token not in tokens:
         what = "to change the catalogue" if required else "(or no Authorization header)"
-        raise UnauthorizedError(f"a valid bearer token is required {what}")
+        raise UnauthorizedError(
+            f"a valid bearer token is required {what}: send Authorization: Bearer TOKEN, or "
+            "log in with the team token at /login (web pages)"
+        )
     return tokens[token]
+
+
+def cookie_token(headers: Mapping[str, str]) -> str | None:
+    """The team token of the login cookie :data:`TOKEN_COOKIE` (None: no such cookie)."""
+    raw = headers.get("cookie")
+    if not raw:
+        return None
+    return cookie_parser(raw).get(TOKEN_COOKIE) or None
+
+
+def request_team(headers: Mapping[str, str], tokens: Mapping[str, str], *, required: bool):
+    """The team of a request: its ``Authorization`` header when it has one
+    (:func:`bearer_team`), else its login cookie; None for a caller of no team (not
+    ``required``).
+
+    A login cookie whose token is not (or no longer) configured reads as no team; when
+    ``required`` it is :class:`UnauthorizedError`, asking to log in again.
+    """
+    if not headers.get("authorization"):
+        token = cookie_token(headers)
+        if token is not None and token in tokens:
+            return tokens[token]
+        if token is not None and required:
+            raise UnauthorizedError(
+                "the team token of your login is no longer valid; log in again at /login"
+            )
+    return bearer_team(headers, tokens, required=required)
+
+
+def team_may_change(owner: str | None, team: str | None, teams_on: bool) -> str | None:
+    """Why ``team`` may not change an upload of team ``owner`` (None: it may). With teams
+    on, the uploads of no team are read-only (see the module docstring)."""
+    if not teams_on:
+        return None
+    if owner is None:
+        return (
+            "was uploaded before team tokens were switched on and belongs to no team: it is "
+            "read-only until an operator assigns it to a team (skisnow adopt, "
+            "docs/deployment.md)"
+        )
+    if owner != team:
+        return "belongs to another team"
+    return None
 
 
 @dataclass(frozen=True)
@@ -102,7 +173,7 @@ def caller(request: Request) -> Caller:
     tokens = request.app.state.settings.team_tokens
     if not tokens:
         return Caller(None, False)
-    return Caller(bearer_team(request.headers, tokens, required=False), True)
+    return Caller(request_team(request.headers, tokens, required=False), True)
 
 
 def visible_catalogue(
@@ -165,12 +236,13 @@ def _same_host(origin: tuple[str, str, int], host_header: str) -> bool:
     return parts.hostname.lower() == origin[1] and (port or _DEFAULT_PORTS[origin[0]]) == origin[2]
 
 
-def cross_origin_reason(headers: Mapping[str, str], trusted=()) -> str | None:
+def cross_origin_reason(headers: Mapping[str, str], trusted=(), *, cookie: bool = False):
     """Why a change may not pass the same-origin check, or None when it may.
 
     The request's origin is its ``Origin`` header, else the origin of its ``Referer``; with
     neither it passes (not sent by a browser page). It passes when that origin is the
-    request's ``Host`` or one of ``trusted`` (``scheme://host[:port]``).
+    request's ``Host`` or one of ``trusted`` (``scheme://host[:port]``). ``cookie``: the
+    change is authorised by the login cookie (the reason says so).
     """
     header, value = "Origin", headers.get("origin")
     if value is None:
@@ -183,6 +255,13 @@ def cross_origin_reason(headers: Mapping[str, str], trusted=()) -> str | None:
         if _same_host(origin, host) or origin in {_origin(t) for t in trusted}:
             return None
     shown = value if header == "Origin" else f"{value!r} (origin of the Referer)"
+    if cookie:
+        return (
+            f"cross-origin change refused: {header} {shown} is not this service's origin "
+            f"(Host {host!r}). A login, and a change authorised by the login cookie, must "
+            "come from the service's own pages (other clients send Authorization: Bearer "
+            "TOKEN); list a trusted origin in SKISNOW_TRUSTED_ORIGINS"
+        )
     return (
         f"cross-origin change refused: {header} {shown} is not this service's origin "
         f"(Host {host!r}). Without team tokens (SKISNOW_TEAM_TOKENS) uploads, renames and "
@@ -193,8 +272,9 @@ def cross_origin_reason(headers: Mapping[str, str], trusted=()) -> str | None:
 
 class WriteGuardMiddleware:
     """Check every change (:data:`WRITE_METHODS`, minus :data:`READ_ONLY_POSTS`) before its
-    body is read: a team's bearer token when ``tokens`` are set (401), else the same-origin
-    check (403). See the module docstring."""
+    body is read: a team's bearer token or login cookie when ``tokens`` are set (401), and
+    the same-origin check (403) without tokens, for a change the login cookie authorises,
+    and for the login forms (:data:`LOGIN_PATHS`). See the module docstring."""
 
     def __init__(self, app, tokens: Mapping[str, str], trusted_origins=()) -> None:
         self.app = app
@@ -211,15 +291,17 @@ class WriteGuardMiddleware:
         from skisnow.app.api.problems import problem
 
         headers = Headers(scope=scope)
-        if self.tokens:
+        # the login cookie, not a header the client chose to send, authorises this change
+        by_cookie = bool(self.tokens) and not headers.get("authorization")
+        if self.tokens and scope.get("path") not in LOGIN_PATHS:
             try:
-                bearer_team(headers, self.tokens, required=True)
+                request_team(headers, self.tokens, required=True)
             except UnauthorizedError as exc:
                 resp = problem(401, "Unauthorized", str(exc))
                 resp.headers["WWW-Authenticate"] = "Bearer"
                 return await resp(scope, receive, send)
-        else:
-            reason = cross_origin_reason(headers, self.trusted)
+        if not self.tokens or by_cookie or scope.get("path") in LOGIN_PATHS:
+            reason = cross_origin_reason(headers, self.trusted, cookie=bool(self.tokens))
             if reason is not None:
                 return await problem(403, "Forbidden", reason)(scope, receive, send)
         return await self.app(scope, receive, send)

@@ -119,12 +119,13 @@ def catalogue_state(request: Request) -> CatalogueState:
 
 
 def changing_team(request: Request) -> str | None:
-    """The changing caller's team from ``Authorization: Bearer TOKEN`` (None when teams are
-    off; the write guard of :mod:`app.api.access` has refused a missing or bad token already)."""
+    """The changing caller's team from ``Authorization: Bearer TOKEN`` or the login cookie
+    (None when teams are off; the write guard of :mod:`app.api.access` has refused a missing
+    or bad token already)."""
     tokens = request.app.state.settings.team_tokens
     if not tokens:
         return None
-    return access.bearer_team(request.headers, tokens, required=True)
+    return access.request_team(request.headers, tokens, required=True)
 
 
 def limits(request: Request) -> uploads.JobLimits:
@@ -173,11 +174,14 @@ def item_or_404(state: CatalogueState, kind: str, name: str, who: Caller) -> Ite
     return row
 
 
-def writable(state: CatalogueState, row: ItemRow, team: str | None) -> None:
+def writable(request: Request, row: ItemRow, team: str | None) -> None:
+    """Refuse (403) a change of a shipped item, of another team's and, with team tokens, of
+    an item of no team (:func:`app.api.access.team_may_change`)."""
     if row.read_only:
         raise ForbiddenError(f"{row.kind} {row.name!r} is a shipped demo item (read-only)")
-    if team is not None and row.team is not None and row.team != team:
-        raise ForbiddenError(f"{row.kind} {row.name!r} belongs to another team")
+    why = access.team_may_change(row.team, team, bool(request.app.state.settings.team_tokens))
+    if why is not None:
+        raise ForbiddenError(f"{row.kind} {row.name!r} {why}")
 
 
 def busy(state: CatalogueState, row: ItemRow) -> None:

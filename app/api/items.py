@@ -57,7 +57,7 @@ def item_routes(router: APIRouter, kind: str, plural: str) -> None:
         """Rename an uploaded item (shipped items are read-only)."""
         state = C.catalogue_state(request)
         row = C.item_or_404(state, kind, name, C.writer(request, team))
-        C.writable(state, row, team)
+        C.writable(request, row, team)
         new = uploads.check_name(body.name)
         with state.live.lock:
             row = state.db.update_item(row.id, name=new)
@@ -75,7 +75,7 @@ def item_routes(router: APIRouter, kind: str, plural: str) -> None:
         """Delete an uploaded item and its files (409 while a job uses it)."""
         state = C.catalogue_state(request)
         row = C.item_or_404(state, kind, name, C.writer(request, team))
-        C.writable(state, row, team)
+        C.writable(request, row, team)
         C.busy(state, row)
         with state.live.lock:
             state.live.drop(row.id)

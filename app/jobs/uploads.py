@@ -81,13 +81,19 @@ def _replaceable(row: ItemRow, team: str | None) -> bool:
 def check_name_free(db: CatalogueDB, kind: str, name: str, team: str | None = None) -> str:
     """The checked ``name`` (:func:`check_name`) of a new ``kind`` item; :class:`ConflictError`
     (409) when an item of that kind has it. A failed item of the same team does not hold its
-    name: the upload replaces it (:func:`free_failed_name`). Asked before the job quota: a
+    name: the upload replaces it (:func:`free_failed_name`). Names are compared regardless
+    of case (``Grind-1`` clashes with ``grind-1``). Asked before the job quota: a
     name that is taken stays taken, so "retry later" (429) would be the wrong answer. Names
     are one namespace for all teams; the answer does not say whose the item is."""
     name = check_name(name)
-    row = db.item_by_name(kind, name)
+    row = db.item_by_name_nocase(kind, name)
     if row is not None and not _replaceable(row, team):
-        raise ConflictError(f"a {kind} named {name!r} already exists; choose another name")
+        if row.name == name:
+            raise ConflictError(f"a {kind} named {name!r} already exists; choose another name")
+        raise ConflictError(
+            f"a {kind} named {name!r} clashes with the existing {kind} {row.name!r}: names are "
+            "unique regardless of case; choose another name"
+        )
     return name
 
 
@@ -98,7 +104,7 @@ def free_failed_name(
     left), so that a new upload can take the name; the deleted row, or None when there was
     none. Called once the new upload has passed its checks: a refused upload leaves the failed
     item (and its reason) as it was."""
-    row = db.item_by_name(kind, name)
+    row = db.item_by_name_nocase(kind, name)
     if row is None or not _replaceable(row, team) or not db.delete_failed_item(row.id):
         return None
     layout.remove_item_files(row.id)

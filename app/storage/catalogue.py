@@ -9,7 +9,8 @@ below mirror the head revision (a test compares them).
 Tables
 ------
 ``items``
-    ``id`` (hex uuid), ``kind`` (``ski`` | ``grind``), ``name`` (unique per kind),
+    ``id`` (hex uuid), ``kind`` (``ski`` | ``grind``), ``name`` (unique per kind regardless
+    of case: a unique index on ``lower(name)``, and a check inside every insert and rename),
     ``metadata`` (JSON: the upload's technician fields and derived figures), ``file_path``
     (the ready HDF5 file; NULL until the item's job is done), ``sha256`` of that file,
     ``state`` (``pending`` | ``ready`` | ``failed``), ``read_only`` (shipped demo items),
@@ -65,6 +66,8 @@ ITEMS = sa.Table(
     sa.Column("updated_at", sa.DateTime(timezone=True), nullable=False),
     sa.UniqueConstraint("kind", "name", name="uq_items_kind_name"),
 )
+#: names are unique regardless of case (revision 0003; names are ASCII)
+sa.Index("uq_items_kind_lower_name", ITEMS.c.kind, sa.func.lower(ITEMS.c.name), unique=True)
 
 JOBS = sa.Table(
     "jobs",
@@ -237,10 +240,42 @@ class CatalogueDB:
         }
         try:
             with self.engine.begin() as c:
+                self._refuse_clash(c, kind, name)
                 c.execute(ITEMS.insert().values(**values))
-        except sa.exc.IntegrityError:
-            raise NameTakenError(f"a {kind} named {name!r} already exists") from None
+        except sa.exc.IntegrityError:  # a concurrent insert won the race (the unique indexes)
+            raise self._taken(kind, name) from None
         return self.item(values["id"])
+
+    def _taken(self, kind: str, name: str, same: ItemRow | None = None) -> NameTakenError:
+        """The 409 error for ``name``, naming the existing item it clashes with."""
+        same = same or self.item_by_name_nocase(kind, name)
+        if same is None or same.name == name:
+            return NameTakenError(f"a {kind} named {name!r} already exists; choose another name")
+        return NameTakenError(
+            f"a {kind} named {name!r} clashes with the existing {kind} {same.name!r}: names "
+            "are unique regardless of case; choose another name"
+        )
+
+    def _refuse_clash(self, c, kind: str, name: str, item_id: str | None = None) -> None:
+        """Raise :class:`NameTakenError` when another ``kind`` item (not ``item_id``) has
+        ``name`` regardless of case; run inside the insert's or rename's transaction."""
+        q = ITEMS.select().where(ITEMS.c.kind == kind, sa.func.lower(ITEMS.c.name) == name.lower())
+        if item_id is not None:
+            q = q.where(ITEMS.c.id != item_id)
+        row = c.execute(q.limit(1)).first()
+        if row is not None:
+            raise self._taken(kind, name, _item(row))
+
+    def item_by_name_nocase(self, kind: str, name: str) -> ItemRow | None:
+        """The ``kind`` item named ``name`` regardless of case (the exact name first)."""
+        with self.engine.connect() as c:
+            rows = c.execute(
+                ITEMS.select()
+                .where(ITEMS.c.kind == kind, sa.func.lower(ITEMS.c.name) == name.lower())
+                .order_by(ITEMS.c.name)
+            ).all()
+        rows = sorted((_item(r) for r in rows), key=lambda r: r.name != name)
+        return rows[0] if rows else None
 
     def item(self, item_id: str) -> ItemRow | None:
         with self.engine.connect() as c:
@@ -264,14 +299,36 @@ class CatalogueDB:
             return [_item(r) for r in c.execute(q)]
 
     def update_item(self, item_id: str, **values) -> ItemRow:
-        """Update columns of an item; renaming onto a taken name raises NameTakenError."""
+        """Update columns of an item; renaming onto a taken name (regardless of case; another
+        case of its own name is fine) raises NameTakenError."""
         values["updated_at"] = _now()
+        name = values.get("name")
+        kind = None
         try:
             with self.engine.begin() as c:
+                if name is not None:
+                    kind = c.execute(
+                        sa.select(ITEMS.c.kind).where(ITEMS.c.id == item_id)
+                    ).scalar_one_or_none()
+                    if kind is not None:
+                        self._refuse_clash(c, kind, name, item_id)
                 c.execute(ITEMS.update().where(ITEMS.c.id == item_id).values(**values))
         except sa.exc.IntegrityError:
-            raise NameTakenError(f"name {values.get('name')!r} is already taken") from None
+            if kind is not None:
+                raise self._taken(kind, name) from None
+            raise NameTakenError(f"name {name!r} is already taken") from None
         return self.item(item_id)
+
+    def adopt_item(self, item_id: str, team: str) -> bool:
+        """Give an upload of no team to ``team`` (one conditional ``UPDATE``): True when it
+        was of no team and not shipped, else nothing is written."""
+        with self.engine.begin() as c:
+            res = c.execute(
+                ITEMS.update()
+                .where(ITEMS.c.id == item_id, ITEMS.c.team.is_(None), ITEMS.c.read_only.is_(False))
+                .values(team=team, updated_at=_now())
+            )
+        return res.rowcount == 1
 
     def delete_item(self, item_id: str) -> None:
         with self.engine.begin() as c:

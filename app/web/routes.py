@@ -15,6 +15,8 @@ schema). Each reads the request, asks one page module for its page, and returns 
     CSV from a demo ski's measurements.
 ``/flex``, ``/flex/pair``, ``/flex/ranking``
     The flex tab (:mod:`.flex_pages`).
+``/login``, ``POST /login``, ``POST /logout``
+    Token mode for people: a team token becomes the login cookie (:mod:`.login`).
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ from fastapi.responses import HTMLResponse, Response
 from skisnow.app import service
 from skisnow.app.api.access import caller, visible_catalogue
 from skisnow.app.storage.layout import Layout
-from skisnow.app.web import flex_pages
+from skisnow.app.web import flex_pages, login
 from skisnow.app.web.form import Query, failure_field, parse_query, render_form
 from skisnow.app.web.results import ResultCache, compute, render_csv, render_results
 from skisnow.app.web.ski_page import render_ski, render_unknown_ski
@@ -111,6 +113,19 @@ def mount(app: FastAPI) -> None:
             media_type="text/csv; charset=utf-8",
             headers={"Content-Disposition": 'attachment; filename="skisnow-contact.csv"'},
         )
+
+    @app.get(login.LOGIN_URL, response_class=HTMLResponse, include_in_schema=False)
+    def login_page(request: Request) -> HTMLResponse:
+        return login.render_login(request, next_url=request.query_params.get("next", "/"))
+
+    @app.post(login.LOGIN_URL, include_in_schema=False)
+    async def login_post(request: Request) -> Response:
+        form = await request.form()
+        return login.login(request, form.get("token"), form.get("next", "/"))
+
+    @app.post("/logout", include_in_schema=False)
+    def logout_post(request: Request) -> Response:
+        return login.logout(request)
 
     @app.get("/flex", response_class=HTMLResponse, include_in_schema=False)
     def flex_page(request: Request) -> HTMLResponse:

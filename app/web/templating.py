@@ -90,9 +90,28 @@ def page(
     **context,
 ) -> HTMLResponse:
     """The page ``template`` (which extends ``page.html``) with ``context``."""
+    context.setdefault("login", login_state(request))
     return templates.TemplateResponse(
         request,
         template,
         {"title": title, "css": css, "js": js, "version": service.code_version(), **context},
         status_code=status,
     )
+
+
+def login_state(request: Request) -> dict:
+    """The page header's login: whether teams are on, the caller's team (the login cookie,
+    :mod:`.login`) and the login link back to this page."""
+    from urllib.parse import urlencode
+
+    from skisnow.app.api.access import caller
+
+    settings = getattr(request.app.state, "settings", None)
+    if settings is None or not settings.team_tokens:
+        return {"teams_on": False, "team": None, "url": "/login"}
+    here = request.url.path + (f"?{request.url.query}" if request.url.query else "")
+    return {
+        "teams_on": True,
+        "team": caller(request).team,
+        "url": "/login?" + urlencode({"next": here}),
+    }

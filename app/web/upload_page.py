@@ -261,7 +261,7 @@ def render_upload(request: Request, cat: service.Catalogue, settings) -> HTMLRes
         }
         for kind, job_kind, route, fields, title in UPLOAD_FORMS
     ]
-    from skisnow.app.api.access import failed_views
+    from skisnow.app.api.access import caller, failed_views
 
     failed = [
         (kind, {**item, "delete_url": f"/v1/{kind}s/{quote(item['name'], safe='')}"})
@@ -276,7 +276,8 @@ def render_upload(request: Request, cat: service.Catalogue, settings) -> HTMLRes
         js=UPLOAD_JS + DELETE_JS,
         failed=failed,
         forms=forms,
-        token=bool(settings.team_tokens),
+        # logged in (the login cookie): the page's requests carry the team's token already
+        token=bool(settings.team_tokens) and caller(request).team is None,
         max_bytes=settings.max_upload_bytes,
         max_mib=settings.max_upload_bytes / 2**20,
         ski_pages=[(n, ski_url(n)) for n in sorted(cat.skis)],
