@@ -31,6 +31,7 @@ lease by beating ``heartbeat_at``, and writes about a job only while ``runner`` 
 from __future__ import annotations
 
 import datetime as _dt
+import logging
 import sqlite3
 import time
 import uuid
@@ -41,6 +42,8 @@ import sqlalchemy as sa
 from skisnow.solvers.errors import InputError
 
 from .schema import upgrade_schema
+
+log = logging.getLogger(__name__)
 
 __all__ = ["ITEM_KINDS", "JOB_STATES", "CatalogueDB", "ItemRow", "JobRow", "NameTakenError"]
 
@@ -67,7 +70,8 @@ ITEMS = sa.Table(
     sa.UniqueConstraint("kind", "name", name="uq_items_kind_name"),
 )
 #: names are unique regardless of case (revision 0003; names are ASCII)
-sa.Index("uq_items_kind_lower_name", ITEMS.c.kind, sa.func.lower(ITEMS.c.name), unique=True)
+NOCASE_INDEX = "uq_items_kind_lower_name"
+_NOCASE = sa.Index(NOCASE_INDEX, ITEMS.c.kind, sa.func.lower(ITEMS.c.name), unique=True)
 
 JOBS = sa.Table(
     "jobs",
@@ -203,6 +207,31 @@ class CatalogueDB:
                 cur.close()
 
         upgrade_schema(self.engine)
+        self._ensure_nocase_index()
+
+    def _ensure_nocase_index(self) -> None:
+        """Add the unique index on ``(kind, lower(name))`` that revision 0003 left out of a
+        catalogue holding names that differ only in case, once none do any more (a cheap
+        look-up of the index when it is there)."""
+        dialect = self.engine.dialect.name
+        if dialect == "sqlite":
+            look = "SELECT name FROM sqlite_master WHERE type = 'index' AND name = :n"
+        elif dialect == "postgresql":
+            look = "SELECT indexname FROM pg_indexes WHERE indexname = :n"
+        else:
+            return
+        with self.engine.connect() as c:
+            if c.execute(sa.text(look), {"n": NOCASE_INDEX}).first() is not None:
+                return
+        try:
+            with self.engine.begin() as c:
+                c.execute(sa.schema.CreateIndex(_NOCASE, if_not_exists=True))
+        except sa.exc.IntegrityError:  # names that differ only in case: still left out
+            log.warning(
+                "catalogue: names that differ only in case are kept and the unique index %s is "
+                "left out until one of each is renamed",
+                NOCASE_INDEX,
+            )
 
     def close(self) -> None:
         self.engine.dispose()

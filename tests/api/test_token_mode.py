@@ -313,5 +313,14 @@ def test_old_catalogue_with_case_clashes_keeps_them_and_refuses_new_ones(tmp_pat
         assert sorted(i.name for i in db.items("grind")) == ["Grind-1", "grind-1"]
         with pytest.raises(NameTakenError, match="regardless of case"):
             db.add_item("grind", "GRIND-1")
+        # once one of them is renamed, the next start adds the index
+        db.update_item(db.item_by_name("grind", "Grind-1").id, name="grind-1b")
+    finally:
+        db.close()
+    db = CatalogueDB(url)
+    try:
+        with db.engine.connect() as c:
+            indexes = c.exec_driver_sql("SELECT name FROM sqlite_master WHERE type = 'index'")
+            assert "uq_items_kind_lower_name" in set(indexes.scalars())
     finally:
         db.close()

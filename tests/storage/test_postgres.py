@@ -130,6 +130,14 @@ def test_team_queries(pg_url, tmp_path):
     db.close()
 
 
+def test_names_are_unique_regardless_of_case_on_postgres(pg_url):
+    """``Grind-1`` beside ``grind-1``: refused by the check in the insert's transaction and
+    by the unique index on lower(name) (tests/api/test_token_mode.py, the same on SQLite)."""
+    from test_token_mode import check_catalogue_names_nocase
+
+    check_catalogue_names_nocase(new_database(pg_url, "names_nocase"))
+
+
 def test_a_job_is_claimed_exactly_once_by_competing_processes(pg_url):
     """Two service processes (two connections) race for every queued job: each job has one
     winner."""

@@ -252,4 +252,5 @@ def test_the_migration_scripts_are_package_data():
     assert sorted(p.name for p in (MIGRATIONS_DIR / "versions").glob("0*.py")) == [
         "0001_baseline.py",
         "0002_job_attempts.py",
+        "0003_names_nocase.py",
     ]
