@@ -10,9 +10,7 @@ from html import unescape
 
 import pytest
 from fastapi.testclient import TestClient
-from skisnow.app.api.access import TOKEN_COOKIE
 from skisnow.app.storage.catalogue import CatalogueDB, NameTakenError
-from skisnow.app.web.login import safe_next
 from test_uploads import is_problem, make_client, post_grind, wait_job
 
 TOKENS = {"token-a": "team-a", "token-b": "team-b"}
@@ -23,6 +21,8 @@ SAME = {"origin": "http://testserver"}
 EVIL = {"origin": "http://evil.example"}
 #: another port of the same host: the same site, so SameSite=Strict does not stop the cookie
 SAME_SITE = {"origin": "http://testserver:8081"}
+#: the login cookie (app.api.access.TOKEN_COOKIE; spelled out: a test of the cookie's name)
+TOKEN_COOKIE = "skisnow_token"
 
 
 def _login(client, token="token-a", next_url="/", headers=None):
@@ -102,6 +102,8 @@ def test_a_wrong_token_or_a_foreign_page_gets_no_cookie(catalogue, tmp_path):
     ],
 )
 def test_safe_next(value, expected):
+    from skisnow.app.web.login import safe_next
+
     assert safe_next(value) == expected
 
 
