@@ -17,6 +17,7 @@ teams no longer see the item (404) and its team may change it.
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 #: the kinds of items (app.storage.catalogue.ITEM_KINDS; not imported: the CLI starts fast)
 ITEM_KINDS = ("ski", "grind")
@@ -71,7 +72,13 @@ def run(args: argparse.Namespace) -> int:
     from skisnow.solvers.errors import InputError
 
     settings = Settings()
-    db = CatalogueDB(settings.catalogue_url)
+    url = settings.catalogue_url
+    if url.startswith("sqlite:///") and not Path(url.removeprefix("sqlite:///")).is_file():
+        raise InputError(
+            f"no catalogue at {url.removeprefix('sqlite:///')}: give the service's "
+            "SKISNOW_DATA_DIR (or SKISNOW_DATABASE_URL)"
+        )
+    db = CatalogueDB(url)
     try:
         if args.list:
             rows = orphans(db, args.kind)

@@ -201,7 +201,11 @@ def test_uploads_of_no_team_are_read_only_once_tokens_are_on_until_adopted(
         assert _login(client).status_code == 303  # by cookie too
         is_problem(client.delete("/v1/grinds/old-grind", headers=SAME), 403)
 
-        # the operator gives one to team a
+        # the operator gives one to team a (in the service's data directory)
+        monkeypatch.setenv("SKISNOW_DATA_DIR", str(tmp_path / "elsewhere"))
+        assert main(["adopt", "--list"]) == 2
+        assert "no catalogue at" in capsys.readouterr().err
+        assert not (tmp_path / "elsewhere").exists()  # nothing made there
         monkeypatch.setenv("SKISNOW_DATA_DIR", str(tmp_path))
         monkeypatch.setenv("SKISNOW_TEAM_TOKENS", '{"token-a": "team-a", "token-b": "team-b"}')
         assert main(["adopt", "--list"]) == 0
