@@ -214,9 +214,20 @@ def render_ski(
         beam_table=_beam_table(beam) if beam["available"] else None,
         misfit_rows=_misfit_rows(ident) if ident and "case_load_kg" in ident else [],
         delete_url=("/v1/skis/" + quote(name, safe="")) if deletable else None,
-        token=bool(getattr(getattr(request.app.state, "settings", None), "team_tokens", None)),
+        token=_asks_token(request),
         js=JS + DELETE_JS,
     )
+
+
+def _asks_token(request: Request) -> bool:
+    """Whether the delete button needs a token field: teams are on and the caller is not
+    logged in (the login cookie carries the token, app/web/login.py)."""
+    settings = getattr(request.app.state, "settings", None)
+    if not getattr(settings, "team_tokens", None):
+        return False
+    from skisnow.app.api.access import caller
+
+    return caller(request).team is None
 
 
 def _uploaded(request: Request, name: str) -> bool:
@@ -247,6 +258,6 @@ def render_unknown_ski(
         known=[(n, ski_url(n)) for n in sorted(cat.skis)],
         failed=failed,
         delete_url="/v1/skis/" + quote(name, safe="") if failed else None,
-        token=bool(getattr(getattr(request.app.state, "settings", None), "team_tokens", None)),
+        token=_asks_token(request),
         js=JS + DELETE_JS,
     )
