@@ -181,14 +181,15 @@ def test_changes_by_cookie_need_the_services_own_origin(catalogue, tmp_path):
 
         # a failed ski's page: its delete button asks for a token only when not logged in
         db = client.app.state.uploads.db
+        client.app.state.uploads.runner.stop()  # the jobs below are set by hand
         broken = db.add_item("ski", "broken", state="failed", team="team-a")
-        db.add_job("ski-network", broken.id)
+        db.update_job(db.add_job("ski-network", broken.id).id, state="failed", error="test")
         page = client.get("/skis/broken").text
         field = '<input type="password" data-token'
         assert 'id="delete-ski"' in page and field not in page
         assert client.delete("/v1/skis/broken", headers=SAME).status_code == 204
         orphan = db.add_item("ski", "orphan", state="failed")  # seen by a browser not logged in
-        db.add_job("ski-network", orphan.id)
+        db.update_job(db.add_job("ski-network", orphan.id).id, state="failed", error="test")
         assert field in TestClient(client.app).get("/skis/orphan").text
 
 
