@@ -274,6 +274,8 @@ def check_catalogue_names_nocase(url: str) -> None:
     try:
         db.add_item("grind", "grind-1", state="ready", read_only=True)
         db.add_item("ski", "Grind-1")  # another kind: another namespace
+        with pytest.raises(NameTakenError, match="existing ski 'Grind-1'"):
+            db.add_item("ski", "grind-1")
         with pytest.raises(NameTakenError, match="existing grind 'grind-1'"):
             db.add_item("grind", "Grind-1")
         other = db.add_item("grind", "grind-2")
