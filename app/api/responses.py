@@ -92,6 +92,19 @@ class GrindList(BaseModel):
 # -------------------------------------------------------------------------- contact
 
 
+class SnowEcho(BaseModel):
+    """The snow preset a request named (app/snow.py) and which numbers were given instead."""
+
+    model_config = _FIXED
+    name: str
+    label: str
+    numbers_given_instead_of_the_preset: dict[str, float]
+    preset_snow_modulus_mpa: float
+    preset_porosity: float
+    modulus_range_mpa: list[float]
+    reference: str
+
+
 class CaseEcho(BaseModel):
     """The inputs of the case as solved, with the load in N and E' in MPa."""
 
@@ -102,6 +115,7 @@ class CaseEcho(BaseModel):
     load_position_mm: float
     snow_modulus_mpa: float
     porosity: float
+    snow: SnowEcho | None = None
     base_modulus_mpa: float
     poisson_ratio: float
     preset: str
