@@ -20,9 +20,9 @@ Density ρ [kg/m³]
 Porosity n [-]
     ``n = 1 − ρ/ρ_ice`` with ρ_ice = 917 kg/m³ (method.md §5).
 Young's modulus E_snow [MPa]
-    Sigrist (2006), PhD thesis ETH Zürich no. 16736, cantilever-beam tests at fast loading:
+    Sigrist (2006), PhD thesis, ETH Zürich, cantilever-beam tests at fast loading:
     ``E = 968 MPa · (ρ/ρ_ice)^2.94``. The range's low end is the lower of Sigrist's relation and
-    Scapozza (2004), PhD thesis ETH Zürich no. 15357, ``E = 0.1873 MPa · exp(0.0149 ρ)``, at the
+    Scapozza (2004), PhD thesis, ETH Zürich, ``E = 0.1873 MPa · exp(0.0149 ρ)``, at the
     low density (Scapozza's only up to 500 kg/m³, beyond which its exponential was not fitted),
     and its high end Sigrist's relation at the high density. Published moduli at one density
     scatter by a factor of ~3–10 with the loading rate and the microstructure (Gerling, Löwe
@@ -65,12 +65,12 @@ ICE_DENSITY_KG_M3 = 917.0
 
 SIGRIST_2006 = (
     "Sigrist C. (2006) Measurement of fracture mechanical properties of snow and application "
-    "to dry snow slab avalanche release, PhD thesis ETH Zürich no. 16736: "
+    "to dry snow slab avalanche release, PhD thesis, ETH Zürich: "
     "E = 968 MPa (ρ/917)^2.94"
 )
 SCAPOZZA_2004 = (
     "Scapozza C. (2004) Entwicklung eines dichte- und temperaturabhängigen Stoffgesetzes zur "
-    "Beschreibung des visko-elastischen Verhaltens von Schnee, PhD thesis ETH Zürich no. 15357: "
+    "Beschreibung des visko-elastischen Verhaltens von Schnee, PhD thesis, ETH Zürich: "
     "E = 0.1873 MPa exp(0.0149 ρ)"
 )
 PATERSON_2010 = (
