@@ -57,7 +57,9 @@ __all__ = [
     "SnowPreset",
     "modulus_scapozza_mpa",
     "modulus_sigrist_mpa",
+    "resolve_snow",
     "snow_choices",
+    "snow_record",
 ]
 
 #: density of ice [kg/m³] (n = 1 − ρ/ρ_ice; method.md §5)
@@ -260,6 +262,25 @@ def snow_choices() -> list[tuple[str, str]]:
         )
         for p in SNOW_PRESETS.values()
     ]
+
+
+def resolve_snow(
+    name: str | None, snow_modulus_mpa: float | None, porosity: float | None
+) -> tuple[float | None, float | None]:
+    """The snow numbers of a request: those given, else the named preset's (None without one).
+
+    Raises
+    ------
+    KeyError
+        Unknown preset name (the routes' schemas check names first).
+    """
+    if name is None:
+        return snow_modulus_mpa, porosity
+    p = SNOW_PRESETS[name]
+    return (
+        p.snow_modulus_mpa if snow_modulus_mpa is None else snow_modulus_mpa,
+        p.porosity if porosity is None else porosity,
+    )
 
 
 def snow_record(name: str | None, snow_modulus_mpa: float, porosity: float) -> dict | None:

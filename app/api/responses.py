@@ -264,6 +264,13 @@ class FlexSheet(BaseModel):
     inputs: dict[str, Any]
     pockets: list[dict[str, Any]] = Field(..., description="wax pocket per gap, half/full weight")
     wax_zone: dict[str, Any]
+    verdict: dict[str, Any] = Field(
+        ...,
+        description="whether the ski suits the body weight, in words, and the weights it suits",
+    )
+    pocket_height: dict[str, Any] = Field(
+        ..., description="largest gap over the wax zone and gap under the foot, half/full weight"
+    )
     foot_gap_half_weight_mm: float | None
     foot_gap_half_weight_band_mm: float | None
     closing_load: dict[str, Any]
@@ -296,6 +303,8 @@ class FlexRanking(BaseModel):
     criterion: dict[str, Any]
     ranking: list[dict[str, Any]]
     left_out: list[dict[str, Any]]
+    qualifies: bool = Field(..., description="at least one ski suits the skier")
+    message: str | None = Field(None, description="why no ski qualifies, when none does")
     rule: str
 
 
