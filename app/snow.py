@@ -232,7 +232,7 @@ SNOW_PRESETS: dict[str, SnowPreset] = {
         ),
         SnowPreset(
             "study",
-            "Groomed track, the papers' study value (200 MPa, n = 0.5)",
+            "Groomed track, the papers' study value",
             (-20.0, 0.0),
             458.5,
             (400.0, 500.0),

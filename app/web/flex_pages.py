@@ -110,7 +110,7 @@ def _catalogue(request: Request):
 
 def render_sheet(request: Request) -> HTMLResponse:
     cat = _catalogue(request)
-    q = {**DEFAULTS, **dict(request.query_params)}
+    q = {**DEFAULTS, **dict(request.query_params), "snow": chosen_snow(request.query_params)}
     errors: dict[str, str] = {}
     context: dict = {"ans": None}
     status = 200
@@ -152,7 +152,7 @@ def render_sheet(request: Request) -> HTMLResponse:
 
 def render_pair(request: Request) -> HTMLResponse:
     cat = _catalogue(request)
-    q = {**DEFAULTS, **dict(request.query_params)}
+    q = {**DEFAULTS, **dict(request.query_params), "snow": chosen_snow(request.query_params)}
     errors: dict[str, str] = {}
     out, status = None, 200
     if "left" in request.query_params:
@@ -181,7 +181,7 @@ def render_pair(request: Request) -> HTMLResponse:
 
 def render_ranking(request: Request) -> HTMLResponse:
     cat = _catalogue(request)
-    q = {**DEFAULTS, **dict(request.query_params)}
+    q = {**DEFAULTS, **dict(request.query_params), "snow": chosen_snow(request.query_params)}
     chosen_skis = request.query_params.getlist("ski")
     chosen_grinds = request.query_params.getlist("grind")
     criterion = q.get("criterion", "real_area")
