@@ -105,6 +105,8 @@ def test_one_answer_through_form_api_and_cli(shipped_client, capsys):
     # the CSV writes 7 significant digits
     assert float(rows[0]["total_real_contact_area_mm2"]) == pytest.approx(area, rel=1e-6)
     assert float(rows[0]["snow_modulus_mpa"]) == p.snow_modulus_mpa
+    assert rows[0]["snow"] == snow
+    assert p.label in page.text  # the results page names the snow
     # a different snow gives a different answer (the test can fail)
     other = shipped_client.post("/v1/contact", json={**CASE, "snow": "icy", "preset": "fast"})
     assert not math.isclose(other.json()["metrics"]["total_real_contact_area_mm2"], area)
