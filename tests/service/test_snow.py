@@ -129,3 +129,28 @@ def test_form_defaults_to_the_default_snow(shipped_client):
         params={**CASE, "snow_modulus_mpa": 150, "porosity": 0.4, "preset": "fast"},
     )
     assert r.status_code == 200
+
+
+def test_answers_with_a_snow_match_their_response_models(shipped_client):
+    from skisnow.app.api.responses import ContactAnswer, FlexSheet
+
+    a = shipped_client.post("/v1/contact", json={**CASE, "snow": "icy", "porosity": 0.3}).json()
+    ContactAnswer.model_validate(a)
+    assert a["inputs"]["snow"]["numbers_given_instead_of_the_preset"] == {"porosity": 0.3}
+    assert a["inputs"]["snow_modulus_mpa"] == 440.0 and a["inputs"]["porosity"] == 0.3
+    r = shipped_client.get("/v1/skis/ski-c/flex", params={"body_weight_kg": 70, "snow": "icy"})
+    assert r.status_code == 200, r.text[:500]
+    sheet = r.json()
+    FlexSheet.model_validate(sheet)
+    assert sheet["inputs"]["snow_modulus_mpa"] == 440.0
+    assert sheet["kick_zone"]["snow"]["snow_modulus_mpa"] == 440.0
+    assert sheet["kick_zone"]["snow"]["target_full_weight_percent"] == [33, 50]
+
+
+def test_every_page_defaults_to_the_same_snow(shipped_client):
+    for url in ("/", "/flex", "/flex/pair", "/flex/ranking"):
+        page = shipped_client.get(url).text
+        select = page[page.index('id="snow"') :]
+        select = select[: select.index("</select>")]
+        m = re.search(r'<option value="([^"]*)"[^>]*selected', select)
+        assert m and m.group(1) == DEFAULT_SNOW, url
