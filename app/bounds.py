@@ -20,7 +20,8 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+from skisnow.app.snow import SNOW_PRESETS, SnowName
 
 __all__ = [
     "BASE_MODULUS_MPA",
@@ -121,6 +122,27 @@ SNOW_MODULUS_DOC = "Young's modulus of the snow [MPa]"
 POROSITY_DOC = "snow porosity n = 1 − ρ/917 [-]"
 BASE_MODULUS_DOC = "Young's modulus of the ski base [MPa]"
 POISSON_DOC = "Poisson's ratio [-]"
+SNOW_DOC = (
+    "snow by type and temperature (app/snow.py, docs/snow.md): its modulus and porosity fill "
+    "snow_modulus_mpa and porosity where those are not given; "
+    + "; ".join(
+        f"{p.name}: {p.snow_modulus_mpa:g} MPa, n = {p.porosity:g}" for p in SNOW_PRESETS.values()
+    )
+)
+
+
+def fill_snow(data):
+    """``data`` (a request's fields) with ``snow_modulus_mpa`` and ``porosity`` taken from the
+    snow preset it names, where they are missing or None; anything else unchanged (an unknown
+    name is left for the field's own check)."""
+    if not isinstance(data, dict) or data.get("snow") not in SNOW_PRESETS:
+        return data
+    p = SNOW_PRESETS[data["snow"]]
+    out = dict(data)
+    for key, value in (("snow_modulus_mpa", p.snow_modulus_mpa), ("porosity", p.porosity)):
+        if out.get(key) is None:
+            out[key] = value
+    return out
 
 
 class CaseInputs(BaseModel):
@@ -132,11 +154,27 @@ class CaseInputs(BaseModel):
     load_position_mm: float = Field(
         ..., **LOAD_POSITION_MM.field(), examples=[-160], description=POSITION_DOC
     )
+    snow: SnowName | None = Field(None, description=SNOW_DOC, examples=["fine-grained"])
     snow_modulus_mpa: float = Field(
-        ..., **SNOW_MODULUS_MPA.field(), description=SNOW_MODULUS_DOC, examples=[200]
+        ...,
+        **SNOW_MODULUS_MPA.field(),
+        description=SNOW_MODULUS_DOC + " (default: the snow preset's)",
+        examples=[200],
     )
-    porosity: float = Field(..., **POROSITY.field(), description=POROSITY_DOC, examples=[0.5])
+    porosity: float = Field(
+        ...,
+        **POROSITY.field(),
+        description=POROSITY_DOC + " (default: the snow preset's)",
+        examples=[0.5],
+    )
     base_modulus_mpa: float = Field(700.0, **BASE_MODULUS_MPA.field(), description=BASE_MODULUS_DOC)
     poisson_ratio: float = Field(0.3, **POISSON_RATIO.field(), description=POISSON_DOC)
     preset: PresetName = Field("default", description=_PRESET_DOC)
     ski_model: SkiModelName = Field("auto", description=_SKI_MODEL_DOC)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _snow_preset(cls, data):
+        """A named snow fills the snow numbers not given (given ones are kept: the answer's
+        ``inputs.snow`` says which number is whose)."""
+        return fill_snow(data)

@@ -453,3 +453,32 @@ def flex_profile_svg(answer: dict) -> str:
     ax.set_ylim(0, float(np.clip(1.15 * top, 0.4, 3.0)))
     ax.legend(fontsize=8, loc="upper right")
     return _svg(fig)
+
+
+def flex_pair_svg(left: dict, right: dict) -> str:
+    """The two skis of a pair overlaid: loaded gap H*(X) on the rigid flat under half (solid) and
+    full (dashed) body weight at the pocket's foot position (two answers of
+    :func:`app.service.flex.flex_sheet_answer` with ``profiles``), the 0.10 mm wax-layer line
+    and the foot. Units: mm on both axes."""
+    w = left["inputs"]["body_weight_kg"]
+    fig, ax = _figure(
+        f"{left['inputs']['ski']} | {right['inputs']['ski']}: loaded camber on the flat, "
+        f"foot at {left['inputs']['pocket_position_mm']:g} mm",
+        "gap H*(X) [mm]",
+    )
+    tops = []
+    for i, ans in enumerate((left, right)):
+        prof = ans["profiles"]
+        x = _array(prof["positions_mm"])
+        half = _array(prof["half_weight_gap_mm"])
+        full = _array(prof["full_weight_gap_mm"])
+        name = ans["inputs"]["ski"]
+        ax.plot(x, half, color=_COLOURS[i], lw=1.4, label=f"{name}, half weight ({0.5 * w:g} kg)")
+        ax.plot(x, full, color=_COLOURS[i], lw=1.4, ls="--", label=f"{name}, full ({w:g} kg)")
+        mid = np.abs(x) < 600
+        tops.append(np.nanmax(half[mid]) if np.any(mid) else np.nanmax(half))
+    ax.axhline(0.10, color="0.4", lw=0.7, ls=":")
+    ax.axvline(left["inputs"]["pocket_position_mm"], color="k", lw=0.8, ls=":", label="foot")
+    ax.set_ylim(0, float(np.clip(1.15 * max(tops), 0.4, 3.0)))
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+    return _svg(fig)

@@ -1,4 +1,4 @@
-"""Build the demo skis ``ski-a`` and ``ski-b`` (tables/skis/*.h5).
+"""Build the shipped skis ``ski-a``, ``ski-b`` (calibrated demos), ``ski-c`` (tables/skis/*.h5).
 
 The papers' camber data are not public (method.md §4), so each demo ski is a classic beam ski
 (:class:`solvers.beam.ClassicSkiDesign`) whose pocket (kick-zone camber) height is calibrated by a
@@ -8,6 +8,14 @@ balance point, E_snow = 200 MPa, E_base = 0.7 GPa, ν = 0.3, default grid of
 apparent contact area (ski A 63.98 cm², ski B 121.84 cm²). The virtual measuring device then
 records 25 loads (10–90 kg) × 17 load positions (−300…+100 mm) at 1 mm sampling with 3 µm
 noise (fixed seed).
+
+``ski-c`` (#28) is not calibrated to the papers: it is a classic ski for a 60–80 kg skier, the
+design :data:`SKI_C_DESIGN` chosen so that its wax pocket stands open at half weight and closes
+near full weight (residual camber under the foot 8 cm behind the balance point ≈ 0.15 mm at
+45 kg, 0.10 mm at ≈ 57 kg on the rigid flat; docs/flex.md). It is measured like the others
+(same grid, 3 µm noise, its own seeds, the unloaded profile included) and its beam identified
+from those measurements (``skisnow identify-ski --ski ski-c --store``); it ships no camber
+network (its identified beam answers).
 
 Usage::
 
@@ -89,6 +97,18 @@ DESIGNS = {
         (0.0003, 0.0005),
     ),
 }
+#: ski-c (#28): the ski-a outline with a softer kick zone (EI 1150 N·m²) and a higher pocket
+#: (1.5 mm), not calibrated (no papers' target)
+SKI_C_DESIGN = ClassicSkiDesign(
+    camber_height_m=0.002,
+    tail_contact_m=-0.80,
+    tip_contact_m=0.70,
+    stiffness_nm2=1150.0,
+    end_stiffness_ratio=0.15,
+    pocket_height_m=1.5e-3,
+)
+#: skis built from their design as is (no calibration)
+UNCALIBRATED = {"ski-c": SKI_C_DESIGN}
 #: measuring grid: the loaded profile is kinked in (F, x_F) where contacts appear or lift off,
 #: and the apparent contact area from the network is sensitive to µm errors near contact, so
 #: the grid is dense (docs/camber-network.md): 25 loads 10..90 kg (3.33 kg apart) × 17 load
@@ -96,9 +116,9 @@ DESIGNS = {
 MEASURE_LOADS_KG = np.linspace(10.0, 90.0, 25)
 MEASURE_POSITIONS_M = np.linspace(-0.300, 0.100, 17)
 NOISE_M = 3e-6
-SEEDS = {"ski-a": 20231001, "ski-b": 20231002}
+SEEDS = {"ski-a": 20231001, "ski-b": 20231002, "ski-c": 20261128}
 #: seeds of the unloaded profile's noise (#26): its own stream, so the loaded cases stay bit for bit
-UNLOADED_SEEDS = {"ski-a": 20261126, "ski-b": 20261127}
+UNLOADED_SEEDS = {"ski-a": 20261126, "ski-b": 20261127, "ski-c": 20261129}
 
 
 def bem_for(design: ClassicSkiDesign):
@@ -193,10 +213,22 @@ def add_unloaded(name: str, out_dir: Path) -> dict:
 
 
 def build(name: str, out_dir: Path) -> dict:
-    design = calibrate(name)
+    design = UNCALIBRATED[name] if name in UNCALIBRATED else calibrate(name)
     res = bem_for(design)
     ski = design.build()
     data = measure(name, ski)
+    if name in UNCALIBRATED:  # shipped with its unloaded profile from the start (#26)
+        unloaded = measure_unloaded(
+            ski, noise_m=NOISE_M, rng=np.random.default_rng(UNLOADED_SEEDS[name])
+        )
+        data = CamberData(
+            ski_id=data.ski_id,
+            positions_m=data.positions_m,
+            loads_n=np.append(data.loads_n, 0.0),
+            load_positions_m=np.append(data.load_positions_m, 0.0),
+            sides=[*data.sides, "mean"],
+            profiles_m=np.vstack([data.profiles_m, unloaded[None, :]]),
+        )
     outline = SkiOutline(
         length_m=design.tip_m - design.tail_m,
         balance_point_from_tail_m=-design.tail_m,
@@ -205,18 +237,24 @@ def build(name: str, out_dir: Path) -> dict:
     )
     summary = {
         "apparent_contact_area_cm2": res.apparent_contact_area_m2 * 1e4,
-        "target_area_cm2": TARGETS[name] * 1e4,
+        "target_area_cm2": TARGETS[name] * 1e4 if name in TARGETS else None,
         "mean_apparent_pressure_kpa": res.mean_apparent_pressure_pa / 1e3,
         "rear_load_share": rear_share(res),
         "pixel_size_m": list(res.pixel_size_m),
         "zones": [(z.edge_start_m, z.edge_end_m, z.load_share) for z in res.zones],
     }
     design_dict = dataclasses.asdict(design)
+    description = (
+        f"synthetic classic ski {name} for a 60–80 kg skier (design beam, not calibrated)"
+        if name in UNCALIBRATED
+        else f"synthetic classic ski {name} (beam model calibrated to the papers)"
+    )
     metadata = {
-        "description": f"synthetic classic ski {name} (beam model calibrated to the papers)",
+        "description": description,
         "calibration_json": json.dumps(summary),
         "noise_m": NOISE_M,
         "seed": SEEDS[name],
+        **({"unloaded_seed": UNLOADED_SEEDS[name]} if name in UNCALIBRATED else {}),
     }
     record = SkiRecord(data, outline, metadata, ski, design_dict)
     write_ski(out_dir / f"{name}.h5", record, parameters={"design": design_dict, **summary})
@@ -228,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--out", type=Path, default=Path(__file__).resolve().parents[1] / "tables/skis"
     )
-    parser.add_argument("--ski", choices=sorted(DESIGNS), action="append")
+    parser.add_argument("--ski", choices=sorted({*DESIGNS, *UNCALIBRATED}), action="append")
     parser.add_argument(
         "--remeasure",
         action="store_true",
@@ -242,7 +280,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("-v", "--verbose", action="store_true")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING)
-    for name in args.ski or sorted(DESIGNS):
+    for name in args.ski or sorted({*DESIGNS, *UNCALIBRATED}):
         if args.add_unloaded:
             summary = add_unloaded(name, args.out)
         elif args.remeasure:

@@ -43,6 +43,7 @@ TOP_LEVEL = {
     "settings": "shared",
     "units": "shared",
     "presets": "shared",
+    "snow": "shared",
     "bounds": "shared",
     "errors": "shared",
     "path_pool": "shared",

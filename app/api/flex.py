@@ -16,13 +16,14 @@ from typing import Literal
 
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import JSONResponse, Response
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 from skisnow.app import bounds
 from skisnow.app.api import problems
 from skisnow.app.api.access import visible_catalogue
 from skisnow.app.api.responses import FlexPair, FlexRanking, FlexSheet
-from skisnow.app.bounds import PresetName, SkiModelName
+from skisnow.app.bounds import SNOW_DOC, PresetName, SkiModelName, fill_snow
 from skisnow.app.service import flex
+from skisnow.app.snow import SnowName, resolve_snow
 from skisnow.solvers.errors import InputError
 
 Format = Literal["json", "csv"]
@@ -31,6 +32,8 @@ Criterion = Literal["real_area", "reciprocal_separation"]
 _W_DOC = "skier's body weight [kg]; half of it is the two-ski stance of the wax pocket"
 _E_DOC = "Young's modulus of the snow [MPa] (kick-zone share on snow, contact metrics)"
 _N_DOC = "snow porosity n = 1 − ρ/917 [-]"
+#: the ``snow`` query parameter (a snow preset; its numbers fill the ones not given)
+_SNOW_QUERY = Query(None, description=SNOW_DOC)
 
 
 class RankingBody(BaseModel):
@@ -43,6 +46,7 @@ class RankingBody(BaseModel):
     body_weight_kg: float = Field(
         ..., **bounds.BODY_WEIGHT_KG.field(), description=_W_DOC, examples=[75]
     )
+    snow: SnowName | None = Field(None, description=SNOW_DOC, examples=["fine-grained"])
     snow_modulus_mpa: float = Field(
         ..., **bounds.SNOW_MODULUS_MPA.field(), description=_E_DOC, examples=[200]
     )
@@ -55,6 +59,11 @@ class RankingBody(BaseModel):
         "real_area",
         description="; ".join(f"{k}: {v[2]}" for k, v in flex.CRITERIA.items()),
     )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _snow_preset(cls, data):
+        return fill_snow(data)
 
 
 def _csv(text: str, name: str) -> Response:
@@ -86,6 +95,7 @@ def get_flex(
         None, **bounds.SNOW_MODULUS_MPA.field(), description=_E_DOC
     ),
     porosity: float | None = Query(None, **bounds.POROSITY.field(), description=_N_DOC),
+    snow: SnowName | None = _SNOW_QUERY,
     base_modulus_mpa: float = Query(700.0, **bounds.BASE_MODULUS_MPA.field()),
     poisson_ratio: float = Query(0.3, **bounds.POISSON_RATIO.field()),
     preset: PresetName = "default",
@@ -94,6 +104,7 @@ def get_flex(
     """The flex sheet: wax pocket at 0.10/0.15/0.20/0.30 mm under half and full weight,
     closing load, kick-zone load share (flat and snow), wheelbase, glide check; each with
     its 90 % band from the camber model."""
+    snow_modulus_mpa, porosity = resolve_snow(snow, snow_modulus_mpa, porosity)
     req = flex.FlexRequest(
         name,
         body_weight_kg,
@@ -102,6 +113,7 @@ def get_flex(
         base_modulus_mpa,
         poisson_ratio,
         preset,
+        snow,
     )
     answer = flex.flex_sheet_answer(visible_catalogue(request, skis=[name]), req)
     if format == "csv":
@@ -120,6 +132,7 @@ def get_pair(
         None, **bounds.SNOW_MODULUS_MPA.field(), description=_E_DOC
     ),
     porosity: float | None = Query(None, **bounds.POROSITY.field(), description=_N_DOC),
+    snow: SnowName | None = _SNOW_QUERY,
     base_modulus_mpa: float = Query(700.0, **bounds.BASE_MODULUS_MPA.field()),
     poisson_ratio: float = Query(0.3, **bounds.POISSON_RATIO.field()),
     preset: PresetName = "default",
@@ -128,6 +141,7 @@ def get_pair(
 ):
     """Two skis of a pair side by side: every flex-sheet number and (with a grind and a
     snow) the four contact metrics, flagged where a difference exceeds the camber band."""
+    snow_modulus_mpa, porosity = resolve_snow(snow, snow_modulus_mpa, porosity)
     req = flex.FlexRequest(
         left,
         body_weight_kg,
@@ -136,6 +150,7 @@ def get_pair(
         base_modulus_mpa,
         poisson_ratio,
         preset,
+        snow,
     )
     answer = flex.flex_pair(
         visible_catalogue(request, skis=[left, right], grinds=[grind] if grind else []),
@@ -167,6 +182,7 @@ def post_ranking(request: Request, body: RankingBody, format: Format = "json"):
         body.base_modulus_mpa,
         body.poisson_ratio,
         body.preset,
+        body.snow,
     )
     answer = flex.flex_ranking(
         visible_catalogue(request, skis=body.skis, grinds=body.grinds),

@@ -92,6 +92,19 @@ class GrindList(BaseModel):
 # -------------------------------------------------------------------------- contact
 
 
+class SnowEcho(BaseModel):
+    """The snow preset a request named (app/snow.py) and which numbers were given instead."""
+
+    model_config = _FIXED
+    name: str
+    label: str
+    numbers_given_instead_of_the_preset: dict[str, float]
+    preset_snow_modulus_mpa: float
+    preset_porosity: float
+    modulus_range_mpa: list[float]
+    reference: str
+
+
 class CaseEcho(BaseModel):
     """The inputs of the case as solved, with the load in N and E' in MPa."""
 
@@ -102,6 +115,7 @@ class CaseEcho(BaseModel):
     load_position_mm: float
     snow_modulus_mpa: float
     porosity: float
+    snow: SnowEcho | None = None
     base_modulus_mpa: float
     poisson_ratio: float
     preset: str
@@ -250,6 +264,13 @@ class FlexSheet(BaseModel):
     inputs: dict[str, Any]
     pockets: list[dict[str, Any]] = Field(..., description="wax pocket per gap, half/full weight")
     wax_zone: dict[str, Any]
+    verdict: dict[str, Any] = Field(
+        ...,
+        description="whether the ski suits the body weight, in words, and the weights it suits",
+    )
+    pocket_height: dict[str, Any] = Field(
+        ..., description="largest gap over the wax zone and gap under the foot, half/full weight"
+    )
     foot_gap_half_weight_mm: float | None
     foot_gap_half_weight_band_mm: float | None
     closing_load: dict[str, Any]
@@ -282,6 +303,8 @@ class FlexRanking(BaseModel):
     criterion: dict[str, Any]
     ranking: list[dict[str, Any]]
     left_out: list[dict[str, Any]]
+    qualifies: bool = Field(..., description="at least one ski suits the skier")
+    message: str | None = Field(None, description="why no ski qualifies, when none does")
     rule: str
 
 

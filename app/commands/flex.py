@@ -11,6 +11,7 @@ import json
 
 from skisnow.app import bounds, service
 from skisnow.app.service import flex
+from skisnow.app.snow import SNOW_PRESETS, resolve_snow
 from skisnow.app.storage.common import sha256_file, tables_dir
 from skisnow.app.storage.skis import read_ski
 from skisnow.solvers.errors import InputError
@@ -30,6 +31,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--ski", metavar="NAME", required=True, help="stored ski (tables/skis/NAME.h5)")
     p.add_argument("--body-weight-kg", type=float, required=True, help="skier's weight [kg]")
+    p.add_argument(
+        "--snow",
+        choices=list(SNOW_PRESETS),
+        help="snow by type and temperature (app/snow.py): kick share on snow with its modulus",
+    )
     p.add_argument("--snow-modulus-mpa", type=float, help="E_snow [MPa]: kick share on snow")
     p.add_argument("--base-modulus-mpa", type=float, default=700.0, help="E_base [MPa]")
     p.add_argument("--poisson", type=float, default=0.3, help="Poisson's ratio [-]")
@@ -77,14 +83,16 @@ def run(args: argparse.Namespace) -> int:
                 InputError, bound.name, f"{flag} must be in {bound.text()}, got {value:g}"
             )
     cat = _catalogue(args.ski)
+    e, n = resolve_snow(args.snow, args.snow_modulus_mpa, None)
     req = flex.FlexRequest(
         args.ski,
         args.body_weight_kg,
-        args.snow_modulus_mpa,
-        None,
+        e,
+        n,
         args.base_modulus_mpa,
         args.poisson,
         args.preset,
+        args.snow,
     )
     ans = flex.flex_sheet_answer(cat, req, profiles=args.json)
     if args.json:
@@ -95,6 +103,15 @@ def run(args: argparse.Namespace) -> int:
         return 0
     w = ans["inputs"]["body_weight_kg"]
     print(f"flex sheet of {args.ski} for {w:g} kg (foot 80 mm behind the balance point)")
+    print(f"verdict           {ans['verdict']['text']}")
+    ph = ans["pocket_height"]
+    print(
+        f"pocket height     half {_fmt(ph['half_weight']['largest_gap_mm'], 'mm', digits=2)}, "
+        f"full {_fmt(ph['full_weight']['largest_gap_mm'], 'mm', digits=2)} (largest gap "
+        f"{ph['span']}); under the foot half "
+        f"{_fmt(ph['half_weight']['foot_gap_mm'], 'mm', digits=2)}, full "
+        f"{_fmt(ph['full_weight']['foot_gap_mm'], 'mm', digits=2)}"
+    )
     print("wax pocket        half weight                    full weight")
     for p in ans["pockets"]:
         h, f = p["half_weight"], p["full_weight"]
@@ -123,7 +140,8 @@ def run(args: argparse.Namespace) -> int:
         print(
             f"                  snow {s['snow_modulus_mpa']:g} MPa: half "
             f"{_fmt(s['half_weight_percent'], '%', s['half_weight_band_percent'])}, full "
-            f"{_fmt(s['full_weight_percent'], '%', s['full_weight_band_percent'])}"
+            f"{_fmt(s['full_weight_percent'], '%', s['full_weight_band_percent'])} "
+            "(shops aim for 33–50 % at full weight)"
         )
     wb = ans["wheelbase"]
     print(f"wheelbase         {_fmt(wb['wheelbase_mm'], 'mm', wb['band_mm'])}")

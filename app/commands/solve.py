@@ -7,6 +7,7 @@ import argparse
 import json
 
 from skisnow.app.presets import DEFAULT_PRESET, PRESETS
+from skisnow.app.snow import DEFAULT_SNOW, SNOW_PRESETS
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -20,8 +21,17 @@ def register(sub: argparse._SubParsersAction) -> None:
         required=True,
         help="load position from the balance point, + towards the tip [mm]",
     )
-    v.add_argument("--snow-modulus-mpa", type=float, required=True, help="snow modulus [MPa]")
-    v.add_argument("--porosity", type=float, required=True, help="snow porosity n [-]")
+    v.add_argument(
+        "--snow",
+        choices=list(SNOW_PRESETS),
+        default=None,
+        help="snow by type and temperature (app/snow.py): fills --snow-modulus-mpa and "
+        f"--porosity where not given; the web form's default is {DEFAULT_SNOW}",
+    )
+    v.add_argument(
+        "--snow-modulus-mpa", type=float, default=None, help="snow modulus [MPa] (or --snow)"
+    )
+    v.add_argument("--porosity", type=float, default=None, help="snow porosity n [-] (or --snow)")
     v.add_argument("--base-modulus-mpa", type=float, default=700.0)
     v.add_argument("--poisson", type=float, default=0.3)
     v.add_argument("--tables-dir", default=None)
@@ -55,12 +65,19 @@ def run_solve(args: argparse.Namespace) -> int:
             grind=args.grind,
             load_kg=args.load_kg,
             load_position_mm=args.load_position_mm,
-            snow_modulus_mpa=args.snow_modulus_mpa,
-            porosity=args.porosity,
             base_modulus_mpa=args.base_modulus_mpa,
             poisson_ratio=args.poisson,
             preset=args.preset,
             ski_model=args.ski_model,
+            **{
+                k: v
+                for k, v in (
+                    ("snow", args.snow),
+                    ("snow_modulus_mpa", args.snow_modulus_mpa),
+                    ("porosity", args.porosity),
+                )
+                if v is not None
+            },
         )
     except ValidationError as exc:
         msgs = "; ".join(
@@ -80,7 +97,8 @@ def run_solve(args: argparse.Namespace) -> int:
     m, a = out["metrics"], out["apparent"]
     print(
         f"{args.ski} × {args.grind}: {args.load_kg:g} kg at {args.load_position_mm:g} mm, "
-        f"E_snow {args.snow_modulus_mpa:g} MPa, porosity {args.porosity:g}"
+        f"E_snow {body.snow_modulus_mpa:g} MPa, porosity {body.porosity:g}"
+        + (f" (snow {args.snow})" if args.snow else "")
     )
     rel = out.get("band", {}).get("relative_half_width", {})
 

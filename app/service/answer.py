@@ -32,6 +32,7 @@ from skisnow.app.service.profiles import (
     profile_model,
 )
 from skisnow.app.service.rounding import finite_list
+from skisnow.app.snow import snow_record
 from skisnow.app.storage.common import code_version
 from skisnow.solvers.elastic import effective_modulus
 from skisnow.solvers.errors import NotConvergedError, OutOfRangeError, SkisnowError
@@ -59,6 +60,7 @@ class ContactInputs:
     poisson_ratio: float = 0.3
     preset: str = DEFAULT_PRESET
     ski_model: str = "auto"
+    snow: str | None = None
 
 
 def loaded_profile(ski: Ski, load_n: float, load_position_m: float):
@@ -235,6 +237,7 @@ def contact(
             "load_position_mm": inp.load_position_mm,
             "snow_modulus_mpa": inp.snow_modulus_mpa,
             "porosity": inp.porosity,
+            "snow": snow_record(inp.snow, inp.snow_modulus_mpa, inp.porosity),
             "base_modulus_mpa": inp.base_modulus_mpa,
             "poisson_ratio": inp.poisson_ratio,
             "preset": preset.name,

@@ -19,12 +19,16 @@ from urllib.parse import quote, urlencode
 from fastapi import Request
 from fastapi.responses import HTMLResponse
 from skisnow.app.api.access import visible_catalogue
-from skisnow.app.plots import flex_profile_svg
+from skisnow.app.plots import flex_pair_svg, flex_profile_svg
 from skisnow.app.service import UnknownItemError, flex
+from skisnow.app.snow import SNOW_PRESETS, resolve_snow, snow_choices
+from skisnow.app.web.form import chosen_snow
 from skisnow.app.web.templating import page, svg
 from skisnow.solvers.errors import SkisnowError
 
-DEFAULTS = {"body_weight_kg": "75", "snow_modulus_mpa": "20", "porosity": "0.5"}
+#: the pages' defaults: the snow is the same preset as the contact form's (app/snow.py); its
+#: modulus and porosity fields stay empty (the preset's numbers) unless a user types one
+DEFAULTS = {"body_weight_kg": "75", "snow_modulus_mpa": "", "porosity": ""}
 
 
 def _float(q: dict, name: str, errors: dict, required: bool = True) -> float | None:
@@ -67,14 +71,33 @@ def _fail(exc: Exception, errors: dict, default: str) -> None:
     errors[field or default] = str(exc)
 
 
-def _request(q: dict, errors: dict, ski: str, snow_required: bool) -> flex.FlexRequest | None:
+def _snow(request: Request, q: dict, errors: dict) -> str | None:
+    """The snow preset of the page (the contact form's rule, :func:`chosen_snow`); None for
+    custom numbers. Sets ``q["snow"]`` for the page's select."""
+    name = chosen_snow(request.query_params)
+    if name and name not in SNOW_PRESETS:
+        errors["snow"] = f"unknown snow {name!r}; choose {', '.join(SNOW_PRESETS)}"
+        name = ""
+    q["snow"] = name
+    return name or None
+
+
+def _request(
+    request: Request, q: dict, errors: dict, ski: str, snow_required: bool
+) -> flex.FlexRequest | None:
     w = _float(q, "body_weight_kg", errors)
-    e = _float(q, "snow_modulus_mpa", errors, snow_required)
-    n = _float(q, "porosity", errors, snow_required)
+    snow = _snow(request, q, errors)
+    e = _float(q, "snow_modulus_mpa", errors, required=False)
+    n = _float(q, "porosity", errors, required=False)
+    e, n = resolve_snow(snow, e, n)
+    if snow_required:
+        for name, v in (("snow_modulus_mpa", e), ("porosity", n)):
+            if v is None and name not in errors:
+                errors[name] = "required (or choose a snow type)"
     check_bounds(w, e, n, errors)
     if errors:
         return None
-    return flex.FlexRequest(ski, w, e, n)
+    return flex.FlexRequest(ski, w, e, n, snow=snow)
 
 
 def _catalogue(request: Request):
@@ -87,17 +110,18 @@ def _catalogue(request: Request):
 
 def render_sheet(request: Request) -> HTMLResponse:
     cat = _catalogue(request)
-    q = {**DEFAULTS, **dict(request.query_params)}
+    q = {**DEFAULTS, **dict(request.query_params), "snow": chosen_snow(request.query_params)}
     errors: dict[str, str] = {}
     context: dict = {"ans": None}
     status = 200
     if "ski" in request.query_params:
-        req = _request(q, errors, q["ski"], snow_required=False)
+        req = _request(request, q, errors, q["ski"], snow_required=False)
         if req is not None:
             try:
                 ans = flex.flex_sheet_answer(cat, req)
                 csv_q = {
                     "body_weight_kg": req.body_weight_kg,
+                    **({"snow": req.snow} if req.snow else {}),
                     **({"snow_modulus_mpa": req.snow_modulus_mpa} if req.snow_modulus_mpa else {}),
                     "format": "csv",
                 }
@@ -121,18 +145,19 @@ def render_sheet(request: Request) -> HTMLResponse:
         q=q,
         skis=sorted(cat.skis),
         errors=errors,
+        snow_choices=snow_choices(),
         **context,
     )
 
 
 def render_pair(request: Request) -> HTMLResponse:
     cat = _catalogue(request)
-    q = {**DEFAULTS, **dict(request.query_params)}
+    q = {**DEFAULTS, **dict(request.query_params), "snow": chosen_snow(request.query_params)}
     errors: dict[str, str] = {}
     out, status = None, 200
     if "left" in request.query_params:
         grind = q.get("grind") or None
-        req = _request(q, errors, q.get("left", ""), snow_required=grind is not None)
+        req = _request(request, q, errors, q.get("left", ""), snow_required=grind is not None)
         if req is not None:
             try:
                 out = flex.flex_pair(cat, q["left"], q.get("right", ""), req, grind=grind)
@@ -149,12 +174,14 @@ def render_pair(request: Request) -> HTMLResponse:
         grinds=["", *sorted(cat.grinds)],
         errors=errors,
         out=out,
+        figure=svg(flex_pair_svg(out["left"], out["right"])) if out else None,
+        snow_choices=snow_choices(),
     )
 
 
 def render_ranking(request: Request) -> HTMLResponse:
     cat = _catalogue(request)
-    q = {**DEFAULTS, **dict(request.query_params)}
+    q = {**DEFAULTS, **dict(request.query_params), "snow": chosen_snow(request.query_params)}
     chosen_skis = request.query_params.getlist("ski")
     chosen_grinds = request.query_params.getlist("grind")
     criterion = q.get("criterion", "real_area")
@@ -165,7 +192,9 @@ def render_ranking(request: Request) -> HTMLResponse:
             errors["skis"] = "choose at least one ski"
         if not chosen_grinds:
             errors["grinds"] = "choose at least one grind"
-        req = _request(q, errors, chosen_skis[0] if chosen_skis else "", snow_required=True)
+        req = _request(
+            request, q, errors, chosen_skis[0] if chosen_skis else "", snow_required=True
+        )
         if req is not None and not errors:
             try:
                 out = flex.flex_ranking(cat, chosen_skis, chosen_grinds, req, criterion=criterion)
@@ -186,4 +215,5 @@ def render_ranking(request: Request) -> HTMLResponse:
         criteria=list(flex.CRITERIA),
         errors=errors,
         out=out,
+        snow_choices=snow_choices(),
     )

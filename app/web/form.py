@@ -20,6 +20,7 @@ from skisnow.app import service
 from skisnow.app.bounds import CaseInputs
 from skisnow.app.presets import DEFAULT_PRESET
 from skisnow.app.presets import PRESETS as ACCURACY_PRESETS
+from skisnow.app.snow import DEFAULT_SNOW, SNOW_PRESETS, snow_choices
 from skisnow.app.web.templating import page
 
 #: density of ice used to turn snow density into porosity, n = 1 − ρ/ρ_ice [kg/m³]
@@ -59,6 +60,13 @@ FIELDS = {
     "snow_density_kg_m3": ("Snow density ρ", "kg/m³", "porosity n = 1 − ρ/917"),
     "base_modulus_mpa": ("Ski-base Young's modulus E_base", "MPa", "sintered UHMWPE ≈ 700 MPa"),
     "poisson_ratio": ("Poisson's ratio ν (snow and base)", "–", "0 ≤ ν < 0.5"),
+}
+
+#: the snow numbers a snow preset sets (shown, disabled, in the form)
+SNOW_NUMBERS = {
+    "snow_modulus_mpa": lambda p: f"{p.snow_modulus_mpa:g}",
+    "porosity": lambda p: f"{p.porosity:g}",
+    "snow_density_kg_m3": lambda p: f"{p.density_kg_m3:g}",
 }
 
 #: numeric inputs passed on to CaseInputs / service.ContactInputs
@@ -129,6 +137,7 @@ def parse_query(request: Request, cat: service.Catalogue, max_cells: int) -> Que
     """Read and validate the form's query parameters (bounds of :class:`CaseInputs`)."""
     qp = request.query_params
     raw = {k: qp.get(k, "").strip() for k in (*FIELDS, "snow_input", "preset", "ski_model")}
+    raw["snow"] = chosen_snow(qp)
     q = Query(_unique(qp.getlist("ski")), _unique(qp.getlist("grind")), raw)
     if raw["snow_input"] not in ("porosity", "density"):
         raw["snow_input"] = "porosity"
@@ -164,7 +173,17 @@ def parse_query(request: Request, cat: service.Catalogue, max_cells: int) -> Que
         )
         raw["ski_model"] = "auto"
     values = {k: raw[k] for k in NUMERIC}
-    if raw["snow_input"] == "density":
+    snow = {}
+    if raw["snow"] and raw["snow"] not in SNOW_PRESETS:
+        q.errors["snow"] = f"unknown snow {raw['snow']!r}; choose {', '.join(SNOW_PRESETS)}"
+        raw["snow"] = ""
+    if raw["snow"]:  # a named snow: its numbers, the fields were not sent (disabled)
+        snow = {"snow": raw["snow"]}
+        for key in ("snow_modulus_mpa", "porosity"):
+            values.pop(key)
+            raw[key] = ""
+        raw["snow_density_kg_m3"] = ""
+    elif raw["snow_input"] == "density":
         values.pop("porosity")
         porosity, error = porosity_from_density(raw["snow_density_kg_m3"])
         if error:
@@ -178,7 +197,7 @@ def parse_query(request: Request, cat: service.Catalogue, max_cells: int) -> Que
         if text != "" and _finite(text) is None:
             q.errors[key] = "must be a finite number"
     try:
-        body = CaseInputs(preset=raw["preset"], ski_model=raw["ski_model"], **values)
+        body = CaseInputs(preset=raw["preset"], ski_model=raw["ski_model"], **snow, **values)
     except ValidationError as exc:
         for err in exc.errors():
             key = str(err["loc"][0]) if err.get("loc") else "form"
@@ -193,6 +212,16 @@ def parse_query(request: Request, cat: service.Catalogue, max_cells: int) -> Que
     if q.errors and q.status == 200:
         q.status = 422
     return q
+
+
+def chosen_snow(qp) -> str:
+    """The snow preset a query names: ``snow`` when given (empty: custom numbers); without it,
+    custom when a snow number is given (links from before the presets), else the default."""
+    if "snow" in qp:
+        return qp.get("snow", "").strip()
+    if any(qp.get(k, "").strip() for k in ("snow_modulus_mpa", "porosity", "snow_density_kg_m3")):
+        return ""
+    return DEFAULT_SNOW
 
 
 def _finite(text: str) -> float | None:
@@ -222,6 +251,10 @@ def _number_field(q: Query, name: str, *, disabled: bool = False) -> dict:
     :class:`CaseInputs`."""
     label, unit, hint = FIELDS[name]
     value = q.raw.get(name, "")
+    preset = SNOW_PRESETS.get(q.raw.get("snow") or "")
+    if preset is not None and name in SNOW_NUMBERS:
+        value = str(SNOW_NUMBERS[name](preset))
+        disabled = True
     if not value and name not in q.errors:
         value = DEFAULTS[name]
     bounds = []
@@ -319,4 +352,8 @@ def render_form(
         preset=q.raw.get("preset") or DEFAULT_PRESET,
         ski_models=list(SKI_MODEL_LABELS.items()),
         ski_model=q.raw.get("ski_model") or "auto",
+        snow_choices=snow_choices(),
+        snow_presets=[p.as_json() for p in SNOW_PRESETS.values()],
+        snow=q.raw.get("snow", DEFAULT_SNOW),
+        snow_error=q.errors.get("snow"),
     )

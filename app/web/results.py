@@ -19,6 +19,7 @@ from dataclasses import astuple, dataclass
 from fastapi import Request
 from fastapi.responses import HTMLResponse
 from skisnow.app import plots, service
+from skisnow.app.snow import SNOW_PRESETS
 from skisnow.app.web.form import Query, ski_url
 from skisnow.app.web.templating import page, svg
 from skisnow.solvers.errors import SkisnowError
@@ -72,6 +73,8 @@ CSV_COLUMNS = (
     "ski_sha256",
     "code_version",
     "compute_time_ms",
+    # the snow preset the snow numbers came from (app/snow.py); empty for custom numbers
+    "snow",
     "warnings",
     "error",
 )
@@ -141,6 +144,7 @@ def render_results(request: Request, q: Query, out: Outcome) -> HTMLResponse:
         "results.html",
         "skisnow — results",
         n=q.numbers,
+        snow_label=SNOW_PRESETS[q.numbers["snow"]].label if q.numbers.get("snow") else None,
         link=q.link_query(),
         results=out.results,
         failures=out.failures,
@@ -185,10 +189,11 @@ def render_csv(out: Outcome) -> str:
             "compute_time_ms": round(r["timing_ms"]["total"], 1),
             "warnings": ";".join(w["code"] for w in r.get("warnings", [])),
             "error": "",
+            "snow": (inp.get("snow") or {}).get("name"),
         }
         w.writerow([_csv_value(row.get(c)) for c in CSV_COLUMNS])
     for inp, msg in out.failures:
-        row = {k: getattr(inp, k) for k in CSV_COLUMNS[:8]} | {"error": msg}
+        row = {k: getattr(inp, k) for k in CSV_COLUMNS[:8]} | {"error": msg, "snow": inp.snow}
         w.writerow([_csv_value(row.get(c)) for c in CSV_COLUMNS])
     return buf.getvalue()
 

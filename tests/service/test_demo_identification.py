@@ -135,7 +135,7 @@ _SKI_B_EI_XFAIL = pytest.mark.xfail(
 )
 
 
-@pytest.mark.parametrize("name", ["ski-a", pytest.param("ski-b", marks=_SKI_B_EI_XFAIL)])
+@pytest.mark.parametrize("name", ["ski-a", pytest.param("ski-b", marks=_SKI_B_EI_XFAIL), "ski-c"])
 def test_identified_stiffness_within_10_percent_of_the_design_mid_ski(name):
     """EI(X) of the stored identification within 10 % of the design beam's where |X| < 0.6 m
     (the moments of the device's loads are large there)."""
@@ -144,3 +144,23 @@ def test_identified_stiffness_within_10_percent_of_the_design_mid_ski(name):
     mid = np.abs(beam.positions_m) < 0.6
     rel = beam.bending_stiffness_nm2[mid] / rec.beam.bending_stiffness_nm2[mid] - 1.0
     assert np.abs(rel).max() < 0.10, f"{np.abs(rel).max():.1%}"
+
+
+def test_ski_c_is_its_documented_design():
+    """ski-c (#28) holds the beam of ``SKI_C_DESIGN`` in scripts/make_demo_skis.py bit for bit,
+    its measurements' seeds, and an identification that passed its held-out check."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "make_demo_skis", REPO / "scripts/make_demo_skis.py"
+    )
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    rec = read_ski(REPO / "tables" / "skis" / "ski-c.h5")
+    design = mod.SKI_C_DESIGN.build()
+    np.testing.assert_array_equal(rec.beam.positions_m, design.positions_m)
+    np.testing.assert_array_equal(rec.beam.bending_stiffness_nm2, design.bending_stiffness_nm2)
+    np.testing.assert_array_equal(rec.beam.unloaded_gap_m, design.unloaded_gap_m)
+    assert rec.metadata["seed"] == mod.SEEDS["ski-c"]
+    assert np.count_nonzero(rec.measurements.loads_n == 0) == 1  # the unloaded profile
+    assert rec.identified is not None and rec.network is None

@@ -323,14 +323,16 @@ def test_pair_differing_by_005_mm_pocket_height_is_flagged(cat):
 
 
 def test_ranking_leaves_out_and_orders(cat):
-    skis = ["flex-a", "flex-lower", "flex-soft", "flex-stiff"]
+    skis = ["flex-a", "flex-a-twin", "flex-lower", "flex-soft", "flex-stiff"]
     req = flex.FlexRequest("flex-a", W_KG, 20.0, 0.5)
     out = flex.flex_ranking(cat, skis, ["tiny-grind"], req, criterion="real_area")
     left_out = {o["ski"]: o["reason"] for o in out["left_out"]}
-    assert "closed at half weight" in left_out["flex-soft"]
+    assert left_out["flex-soft"].startswith("too soft for")
     assert "does not close" in left_out["flex-stiff"]
+    # 0.05 mm less pocket: closes below W but stands less than 0.15 mm open at W/2 (#28 verdict)
+    assert left_out["flex-lower"].startswith("too soft for")
     ranked = out["ranking"]
-    assert [e["ski"] for e in ranked] and {e["ski"] for e in ranked} == {"flex-a", "flex-lower"}
+    assert [e["ski"] for e in ranked] and {e["ski"] for e in ranked} == {"flex-a", "flex-a-twin"}
     key = out["criterion"]["metric"]
     assert (key, out["criterion"]["unit"]) == ("total_real_contact_area_mm2", "mm2")
     assert ranked[0][key] >= ranked[1][key]
@@ -346,7 +348,7 @@ def test_ranking_leaves_out_and_orders(cat):
     assert wet["ranking"][0][k2] <= wet["ranking"][-1][k2]
     rows = list(csv.DictReader(io.StringIO(flex.ranking_csv(out))))
     assert [r["ski"] for r in rows[:2]] == [e["ski"] for e in ranked]
-    assert {r["ski"] for r in rows if r["left_out"]} == {"flex-soft", "flex-stiff"}
+    assert {r["ski"] for r in rows if r["left_out"]} == {"flex-lower", "flex-soft", "flex-stiff"}
 
 
 # ----------------------------------------------------------------------------- routes, CLI
@@ -507,7 +509,7 @@ def test_a_ski_paired_with_its_true_beam_is_not_flagged(cat, name):
         ("/flex?ski=nope&body_weight_kg=75", "ski"),
         ("/flex/pair?left=flex-a&right=nope&body_weight_kg=75", "right"),
         (
-            "/flex/pair?left=flex-a&right=flex-a&body_weight_kg=75&grind=tiny-grind&porosity=",
+            "/flex/pair?left=flex-a&right=flex-a&body_weight_kg=75&grind=tiny-grind&snow=&porosity=",
             "porosity",
         ),
         ("/flex/ranking?grind=tiny-grind&body_weight_kg=75", "skis"),
@@ -519,3 +521,81 @@ def test_flex_pages_show_bad_input_next_to_its_field(client, url, field):
     r = client.get(url)
     assert r.status_code == 422, r.text[:300]
     assert f'id="{field}-error"' in r.text
+
+
+# ----------------------------------------------------------------------------- #28: verdict
+
+
+def test_verdict_follows_the_residual_camber_rule(cat):
+    """The verdict's range is [closing load, 2 × open limit]: at its ends the gap under the foot
+    is 0.10 mm at full weight and 0.15 mm at half weight (checked on the ski's own model)."""
+    ans = flex.flex_sheet_answer(cat, flex.FlexRequest("ski-c", 70.0), profiles=False)
+    v = ans["verdict"]
+    assert v["kind"] == "suits" and v["text"].startswith("suits 70 kg: closes at")
+    low, high = v["suits_body_weight_kg"]
+    assert low <= 60 and high >= 80  # the shipped ski for a 60–80 kg skier (#28)
+    fn = flex.sheet._profile_fn(cat.ski("ski-c"))
+    g = 9.82
+
+    def foot_gap_mm(kg):
+        p = fn(kg * g, -0.08)
+        return float(np.interp(-0.08, p.positions_m, p.gap_m)) * 1e3
+
+    assert foot_gap_mm(low + 1) <= 0.10 < foot_gap_mm(low - 1)
+    assert foot_gap_mm((high - 1) / 2) >= 0.15 > foot_gap_mm((high + 1) / 2)
+    for w, kind in ((low - 3, "too_stiff"), (high + 3, "too_soft")):
+        if 2 * 10 <= w <= 90:
+            out = flex.flex_sheet_answer(cat, flex.FlexRequest("ski-c", w), profiles=False)
+            assert out["verdict"]["kind"] == kind, out["verdict"]
+
+
+def test_demo_skis_say_which_weights_they_suit(cat):
+    a = flex.flex_sheet_answer(cat, flex.FlexRequest("ski-a", 70.0), profiles=False)["verdict"]
+    assert a["kind"] == "too_soft" and a["text"].startswith("too soft for 70 kg: closes at 3")
+    assert a["suits_body_weight_kg"][1] < 60
+    b = flex.flex_sheet_answer(cat, flex.FlexRequest("ski-b", 70.0), profiles=False)["verdict"]
+    assert b["kind"] == "too_soft" and b["suits_body_weight_kg"] is None
+    assert "closed already at" in b["text"]
+
+
+def test_pocket_height_is_the_largest_gap_over_the_wax_zone(cat):
+    ans = flex.flex_sheet_answer(cat, flex.FlexRequest("ski-c", 70.0))
+    ph = ans["pocket_height"]
+    wax = ans["wax_zone"]
+    assert ph["span_mm"] == [wax["start_mm"], wax["end_mm"]]
+    prof = ans["profiles"]
+    x = np.array(prof["positions_mm"])
+    inside = (x > wax["start_mm"]) & (x < wax["end_mm"])
+    for tag in ("half_weight", "full_weight"):
+        gaps = np.array(prof[f"{tag}_gap_mm"])[inside]
+        # the profile in the answer is every 5th node: its largest gap is at most the height
+        assert gaps.max() <= ph[tag]["largest_gap_mm"] + 1e-3
+        assert gaps.max() >= ph[tag]["largest_gap_mm"] - 0.01
+        assert ph[tag]["foot_gap_mm"] <= ph[tag]["largest_gap_mm"]
+    assert ph["half_weight"]["largest_gap_mm"] > ph["full_weight"]["largest_gap_mm"] > 0
+    # a closed wax zone (ski-a at 70 kg): the height is read near the foot, and said so
+    a = flex.flex_sheet_answer(cat, flex.FlexRequest("ski-a", 70.0), profiles=False)
+    assert "closed" in a["pocket_height"]["span"]
+    assert a["pocket_height"]["full_weight"]["largest_gap_mm"] > 0.1
+
+
+def test_ranking_with_no_ski_that_qualifies_says_why(cat):
+    req = flex.FlexRequest("ski-a", 70.0, 200.0, 0.5)
+    out = flex.flex_ranking(cat, ["ski-a", "ski-b"], ["tiny-grind"], req)
+    assert not out["qualifies"] and out["ranking"] == []
+    assert out["message"].startswith("No ski qualifies for 70 kg: ski-a: too soft")
+    assert "ski-b" in out["message"]
+    ok = flex.flex_ranking(cat, ["ski-a", "ski-c"], ["tiny-grind"], req)
+    assert ok["qualifies"] and [e["ski"] for e in ok["ranking"]] == ["ski-c"]
+    assert ok["message"] is None
+
+
+def test_pair_rows_have_labels(cat):
+    out = flex.flex_pair(cat, "ski-a", "ski-c", flex.FlexRequest("ski-a", 50.0))
+    labels = {r["quantity"]: r["label"] for r in out["flex_differences"]}
+    assert labels["closing_load_kg"] == "Closing load (0.10 mm under the foot) [kg]"
+    assert labels["pocket_half_weight_0.15mm_length_mm"] == (
+        "Wax pocket ≥ 0.15 mm at half weight: length [mm]"
+    )
+    assert all(not lab.startswith(("pocket_", "kick_")) for lab in labels.values())
+    assert "pocket_height_half_weight_largest_gap_mm" in labels

@@ -132,6 +132,13 @@ def test_fill_submit_and_see_results(server, page, tmp_path):
     # published case preset, then the snow from its density
     page.get_by_role("button", name="Published case: 40 kg at −160 mm").click()
     expect(page.locator("#load_kg")).to_have_value("40")
+    # the snow: a preset fills and locks its numbers; custom numbers are one choice away
+    expect(page.locator("#snow")).to_have_value("study")
+    expect(page.locator("#snow_modulus_mpa")).to_be_disabled()
+    page.select_option("#snow", "icy")
+    expect(page.locator("#snow_modulus_mpa")).to_have_value("440")
+    page.select_option("#snow", "")
+    expect(page.locator("#snow_modulus_mpa")).to_be_enabled()
     page.fill("#snow_modulus_mpa", "200")
     page.check("input[name=snow_input][value=density]")
     expect(page.locator("#porosity")).to_be_disabled()
@@ -312,7 +319,8 @@ def flex_server(catalogue):
 def test_flex_sheet_pair_ranking(flex_server, page, tmp_path):
     """A technician walks through the flex tab: a ski's flex sheet (with its plot and CSV), the
     pair with its twin of 0.05 mm less pocket height (flagged), and the ranking for the skier
-    (skis whose pocket is closed at half weight left out)."""
+    (skis that do not suit the skier left out: flex-lower stands less than 0.15 mm open at half
+    weight, flex-soft is closed there)."""
     errors: list[str] = []
     page.on("pageerror", lambda exc: errors.append(str(exc)))
     page.goto(flex_server + "/")
@@ -355,9 +363,86 @@ def test_flex_sheet_pair_ranking(flex_server, page, tmp_path):
     page.click("#submit")
     page.wait_for_url("**/flex/ranking?**")
     expect(page.locator("#ranking")).to_contain_text("flex-a")
-    assert page.locator("#ranking tr").count() == 3  # header + two ranked skis
+    assert page.locator("#ranking tr").count() == 2  # header + the one ski that suits
     expect(page.locator("#left-out")).to_contain_text("flex-soft")
+    expect(page.locator("#left-out")).to_contain_text("flex-lower: too soft for 75 kg")
+    assert errors == []
+
+
+def test_technician_walk_with_the_shipped_ski_at_70_kg(server, page, tmp_path):
+    """#28 acceptance: form → results → flex sheet → pair → ranking → upload with the shipped
+    ski for a 60–80 kg skier (ski-c) at 70 kg: the sheet shows non-zero pockets, a verdict and a
+    pocket height, and the ranking is not empty. Writes the flex screenshots."""
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    page.goto(server + "/")
+    page.check("input[name=ski][value=ski-c]")
+    page.uncheck("input[name=ski][value=ski-a]")
+    page.check("input[name=grind][value=tiny-grind]")
+    page.fill("#body_weight_kg", "70")
+    page.get_by_role("button", name="Full body weight at −150 mm").click()
+    expect(page.locator("#load_kg")).to_have_value("70")
+    page.select_option("#snow", "fine-grained")
+    expect(page.locator("#snow_modulus_mpa")).to_have_value("120")
+    page.click("#submit")
+    page.wait_for_url("**/results?**")
+    expect(page.locator("#comparison")).to_contain_text("ski-c")
+    metric = page.locator('[data-metric="total_real_contact_area_mm2"] .value').first
+    assert float(metric.inner_text()) > 0
+
+    # flex sheet
+    page.goto(server + "/")
+    page.click("#nav-flex")
+    page.select_option("#ski", "ski-c")
+    page.fill("#body_weight_kg", "70")
+    expect(page.locator("#snow")).to_have_value("study")  # the form's default snow
+    page.click("#submit")
+    page.wait_for_url("**/flex?**")
+    expect(page.locator("#verdict")).to_contain_text("suits 70 kg: closes at")
+    height = page.locator('[data-number="pocket_height"] .value')
+    assert float(height.inner_text().split()[0]) > 0.1  # mm, at half weight
+    pockets = page.locator("#pockets td.value")
+    assert float(pockets.first.inner_text().split()[0]) > 100  # 0.10 mm pocket at half weight [mm]
+    expect(page.locator('[data-number="kick_snow"]')).to_contain_text("shops aim for 33–50 %")
+    page.screenshot(path=str(tmp_path / "flex-sheet.png"), full_page=True)
+
+    # pair: ski-c against ski-a, labels and the overlay plot
+    page.get_by_role("link", name="Pair").click()
+    page.select_option("#left", "ski-c")
+    page.select_option("#right", "ski-a")
+    page.fill("#body_weight_kg", "70")
+    page.click("#submit")
+    page.wait_for_url("**/flex/pair?**")
+    expect(page.locator("#pair")).to_contain_text("Closing load (0.10 mm under the foot) [kg]")
+    expect(page.locator("#pair-verdicts")).to_contain_text("ski-a: too soft for 70 kg")
+    svg = page.locator("#plot-flex-pair svg")
+    expect(svg).to_be_visible()
+    assert svg.bounding_box()["width"] > 300
+    page.screenshot(path=str(tmp_path / "flex-pair.png"), full_page=True)
+
+    # ranking: the shipped skis for a 70 kg skier; ski-c ranks, the demo skis are left out
+    page.get_by_role("link", name="Ranking").click()
+    for ski in ("ski-a", "ski-b", "ski-c"):
+        page.check(f"input[name=ski][value={ski}]")
+    page.check("input[name=grind][value=tiny-grind]")
+    page.fill("#body_weight_kg", "70")
+    page.click("#submit")
+    page.wait_for_url("**/flex/ranking?**")
+    expect(page.locator("#ranking")).to_contain_text("ski-c")
+    assert page.locator("#ranking tr").count() >= 2
+    expect(page.locator("#left-out")).to_contain_text("ski-a: too soft for 70 kg")
     page.screenshot(path=str(tmp_path / "flex-ranking.png"), full_page=True)
+    # with only the demo skis: no ski qualifies, and the page says why
+    page.uncheck("input[name=ski][value=ski-c]")
+    page.click("#submit")
+    page.wait_for_url("**/flex/ranking?**")
+    expect(page.locator("#no-ski")).to_have_text("No ski qualifies")
+    expect(page.locator("#no-ski-message")).to_contain_text("ski-b")
+
+    # upload: the page is one click away
+    page.goto(server + "/")
+    page.click("#upload-link")
+    expect(page.locator("h1")).to_have_text("Upload a ski or a grind")
     SCREENSHOTS.mkdir(parents=True, exist_ok=True)
     for name in ("flex-sheet.png", "flex-pair.png", "flex-ranking.png"):
         shutil.copyfile(tmp_path / name, SCREENSHOTS / name)

@@ -39,6 +39,14 @@ def _flat_numbers(ans: dict) -> dict[str, tuple[float | None, float | None, str]
                     q[f"{part}_band_mm"],
                     "length",
                 )
+    ph = ans.get("pocket_height")
+    if ph:
+        for weight in ("half_weight", "full_weight"):
+            out[f"pocket_height_{weight}_largest_gap_mm"] = (
+                ph[weight]["largest_gap_mm"],
+                None,
+                "gap",
+            )
     out["foot_gap_half_weight_mm"] = (
         ans["foot_gap_half_weight_mm"],
         ans["foot_gap_half_weight_band_mm"],
@@ -77,6 +85,40 @@ def _flat_numbers(ans: dict) -> dict[str, tuple[float | None, float | None, str]
     return out
 
 
+#: what a technician reads for each flat name of :func:`_flat_numbers` and the contact metrics
+_WEIGHTS = {"half_weight": "half weight", "full_weight": "full weight"}
+_FIXED_LABELS = {
+    "foot_gap_half_weight_mm": "Gap under the foot at half weight [mm]",
+    "pocket_height_half_weight_largest_gap_mm": "Pocket height at half weight [mm]",
+    "pocket_height_full_weight_largest_gap_mm": "Pocket height at full weight [mm]",
+    "closing_load_kg": "Closing load (0.10 mm under the foot) [kg]",
+    "kick_zone_flat_half_weight_percent": "Kick-zone load on the flat, half weight [%]",
+    "kick_zone_flat_full_weight_percent": "Kick-zone load on the flat, full weight [%]",
+    "kick_zone_snow_half_weight_percent": "Kick-zone load on snow, half weight [%]",
+    "kick_zone_snow_full_weight_percent": "Kick-zone load on snow, full weight [%]",
+    "wheelbase_mm": "Wheelbase at full weight [mm]",
+    "glide_min_gap_mm": "Glide check: smallest gap ahead of the foot [mm]",
+    "glide_open_length_mm": "Glide check: open length ahead of the foot [mm]",
+    "total_real_contact_area_mm2": "Total real contact area [mm²]",
+    "average_real_contact_pressure_mpa": "Average real contact pressure [MPa]",
+    "min_average_separation_um": "Minimum average separation [µm]",
+    "total_reciprocal_separation_m": "Total reciprocal separation [m]",
+}
+
+
+def quantity_label(name: str) -> str:
+    """The words of a pair row's quantity (its flat name stays the API's and the CSV's key)."""
+    if name in _FIXED_LABELS:
+        return _FIXED_LABELS[name]
+    parts = name.split("_")  # pocket_{half|full}_weight_{0.10mm}_{start|end|length}_mm
+    if len(parts) == 6 and parts[0] == "pocket":
+        weight = _WEIGHTS.get(f"{parts[1]}_{parts[2]}", parts[1])
+        gap = parts[3].removesuffix("mm")
+        what = {"start": "rear end", "end": "front end", "length": "length"}.get(parts[4], parts[4])
+        return f"Wax pocket ≥ {gap} mm at {weight}: {what} [mm]"
+    return name
+
+
 def _floor(kind: str, node_mm: float, tol_kg: float) -> float:
     return {"length": node_mm, "load": tol_kg, "share": SHARE_FLOOR_PERCENT, "gap": GAP_FLOOR_MM}[
         kind
@@ -91,6 +133,7 @@ def _difference(name, lv, lb, rv, rb, floor) -> dict:
         flagged = (lv is None) != (rv is None)
         return {
             "quantity": name,
+            "label": quantity_label(name),
             "left": lv,
             "right": rv,
             "difference": None,
@@ -102,6 +145,7 @@ def _difference(name, lv, lb, rv, rb, floor) -> dict:
     diff = lv - rv
     return {
         "quantity": name,
+        "label": quantity_label(name),
         "left": lv,
         "right": rv,
         "difference": sig_or_none(diff),
@@ -124,6 +168,7 @@ def _metrics(cat, ski, grind, body_weight_kg, req: FlexRequest, ski_model: str) 
             poisson_ratio=req.poisson_ratio,
             preset=req.preset,
             ski_model=ski_model,
+            snow=req.snow,
         ),
     )
     return ans
@@ -171,9 +216,7 @@ def flex_pair(
     sheets = {}
     for side, name in (("left", left), ("right", right)):
         try:
-            sheets[side] = flex_sheet_answer(
-                cat, dataclasses.replace(req, ski=name), profiles=False
-            )
+            sheets[side] = flex_sheet_answer(cat, dataclasses.replace(req, ski=name))
         except (InputError, OutOfRangeError) as exc:
             if getattr(exc, "field", None) == "ski":
                 exc.field = side
@@ -207,6 +250,7 @@ def flex_pair(
             "body_weight_kg": req.body_weight_kg,
             "snow_modulus_mpa": req.snow_modulus_mpa,
             "porosity": req.porosity,
+            "snow": req.snow,
             "grind": grind,
             "preset": req.preset,
             "ski_model": ski_model,
@@ -241,11 +285,12 @@ def flex_ranking(
 ) -> dict:
     """Rank ski × grind combinations for a skier (``POST /v1/flex/ranking``).
 
-    Skis whose pocket does not close at full weight, or is closed at half weight, are left out
-    (with the reason). The rest are ranked by ``criterion`` (:data:`CRITERIA`) on the contact
-    answer under full weight at :data:`PAIR_LOAD_POSITION_MM`; each entry carries the metric's
-    90 % band (the contact answer's full band); neighbours whose bands overlap are marked "not
-    distinguishable"."""
+    Skis that do not suit the skier (the sheet's verdict: pocket closed at full weight, open by
+    :data:`.sheet.OPEN_GAP_M` at half weight) are left out with the verdict as the reason; when
+    none is left, ``qualifies`` is false and ``message`` says why. The rest are ranked by
+    ``criterion`` (:data:`CRITERIA`) on the contact answer under full weight at
+    :data:`PAIR_LOAD_POSITION_MM`; each entry carries the metric's 90 % band (the contact
+    answer's full band); neighbours whose bands overlap are marked "not distinguishable"."""
     if criterion not in CRITERIA:
         raise field_error(
             InputError,
@@ -270,26 +315,17 @@ def flex_ranking(
     for s in skis:
         sheet = flex_sheet_answer(cat, dataclasses.replace(req, ski=s), profiles=False)
         c = sheet["closing_load"]
-        reason = None
-        if not c["closes_at_full_weight"]:
-            reason = (
-                f"the pocket does not close at full weight ({req.body_weight_kg:g} kg; closing "
-                f"load {c['load_kg']} kg)"
-                if c["closes_below_max"]
-                else f"the pocket does not close up to {c['max_load_kg']} kg"
-            )
-        elif not c["open_at_half_weight"]:
-            closing = (
-                f"closed already at {c['min_load_kg']} kg, the lightest load its camber model "
-                "covers"
-                if c["closed_at_min_load"]
-                else f"closing load {c['load_kg']} kg"
-            )
-            reason = (
-                f"the pocket is closed at half weight ({0.5 * req.body_weight_kg:g} kg; {closing})"
-            )
+        v = sheet["verdict"]
+        reason = None if v["kind"] == "suits" else v["text"]
         if reason:
-            left_out.append({"ski": s, "reason": reason, "closing_load_kg": c["load_kg"]})
+            left_out.append(
+                {
+                    "ski": s,
+                    "reason": reason,
+                    "closing_load_kg": c["load_kg"],
+                    "suits_body_weight_kg": v["suits_body_weight_kg"],
+                }
+            )
             continue
         for g in grinds:
             ans = _metrics(cat, s, g, req.body_weight_kg, req, ski_model)
@@ -322,6 +358,7 @@ def flex_ranking(
             "body_weight_kg": req.body_weight_kg,
             "snow_modulus_mpa": req.snow_modulus_mpa,
             "porosity": req.porosity,
+            "snow": req.snow,
             "preset": req.preset,
             "ski_model": ski_model,
             "load_position_mm": PAIR_LOAD_POSITION_MM,
@@ -329,6 +366,7 @@ def flex_ranking(
         "criterion": {
             "name": criterion,
             "metric": key,
+            "label": quantity_label(key),
             # the unit of the metric and of each entry's band_low / band_high (the key's suffix)
             "unit": key.rsplit("_", 1)[-1],
             "better": "larger" if larger else "smaller",
@@ -337,6 +375,11 @@ def flex_ranking(
         },
         "ranking": entries,
         "left_out": left_out,
+        "qualifies": bool(entries),
+        "message": None
+        if entries
+        else f"No ski qualifies for {req.body_weight_kg:g} kg: "
+        + "; ".join(f"{o['ski']}: {o['reason']}" for o in left_out),
         "rule": "ranks whose 90 % bands (band_low … band_high) overlap are not distinguishable",
     }
 

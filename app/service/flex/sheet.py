@@ -43,6 +43,7 @@ from skisnow.app.service.band import (
 )
 from skisnow.app.service.catalogue import Catalogue, Ski
 from skisnow.app.service.profiles import profile_model
+from skisnow.app.snow import snow_record
 from skisnow.app.storage.common import code_version
 from skisnow.app.storage.skis import identification_for_sampling
 from skisnow.solvers.band import Z90, unit_perturbations
@@ -54,9 +55,11 @@ from skisnow.solvers.flex import (
     CONTACT_GAP_M,
     GLIDE_POSITION_M,
     POCKET_POSITION_M,
+    ClosingLoad,
     FlatProfile,
     FlexSheet,
     beam_profile,
+    closing_load,
     flex_sheet,
     span_load_share,
 )
@@ -65,11 +68,14 @@ from skisnow.solvers.identify import sample_beams
 
 __all__ = [
     "CRITERIA",
+    "OPEN_GAP_M",
     "PAIR_LOAD_POSITION_MM",
     "FlexRequest",
     "compute_sheet",
     "field_error",
     "flex_sheet_answer",
+    "pocket_height",
+    "verdict",
 ]
 
 #: where the pair's and the ranking's contact metrics load the ski: full weight at the glide
@@ -118,6 +124,8 @@ class FlexRequest:
     base_modulus_mpa: float = 700.0
     poisson_ratio: float = 0.3
     preset: str = DEFAULT_PRESET
+    #: the snow preset the numbers came from (app/snow.py), None for raw numbers
+    snow: str | None = None
 
 
 # ----------------------------------------------------------------------------- profile models
@@ -290,6 +298,128 @@ def _sheet(ski: Ski, w_n: float, fn=None) -> FlexSheet:
     )
 
 
+#: "open at half weight" for the verdict: at least this gap under the foot [m] (three layers of
+#: hard kick wax stay off the flat; the sheet's second wax gap)
+OPEN_GAP_M = 0.15e-3
+#: where the pocket height is read when the wax zone is closed at half weight: this far on either
+#: side of the foot [m]
+POCKET_HEIGHT_HALF_SPAN_M = 0.25
+
+
+def _open_limit(ski: Ski, sheet: FlexSheet) -> ClosingLoad:
+    """The load under which the gap under the foot falls to :data:`OPEN_GAP_M` (bisection as the
+    closing load's): twice it is the heaviest skier the ski stands open for at half weight."""
+    return closing_load(
+        _profile_fn(ski),
+        sheet.pocket_position_m,
+        open_load_n=0.5 * sheet.body_weight_n,
+        max_load_n=ski.load_range_n[1],
+        min_load_n=ski.load_range_n[0],
+        closed_gap_m=OPEN_GAP_M,
+    )
+
+
+def _suit_range_kg(closing: ClosingLoad, open_limit: ClosingLoad) -> tuple[float, float] | None:
+    """(lightest, heaviest) body weight [kg] the ski suits: closed at full weight (W ≥ closing
+    load) and ≥ :data:`OPEN_GAP_M` under the foot at half weight (W/2 ≤ the open limit); None
+    when no weight in the camber model's range does (closed at its lightest load, or not
+    closing up to its heaviest)."""
+    if not closing.closes or closing.closed_at_min:
+        return None
+    low = units.n_to_kg(closing.load_n)
+    if open_limit.closed_at_min:
+        high = 2 * units.n_to_kg(open_limit.bracket_n[1])
+    elif not open_limit.closes:
+        high = 2 * units.n_to_kg(open_limit.max_load_n)
+    else:
+        high = 2 * units.n_to_kg(open_limit.load_n)
+    return (low, high) if high >= low else None
+
+
+def verdict(w_kg: float, closing: ClosingLoad, open_limit: ClosingLoad) -> dict:
+    """Whether the ski suits a skier of ``w_kg`` [kg], in words, with the weights it suits."""
+    rng = _suit_range_kg(closing, open_limit)
+    c_kg = units.n_to_kg(closing.load_n)
+    rule = (
+        f"suits W when the pocket is closed at full weight (≤ {CLOSED_GAP_M * 1e3:.2f} mm under "
+        f"the foot at W) and stands open at half weight (≥ {OPEN_GAP_M * 1e3:.2f} mm at W/2), "
+        f"foot {POCKET_POSITION_M * 1e3:g} mm from the balance point, on the rigid flat"
+    )
+    if closing.closed_at_min:
+        lo_kg = units.n_to_kg(closing.bracket_n[1])
+        kind, text = (
+            "too_soft",
+            (
+                f"too soft for {w_kg:g} kg: closed already at {lo_kg:.0f} kg, the lightest "
+                "load its camber model covers; it suits no adult skier"
+            ),
+        )
+    elif not closing.closes:
+        kind, text = (
+            "too_stiff",
+            (
+                f"too stiff for {w_kg:g} kg: does not close up to "
+                f"{units.n_to_kg(closing.max_load_n):.0f} kg"
+            ),
+        )
+    elif rng is None:
+        kind, text = (
+            "too_soft",
+            (
+                f"too soft for {w_kg:g} kg: closes at {c_kg:.0f} kg, but is below "
+                f"{OPEN_GAP_M * 1e3:.2f} mm under the foot at any half weight above that"
+            ),
+        )
+    elif w_kg < rng[0]:
+        kind, text = "too_stiff", f"too stiff for {w_kg:g} kg: closes at {c_kg:.0f} kg"
+    elif w_kg > rng[1]:
+        kind, text = "too_soft", f"too soft for {w_kg:g} kg: closes at {c_kg:.0f} kg"
+    else:
+        kind, text = "suits", f"suits {w_kg:g} kg: closes at {c_kg:.0f} kg"
+    if rng is not None:
+        text += f"; suits about {rng[0]:.0f}–{rng[1]:.0f} kg"
+    return {
+        "kind": kind,
+        "text": text,
+        "suits_body_weight_kg": None if rng is None else [round(rng[0]), round(rng[1])],
+        "open_limit_kg": sig_or_none(units.n_to_kg(open_limit.load_n), 4),
+        "rule": rule,
+    }
+
+
+def _max_gap(profile: FlatProfile, span: tuple[float, float]) -> float:
+    x, g = profile.positions_m, profile.gap_m
+    inside = (x > span[0]) & (x < span[1])
+    ends = np.interp(span, x, g)
+    return float(max(np.max(ends), np.max(g[inside], initial=0.0)))
+
+
+def pocket_height(sheet: FlexSheet) -> dict:
+    """The pocket's height at half and full weight: the largest gap over the wax zone and the
+    gap under the foot [mm]; where the wax zone is closed at half weight, the largest gap within
+    :data:`POCKET_HEIGHT_HALF_SPAN_M` of the foot (said in ``span``)."""
+    wax = sheet.wax_zone
+    if wax.is_open:
+        span = (wax.start_m, wax.end_m)
+        where = f"over the wax zone (pocket at {CLOSED_GAP_M * 1e3:.2f} mm under half weight)"
+    else:
+        x0 = sheet.pocket_position_m
+        span = (x0 - POCKET_HEIGHT_HALF_SPAN_M, x0 + POCKET_HEIGHT_HALF_SPAN_M)
+        where = (
+            f"within {POCKET_HEIGHT_HALF_SPAN_M * 1e3:g} mm of the foot (the wax zone is closed "
+            "at half weight)"
+        )
+    out = {"span_mm": [_mm(v) for v in span], "span": where}
+    for tag, prof in (("half_weight", sheet.half), ("full_weight", sheet.full)):
+        out[tag] = {
+            "largest_gap_mm": _mm(_max_gap(prof, span), 3),
+            "foot_gap_mm": _mm(
+                float(np.interp(sheet.pocket_position_m, prof.positions_m, prof.gap_m)), 3
+            ),
+        }
+    return out
+
+
 def _mm(v: float, digits: int = 6) -> float | None:
     return None if not math.isfinite(v) else float(f"{v * 1e3:.{digits}g}")
 
@@ -306,6 +436,7 @@ def compute_sheet(cat: Catalogue, req: FlexRequest, *, band: bool = True) -> dic
     w_n = _check_request(ski, req)
     t0 = time.perf_counter()
     sheet = _sheet(ski, w_n)
+    open_limit = _open_limit(ski, sheet)
     t1 = time.perf_counter()
     nominal = sheet.scalars()
     widths: dict[str, float] = {}
@@ -332,6 +463,7 @@ def compute_sheet(cat: Catalogue, req: FlexRequest, *, band: bool = True) -> dic
     return {
         "ski": ski,
         "sheet": sheet,
+        "open_limit": open_limit,
         "nominal": nominal,
         "widths": widths,
         "band_source": band_source,
@@ -444,6 +576,7 @@ def _answer(req: FlexRequest, out: dict, *, profiles: bool) -> dict:
             "full_weight_band_percent": pct(snow["widths"][1]),
             "macro_pixel_along_mm": snow["pixel_along_m"] * 1e3,
             "beam_source": snow["reason"],
+            "target_full_weight_percent": [33, 50],
         }
     wax = sheet.wax_zone
     g = sheet.glide
@@ -454,6 +587,7 @@ def _answer(req: FlexRequest, out: dict, *, profiles: bool) -> dict:
             "half_weight_kg": 0.5 * w_kg,
             "snow_modulus_mpa": req.snow_modulus_mpa,
             "porosity": req.porosity,
+            "snow": snow_record(req.snow, req.snow_modulus_mpa, req.porosity),
             "base_modulus_mpa": req.base_modulus_mpa,
             "poisson_ratio": req.poisson_ratio,
             "preset": req.preset,
@@ -469,6 +603,8 @@ def _answer(req: FlexRequest, out: dict, *, profiles: bool) -> dict:
             }
             for ph, pf in zip(sheet.pockets_half, sheet.pockets_full, strict=True)
         ],
+        "verdict": verdict(w_kg, closing, out["open_limit"]),
+        "pocket_height": pocket_height(sheet),
         "foot_gap_half_weight_mm": _mm(wax.foot_gap_m),
         "foot_gap_half_weight_band_mm": _mm(wid.get("foot_gap_half_m", float("nan"))),
         "wax_zone": {

@@ -21,10 +21,23 @@
   // Snow: porosity directly, or from density as n = 1 - rho / 917.
   var porosity = byName("porosity"), density = byName("snow_density_kg_m3");
   var shown = document.getElementById("porosity-from-density");
+  var snowSelect = byName("snow"), modulus = byName("snow_modulus_mpa");
   function updateSnow() {
     var fromDensity = form.querySelector("input[name=snow_input][value=density]").checked;
-    porosity.disabled = fromDensity;
-    density.disabled = !fromDensity;
+    var named = snowSelect && snowSelect.value !== "";
+    if (named) {  // a snow preset: its numbers, shown but not sent (the service fills them)
+      var o = snowSelect.options[snowSelect.selectedIndex];
+      modulus.value = o.dataset.modulus;
+      porosity.value = o.dataset.porosity;
+      density.value = o.dataset.density;
+    }
+    if (snowSelect) {
+      document.getElementById("snow-reference").textContent =
+        snowSelect.options[snowSelect.selectedIndex].dataset.hint;
+    }
+    modulus.disabled = named;
+    porosity.disabled = named || fromDensity;
+    density.disabled = named || !fromDensity;
     var rho = Number(density.value);
     shown.textContent = (density.value !== "" && isFinite(rho))
       ? "n = 1 − ρ/917 = " + round(1 - rho / ICE_DENSITY_KG_M3, 4) : "";
@@ -33,6 +46,7 @@
     r.addEventListener("change", updateSnow);
   });
   density.addEventListener("input", updateSnow);
+  if (snowSelect) snowSelect.addEventListener("change", updateSnow);
   updateSnow();
 
   var button = document.getElementById("submit"), buttonText = button.textContent;
