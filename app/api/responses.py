@@ -339,7 +339,12 @@ class GrindAccepted(BaseModel):
     item: ItemView
     job: str
     job_url: str
-    iso25178: dict[str, Any]
+    iso25178: dict[str, Any] = Field(..., description="ISO 25178 of the measured points (SI)")
+    preparation: dict[str, Any] = Field(
+        ...,
+        description="what was done to the map: measured (points cut and filled, Sq moved), "
+        "reduction (for the solver's size limit), notes (what the reader skipped)",
+    )
 
 
 class SkiAccepted(BaseModel):

@@ -185,7 +185,7 @@ def test_defaults_refuse_the_mirror_of_the_largest_upload():
 
     s = Settings()
     assert 1 <= s.max_jobs_per_team <= s.max_queued_jobs
-    side = int(np.sqrt(s.max_grid_points))
+    side = int(np.sqrt(s.max_solve_grid_points))
     with pytest.raises(InputError, match="max_solve_grid_points"):
         check_solve_grid((side, side), "mirror", s)
     check_solve_grid((side, side), "none", s)
