@@ -7,6 +7,7 @@ Pure: text and numbers in, float64 arrays and SI floats out; no file access. Imp
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -164,6 +165,10 @@ def parse_text_topography(text: str, label: str) -> TextTopography:
         except ValueError as exc:
             if rows:
                 raise DataFileError(f"{label}, line {lineno}: {exc}") from None
+            pairs = re.fullmatch(r"h\s*=\s*(\d+)\s+w\s*=\s*(\d+)", stripped)
+            if pairs:  # Wyko: "h=650 w=650" on one line
+                header["h"], header["w"] = pairs.groups()
+                continue
             key, sep, value = stripped.partition("=")
             if sep:
                 header[key.strip().lower()] = value.strip()
@@ -184,20 +189,25 @@ def parse_text_topography(text: str, label: str) -> TextTopography:
         raise InputError(f"{label}: a line scan ({n_rows} rows of {what}): a grind needs a 2-D map")
     if n_cols == 3 and n_rows > 3:
         return _xyz_grid(arr, label, notes)
-    if n_rows >= 3 and _is_even_progression(arr[0]) and not _is_even_progression(arr[1]):
+    # a row (and column) of positions: evenly spaced while the next is not; with both, the
+    # corner cell belongs to neither
+    col_header = _is_even_progression(arr[1:, 0]) and not _is_even_progression(arr[1:, 1])
+    first = 1 if col_header else 0
+    row_header = (
+        n_rows >= 3
+        and _is_even_progression(arr[0, first:])
+        and not _is_even_progression(arr[1, first:])
+    )
+    if row_header:
         notes.append(
-            f"row 1 is an evenly spaced sequence ({arr[0, 0]:g} … {arr[0, -1]:g}), positions "
-            "rather than heights: skipped"
+            f"row 1 is an evenly spaced sequence ({arr[0, first]:g} … {arr[0, -1]:g}), "
+            "positions rather than heights: skipped"
         )
         arr = arr[1:]
-    if (
-        arr.shape[1] >= 3
-        and _is_even_progression(arr[:, 0])
-        and not _is_even_progression(arr[:, 1])
-    ):
+    if _is_even_progression(arr[:, 0]) and not _is_even_progression(arr[:, 1]):
         notes.append(
-            f"column 1 is an evenly spaced sequence ({arr[0, 0]:g} … {arr[-1, 0]:g}), positions "
-            "rather than heights: skipped"
+            f"column 1 is an evenly spaced sequence ({arr[0, 0]:g} … {arr[-1, 0]:g}), "
+            "positions rather than heights: skipped"
         )
         arr = arr[:, 1:]
     if "h" in header or "w" in header:  # Wyko: h rows (y), w columns (x)

@@ -154,12 +154,12 @@ def _looks_like_number_text(head: bytes) -> bool:
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         return text.strip().startswith("#")
-    body = lines if len(lines) == 1 else lines[:-1]  # the last may be cut short
     skipped = 0
-    while body and skipped < 20 and not (set(body[0]) <= allowed):
-        body, skipped = body[1:], skipped + 1
-    if not body:
+    while lines and skipped < 20 and not (set(lines[0]) <= allowed):
+        lines, skipped = lines[1:], skipped + 1
+    if not lines:
         return False
+    body = lines if len(lines) == 1 else lines[:-1]  # the last may be cut short
     joined = "\n".join(body)
     return set(joined) <= allowed and any(c.isdigit() for c in joined)
 
