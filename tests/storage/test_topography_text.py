@@ -58,7 +58,7 @@ def test_a_row_of_x_positions_is_skipped_with_a_note():
     ids=["x z pairs", "with a header", "one column"],
 )
 def test_line_scans_are_refused_as_line_scans(text):
-    with pytest.raises(InputError, match="a line scan.*a grind needs a 2-D map"):
+    with pytest.raises(InputError, match=r"a line scan.*a grind needs a 2-D map"):
         read_measured_topography(text.encode(), name="p.txt", **RAW)
 
 
