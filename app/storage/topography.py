@@ -87,6 +87,8 @@ from .topography_formats import (
 
 #: formats without calibration: pixel size and height unit come from the user
 _RAW_FORMATS = ("npy", "csv")
+#: calibrated formats whose unit is not in the file: height_unit required (lengths and heights)
+_UNITLESS_FORMATS = ("tmd",)
 
 
 @dataclass
@@ -165,6 +167,20 @@ def read_raw_topography(
     """Read a height map of any accepted format, unlevelled; see :func:`read_topography`."""
     data, label, suffix, path = _load_bytes(source, name, max_file_bytes)
     fmt = detect_format(data[:512], suffix=suffix)
+    if fmt in _UNITLESS_FORMATS:
+        if pixel_size_um is not None:
+            raise InputError(
+                f"{label}: {fmt} files give their own pixel size; do not give pixel_size_um"
+            )
+        if height_unit is None:
+            raise InputError(
+                f"{label}: TrueMap .{fmt} files do not state their unit (SurfaceTopography "
+                "1.27 reads them in mm, later versions in µm): height_unit must be given, the "
+                "unit of the file's lengths and heights (mm or um)"
+            )
+        return _read_surfacetopography(
+            data, fmt, label, max_pixels, min_side, channel, unit=height_unit
+        )
     if fmt not in _RAW_FORMATS:
         # a calibrated format (x3p, datx, a texture, an instrument file): its own units are used
         given = [

@@ -53,9 +53,14 @@ INSTRUMENT_FORMATS: dict[str, tuple[tuple[int, bytes], ...] | None] = {
     "metropro": ((0, b"\x88\x1b\x03o"), (0, b"\x88\x1b\x03p"), (0, b"\x88\x1b\x03q")),
     "gwy": ((0, b"GWYP"),),
     "datx": None,  # HDF5, recognised by its content (see detect_format)
+    # TrueMap .tmd states no unit: its lengths and heights are read in the user's height_unit
     "plu": None,
     "opdx": None,
 }
+#: Instrument formats whose reading is pinned by a real file in tests/data/topography
+#: (tests/storage/test_real_files.py): grid, pixel size and Sq. The others are recognised and
+#: refused (no real file has proven skisnow's reading of them).
+PROVEN_FORMATS = ("sur", "sdf", "al3d", "frt", "tmd", "metropro", "plu")
 _EXTENSION_ONLY = {".plu": "plu", ".apx": "plu", ".opdx": "opdx"}
 
 
@@ -243,8 +248,17 @@ def _read_x3p(data: bytes, label: str, max_pixels: int, min_side: int) -> RawTop
 
 
 def _read_surfacetopography(
-    data: bytes, fmt: str, label: str, max_pixels: int, min_side: int, channel: int | None
+    data: bytes,
+    fmt: str,
+    label: str,
+    max_pixels: int,
+    min_side: int,
+    channel: int | None,
+    unit: str | None = None,
 ) -> RawTopography:
+    """Read an instrument file with SurfaceTopography. ``unit`` (a :data:`HEIGHT_UNITS` key):
+    the unit of the file's numbers, for formats that do not state it (TrueMap ``.tmd``), in
+    place of the one the library assumes."""
     try:
         from SurfaceTopography.IO import open_topography
         from SurfaceTopography.Support.UnitConversion import get_unit_conversion_factor
@@ -274,6 +288,12 @@ def _read_surfacetopography(
                 f"{label}: channel {info.name!r} is a line scan ({info.dim}-D): a grind needs "
                 "a 2-D map"
             )
+        if fmt not in PROVEN_FORMATS:
+            raise InputError(
+                f"{label}: a {fmt} file is recognised but not read: no real {fmt} file has "
+                "proven skisnow's reading of it (grid, pixel size, height unit); export the map "
+                f"as x3p, or as one of {', '.join(PROVEN_FORMATS)}"
+            )
         _check_grid_size(info.nb_grid_pts, max_pixels, min_side, label)
         try:
             top = reader.topography(channel_index=info.index)
@@ -281,8 +301,15 @@ def _read_surfacetopography(
             raise DataFileError(f"{label}: damaged {fmt} file: {exc}") from None
         if not top.is_uniform:
             raise InputError(f"{label}: {fmt} channel is not on a uniform grid")
-        unit = top.unit
-        factor = get_unit_conversion_factor(unit, "m") if unit else None
+        library_unit = top.unit
+        if unit is not None:  # the user's unit for a format that states none
+            factor, unit = (
+                height_factor(unit),
+                f"{unit} (given; the library assumed {library_unit})",
+            )
+        else:
+            unit = library_unit
+            factor = get_unit_conversion_factor(unit, "m") if unit else None
         if factor is None:
             raise InputError(f"{label}: {fmt} file has no length unit for its heights ({unit!r})")
         heights = top.heights()  # (nx, ny): x along axis 0
