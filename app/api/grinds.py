@@ -45,6 +45,7 @@ def list_grinds(request: Request) -> dict:
                 "gap_floor_nm": t.gap_floor_m * 1e9,
                 # what was removed from the heights (plane, mean, none); None: not recorded
                 "detrend": t.attrs.get("texture_detrend"),
+                "provenance": C.grind_provenance(t),
                 "file": g.path.name,
                 "sha256": g.sha256,
                 "code_version": t.attrs.get("code_version"),

@@ -28,9 +28,10 @@ def _record_measured_iso(path, iso: dict | None) -> None:
     taper lowers Sq by a quarter), so the grind list and the answer agree."""
     import h5py
 
-    if not iso:
-        return
     with h5py.File(path, "r+") as f:
+        f.attrs["texture_provenance"] = "uploaded: a height map file (app.jobs.uploads)"
+        if not iso:
+            return
         attrs = f["texture"].attrs
         for key in [k for k in attrs if k.startswith("iso_")]:
             del attrs[key]

@@ -107,3 +107,33 @@ def test_periodic_choices_keep_the_plane_and_the_list_shows_the_answers_sq(catal
         listed = {g["name"]: g for g in client.get("/v1/grinds").json()["grinds"]}
         for periodic in ("none", "window"):
             assert listed[f"p-{periodic}"]["iso25178"]["Sq_m"] == sq[periodic]
+
+
+def test_the_shipped_ski_base_is_a_measured_grind_that_solves(tmp_path):
+    """The third shipped grind (tables/LICENSES.md): a measured Alicona map of a ski base, with
+    its provenance in the table, the ISO parameters of its measured points, and a contact."""
+    from pathlib import Path
+
+    from fastapi.testclient import TestClient
+    from skisnow.app import service
+    from skisnow.app.main import create_app
+    from skisnow.app.settings import Settings
+    from skisnow.app.storage.textures import read_texture
+
+    tables = Path(__file__).resolve().parents[2] / "tables"
+    cat = service.load_catalogue(tables)
+    table = cat.grinds["ski-base"].table
+    assert table.attrs["texture_provenance"].startswith("measured: ski base, Alicona")
+    assert table.iso_parameters["Sq_m"] == pytest.approx(18.155e-6, rel=1e-3)  # measured points
+    assert table.converged.all()
+    tex = read_texture(tables / "textures" / "ski-base.h5")
+    assert tex.shape == (398, 312) and tex.pixel_size_m == pytest.approx(11.04e-6, rel=1e-3)
+    assert "SkiInfiniteFocus.x3p" in tex.source and "LGPL" in tex.source
+    settings = Settings(data_dir=tmp_path, warm_up=False, job_workers=0)
+    with TestClient(create_app(settings, catalogue=cat)) as client:
+        listed = {g["name"]: g for g in client.get("/v1/grinds").json()["grinds"]}
+        assert listed["ski-base"]["provenance"].startswith("measured")
+        assert listed["grind-1"]["provenance"] == "synthetic"
+        r = client.post("/v1/contact", json={"ski": "ski-a", "grind": "ski-base", **CONTACT})
+        assert r.status_code == 200, r.text[:300]
+        assert "measured;" in client.get("/").text
