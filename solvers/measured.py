@@ -291,6 +291,37 @@ def largest_usable_rectangle(usable: np.ndarray) -> tuple[int, int, int, int]:
     return (r0, r1, c0, c1)
 
 
+def _fill_holes_with_neighbour_median(part: np.ndarray, valid: np.ndarray) -> None:
+    """Give each 8-connected group of unmeasured points of ``part`` (in place) the median of
+    the measured points touching it (each counted once per hole it touches)."""
+    from scipy import ndimage
+
+    eight = np.ones((3, 3), dtype=bool)
+    labels, n = ndimage.label(~valid, structure=eight)
+    if n == 0:
+        return
+    n0, n1 = part.shape
+    padded = np.pad(labels, 1)
+    flat = np.arange(part.size).reshape(part.shape)
+    keys = []
+    for a in (-1, 0, 1):
+        for b in (-1, 0, 1):
+            if a == b == 0:
+                continue
+            neighbour = padded[1 + a : 1 + a + n0, 1 + b : 1 + b + n1]
+            touch = valid & (neighbour > 0)
+            keys.append(neighbour[touch].astype(np.int64) * part.size + flat[touch])
+    pairs = np.unique(np.concatenate(keys))  # (hole, measured point), each once
+    owners, points = np.divmod(pairs, part.size)
+    index = np.arange(1, n + 1)
+    has = np.bincount(owners, minlength=n + 1)[1:] > 0
+    medians = np.full(n + 1, np.median(part[valid]))  # a hole without measured neighbours
+    if has.any():
+        medians[1:][has] = ndimage.median(part.ravel()[points], labels=owners, index=index[has])
+    holes = labels > 0
+    part[holes] = medians[labels[holes]]
+
+
 def _remove_trend(h: np.ndarray, valid: np.ndarray, detrend: str) -> np.ndarray:
     if detrend == "plane":
         return h - _plane_fit(h, valid)
@@ -393,17 +424,7 @@ def prepare_measured_map(
             "fill without inventing texture"
         )
     if n_filled:
-        part_labels, _ = ndimage.label(holes, structure=np.ones((3, 3), dtype=bool))
-        for i, sl in enumerate(ndimage.find_objects(part_labels), start=1):
-            if sl is None:
-                continue
-            s0 = slice(max(sl[0].start - 1, 0), sl[0].stop + 1)
-            s1 = slice(max(sl[1].start - 1, 0), sl[1].stop + 1)
-            hole = part_labels[s0, s1] == i
-            ring = ndimage.binary_dilation(hole, structure=np.ones((3, 3), dtype=bool))
-            ring &= part_valid[s0, s1]
-            window = part[s0, s1]
-            window[hole] = np.median(window[ring])
+        _fill_holes_with_neighbour_median(part, part_valid)
     part = _remove_trend(part, np.ones_like(part_valid), detrend)
     if detrend != "none":
         part -= part.mean()

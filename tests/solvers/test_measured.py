@@ -168,3 +168,20 @@ def test_reduce_map_block_crop_none():
     assert same.method == "none" and same.heights_m is h
     with pytest.raises(InputError, match="reduce must be"):
         reduce_map(h, DX, "shrink", max_solve_points=limit)
+
+
+def test_holes_sharing_neighbours_each_take_their_own_median():
+    h = texture((32, 32), seed=5)
+    raw = h.copy()
+    for r, c in ((10, 10), (10, 12), (12, 11), (20, 20), (20, 21)):
+        raw[r, c] = np.nan  # (10,10), (10,12), (12,11) are separate holes sharing neighbours
+    prep = prepare_measured_map(raw, DX, detrend="none")
+    assert prep.filled_points == 5
+
+    def ring_median(points):
+        cells = {(r + a, c + b) for r, c in points for a in (-1, 0, 1) for b in (-1, 0, 1)}
+        return np.median([raw[p] for p in cells if np.isfinite(raw[p])])
+
+    for hole in ([(10, 10)], [(10, 12)], [(12, 11)], [(20, 20), (20, 21)]):
+        for p in hole:
+            assert prep.heights_m[p] == pytest.approx(ring_median(hole), abs=1e-15)
