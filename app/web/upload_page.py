@@ -97,7 +97,8 @@ GRIND_UPLOAD_FIELDS = (
         "height_unit",
         "Height unit",
         "select",
-        "raw grids (.npy, .csv) only: the unit of the numbers in the file",
+        "raw grids (.npy, a plain text grid), x y z lists and TrueMap .tmd only: the unit of "
+        "the numbers in the file (calibrated files refuse it)",
         options=(("", "from the file"), ("m", "m"), ("mm", "mm"), ("um", "µm"), ("nm", "nm")),
     ),
     UploadField(

@@ -137,3 +137,27 @@ def test_the_shipped_ski_base_is_a_measured_grind_that_solves(tmp_path):
         r = client.post("/v1/contact", json={"ski": "ski-a", "grind": "ski-base", **CONTACT})
         assert r.status_code == 200, r.text[:300]
         assert "measured;" in client.get("/").text
+
+
+def test_upload_notes_a_skipped_position_row_and_refuses_overridden_calibration(
+    catalogue, tmp_path
+):
+    """#27 point 5 through the API: a csv whose first row lists x positions is read without
+    it, with a note in the answer; an x3p given pixel_size_um or height_unit is a 422."""
+    rng = np.random.default_rng(7)
+    h_um = self_affine_surface((40, 40), 1e-6, hurst=0.8, rms_height_m=1e-6, rng=rng) * 1e6
+    rows = [np.arange(40) * 2.0, *h_um]
+    text = "\n".join(",".join(f"{v:.9g}" for v in row) for row in rows).encode()
+    with make_client(catalogue, tmp_path, table_points=4) as client:
+        r = post_grind(client, name="with-x-row", content=text, filename="g.csv")
+        assert r.status_code == 202, r.text[:300]
+        body = r.json()
+        assert body["item"]["metadata"]["grid"] == [40, 40]
+        assert any("row 1" in n for n in body["preparation"]["notes"])
+        buf = io.BytesIO()
+        x3pio.write(buf, h_um.T * 1e-6, x_scale=1e-6, y_scale=1e-6)
+        for field in ({"pixel_size_um": "2", "height_unit": None}, {"pixel_size_um": None}):
+            r = post_grind(client, name="x3p", content=buf.getvalue(), filename="g.x3p", **field)
+            detail = is_problem(r, 422)["detail"]
+            assert "own calibration; do not give" in detail
+        wait_job(client, body["job"])
