@@ -161,3 +161,27 @@ def test_upload_notes_a_skipped_position_row_and_refuses_overridden_calibration(
             detail = is_problem(r, 422)["detail"]
             assert "own calibration; do not give" in detail
         wait_job(client, body["job"])
+
+
+def test_a_2048_square_map_is_accepted_by_the_default_limits(catalogue, tmp_path):
+    """The default limits (80 MiB body, 4096² map, 1024² solve grid) take a 2048² map and
+    block-average it 4 × 4 (mirror: 1024²); no job runs here (job_workers=0)."""
+    from skisnow.app.settings import Settings
+
+    defaults = Settings()
+    rng = np.random.default_rng(8)
+    h_um = rng.normal(size=(2048, 2048)).astype(np.float32)
+    h_um[1000:1003, 700] = np.nan  # a few unmeasured points
+    limits = {
+        "max_upload_bytes": defaults.max_upload_bytes,
+        "max_grid_points": defaults.max_grid_points,
+        "max_solve_grid_points": defaults.max_solve_grid_points,
+        "job_workers": 0,
+    }
+    with make_client(catalogue, tmp_path, **limits) as client:
+        r = post_grind(client, name="big", content=npy_bytes(h_um))
+        assert r.status_code == 202, r.text[:300]
+        prep = r.json()["preparation"]
+        assert prep["measured"]["filled_points"] == 3
+        assert prep["reduction"]["block_factor"] == 4 and prep["reduction"]["grid"] == [512, 512]
+        assert r.json()["item"]["metadata"]["solve_grid"] == [1024, 1024]
