@@ -12,16 +12,28 @@ content                   format                                read by
 zip with ``main.xml``     ISO 25178-72 x3p (ISO 5436-2000 and   ``x3pio`` (both revisions)
                           the newer Amd 1:2020 revision)
 HDF5, ``skisnow`` schema  our texture file (paths only)         :func:`.textures.read_texture`
-HDF5, Zygo ``MetaData``   Zygo ``.datx``                        ``SurfaceTopography``
-instrument magic          ``.sur``, ``.sdf``, ``.opd``,         ``SurfaceTopography``
-                          ``.al3d``, ``.frt``, ``.vk*``, …
-(no magic, by extension)  ``.plu``, ``.opdx``                   ``SurfaceTopography``
+instrument magic          ``.sur``, ``.sdf``, ``.al3d``,        ``SurfaceTopography``
+                          ``.frt``, MetroPro ``.dat``, ``.tmd``
+                          (``height_unit`` required)
+(no magic, by extension)  ``.plu``                              ``SurfaceTopography``
 ``\\x93NUMPY``             raw ``.npy`` grid (no pickles)        numpy, ``allow_pickle=False``
-UTF-8 text of numbers     raw ``.csv`` grid                     :mod:`.heightgrid`
+UTF-8/16 text of numbers  text grid, Wyko/Gwyddion matrix with  :mod:`.heightgrid`
+                          its header, x y z list on a grid
 ========================= ===================================== =============================
 
-Raw grids (``.npy``/``.csv``) carry no calibration: ``pixel_size_um`` and ``height_unit`` are
-required for them and refused for the calibrated formats (whose own units are used).
+Each format read is pinned by a real file (tests/storage/test_real_files.py). Formats
+SurfaceTopography reads but no real file has proven here (``.datx``, ``.opd``, ``.opdx``,
+``.vk*``, ``.zon``, ``.os3d``, ``.zmg``, ``.gwy``) are recognised and refused
+(``topography_formats.PROVEN_FORMATS``); line scans are refused as line scans.
+
+Files without calibration (``.npy``, a plain text grid) need ``pixel_size_um`` and
+``height_unit``; calibrated formats refuse them (their own units are used), and a text header
+refuses what it gives. An x y z list needs ``height_unit`` (of x, y and z); a TrueMap
+``.tmd`` states no unit and needs ``height_unit`` for its lengths and heights.
+
+Unmeasured points: :func:`solvers.measured.prepare_measured_map` (the plane fitted to the
+measured points, ISO parameters on them, the solver's map cropped to the largest
+well-measured rectangle with small holes filled; docs/topography.md).
 
 Axis order. skisnow's textures have axis 0 along the ski (x) and axis 1 across it (y)
 (:mod:`solvers.texture`). The libraries differ:
