@@ -42,10 +42,16 @@ class Settings(BaseSettings):
         description="SQLAlchemy URL of the catalogue (default sqlite:///DATA_DIR/catalogue.db)",
     )
     max_upload_bytes: int = Field(
-        32 * 1024 * 1024, ge=1024, description="largest accepted upload body (POST skis/grinds)"
+        80 * 1024 * 1024,
+        ge=1024,
+        description="largest accepted upload body (POST skis/grinds); 80 MiB holds a "
+        "2048 x 2048 float64 .npy",
     )
     max_grid_points: int = Field(
-        1024 * 1024, ge=64, description="largest uploaded height map (points)"
+        4096 * 4096,
+        ge=64,
+        description="largest uploaded height map (points); larger than max_solve_grid_points: "
+        "a map too large for the solver is reduced (POST /v1/grinds reduce)",
     )
     min_grid_side: int = Field(16, ge=2, description="smallest side of an uploaded height map")
     max_camber_cases: int = Field(

@@ -231,6 +231,12 @@ def text(value: str | None, field: str, max_len: int = 2000) -> str:
     return value
 
 
+def grind_provenance(table) -> str:
+    """The table's ``texture_provenance``: 'measured: …' (the shipped ski base), 'uploaded: …'
+    (an upload); 'synthetic' when absent (the shipped synthetic grinds)."""
+    return str(table.attrs.get("texture_provenance") or "synthetic")
+
+
 def accepted(item, job_id: str, **extra) -> JSONResponse:
     """202 answer of an upload: the item, its job and where to follow it."""
     url = f"/v1/jobs/{job_id}"

@@ -45,6 +45,7 @@ def list_grinds(request: Request) -> dict:
                 "gap_floor_nm": t.gap_floor_m * 1e9,
                 # what was removed from the heights (plane, mean, none); None: not recorded
                 "detrend": t.attrs.get("texture_detrend"),
+                "provenance": C.grind_provenance(t),
                 "file": g.path.name,
                 "sha256": g.sha256,
                 "code_version": t.attrs.get("code_version"),
@@ -80,14 +81,25 @@ def post_grind(
         Literal["plane", "mean", "none"] | None,
         Form(
             description=(
-                "removed from the heights before the solve: plane (default), mean "
-                "(default with periodic=none) or none; recorded in the item's metadata"
+                "removed from the measured heights before the solve: plane (the default, "
+                "whatever periodic is), mean or none; recorded in the item's metadata"
             )
         ),
     ] = None,
+    reduce: Annotated[
+        Literal["block", "crop", "none"],
+        Form(
+            description=(
+                "how a map too large for the solver is reduced: block (default: block "
+                "average to a larger pixel), crop (a centred window, pixel kept) or none "
+                "(refused); recorded in the answer and the item's metadata"
+            )
+        ),
+    ] = uploads.DEFAULT_REDUCTION,
 ) -> JSONResponse:
-    """Upload a grind's topography: detrended and checked at once (ISO 25178 parameters in
-    the answer); its table is built by a background job (``job`` → ``GET /v1/jobs/{id}``)."""
+    """Upload a grind's topography: detrended and checked at once (ISO 25178 parameters of the
+    measured points in the answer, with what was cut, filled and reduced); its table is built
+    by a background job (``job`` → ``GET /v1/jobs/{id}``)."""
     state = C.catalogue_state(request)
     settings = request.app.state.settings
     # a taken name first (409; a failed item of the same team is replaced), then the job
@@ -103,7 +115,7 @@ def post_grind(
         "notes": C.text(notes, "notes"),
     }
     with C.incoming(state, file, settings.max_upload_bytes) as path:
-        item, job_id, iso = uploads.accept_grind(
+        item, job_id, iso, preparation = uploads.accept_grind(
             state.db,
             state.layout,
             settings,
@@ -116,11 +128,12 @@ def post_grind(
             along_ski=along_ski,
             periodic=periodic,
             detrend=detrend,
+            reduce=reduce,
             team=team,
             limits=C.limits(request),
         )
     state.runner.wake()
-    return C.accepted(item, job_id, iso25178=iso)
+    return C.accepted(item, job_id, iso25178=iso, preparation=preparation)
 
 
 item_routes(router, "grind", "grinds")

@@ -75,6 +75,11 @@ class GrindSummary(BaseModel):
     pressure_ratio_range: list[float] = Field(..., description="[low, high] of P_n/E' tabulated")
     gap_floor_nm: float
     detrend: str | None = Field(..., description="removed from the heights; null: not recorded")
+    provenance: str = Field(
+        ...,
+        description="where the texture comes from: 'measured: …' (the shipped measured ski "
+        "base), 'uploaded: …' (an upload) or 'synthetic' (a shipped synthetic grind)",
+    )
     file: str
     sha256: str
     code_version: str | None
@@ -362,7 +367,12 @@ class GrindAccepted(BaseModel):
     item: ItemView
     job: str
     job_url: str
-    iso25178: dict[str, Any]
+    iso25178: dict[str, Any] = Field(..., description="ISO 25178 of the measured points (SI)")
+    preparation: dict[str, Any] = Field(
+        ...,
+        description="what was done to the map: measured (points cut and filled, Sq moved), "
+        "reduction (for the solver's size limit), notes (what the reader skipped)",
+    )
 
 
 class SkiAccepted(BaseModel):

@@ -22,6 +22,23 @@ def build_settings(settings: Settings):
     return BuildSettings(points=settings.table_points, chunk_size=settings.table_chunk_size)
 
 
+def _record_measured_iso(path, iso: dict | None) -> None:
+    """Give the table the ISO 25178 parameters of the upload's measured points (those of the
+    upload's answer), in place of those of the periodised map it was solved on (a ``window``
+    taper lowers Sq by a quarter), so the grind list and the answer agree."""
+    import h5py
+
+    with h5py.File(path, "r+") as f:
+        f.attrs["texture_provenance"] = "uploaded: a height map file (app.jobs.uploads)"
+        if not iso:
+            return
+        attrs = f["texture"].attrs
+        for key in [k for k in attrs if k.startswith("iso_")]:
+            del attrs[key]
+        for key, value in iso.items():
+            attrs[f"iso_{key}"] = float(value)
+
+
 def run_grind_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -> str:
     """Job ``grind-table``: build the table with :func:`app.jobs.table_build.build_tables`.
 
@@ -61,6 +78,7 @@ def run_grind_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready)
     )
     ctx.check_stop()
     built = paths[texture.name]
+    _record_measured_iso(built, item.metadata.get("iso25178"))
     final = layout.grind_table(item.id)
     final.parent.mkdir(parents=True, exist_ok=True)
     os.replace(built, final)

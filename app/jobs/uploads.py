@@ -48,6 +48,10 @@ HDF5_MAGIC = b"\x89HDF\r\n\x1a\n"
 #: plausible ranges of a ski-base texture, to catch wrong units [m]
 SQ_RANGE_M = (1e-9, 1e-3)
 PIXEL_UM_RANGE = (0.01, 1000.0)
+#: Reduction of a map too large for the solver (solvers.measured.reduce_map): a block average
+#: kept the real contact area fraction within +0.8 … +7.6 % where a centred crop was off by
+#: +3.7 … +57 % (scripts/measure_map_reduction.py, docs/topography.md "Large maps")
+DEFAULT_REDUCTION = "block"
 #: The smallest camber grid that gets a served beam, stated at upload as "measure at least
 #: N loads × M positions every ≤ K mm": N distinct loads > 0 (MIN_GRID_LOADS), M distinct load
 #: positions (MIN_GRID_LOAD_POSITIONS), samples every ≤ K mm (MAX_SAMPLE_SPACING_MM), plus the
@@ -176,8 +180,8 @@ def check_solve_grid(shape: tuple[int, ...], periodic: str, settings: Settings) 
             f"file: grid {shape[0]}×{shape[1]} with periodic={periodic} is solved on "
             f"{solve[0]}×{solve[1]} = {n} points, over the limit of "
             f"{settings.max_solve_grid_points} points (max_solve_grid_points, "
-            "SKISNOW_MAX_SOLVE_GRID_POINTS); crop or resample the map, or choose periodic=window "
-            "or none (solved on the grid as measured)"
+            "SKISNOW_MAX_SOLVE_GRID_POINTS); choose reduce=block or reduce=crop, or "
+            "periodic=window (solved on the grid as measured; the plane is still removed)"
         )
 
 
@@ -221,8 +225,12 @@ def read_grind_upload(
 
     Returns
     -------
-    solvers.texture.Texture
-        Detrended texture in metres, axis 0 along the ski (named ``upload``).
+    texture : solvers.texture.Texture
+        Detrended texture in metres, axis 0 along the ski (named ``upload``): the kept
+        rectangle of a measured map (:func:`solvers.measured.prepare_measured_map`).
+    record : dict
+        What was done to the file: ISO 25178 of the measured points (``iso25178``), points cut
+        and filled, Sq moved, and the reader's ``notes``; empty for a skisnow texture.
 
     Raises
     ------
@@ -249,12 +257,13 @@ def read_grind_upload(
     if head.startswith(b"\x80") or head.startswith(b"(dp"):
         raise UnsupportedContentError(f"file {filename!r} is a Python pickle; never loaded")
     topo = _topography()
+    record: dict = {}
     if topo is not None:
         try:
             topo.detect_format(head, suffix=suffix)
         except DataFileError as exc:
             raise UnsupportedContentError(f"file {filename!r}: {exc}") from None
-        texture = topo.read_topography(
+        measured = topo.read_measured_topography(
             path,
             pixel_size_um=pixel_size_um,
             height_unit=height_unit,
@@ -264,6 +273,10 @@ def read_grind_upload(
             min_side=settings.min_grid_side,
             max_file_bytes=settings.max_upload_bytes,
         )
+        texture = measured.texture
+        if measured.prepared is not None:
+            record = {**measured.prepared.record(), "iso25178": measured.prepared.iso_measured}
+        record["notes"] = list(measured.notes)
     else:
         if suffix in (".npy", ".csv", ".txt"):
             missing = [
@@ -301,7 +314,7 @@ def read_grind_upload(
             f"height_unit: the detrended heights have Sq = {sq:.3g} m, outside the plausible "
             f"range {SQ_RANGE_M[0]:g}–{SQ_RANGE_M[1]:g} m of a ski-base grind; wrong height unit?"
         )
-    return replace(texture, name="upload")
+    return replace(texture, name="upload"), record
 
 
 def accept_grind(
@@ -319,33 +332,37 @@ def accept_grind(
     along_ski: str = "x",
     periodic: str = "mirror",
     detrend: str | None = None,
+    reduce: str = DEFAULT_REDUCTION,
     limits: JobLimits | None = None,
-) -> tuple[ItemRow, str, dict]:
+) -> tuple[ItemRow, str, dict, dict]:
     """Validate and detrend an uploaded grind, store it, and queue its table build.
 
-    The table is built on ``solvers.texture.make_periodic(heights, periodic)``: ``mirror``
-    (default for measured maps; a 2n0 × 2n1 grid), ``window`` or ``none`` (docs/topography.md).
-    ``detrend`` is what is removed from the heights first (``solvers.texture.level_heights``):
-    ``plane``, ``mean`` or ``none``; by default ``plane``, or ``mean`` when the map is declared
-    periodic (``periodic="none"``); a skisnow texture file is kept as stored unless it is
-    given. The choice is recorded in the item's metadata (``detrend``), the stored texture
-    and the table. The periodised grid must hold at most ``settings.max_solve_grid_points``
-    (422), and ``team`` must be within the job ``limits`` (:class:`QuotaError`, 429).
+    ``detrend`` is what is removed from the measured points first (``plane``, ``mean`` or
+    ``none``); by default always ``plane``, whatever ``periodic`` is (an instrument's tilt is
+    never kept unless asked for); a skisnow texture file is kept as stored unless it is given.
+    The solver's map is the largest well-measured rectangle with small holes filled
+    (:func:`solvers.measured.prepare_measured_map`); the ISO 25178 parameters are those of
+    the measured points. A map whose periodised grid exceeds ``settings.max_solve_grid_points``
+    is reduced by ``reduce`` (:func:`solvers.measured.reduce_map`: ``block`` average, the
+    default, a centred ``crop``, or ``none``: 422). The table is built on
+    ``solvers.texture.make_periodic(heights, periodic)``: ``mirror`` (default; a 2n0 × 2n1
+    grid), ``window`` or ``none`` (docs/topography.md). Every choice is recorded in the item's
+    metadata, the stored texture and the table; ``team`` must be within the job ``limits``
+    (:class:`QuotaError`, 429).
 
     Returns
     -------
-    item, job_id, iso25178
-        The new item (state ``pending``), the build job's id and the texture's ISO 25178
-        parameters (SI, unit in each name; gradients not wrapped: measured maps are not
-        periodic).
+    item, job_id, iso25178, preparation
+        The new item (state ``pending``), the build job's id, the ISO 25178 parameters of the
+        measured points (SI, unit in each name; gradients not wrapped) and what was done to
+        the map (``measured``: points cut, filled, Sq moved; ``reduction``; ``notes``).
     """
     from skisnow.app.storage.textures import write_texture
+    from skisnow.solvers.measured import reduce_map
     from skisnow.solvers.texture import iso25178_parameters, make_periodic
 
     name = check_name_free(db, "grind", name, team)
-    if detrend is None and periodic == "none":  # declared periodic: no plane to remove
-        detrend = "mean"
-    texture = read_grind_upload(
+    texture, record = read_grind_upload(
         upload_path,
         filename,
         settings,
@@ -354,9 +371,35 @@ def accept_grind(
         along_ski=along_ski,
         detrend=detrend,
     )
+    iso = record.pop("iso25178", None)
+    if iso is None:  # a skisnow texture: complete, nothing unmeasured
+        iso = iso25178_parameters(texture.heights_m, texture.pixel_size_m, periodic=False)
+    notes = record.pop("notes", [])
+    original_shape = np.shape(texture.heights_m)
+    try:
+        reduced = reduce_map(
+            texture.heights_m,
+            texture.pixel_size_m,
+            reduce,
+            max_solve_points=settings.max_solve_grid_points,
+            periodic=periodic,
+        )
+    except InputError as exc:
+        raise InputError(
+            f"file: {exc} (max_solve_grid_points, SKISNOW_MAX_SOLVE_GRID_POINTS); or choose "
+            "periodic=window (solved on the grid as measured; the plane is still removed)"
+        ) from None
+    if reduced.method != "none":
+        texture = replace(
+            texture,
+            heights_m=reduced.heights_m,
+            pixel_size_m=reduced.pixel_size_m,
+            source=f"{texture.source}; reduced: {'; '.join(reduced.notes)}",
+        )
+    reduction = reduced.record(original_shape)
     check_solve_grid(np.shape(texture.heights_m), periodic, settings)
-    iso = iso25178_parameters(texture.heights_m, texture.pixel_size_m, periodic=False)
     solve_heights = make_periodic(texture.heights_m, periodic)
+    preparation = {"measured": record, "reduction": reduction, "notes": notes}
     meta = {
         **metadata,
         "original_filename": Path(filename).name,
@@ -364,10 +407,12 @@ def accept_grind(
         "grid": list(np.shape(texture.heights_m)),
         "detrend": texture.detrend,
         "periodic": periodic,
+        "reduce": reduce,
         "solve_grid": list(solve_heights.shape),
         "pixel_size_um": texture.pixel_size_m * 1e6,
         "missing_fraction": float(texture.missing_fraction),
         "iso25178": iso,
+        "preparation": preparation,
     }
     check_job_quota(db, team, limits)
     free_failed_name(db, layout, "grind", name, team)
@@ -392,7 +437,7 @@ def accept_grind(
         layout.remove_item_files(item.id)
         db.delete_item(item.id)
         raise
-    return item, job.id, iso
+    return item, job.id, iso, preparation
 
 
 def _add_item(db: CatalogueDB, kind: str, name: str, meta: dict, team: str | None) -> ItemRow:

@@ -12,16 +12,28 @@ content                   format                                read by
 zip with ``main.xml``     ISO 25178-72 x3p (ISO 5436-2000 and   ``x3pio`` (both revisions)
                           the newer Amd 1:2020 revision)
 HDF5, ``skisnow`` schema  our texture file (paths only)         :func:`.textures.read_texture`
-HDF5, Zygo ``MetaData``   Zygo ``.datx``                        ``SurfaceTopography``
-instrument magic          ``.sur``, ``.sdf``, ``.opd``,         ``SurfaceTopography``
-                          ``.al3d``, ``.frt``, ``.vk*``, …
-(no magic, by extension)  ``.plu``, ``.opdx``                   ``SurfaceTopography``
+instrument magic          ``.sur``, ``.sdf``, ``.al3d``,        ``SurfaceTopography``
+                          ``.frt``, MetroPro ``.dat``, ``.tmd``
+                          (``height_unit`` required)
+(no magic, by extension)  ``.plu``                              ``SurfaceTopography``
 ``\\x93NUMPY``             raw ``.npy`` grid (no pickles)        numpy, ``allow_pickle=False``
-UTF-8 text of numbers     raw ``.csv`` grid                     :mod:`.heightgrid`
+UTF-8/16 text of numbers  text grid, Wyko/Gwyddion matrix with  :mod:`.heightgrid`
+                          its header, x y z list on a grid
 ========================= ===================================== =============================
 
-Raw grids (``.npy``/``.csv``) carry no calibration: ``pixel_size_um`` and ``height_unit`` are
-required for them and refused for the calibrated formats (whose own units are used).
+Each format read is pinned by a real file (tests/storage/test_real_files.py). Formats
+SurfaceTopography reads but no real file has proven here (``.datx``, ``.opd``, ``.opdx``,
+``.vk*``, ``.zon``, ``.os3d``, ``.zmg``, ``.gwy``) are recognised and refused
+(``topography_formats.PROVEN_FORMATS``); line scans are refused as line scans.
+
+Files without calibration (``.npy``, a plain text grid) need ``pixel_size_um`` and
+``height_unit``; calibrated formats refuse them (their own units are used), and a text header
+refuses what it gives. An x y z list needs ``height_unit`` (of x, y and z); a TrueMap
+``.tmd`` states no unit and needs ``height_unit`` for its lengths and heights.
+
+Unmeasured points: :func:`solvers.measured.prepare_measured_map` (the plane fitted to the
+measured points, ISO parameters on them, the solver's map cropped to the largest
+well-measured rectangle with small holes filled; docs/topography.md).
 
 Axis order. skisnow's textures have axis 0 along the ski (x) and axis 1 across it (y)
 (:mod:`solvers.texture`). The libraries differ:
@@ -51,11 +63,13 @@ differ by more than 0.1 % are refused, not resampled.
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from skisnow.solvers.errors import DataFileError, InputError
-from skisnow.solvers.texture import Texture, check_detrend, level_heights
+from skisnow.solvers.measured import MIN_KEPT_FRACTION, PreparedMap, prepare_measured_map
+from skisnow.solvers.texture import Texture, check_detrend
 
 from .textures import (
     SHIPPED_TEXTURES_DIR,
@@ -79,17 +93,45 @@ from .topography_formats import (
     _read_npy,
     _read_surfacetopography,
     _read_x3p,
+    _text_grid,
     detect_format,
 )
+
+#: formats without calibration: pixel size and height unit come from the user
+_RAW_FORMATS = ("npy", "csv")
+#: calibrated formats whose unit is not in the file: height_unit required (lengths and heights)
+_UNITLESS_FORMATS = ("tmd",)
+
+
+@dataclass
+class MeasuredTopography:
+    """A height map file read for the solver (:func:`read_measured_topography`).
+
+    Attributes
+    ----------
+    texture : Texture
+        The solver's map [m] (the kept rectangle, small holes filled, detrended).
+    prepared : PreparedMap or None
+        What was done to the measured points (``None``: a skisnow texture file, kept as is).
+    notes : list of str
+        What the reader skipped or converted (header lines, a row of positions).
+    """
+
+    texture: Texture
+    prepared: PreparedMap | None
+    notes: list[str] = field(default_factory=list)
+
 
 __all__ = [
     "DEFAULT_MAX_FILE_BYTES",
     "DEFAULT_MAX_PIXELS",
     "DEFAULT_MAX_ZIP_MEMBERS",
     "INSTRUMENT_FORMATS",
+    "MeasuredTopography",
     "RawTopography",
     "detect_format",
     "load_texture",
+    "read_measured_topography",
     "read_raw_topography",
     "read_topography",
 ]
@@ -137,6 +179,31 @@ def read_raw_topography(
     """Read a height map of any accepted format, unlevelled; see :func:`read_topography`."""
     data, label, suffix, path = _load_bytes(source, name, max_file_bytes)
     fmt = detect_format(data[:512], suffix=suffix)
+    if fmt in _UNITLESS_FORMATS:
+        if pixel_size_um is not None:
+            raise InputError(
+                f"{label}: {fmt} files give their own pixel size; do not give pixel_size_um"
+            )
+        if height_unit is None:
+            raise InputError(
+                f"{label}: TrueMap .{fmt} files do not state their unit (SurfaceTopography "
+                "1.27 reads them in mm, later versions in µm): height_unit must be given, the "
+                "unit of the file's lengths and heights (mm or um)"
+            )
+        return _read_surfacetopography(
+            data, fmt, label, max_pixels, min_side, channel, unit=height_unit
+        )
+    if fmt not in _RAW_FORMATS:
+        # a calibrated format (x3p, datx, a texture, an instrument file): its own units are used
+        given = [
+            n for n, v in (("pixel_size_um", pixel_size_um), ("height_unit", height_unit)) if v
+        ]
+        if given:
+            what = {"zip": "x3p", "hdf5": "HDF5 (datx or texture)"}.get(fmt, fmt)
+            raise InputError(
+                f"{label}: {what} files carry their own calibration; do not give "
+                f"{' or '.join(given)}"
+            )
     if fmt == "zip":
         cap = max_uncompressed_bytes
         if cap is None:
@@ -160,18 +227,12 @@ def read_raw_topography(
         arr = _read_npy(data, label, max_pixels, min_side)
         return _raw_grid(arr, "npy", label, pixel_size_um, height_unit)
     if fmt == "csv":
-        arr = _read_csv(data, label, max_pixels, min_side)
-        return _raw_grid(arr, "csv", label, pixel_size_um, height_unit)
-    # a calibrated instrument format: its own units are used
-    given = [n for n, v in (("pixel_size_um", pixel_size_um), ("height_unit", height_unit)) if v]
-    if given:
-        raise InputError(
-            f"{label}: {fmt} files carry their own calibration; do not give {' or '.join(given)}"
-        )
+        parsed = _read_csv(data, label, max_pixels, min_side)
+        return _text_grid(parsed, label, pixel_size_um, height_unit)
     return _read_surfacetopography(data, fmt, label, max_pixels, min_side, channel)
 
 
-def read_topography(
+def read_measured_topography(
     source,
     *,
     name: str | None = None,
@@ -184,10 +245,12 @@ def read_topography(
     max_file_bytes: int = DEFAULT_MAX_FILE_BYTES,
     max_zip_members: int = DEFAULT_MAX_ZIP_MEMBERS,
     max_uncompressed_bytes: int | None = None,
-    max_missing_fraction: float = 0.5,
+    max_missing_fraction: float = 1 - MIN_KEPT_FRACTION,
     detrend: str | None = None,
-) -> Texture:
-    """Read a measured (or raw) height map, convert it to metres, detrend it, return a Texture.
+) -> MeasuredTopography:
+    """Read a measured (or raw) height map, convert it to metres, level it on its measured
+    points, make the solver's map (:func:`solvers.measured.prepare_measured_map`: crop to the
+    largest well-measured rectangle, fill small holes only) and say what was done.
 
     Parameters
     ----------
@@ -218,7 +281,8 @@ def read_topography(
         Largest total declared uncompressed size of a zip container [bytes]; default
         16 MiB + 64 bytes per allowed point.
     max_missing_fraction : float
-        Largest fraction of non-measured points [-] (see :func:`solvers.texture.level_heights`).
+        Largest share of the map outside the kept rectangle [-] (the rectangle must hold at
+        least ``1 - max_missing_fraction`` of the points).
     detrend : str, optional
         What is removed from the heights (:func:`solvers.texture.level_heights`): "plane"
         (the least-squares plane; the default for measured maps), "mean" (for maps that are
@@ -228,9 +292,12 @@ def read_topography(
 
     Returns
     -------
-    Texture
-        Detrended, filled heights [m] with axis 0 along the ski, the pixel size [m], a
-        ``source`` naming the file, its format and sha256, and the ``detrend`` applied.
+    MeasuredTopography
+        ``texture``: detrended heights [m] of the kept rectangle with axis 0 along the ski,
+        the pixel size [m], a ``source`` naming the file, its format and sha256, and the
+        ``detrend`` applied; ``prepared``: the record of the preparation (ISO 25178 on the
+        measured points, points cut and filled, Sq moved; ``None`` for a skisnow texture);
+        ``notes``: what the reader skipped.
 
     Raises
     ------
@@ -275,7 +342,7 @@ def read_topography(
                 tex.source + "; transposed: file y along the ski",
                 tex.detrend,
             )
-        return detrend_texture(tex, detrend)
+        return MeasuredTopography(detrend_texture(tex, detrend), None, list(raw.notes))
     if isinstance(source, bytes | bytearray | memoryview):
         digest = hashlib.sha256(bytes(source)).hexdigest()
         label, stem, file_name = name or "uploaded file", Path(name or "upload").stem, name
@@ -289,18 +356,32 @@ def read_topography(
         raise InputError(f"{label}: no valid point (every height is NaN)")
     detrend = "plane" if detrend is None else detrend
     try:
-        levelled, missing = level_heights(
+        prepared = prepare_measured_map(
             heights,
             raw.pixel_size_m,
             detrend=detrend,
-            max_missing_fraction=max_missing_fraction,
+            min_kept_fraction=1 - float(max_missing_fraction),
+            min_side=min_side,
         )
     except InputError as exc:
         raise InputError(f"{label}: {exc}") from None
     source_text = f"{file_name or 'upload'} ({raw.details}; sha256 {digest})"
     if along_ski == "y":
         source_text += "; transposed: file y along the ski"
-    return Texture(levelled, raw.pixel_size_m, stem, missing, source_text, detrend)
+    r0, r1, c0, c1 = prepared.crop
+    if prepared.cut_points:
+        source_text += f"; kept rows {r0}-{r1}, columns {c0}-{c1}"
+    if prepared.filled_points:
+        source_text += f"; {prepared.filled_points} points in small holes filled"
+    missing = prepared.filled_points / prepared.heights_m.size
+    texture = Texture(prepared.heights_m, raw.pixel_size_m, stem, missing, source_text, detrend)
+    return MeasuredTopography(texture, prepared, list(raw.notes))
+
+
+def read_topography(source, **options) -> Texture:
+    """The solver's texture of a height map file: :func:`read_measured_topography`'s
+    ``texture`` (same arguments)."""
+    return read_measured_topography(source, **options).texture
 
 
 def load_texture(

@@ -8,14 +8,14 @@ from __future__ import annotations
 
 import io
 import zipfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from skisnow.solvers.errors import DataFileError, InputError
 from skisnow.solvers.texture import Texture
 
 from .common import NPY_READ_ERRORS
-from .heightgrid import height_factor, parse_csv_grid, pixel_size_m
+from .heightgrid import TextTopography, height_factor, parse_text_topography, pixel_size_m
 from .textures import (
     SCHEMA,
 )
@@ -53,9 +53,14 @@ INSTRUMENT_FORMATS: dict[str, tuple[tuple[int, bytes], ...] | None] = {
     "metropro": ((0, b"\x88\x1b\x03o"), (0, b"\x88\x1b\x03p"), (0, b"\x88\x1b\x03q")),
     "gwy": ((0, b"GWYP"),),
     "datx": None,  # HDF5, recognised by its content (see detect_format)
+    # TrueMap .tmd states no unit: its lengths and heights are read in the user's height_unit
     "plu": None,
     "opdx": None,
 }
+#: Instrument formats whose reading is pinned by a real file in tests/data/topography
+#: (tests/storage/test_real_files.py): grid, pixel size and Sq. The others are recognised and
+#: refused (no real file has proven skisnow's reading of them).
+PROVEN_FORMATS = ("sur", "sdf", "al3d", "frt", "tmd", "metropro", "plu")
 _EXTENSION_ONLY = {".plu": "plu", ".apx": "plu", ".opdx": "opdx"}
 
 
@@ -75,6 +80,8 @@ class RawTopography:
         What the reader found (revision, channel, unit), for the texture's ``source``.
     texture : Texture, optional
         The texture itself when the file is a skisnow texture (already levelled; kept as is).
+    notes : list of str
+        What the reader skipped or converted (header lines, a row of positions), for the answer.
     """
 
     heights_m: np.ndarray
@@ -82,6 +89,7 @@ class RawTopography:
     format: str
     details: str = ""
     texture: Texture | None = None
+    notes: list[str] = field(default_factory=list)
 
 
 # --------------------------------------------------------------------------- detection
@@ -125,23 +133,40 @@ def detect_format(head: bytes, *, suffix: str = "") -> str:
     )
 
 
-def _looks_like_number_text(head: bytes) -> bool:
+def _decode_text(head: bytes) -> str | None:
+    """Text of a file head (UTF-16 with a byte-order mark, else UTF-8), or None if binary."""
+    if head.startswith((b"\xff\xfe", b"\xfe\xff")):
+        codec, cut = "utf-16", 2
+    else:
+        codec, cut = "utf-8-sig", 3
     try:
-        text = head.decode("utf-8-sig")
+        text = head.decode(codec)
     except UnicodeDecodeError:
         # the buffer may end inside a multi-byte character
         try:
-            text = head[:-3].decode("utf-8-sig")
+            text = head[:-cut].decode(codec)
         except UnicodeDecodeError:
-            return False
-    if "\x00" in text:
+            return None
+    return None if "\x00" in text else text
+
+
+def _looks_like_number_text(head: bytes) -> bool:
+    """Numbers as text, after at most 20 header lines (``#`` comments, ``key=value``, names)."""
+    text = _decode_text(head)
+    if text is None:
         return False
     allowed = set("0123456789+-.eEnaNAinfINF,;\t \r\n#")
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         return text.strip().startswith("#")
-    body = lines[0] if len(lines) == 1 else "\n".join(lines[:-1])  # the last may be cut short
-    return set(body) <= allowed and any(c.isdigit() for c in body)
+    skipped = 0
+    while lines and skipped < 20 and not (set(lines[0]) <= allowed):
+        lines, skipped = lines[1:], skipped + 1
+    if not lines:
+        return False
+    body = lines if len(lines) == 1 else lines[:-1]  # the last may be cut short
+    joined = "\n".join(body)
+    return set(joined) <= allowed and any(c.isdigit() for c in joined)
 
 
 # --------------------------------------------------------------------------- limits
@@ -200,6 +225,8 @@ def _read_x3p(data: bytes, label: str, max_pixels: int, min_side: int) -> RawTop
         info = x3pio.info(io.BytesIO(data))
     except (x3pio.X3pError, ValueError, OSError, EOFError) as exc:
         raise DataFileError(f"{label}: not a readable x3p file: {exc}") from None
+    if info.feature_type == x3pio.FeatureType.PROFILE:
+        raise InputError(f"{label}: x3p file holds a profile, a line scan: a grind needs a 2-D map")
     if info.feature_type != x3pio.FeatureType.SURFACE:
         raise InputError(
             f"{label}: x3p file holds a {info.feature_type.name.lower()}, not a surface (SUR)"
@@ -221,8 +248,17 @@ def _read_x3p(data: bytes, label: str, max_pixels: int, min_side: int) -> RawTop
 
 
 def _read_surfacetopography(
-    data: bytes, fmt: str, label: str, max_pixels: int, min_side: int, channel: int | None
+    data: bytes,
+    fmt: str,
+    label: str,
+    max_pixels: int,
+    min_side: int,
+    channel: int | None,
+    unit: str | None = None,
 ) -> RawTopography:
+    """Read an instrument file with SurfaceTopography. ``unit`` (a :data:`HEIGHT_UNITS` key):
+    the unit of the file's numbers, for formats that do not state it (TrueMap ``.tmd``), in
+    place of the one the library assumes."""
     try:
         from SurfaceTopography.IO import open_topography
         from SurfaceTopography.Support.UnitConversion import get_unit_conversion_factor
@@ -248,7 +284,16 @@ def _read_surfacetopography(
                 f"{len(reader.channels)} channel(s) (0-based)"
             )
         if info.dim != 2:
-            raise InputError(f"{label}: channel {info.name!r} is a {info.dim}-D line scan")
+            raise InputError(
+                f"{label}: channel {info.name!r} is a line scan ({info.dim}-D): a grind needs "
+                "a 2-D map"
+            )
+        if fmt not in PROVEN_FORMATS:
+            raise InputError(
+                f"{label}: a {fmt} file is recognised but not read: no real {fmt} file has "
+                "proven skisnow's reading of it (grid, pixel size, height unit); export the map "
+                f"as x3p, or as one of {', '.join(PROVEN_FORMATS)}"
+            )
         _check_grid_size(info.nb_grid_pts, max_pixels, min_side, label)
         try:
             top = reader.topography(channel_index=info.index)
@@ -256,8 +301,15 @@ def _read_surfacetopography(
             raise DataFileError(f"{label}: damaged {fmt} file: {exc}") from None
         if not top.is_uniform:
             raise InputError(f"{label}: {fmt} channel is not on a uniform grid")
-        unit = top.unit
-        factor = get_unit_conversion_factor(unit, "m") if unit else None
+        library_unit = top.unit
+        if unit is not None:  # the user's unit for a format that states none
+            factor, unit = (
+                height_factor(unit),
+                f"{unit} (given; the library assumed {library_unit})",
+            )
+        else:
+            unit = library_unit
+            factor = get_unit_conversion_factor(unit, "m") if unit else None
         if factor is None:
             raise InputError(f"{label}: {fmt} file has no length unit for its heights ({unit!r})")
         heights = top.heights()  # (nx, ny): x along axis 0
@@ -318,14 +370,13 @@ def _read_npy(data: bytes, label: str, max_pixels: int, min_side: int) -> np.nda
     return np.asarray(arr, dtype=np.float64)
 
 
-def _read_csv(data: bytes, label: str, max_pixels: int, min_side: int) -> np.ndarray:
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise DataFileError(f"{label}: csv is not UTF-8 text: {exc}") from None
-    arr = parse_csv_grid(text, label)
-    _check_grid_size(arr.shape, max_pixels, min_side, label)
-    return arr
+def _read_csv(data: bytes, label: str, max_pixels: int, min_side: int) -> TextTopography:
+    text = _decode_text(data)
+    if text is None:
+        raise DataFileError(f"{label}: text file is neither UTF-8 nor UTF-16")
+    parsed = parse_text_topography(text, label)
+    _check_grid_size(parsed.values.shape, max_pixels, min_side, label)
+    return parsed
 
 
 def _raw_grid(arr: np.ndarray, fmt: str, label: str, pixel_size_um, height_unit) -> RawTopography:
@@ -341,6 +392,61 @@ def _raw_grid(arr: np.ndarray, fmt: str, label: str, pixel_size_um, height_unit)
     return RawTopography(
         arr * factor, pixel_size_m(pixel_size_um), fmt, f"raw {fmt}, heights in {height_unit}"
     )
+
+
+def _text_grid(parsed: TextTopography, label: str, pixel_size_um, height_unit) -> RawTopography:
+    """Calibrate a parsed text file: what its header gives is refused from the user, what it
+    lacks must be given."""
+    notes = list(parsed.notes)
+    if parsed.kind == "xyz":
+        if pixel_size_um is not None:
+            raise InputError(
+                f"{label}: an x y z point list gives its own pixel size (the x/y spacing); do "
+                "not give pixel_size_um"
+            )
+        if height_unit is None:
+            raise InputError(
+                f"{label}: an x y z point list without units: height_unit (the unit of x, y "
+                "and z) must be given"
+            )
+        factor = height_factor(height_unit)
+        px = parsed.spacing * factor
+        details = f"x y z point list, x y z in {height_unit}"
+        return RawTopography(parsed.values * factor, px, "xyz", details, notes=notes)
+    from_file = [
+        n
+        for n, v, f in (
+            ("pixel_size_um", pixel_size_um, parsed.pixel_size_m),
+            ("height_unit", height_unit, parsed.height_to_m),
+        )
+        if v is not None and f is not None
+    ]
+    if from_file:
+        raise InputError(
+            f"{label}: the file's header gives its own calibration; do not give "
+            f"{' or '.join(from_file)}"
+        )
+    if parsed.pixel_size_m is None and parsed.height_to_m is None:
+        raw = _raw_grid(parsed.values, "csv", label, pixel_size_um, height_unit)
+        raw.notes = notes
+        return raw
+    missing = [
+        n
+        for n, v, f in (
+            ("pixel_size_um", pixel_size_um, parsed.pixel_size_m),
+            ("height_unit", height_unit, parsed.height_to_m),
+        )
+        if v is None and f is None
+    ]
+    if missing:
+        raise InputError(
+            f"{label}: the file's header lacks part of the calibration: "
+            f"{' and '.join(missing)} must be given"
+        )
+    px = parsed.pixel_size_m if parsed.pixel_size_m is not None else pixel_size_m(pixel_size_um)
+    factor = parsed.height_to_m if parsed.height_to_m is not None else height_factor(height_unit)
+    details = f"text matrix with header, pixel {px * 1e6:.6g} µm, heights × {factor:g} m"
+    return RawTopography(parsed.values * factor, px, "text", details, notes=notes)
 
 
 def _hdf5_kind(data: bytes, label: str) -> str:

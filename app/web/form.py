@@ -311,8 +311,10 @@ def _describe_ski(ski: service.Ski) -> str:
 def _describe_grind(grind: service.Grind) -> str:
     t = grind.table
     sa_m = (t.iso_parameters or {}).get("Sa_m")
+    kind = str(t.attrs.get("texture_provenance") or "synthetic").split(":")[0]
     return (
-        f"{'Sa ' + format(sa_m * 1e6, '.3g') + ' µm; ' if sa_m is not None else ''}texture pixel "
+        f"{kind}; {'Sa ' + format(sa_m * 1e6, '.3g') + ' µm; ' if sa_m is not None else ''}"
+        "texture pixel "
         f"{t.pixel_size_m * 1e6:.3g} µm; gap floor {t.gap_floor_m * 1e9:.3g} nm"
     )
 

@@ -97,7 +97,8 @@ GRIND_UPLOAD_FIELDS = (
         "height_unit",
         "Height unit",
         "select",
-        "raw grids (.npy, .csv) only: the unit of the numbers in the file",
+        "raw grids (.npy, a plain text grid), x y z lists and TrueMap .tmd only: the unit of "
+        "the numbers in the file (calibrated files refuse it)",
         options=(("", "from the file"), ("m", "m"), ("mm", "mm"), ("um", "µm"), ("nm", "nm")),
     ),
     UploadField(
@@ -116,13 +117,22 @@ GRIND_UPLOAD_FIELDS = (
         advanced=True,
     ),
     UploadField(
+        "reduce",
+        "Reduction of a large map",
+        "select",
+        "a map too large for the solver is block-averaged (default; keeps the contact area "
+        "closest), cropped to a centred window, or refused (docs/topography.md)",
+        options=(("block", "block average"), ("crop", "centred crop"), ("none", "none")),
+        advanced=True,
+    ),
+    UploadField(
         "detrend",
         "Detrending",
         "select",
-        "removed from the heights before the solve; default: the least-squares plane, or the "
-        "mean when the tiling is none (a periodic map); recorded with the grind",
+        "removed from the measured heights before the solve; default: the least-squares "
+        "plane, whatever the tiling; recorded with the grind",
         options=(
-            ("", "default (plane; mean if tiling is none)"),
+            ("", "default (plane)"),
             ("plane", "plane"),
             ("mean", "mean"),
             ("none", "none"),

@@ -185,7 +185,7 @@ def test_defaults_refuse_the_mirror_of_the_largest_upload():
 
     s = Settings()
     assert 1 <= s.max_jobs_per_team <= s.max_queued_jobs
-    side = int(np.sqrt(s.max_grid_points))
+    side = int(np.sqrt(s.max_solve_grid_points))
     with pytest.raises(InputError, match="max_solve_grid_points"):
         check_solve_grid((side, side), "mirror", s)
     check_solve_grid((side, side), "none", s)
@@ -204,13 +204,20 @@ def test_periodic_shape_is_that_of_make_periodic(method, shape):
 
 def test_solve_grid_is_limited_after_periodisation(catalogue, tmp_path):
     """A 64² map is solved on 128² with the default mirror tiling: the limit applies to that
-    grid, before anything is stored or queued."""
+    grid, before anything is stored or queued. By default the map is reduced (block average,
+    recorded); with ``reduce=none`` it is refused."""
     limit = 128 * 128 - 1
     with make_client(catalogue, tmp_path, max_solve_grid_points=limit) as client:
-        r = post_grind(client, name="mirrored")
+        r = post_grind(client, name="mirrored", reduce="none")
         detail = is_problem(r, 422)["detail"]
         assert "128×128 = 16384 points" in detail and "max_solve_grid_points" in detail
         assert stored_files(tmp_path) == [] and client.get("/v1/jobs").json()["jobs"] == []
+        r = post_grind(client, name="mirrored")
+        assert r.status_code == 202, r.text
+        reduction = r.json()["preparation"]["reduction"]
+        assert reduction["method"] == "block" and reduction["grid"] == [32, 32]
+        assert r.json()["item"]["metadata"]["solve_grid"] == [64, 64]
+        wait_job(client, r.json()["job"])
         # as measured (no mirror), the same map is solved on its 64² grid
         r = post_grind(client, name="as-measured", periodic="window")
         assert r.status_code == 202, r.text

@@ -262,8 +262,8 @@ def test_restart_mid_build_resumes_from_checkpoints(catalogue, tmp_path):
     with make_client(catalogue, tmp_path, **slow) as client:
         job = wait_job(client, job_id)
         assert job["state"] == "done", job
-        # declared periodic (periodic=none): only the mean is removed, by default
-        assert client.get("/v1/grinds/resumed").json()["metadata"]["detrend"] == "mean"
+        # periodic=none does not change the detrend: the plane is removed by default
+        assert client.get("/v1/grinds/resumed").json()["metadata"]["detrend"] == "plane"
         shown = client.get("/v1/grinds/resumed").json()
         assert shown["usable"] is True
         table = read_table(tmp_path / "grinds" / f"{shown['id']}.h5")

@@ -102,9 +102,11 @@ def test_surfacetopography_agrees_on_the_old_revision_and_refuses_the_new():
 def test_x3p_missing_points_non_square_pixels_and_profiles(tmp_path):
     h = oriented_map()
     h_nan = h.copy()
-    h_nan[0, :3] = np.nan
+    h_nan[0, :3] = np.nan  # touches the edge: cut off, never filled
+    h_nan[5, 3] = np.nan  # a small hole inside: filled
     tex = read_topography(x3p_bytes(h_nan, x3pio.Revision.ISO25178_72_2017_DAM1))
-    assert tex.missing_fraction == pytest.approx(3 / h.size)
+    assert tex.shape == (N_X - 1, N_Y)
+    assert tex.missing_fraction == pytest.approx(1 / ((N_X - 1) * N_Y))
     assert np.isfinite(tex.heights_m).all()
     with pytest.raises(InputError, match="not square"):
         read_topography(x3p_bytes(h, x3pio.Revision.ISO5436_2000, dy=3e-6))
