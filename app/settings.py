@@ -95,6 +95,13 @@ class Settings(BaseSettings):
         description="other origins (scheme://host[:port]) whose pages may change the catalogue "
         "when team_tokens is empty, e.g. a proxy's public address that rewrites Host",
     )
+    allowed_hosts: list[str] = Field(
+        default_factory=list,
+        description="host names (or addresses) besides loopback, the listening host and the "
+        "trusted origins' hosts that requests may name in their Host header; others are "
+        "refused with 421 before routing (DNS rebinding, app/api/access.py). '*': any host "
+        '(a proxy in front checks it). JSON list, e.g. \'["skis.example", "10.0.0.5"]\'',
+    )
     max_jobs_per_team: int = Field(
         4,
         ge=1,

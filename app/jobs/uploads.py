@@ -26,13 +26,14 @@ from __future__ import annotations
 import logging
 import math
 import re
+import uuid
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 from skisnow.app.errors import ConflictError, QuotaError, UnsupportedContentError
 from skisnow.app.settings import Settings
-from skisnow.app.storage.catalogue import CatalogueDB, ItemRow
+from skisnow.app.storage.catalogue import CatalogueDB, ItemRow, JobRow
 from skisnow.app.storage.common import atomic_path, sha256_file
 from skisnow.app.storage.layout import Layout
 from skisnow.solvers.errors import DataFileError, InputError
@@ -110,7 +111,13 @@ def check_job_quota(db: CatalogueDB, team: str | None, limits: JobLimits | None)
     """Raise :class:`QuotaError` when ``team`` (None: no team) may not queue another job."""
     if limits is None:
         return
-    counts = db.active_job_counts()
+    _check_counts(db.active_job_counts(), team, limits)
+
+
+def _check_counts(counts: dict, team: str | None, limits: JobLimits | None) -> None:
+    """Raise :class:`QuotaError` when ``counts`` (active jobs per team) leave no room."""
+    if limits is None:
+        return
     mine = counts.get(team, 0)
     who = f"team {team!r}" if team is not None else "the service (no team tokens: one team)"
     if mine >= limits.per_team:
@@ -365,37 +372,67 @@ def accept_grind(
     }
     check_job_quota(db, team, limits)
     free_failed_name(db, layout, "grind", name, team)
-    item = _add_item(db, "grind", name, meta, team)
-    try:
+
+    def write(item_id: str) -> None:
         stored = replace(
             texture,
             heights_m=solve_heights,
-            name=f"g{item.id}",
+            name=f"g{item_id}",
             source=(
                 f"upload {Path(filename).name}; detrend={texture.detrend}; periodic={periodic}"
             ),
         )
         write_texture(
             stored,
-            layout.grind_texture(item.id),
+            layout.grind_texture(item_id),
             extra_attrs={"item_name": name, "periodic_method": periodic},
             periodic=periodic != "none",
         )
-        job = db.add_job(GRIND_JOB, item.id, "queued: table build")
-    except BaseException:
-        layout.remove_item_files(item.id)
-        db.delete_item(item.id)
-        raise
+
+    item, job = _add_item_with_job(
+        db, layout, "grind", name, meta, team, limits, GRIND_JOB, "queued: table build", write
+    )
     return item, job.id, iso
 
 
-def _add_item(db: CatalogueDB, kind: str, name: str, meta: dict, team: str | None) -> ItemRow:
+def _add_item_with_job(
+    db: CatalogueDB,
+    layout: Layout,
+    kind: str,
+    name: str,
+    meta: dict,
+    team: str | None,
+    limits: JobLimits | None,
+    job_kind: str,
+    message: str,
+    write_files,
+) -> tuple[ItemRow, JobRow]:
+    """Write a new item's files (``write_files(item_id)``), then insert the item and its job
+    in the one transaction that checks the job quota (:meth:`CatalogueDB.add_item_with_job`):
+    concurrent uploads cannot all pass a quota with room for one (issue #27). The job is
+    visible to runners only with its files in place; a refused upload (409, 429) leaves no
+    file behind."""
     from skisnow.app.storage.catalogue import NameTakenError
 
+    item_id = uuid.uuid4().hex
     try:
-        return db.add_item(kind, name, metadata=meta, team=team)
+        write_files(item_id)
+        return db.add_item_with_job(
+            kind,
+            name,
+            job_kind,
+            item_id=item_id,
+            metadata=meta,
+            team=team,
+            message=message,
+            check_quota=lambda counts: _check_counts(counts, team, limits),
+        )
     except NameTakenError as exc:
+        layout.remove_item_files(item_id)
         raise ConflictError(str(exc)) from None
+    except BaseException:
+        layout.remove_item_files(item_id)
+        raise
 
 
 def _decode_text(data: bytes, filename: str) -> str:
@@ -612,13 +649,12 @@ def accept_ski(
     }
     check_job_quota(db, team, limits)
     free_failed_name(db, layout, "ski", name, team)
-    item = _add_item(db, "ski", name, meta, team)
-    try:
-        with atomic_path(layout.ski_csv(item.id)) as tmp:
+
+    def write(item_id: str) -> None:
+        with atomic_path(layout.ski_csv(item_id)) as tmp:
             tmp.write_bytes(data)
-        job = db.add_job(SKI_JOB, item.id, "queued: network training")
-    except BaseException:
-        layout.remove_item_files(item.id)
-        db.delete_item(item.id)
-        raise
+
+    item, job = _add_item_with_job(
+        db, layout, "ski", name, meta, team, limits, SKI_JOB, "queued: network training", write
+    )
     return item, job.id, figures
