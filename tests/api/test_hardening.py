@@ -110,7 +110,11 @@ def test_dns_rebinding_is_refused_by_a_real_service(tmp_path):
     """The attack of issue #27 point 1 against ``skisnow serve``: a page on ``evil.example``
     re-pointed at 127.0.0.1 sends Host and Origin of its own name. Upload, delete and the job
     list were 202, 204 and 200; now 421. The service's own names and a configured one pass."""
-    env = {"SKISNOW_ALLOWED_HOSTS": '["skis.example"]', "SKISNOW_JOB_WORKERS": "0"}
+    env = {
+        "SKISNOW_ALLOWED_HOSTS": '["skis.example"]',
+        "SKISNOW_JOB_WORKERS": "0",
+        "SKISNOW_MAX_UPLOAD_BYTES": "200000",
+    }
     with serving(tmp_path, env) as base:
         port = base.rsplit(":", 1)[1]
         evil = {"host": f"evil.example:{port}", "origin": f"http://evil.example:{port}"}
@@ -126,6 +130,9 @@ def test_dns_rebinding_is_refused_by_a_real_service(tmp_path):
             assert c.get("/v1/jobs", headers={"host": f"localhost:{port}"}).status_code == 200
             assert c.get("/v1/jobs", headers={"host": "skis.example"}).status_code == 200
             assert c.get("/v1/grinds/grind-1").status_code == 200  # not deleted
+            # and through uvicorn, an oversized chunked upload is 413 (issue #27 point 5)
+            headers, body = _chunked_upload(300_000)
+            is_problem(c.post("/v1/grinds", content=body, headers=headers), 413)
 
 
 # ---------------------------------------------------------------------------- quotas
@@ -196,3 +203,41 @@ def test_job_quotas_hold_under_concurrent_uploads_on_sqlite(tmp_path):
 @pytest.mark.postgres
 def test_job_quotas_hold_under_concurrent_uploads_on_postgresql(tmp_path, pg_url):
     _quota_run(tmp_path, (new_database(pg_url, "quotas"), new_database(pg_url, "team_quotas")))
+
+
+# ------------------------------------------------------------------------ body limits
+
+
+def _chunked_upload(size: int, chunk: int = 64 * 1024):
+    """Headers and a generator (sent as ``Transfer-Encoding: chunked``, no Content-Length) of
+    a multipart grind upload whose file part is ``size`` bytes."""
+    boundary = "skisnowboundary"
+    head = (
+        f'--{boundary}\r\nContent-Disposition: form-data; name="name"\r\n\r\nbig\r\n'
+        f'--{boundary}\r\nContent-Disposition: form-data; name="file"; filename="g.npy"\r\n'
+        "Content-Type: application/octet-stream\r\n\r\n"
+    ).encode()
+    tail = f"\r\n--{boundary}--\r\n".encode()
+
+    def body():
+        yield head
+        left = size
+        while left > 0:
+            n = min(chunk, left)
+            yield b"0" * n
+            left -= n
+        yield tail
+
+    return {"content-type": f"multipart/form-data; boundary={boundary}"}, body()
+
+
+def test_an_oversized_chunked_upload_is_413(catalogue, tmp_path):
+    """A chunked body over ``max_upload_bytes`` is 413 like a declared one (it was 400
+    "There was an error parsing the body"); one under it reaches the upload's checks."""
+    with make_client(catalogue, tmp_path, max_upload_bytes=200_000) as client:
+        headers, body = _chunked_upload(300_000)
+        r = client.post("/v1/grinds", content=body, headers=headers)
+        assert "content-length" not in r.request.headers
+        assert "200000 bytes" in is_problem(r, 413)["detail"]
+        headers, body = _chunked_upload(2_000)
+        assert client.post("/v1/grinds", content=body, headers=headers).status_code in (415, 422)
