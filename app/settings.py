@@ -60,6 +60,12 @@ class Settings(BaseSettings):
         description="most data rows of an uploaded camber CSV; reading stops at the first row "
         "beyond it",
     )
+    max_check_s: float = Field(
+        30.0,
+        gt=0,
+        description="longest synchronous check of an upload (camber CSV rows, a grind's height "
+        "map), run in a worker thread; beyond it the upload is refused with 422 [s]",
+    )
     table_points: int = Field(48, ge=2, le=512, description="pressure grid points of a table")
     table_chunk_size: int = Field(4, ge=1, description="grid points per table-build task")
     table_workers: int = Field(1, ge=1, le=64, description="Dask workers of a table build")

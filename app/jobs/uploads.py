@@ -35,6 +35,7 @@ from skisnow.app.errors import ConflictError, QuotaError, UnsupportedContentErro
 from skisnow.app.settings import Settings
 from skisnow.app.storage.catalogue import CatalogueDB, ItemRow, JobRow
 from skisnow.app.storage.common import atomic_path, sha256_file
+from skisnow.app.storage.deadline import checkpoint, deadline
 from skisnow.app.storage.layout import Layout
 from skisnow.solvers.errors import DataFileError, InputError
 
@@ -346,18 +347,22 @@ def accept_grind(
     name = check_name_free(db, "grind", name, team)
     if detrend is None and periodic == "none":  # declared periodic: no plane to remove
         detrend = "mean"
-    texture = read_grind_upload(
-        upload_path,
-        filename,
-        settings,
-        pixel_size_um=pixel_size_um,
-        height_unit=height_unit,
-        along_ski=along_ski,
-        detrend=detrend,
-    )
-    check_solve_grid(np.shape(texture.heights_m), periodic, settings)
-    iso = iso25178_parameters(texture.heights_m, texture.pixel_size_m, periodic=False)
-    solve_heights = make_periodic(texture.heights_m, periodic)
+    with deadline(settings.max_check_s, f"the check of {Path(filename).name!r}"):
+        texture = read_grind_upload(
+            upload_path,
+            filename,
+            settings,
+            pixel_size_um=pixel_size_um,
+            height_unit=height_unit,
+            along_ski=along_ski,
+            detrend=detrend,
+        )
+        checkpoint()
+        check_solve_grid(np.shape(texture.heights_m), periodic, settings)
+        iso = iso25178_parameters(texture.heights_m, texture.pixel_size_m, periodic=False)
+        checkpoint()
+        solve_heights = make_periodic(texture.heights_m, periodic)
+        checkpoint()
     meta = {
         **metadata,
         "original_filename": Path(filename).name,
@@ -622,20 +627,22 @@ def accept_ski(
     limits: JobLimits | None = None,
     max_cases: int | None = None,
     max_rows: int | None = None,
+    max_check_s: float | None = None,
 ) -> tuple[ItemRow, str, dict]:
-    """Validate a ski upload (:func:`check_ski_upload`, caps ``max_cases`` and ``max_rows``),
-    store its CSV and queue the network training (``team`` within the job ``limits``, else
-    :class:`QuotaError`)."""
+    """Validate a ski upload (:func:`check_ski_upload`, caps ``max_cases`` and ``max_rows``,
+    at most ``max_check_s`` seconds: :mod:`app.storage.deadline`), store its CSV and queue the
+    network training (``team`` within the job ``limits``, else :class:`QuotaError`)."""
     name = check_name_free(db, "ski", name, team)
-    _, outline, figures = check_ski_upload(
-        data,
-        filename,
-        length_mm=length_mm,
-        width_mm=width_mm,
-        width_positions_mm=width_positions_mm,
-        max_cases=max_cases,
-        max_rows=max_rows,
-    )
+    with deadline(max_check_s, f"the check of {Path(filename).name!r}"):
+        _, outline, figures = check_ski_upload(
+            data,
+            filename,
+            length_mm=length_mm,
+            width_mm=width_mm,
+            width_positions_mm=width_positions_mm,
+            max_cases=max_cases,
+            max_rows=max_rows,
+        )
     meta = {
         **metadata,
         "length_mm": length_mm,
