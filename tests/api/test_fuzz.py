@@ -187,14 +187,17 @@ AUTH_HEADERS = (
 
 
 @pytest.fixture(scope="module")
-def token_app(fuzz_catalogue, tmp_path_factory):
-    """The fuzz app with team tokens (its own data folder and job runner)."""
+def token_app(catalogue, tmp_path_factory):
+    """The fuzz app with team tokens (its own catalogue copy, data folder and job runner)."""
     settings = Settings(
         data_dir=tmp_path_factory.mktemp("fuzz-token-data"),
         team_tokens=FUZZ_TOKENS,
         **FUZZ_SETTINGS,
     )
-    return create_app(settings, catalogue=fuzz_catalogue)
+    own = service.Catalogue(
+        tables_dir=catalogue.tables_dir, skis=dict(catalogue.skis), grinds=dict(catalogue.grinds)
+    )
+    return create_app(settings, catalogue=own)
 
 
 @pytest.fixture(scope="module")
@@ -683,6 +686,9 @@ def test_fuzz_long(request, schema, session, app, upload_files, mode, operations
         if mode is GenerationMode.POSITIVE and not tokens:
             _assert_upload_coverage(counts, 10 * examples)
     else:
-        _assert_coverage(counts, 10 * examples, mode)
+        # in token mode half the cases carry a wrong token (401) or none (a caller of no
+        # team, who does not see the teams' uploads): half as many contacts are answered
+        solved = 10 * examples // (80 if tokens else 40)
+        _assert_coverage(counts, 10 * examples, mode, min_solved=solved)
     if operations is None and mode is GenerationMode.POSITIVE:
         assert {k.rsplit(" ", 1)[0] for k in counts} == ALL_OPERATIONS, counts
