@@ -35,7 +35,7 @@ from skisnow.app.errors import ConflictError, QuotaError, UnsupportedContentErro
 from skisnow.app.settings import Settings
 from skisnow.app.storage.catalogue import CatalogueDB, ItemRow, JobRow
 from skisnow.app.storage.common import atomic_path, sha256_file
-from skisnow.app.storage.deadline import checkpoint, deadline
+from skisnow.app.storage.deadline import checkpoint, run_bounded
 from skisnow.app.storage.layout import Layout
 from skisnow.solvers.errors import DataFileError, InputError
 
@@ -347,7 +347,8 @@ def accept_grind(
     name = check_name_free(db, "grind", name, team)
     if detrend is None and periodic == "none":  # declared periodic: no plane to remove
         detrend = "mean"
-    with deadline(settings.max_check_s, f"the check of {Path(filename).name!r}"):
+
+    def check():
         texture = read_grind_upload(
             upload_path,
             filename,
@@ -361,8 +362,10 @@ def accept_grind(
         check_solve_grid(np.shape(texture.heights_m), periodic, settings)
         iso = iso25178_parameters(texture.heights_m, texture.pixel_size_m, periodic=False)
         checkpoint()
-        solve_heights = make_periodic(texture.heights_m, periodic)
-        checkpoint()
+        return texture, iso, make_periodic(texture.heights_m, periodic)
+
+    what = f"the check of {Path(filename).name!r}"
+    texture, iso, solve_heights = run_bounded(settings.max_check_s, what, check)
     meta = {
         **metadata,
         "original_filename": Path(filename).name,
@@ -630,19 +633,22 @@ def accept_ski(
     max_check_s: float | None = None,
 ) -> tuple[ItemRow, str, dict]:
     """Validate a ski upload (:func:`check_ski_upload`, caps ``max_cases`` and ``max_rows``,
-    at most ``max_check_s`` seconds: :mod:`app.storage.deadline`), store its CSV and queue the
-    network training (``team`` within the job ``limits``, else :class:`QuotaError`)."""
+    at most ``max_check_s`` seconds: :func:`app.storage.deadline.run_bounded`), store its CSV
+    and queue the network training (``team`` within the job ``limits``, else
+    :class:`QuotaError`)."""
     name = check_name_free(db, "ski", name, team)
-    with deadline(max_check_s, f"the check of {Path(filename).name!r}"):
-        _, outline, figures = check_ski_upload(
-            data,
-            filename,
-            length_mm=length_mm,
-            width_mm=width_mm,
-            width_positions_mm=width_positions_mm,
-            max_cases=max_cases,
-            max_rows=max_rows,
-        )
+    _, outline, figures = run_bounded(
+        max_check_s,
+        f"the check of {Path(filename).name!r}",
+        check_ski_upload,
+        data,
+        filename,
+        length_mm=length_mm,
+        width_mm=width_mm,
+        width_positions_mm=width_positions_mm,
+        max_cases=max_cases,
+        max_rows=max_rows,
+    )
     meta = {
         **metadata,
         "length_mm": length_mm,

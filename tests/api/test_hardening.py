@@ -309,3 +309,27 @@ def test_an_upload_check_longer_than_max_check_s_is_refused(catalogue, tmp_path)
         assert "max_check_s" in body["detail"] and "0.05 s" in body["detail"], body
         assert c.get("/v1/skis/slow-check").status_code == 404
         assert c.get("/v1/jobs").json()["jobs"] == []
+
+
+def test_a_check_stuck_outside_its_checkpoints_is_refused_in_time(catalogue, tmp_path, monkeypatch):
+    """A step of a check that never reaches a checkpoint (a format reader in compiled code;
+    here a reader that sleeps 4 s) is still answered at ``max_check_s`` + 1 s: the check runs
+    in a thread of its own and the route stops waiting (app/storage/deadline.py)."""
+    import time
+
+    from skisnow.app.jobs import uploads
+
+    real = uploads.read_grind_upload
+
+    def stuck(*args, **kwargs):
+        time.sleep(4.0)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(uploads, "read_grind_upload", stuck)
+    with make_client(catalogue, tmp_path, max_check_s=0.2) as client:
+        t0 = time.perf_counter()
+        body = is_problem(post_grind(client, name="stuck"), 422)
+        waited_s = time.perf_counter() - t0
+        assert "max_check_s" in body["detail"] and "'g.npy'" in body["detail"], body
+        assert waited_s < 3.0, waited_s
+        assert client.get("/v1/grinds/stuck").status_code == 404
