@@ -66,6 +66,12 @@ class Settings(BaseSettings):
         description="most data rows of an uploaded camber CSV; reading stops at the first row "
         "beyond it",
     )
+    max_check_s: float = Field(
+        30.0,
+        gt=0,
+        description="longest synchronous check of an upload (camber CSV rows, a grind's height "
+        "map), run in a worker thread; beyond it the upload is refused with 422 [s]",
+    )
     table_points: int = Field(48, ge=2, le=512, description="pressure grid points of a table")
     table_chunk_size: int = Field(4, ge=1, description="grid points per table-build task")
     table_workers: int = Field(1, ge=1, le=64, description="Dask workers of a table build")
@@ -100,6 +106,13 @@ class Settings(BaseSettings):
         default_factory=list,
         description="other origins (scheme://host[:port]) whose pages may change the catalogue "
         "when team_tokens is empty, e.g. a proxy's public address that rewrites Host",
+    )
+    allowed_hosts: list[str] = Field(
+        default_factory=list,
+        description="host names (or addresses) besides loopback, the listening host and the "
+        "trusted origins' hosts that requests may name in their Host header; others are "
+        "refused with 421 before routing (DNS rebinding, app/api/access.py). '*': any host "
+        '(a proxy in front checks it). JSON list, e.g. \'["skis.example", "10.0.0.5"]\'',
     )
     max_jobs_per_team: int = Field(
         4,

@@ -1,4 +1,15 @@
-"""Who may change and see what: the service's access rules (docs/uploads.md, "Access").
+"""Who may reach the service, and who may change and see what: the service's access rules
+(docs/uploads.md, "Access").
+
+Hosts
+    Every request is checked by :class:`HostGuardMiddleware` before routing: its ``Host``
+    header must name a host of :func:`allowed_hosts` (loopback names and addresses, the
+    listening host, the hosts of ``Settings.trusted_origins`` and ``Settings.allowed_hosts``),
+    else 421 (Misdirected Request) with a problem body. ``GET /healthz`` and ``/readyz``
+    (:data:`PROBE_PATHS`, which change and show nothing) are not checked: an orchestrator's
+    probe names the container's address. Without this check a DNS-rebinding
+    page (``evil.example`` re-pointed at 127.0.0.1) is same-origin with the service by its own
+    ``Host`` and passes the check of changes below.
 
 Changes
     Every request with a method in :data:`WRITE_METHODS` (uploads, renames, deletes, and so the
@@ -47,6 +58,7 @@ Reads
 
 from __future__ import annotations
 
+import ipaddress
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, replace
 from urllib.parse import urlsplit
@@ -58,16 +70,21 @@ from starlette.requests import Request, cookie_parser
 
 __all__ = [
     "LOGIN_PATHS",
+    "LOOPBACK_NAMES",
+    "PROBE_PATHS",
     "READ_ONLY_POSTS",
     "TOKEN_COOKIE",
     "WRITE_METHODS",
     "Caller",
+    "HostGuardMiddleware",
     "WriteGuardMiddleware",
+    "allowed_hosts",
     "bearer_team",
     "caller",
     "cookie_token",
     "cross_origin_reason",
     "failed_views",
+    "host_refusal",
     "request_team",
     "team_may_change",
     "visible_catalogue",
@@ -82,6 +99,16 @@ LOGIN_PATHS = frozenset({"/login", "/logout"})
 #: the cookie of the login page that carries a team token (see the module docstring)
 TOKEN_COOKIE = "skisnow_token"
 _DEFAULT_PORTS = {"http": 80, "https": 443}
+#: host names that always mean this machine (RFC 6761: ``*.localhost`` too); loopback
+#: addresses (127.0.0.0/8, ::1) are recognised by value
+LOOPBACK_NAMES = frozenset({"localhost"})
+#: liveness and readiness probes, answered whatever the Host (see the module docstring)
+PROBE_PATHS = frozenset({"/healthz", "/readyz"})
+#: the host of Starlette's in-process test client; allowed only for a request whose client is
+#: that test client (``scope["client"]``), never one that came over a socket
+_TEST_HOST, _TEST_CLIENT = "testserver", "testclient"
+#: listening addresses that mean "every interface": no host name follows from them
+_WILDCARD_HOSTS = frozenset({"", "0.0.0.0", "::", "[::]"})
 #: at most this many names of each kind per request are looked up in the database when this
 #: process does not serve them (see :func:`visible_catalogue`)
 _CATCH_UP_MAX = 64
@@ -208,6 +235,94 @@ def visible_catalogue(
     )
 
 
+# ------------------------------------------------------------------------------- hosts
+
+
+def _host_name(host_header: str) -> str | None:
+    """The host name of a ``Host`` header (lower case, no port, no brackets, no final dot);
+    None when it is not one."""
+    try:
+        parts = urlsplit("//" + host_header.strip())
+        parts.port  # noqa: B018 - raises ValueError on a bad port
+    except ValueError:
+        return None
+    name = (parts.hostname or "").rstrip(".")
+    return name or None
+
+
+def _is_loopback(name: str) -> bool:
+    if name in LOOPBACK_NAMES or name.endswith(".localhost"):
+        return True
+    try:
+        return ipaddress.ip_address(name).is_loopback
+    except ValueError:
+        return False
+
+
+def allowed_hosts(settings) -> frozenset[str]:
+    """Host names a request's ``Host`` may name besides loopback (:func:`host_refusal`): the
+    listening host (unless it is every interface, ``0.0.0.0``/``::``), the hosts of
+    ``trusted_origins`` and ``allowed_hosts`` (``"*"``: any)."""
+    names = set()
+    host = str(settings.host).strip().lower()
+    if host not in _WILDCARD_HOSTS:
+        names.add(host.strip("[]").rstrip("."))
+    for origin in settings.trusted_origins:
+        parsed = _origin(origin)
+        if parsed is not None:
+            names.add(parsed[1].rstrip("."))
+    for entry in settings.allowed_hosts:
+        entry = entry.strip().lower()
+        if entry == "*":
+            names.add("*")
+        elif entry:
+            names.add(_host_name(entry) or entry)
+    return frozenset(names)
+
+
+def host_refusal(host_header: str | None, allowed: frozenset[str], client=None) -> str | None:
+    """Why a request naming ``host_header`` may not reach the service, or None when it may.
+
+    A request without ``Host`` passes (browsers always send one: a DNS-rebinding page cannot
+    leave it out). ``client`` is the ASGI ``scope["client"]``: Starlette's test client alone
+    may name ``testserver``."""
+    if host_header is None or "*" in allowed:
+        return None
+    name = _host_name(host_header)
+    if name is not None and (name in allowed or _is_loopback(name)):
+        return None
+    if name == _TEST_HOST and client is not None and client[0] == _TEST_CLIENT:
+        return None
+    return (
+        f"Host {host_header!r} is not a name of this service; requests must name localhost, "
+        "a loopback address, the listening host (SKISNOW_HOST) or a host of "
+        "SKISNOW_TRUSTED_ORIGINS or SKISNOW_ALLOWED_HOSTS (refused before routing: a web page "
+        "whose name was re-pointed at this machine must not reach it)"
+    )
+
+
+class HostGuardMiddleware:
+    """Refuse every request whose ``Host`` is not allowed (:func:`host_refusal`) with 421,
+    before routing and before its body is read."""
+
+    def __init__(self, app, allowed: Iterable[str]) -> None:
+        self.app = app
+        self.allowed = frozenset(allowed)
+
+    async def __call__(self, scope, receive, send):
+        if scope["type"] != "http" or (
+            scope.get("path") in PROBE_PATHS and scope.get("method") in ("GET", "HEAD")
+        ):
+            return await self.app(scope, receive, send)
+        host = Headers(scope=scope).get("host")
+        reason = host_refusal(host, self.allowed, scope.get("client"))
+        if reason is None:
+            return await self.app(scope, receive, send)
+        from skisnow.app.api.problems import problem
+
+        return await problem(421, "Misdirected Request", reason)(scope, receive, send)
+
+
 # ----------------------------------------------------------------------------- origins
 
 
@@ -236,13 +351,16 @@ def _same_host(origin: tuple[str, str, int], host_header: str) -> bool:
     return parts.hostname.lower() == origin[1] and (port or _DEFAULT_PORTS[origin[0]]) == origin[2]
 
 
-def cross_origin_reason(headers: Mapping[str, str], trusted=(), *, cookie: bool = False):
+def cross_origin_reason(
+    headers: Mapping[str, str], trusted=(), scheme: str | None = None, *, cookie: bool = False
+) -> str | None:
     """Why a change may not pass the same-origin check, or None when it may.
 
     The request's origin is its ``Origin`` header, else the origin of its ``Referer``; with
     neither it passes (not sent by a browser page). It passes when that origin is the
-    request's ``Host`` or one of ``trusted`` (``scheme://host[:port]``). ``cookie``: the
-    change is authorised by the login cookie (the reason says so).
+    request's own (its ``scheme``, ``http`` or ``https`` as the server received it; None: not
+    compared, and its ``Host``) or one of ``trusted`` (``scheme://host[:port]``). ``cookie``:
+    the change is authorised by the login cookie (the reason says so).
     """
     header, value = "Origin", headers.get("origin")
     if value is None:
@@ -252,7 +370,8 @@ def cross_origin_reason(headers: Mapping[str, str], trusted=(), *, cookie: bool 
     origin = _origin(value)
     host = headers.get("host", "")
     if origin is not None:
-        if _same_host(origin, host) or origin in {_origin(t) for t in trusted}:
+        own = _same_host(origin, host) and (scheme is None or origin[0] == scheme)
+        if own or origin in {_origin(t) for t in trusted}:
             return None
     shown = value if header == "Origin" else f"{value!r} (origin of the Referer)"
     if cookie:
@@ -264,8 +383,9 @@ def cross_origin_reason(headers: Mapping[str, str], trusted=(), *, cookie: bool 
         )
     return (
         f"cross-origin change refused: {header} {shown} is not this service's origin "
-        f"(Host {host!r}). Without team tokens (SKISNOW_TEAM_TOKENS) uploads, renames and "
-        "deletes must come from the service's own pages, or from a client that sends no Origin "
+        f"({scheme + '://' if scheme else ''}{host or '(no Host)'}). Without team tokens "
+        "(SKISNOW_TEAM_TOKENS) uploads, renames and deletes must come from the service's own "
+        "pages, or from a client that sends no Origin "
         "or Referer (curl, scripts); list a trusted origin in SKISNOW_TRUSTED_ORIGINS"
     )
 
@@ -301,7 +421,9 @@ class WriteGuardMiddleware:
                 resp.headers["WWW-Authenticate"] = "Bearer"
                 return await resp(scope, receive, send)
         if not self.tokens or by_cookie or scope.get("path") in LOGIN_PATHS:
-            reason = cross_origin_reason(headers, self.trusted, cookie=bool(self.tokens))
+            reason = cross_origin_reason(
+                headers, self.trusted, scope.get("scheme"), cookie=bool(self.tokens)
+            )
             if reason is not None:
                 return await problem(403, "Forbidden", reason)(scope, receive, send)
         return await self.app(scope, receive, send)

@@ -15,7 +15,7 @@ from fastapi.openapi.utils import get_openapi
 from skisnow.app import service
 from skisnow.app.api import catalogue as catalogue_state
 from skisnow.app.api import contact, flex, grinds, handlers, jobs, ops, problems, skis
-from skisnow.app.api.access import WriteGuardMiddleware
+from skisnow.app.api.access import HostGuardMiddleware, WriteGuardMiddleware, allowed_hosts
 from skisnow.app.api.limits import BodyLimitMiddleware
 from skisnow.app.settings import Settings
 
@@ -64,6 +64,9 @@ def create_api(settings: Settings | None = None, catalogue: service.Catalogue | 
         tokens=settings.team_tokens,
         trusted_origins=settings.trusted_origins,
     )
+    # added after the write guard, so it runs before it: a request naming a host that is not
+    # this service's (DNS rebinding) is refused before anything else looks at it
+    app.add_middleware(HostGuardMiddleware, allowed=allowed_hosts(settings))
     handlers.install(app)
     for module in (ops, contact, flex, skis, grinds, jobs):
         app.include_router(module.router)

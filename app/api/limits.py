@@ -9,7 +9,12 @@ __all__ = ["BodyLimitMiddleware"]
 
 class BodyLimitMiddleware:
     """Refuse bodies larger than ``limit`` bytes with 413 (declared or streamed); POSTs to
-    ``upload_paths`` (file uploads) may be up to ``upload_limit`` bytes."""
+    ``upload_paths`` (file uploads) may be up to ``upload_limit`` bytes.
+
+    A body without ``Content-Length`` (``Transfer-Encoding: chunked``) is counted as it is
+    read: the read that passes the limit raises inside the app, and the app's answer, whatever
+    it is (FastAPI answers an exception while parsing a form with 400), is replaced by the 413.
+    """
 
     def __init__(self, app, limit: int, upload_limit: int = 0, upload_paths=()) -> None:
         self.app = app
@@ -35,19 +40,34 @@ class BodyLimitMiddleware:
                     scope, receive, send
                 )
         seen = 0
+        over = False
+        started = False
 
         async def limited_receive():
-            nonlocal seen
+            nonlocal seen, over
             message = await receive()
             if message["type"] == "http.request":
                 seen += len(message.get("body", b""))
                 if seen > limit:
+                    over = True
                     raise _BodyTooLarge
             return message
 
+        async def guarded_send(message):
+            # once the body went over the limit, whatever the app answers (FastAPI turns an
+            # exception while parsing a form into 400 "error parsing the body") is replaced
+            # by the 413
+            nonlocal started
+            if over:
+                return
+            started = started or message["type"] == "http.response.start"
+            await send(message)
+
         try:
-            await self.app(scope, limited_receive, send)
+            await self.app(scope, limited_receive, guarded_send)
         except _BodyTooLarge:
+            pass
+        if over and not started:
             await too_big(scope, receive, send)
 
 

@@ -101,6 +101,7 @@ def post_ski(
             limits=C.limits(request),
             max_cases=settings.max_camber_cases,
             max_rows=settings.max_camber_rows,
+            max_check_s=settings.max_check_s,
         )
     state.runner.wake()
     return C.accepted(item, job_id, data=figures)

@@ -86,21 +86,24 @@ def _run_workers(host: str, port: int, workers: int) -> int:
     """Run ``workers`` uvicorn worker processes under uvicorn's supervisor (what
     ``uvicorn.run(..., workers=n)`` does) and return 3 when a worker failed to start.
 
-    The supervisor restarts a worker that dies while serving, but when one fails before it
-    serves (a broken catalogue, database or port) it stops every worker and returns normally:
-    through ``uvicorn.run`` the command then exited 0, and ``docker run --restart on-failure``
-    or a process manager took the failure for a clean stop (issue #15)."""
+    The supervisor restarts a worker that dies while serving. One that fails before it serves
+    stops the service with exit code 3 (a process manager or ``docker run --restart
+    on-failure`` then sees the failure): uvicorn's own supervisor did that only for a worker
+    that exits with code 3 itself (an error in the app's lifespan) and returned normally, so
+    ``uvicorn.run`` exited 0; a worker that died any other way before serving (an import
+    error: code 1; killed) was restarted without end (issue #15, #27)."""
     from uvicorn import Config
     from uvicorn.config import STARTUP_FAILURE
-    from uvicorn.supervisors import Multiprocess
 
     config = Config("skisnow.app.main:app", host=host, port=port, workers=workers, log_level="info")
-    supervisor = Multiprocess(config, sockets=[config.bind_socket()])
+    supervisor = _supervisor_class()(config, sockets=[config.bind_socket()])
     try:
         supervisor.run()
     except KeyboardInterrupt:
         pass
-    failed = [p.pid for p in supervisor.processes if p.exitcode == STARTUP_FAILURE]
+    failed = supervisor.failed_at_start or [
+        p.pid for p in supervisor.processes if p.exitcode == STARTUP_FAILURE
+    ]
     if failed:
         print(
             f"skisnow serve: worker process {failed[0]} failed to start (its log is above); "
@@ -109,3 +112,34 @@ def _run_workers(host: str, port: int, workers: int) -> int:
         )
         return STARTUP_FAILURE
     return 0
+
+
+def _supervisor_class():
+    from uvicorn.supervisors import Multiprocess
+
+    class Supervisor(Multiprocess):
+        """uvicorn's supervisor that stops, and records the worker, when one dies before it
+        has served (its health check never answered "started"), whatever its exit code."""
+
+        def __init__(self, *args, **kwargs) -> None:
+            super().__init__(*args, **kwargs)
+            self.served: set[int] = set()
+            self.failed_at_start: list[int] = []
+
+        def keep_subprocess_alive(self) -> None:
+            if self.should_exit.is_set():
+                return
+            for process in self.processes:
+                if process.pid in self.served:
+                    continue
+                if process.process.is_alive():
+                    if process.is_ready(timeout=1):
+                        self.served.add(process.pid)
+                    continue
+                process.join()
+                self.failed_at_start.append(process.pid)
+                self.should_exit.set()
+                return
+            super().keep_subprocess_alive()
+
+    return Supervisor

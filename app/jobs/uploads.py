@@ -26,14 +26,16 @@ from __future__ import annotations
 import logging
 import math
 import re
+import uuid
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 from skisnow.app.errors import ConflictError, QuotaError, UnsupportedContentError
 from skisnow.app.settings import Settings
-from skisnow.app.storage.catalogue import CatalogueDB, ItemRow
+from skisnow.app.storage.catalogue import CatalogueDB, ItemRow, JobRow
 from skisnow.app.storage.common import atomic_path, sha256_file
+from skisnow.app.storage.deadline import checkpoint, run_bounded
 from skisnow.app.storage.layout import Layout
 from skisnow.solvers.errors import DataFileError, InputError
 
@@ -120,7 +122,13 @@ def check_job_quota(db: CatalogueDB, team: str | None, limits: JobLimits | None)
     """Raise :class:`QuotaError` when ``team`` (None: no team) may not queue another job."""
     if limits is None:
         return
-    counts = db.active_job_counts()
+    _check_counts(db.active_job_counts(), team, limits)
+
+
+def _check_counts(counts: dict, team: str | None, limits: JobLimits | None) -> None:
+    """Raise :class:`QuotaError` when ``counts`` (active jobs per team) leave no room."""
+    if limits is None:
+        return
     mine = counts.get(team, 0)
     who = f"team {team!r}" if team is not None else "the service (no team tokens: one team)"
     if mine >= limits.per_team:
@@ -362,44 +370,52 @@ def accept_grind(
     from skisnow.solvers.texture import iso25178_parameters, make_periodic
 
     name = check_name_free(db, "grind", name, team)
-    texture, record = read_grind_upload(
-        upload_path,
-        filename,
-        settings,
-        pixel_size_um=pixel_size_um,
-        height_unit=height_unit,
-        along_ski=along_ski,
-        detrend=detrend,
-    )
-    iso = record.pop("iso25178", None)
-    if iso is None:  # a skisnow texture: complete, nothing unmeasured
-        iso = iso25178_parameters(texture.heights_m, texture.pixel_size_m, periodic=False)
-    notes = record.pop("notes", [])
-    original_shape = np.shape(texture.heights_m)
-    try:
-        reduced = reduce_map(
-            texture.heights_m,
-            texture.pixel_size_m,
-            reduce,
-            max_solve_points=settings.max_solve_grid_points,
-            periodic=periodic,
+
+    def check():
+        texture, record = read_grind_upload(
+            upload_path,
+            filename,
+            settings,
+            pixel_size_um=pixel_size_um,
+            height_unit=height_unit,
+            along_ski=along_ski,
+            detrend=detrend,
         )
-    except InputError as exc:
-        raise InputError(
-            f"file: {exc} (max_solve_grid_points, SKISNOW_MAX_SOLVE_GRID_POINTS); or choose "
-            "periodic=window (solved on the grid as measured; the plane is still removed)"
-        ) from None
-    if reduced.method != "none":
-        texture = replace(
-            texture,
-            heights_m=reduced.heights_m,
-            pixel_size_m=reduced.pixel_size_m,
-            source=f"{texture.source}; reduced: {'; '.join(reduced.notes)}",
-        )
-    reduction = reduced.record(original_shape)
-    check_solve_grid(np.shape(texture.heights_m), periodic, settings)
-    solve_heights = make_periodic(texture.heights_m, periodic)
-    preparation = {"measured": record, "reduction": reduction, "notes": notes}
+        checkpoint()
+        iso = record.pop("iso25178", None)
+        if iso is None:  # a skisnow texture: complete, nothing unmeasured
+            iso = iso25178_parameters(texture.heights_m, texture.pixel_size_m, periodic=False)
+        notes = record.pop("notes", [])
+        original_shape = np.shape(texture.heights_m)
+        try:
+            reduced = reduce_map(
+                texture.heights_m,
+                texture.pixel_size_m,
+                reduce,
+                max_solve_points=settings.max_solve_grid_points,
+                periodic=periodic,
+            )
+        except InputError as exc:
+            raise InputError(
+                f"file: {exc} (max_solve_grid_points, SKISNOW_MAX_SOLVE_GRID_POINTS); or choose "
+                "periodic=window (solved on the grid as measured; the plane is still removed)"
+            ) from None
+        checkpoint()
+        if reduced.method != "none":
+            texture = replace(
+                texture,
+                heights_m=reduced.heights_m,
+                pixel_size_m=reduced.pixel_size_m,
+                source=f"{texture.source}; reduced: {'; '.join(reduced.notes)}",
+            )
+        reduction = reduced.record(original_shape)
+        check_solve_grid(np.shape(texture.heights_m), periodic, settings)
+        solve_heights = make_periodic(texture.heights_m, periodic)
+        preparation = {"measured": record, "reduction": reduction, "notes": notes}
+        return texture, iso, solve_heights, preparation
+
+    what = f"the check of {Path(filename).name!r}"
+    texture, iso, solve_heights, preparation = run_bounded(settings.max_check_s, what, check)
     meta = {
         **metadata,
         "original_filename": Path(filename).name,
@@ -416,37 +432,67 @@ def accept_grind(
     }
     check_job_quota(db, team, limits)
     free_failed_name(db, layout, "grind", name, team)
-    item = _add_item(db, "grind", name, meta, team)
-    try:
+
+    def write(item_id: str) -> None:
         stored = replace(
             texture,
             heights_m=solve_heights,
-            name=f"g{item.id}",
+            name=f"g{item_id}",
             source=(
                 f"upload {Path(filename).name}; detrend={texture.detrend}; periodic={periodic}"
             ),
         )
         write_texture(
             stored,
-            layout.grind_texture(item.id),
+            layout.grind_texture(item_id),
             extra_attrs={"item_name": name, "periodic_method": periodic},
             periodic=periodic != "none",
         )
-        job = db.add_job(GRIND_JOB, item.id, "queued: table build")
-    except BaseException:
-        layout.remove_item_files(item.id)
-        db.delete_item(item.id)
-        raise
+
+    item, job = _add_item_with_job(
+        db, layout, "grind", name, meta, team, limits, GRIND_JOB, "queued: table build", write
+    )
     return item, job.id, iso, preparation
 
 
-def _add_item(db: CatalogueDB, kind: str, name: str, meta: dict, team: str | None) -> ItemRow:
+def _add_item_with_job(
+    db: CatalogueDB,
+    layout: Layout,
+    kind: str,
+    name: str,
+    meta: dict,
+    team: str | None,
+    limits: JobLimits | None,
+    job_kind: str,
+    message: str,
+    write_files,
+) -> tuple[ItemRow, JobRow]:
+    """Write a new item's files (``write_files(item_id)``), then insert the item and its job
+    in the one transaction that checks the job quota (:meth:`CatalogueDB.add_item_with_job`):
+    concurrent uploads cannot all pass a quota with room for one (issue #27). The job is
+    visible to runners only with its files in place; a refused upload (409, 429) leaves no
+    file behind."""
     from skisnow.app.storage.catalogue import NameTakenError
 
+    item_id = uuid.uuid4().hex
     try:
-        return db.add_item(kind, name, metadata=meta, team=team)
+        write_files(item_id)
+        return db.add_item_with_job(
+            kind,
+            name,
+            job_kind,
+            item_id=item_id,
+            metadata=meta,
+            team=team,
+            message=message,
+            check_quota=lambda counts: _check_counts(counts, team, limits),
+        )
     except NameTakenError as exc:
+        layout.remove_item_files(item_id)
         raise ConflictError(str(exc)) from None
+    except BaseException:
+        layout.remove_item_files(item_id)
+        raise
 
 
 def _decode_text(data: bytes, filename: str) -> str:
@@ -636,12 +682,17 @@ def accept_ski(
     limits: JobLimits | None = None,
     max_cases: int | None = None,
     max_rows: int | None = None,
+    max_check_s: float | None = None,
 ) -> tuple[ItemRow, str, dict]:
-    """Validate a ski upload (:func:`check_ski_upload`, caps ``max_cases`` and ``max_rows``),
-    store its CSV and queue the network training (``team`` within the job ``limits``, else
+    """Validate a ski upload (:func:`check_ski_upload`, caps ``max_cases`` and ``max_rows``,
+    at most ``max_check_s`` seconds: :func:`app.storage.deadline.run_bounded`), store its CSV
+    and queue the network training (``team`` within the job ``limits``, else
     :class:`QuotaError`)."""
     name = check_name_free(db, "ski", name, team)
-    _, outline, figures = check_ski_upload(
+    _, outline, figures = run_bounded(
+        max_check_s,
+        f"the check of {Path(filename).name!r}",
+        check_ski_upload,
         data,
         filename,
         length_mm=length_mm,
@@ -663,13 +714,12 @@ def accept_ski(
     }
     check_job_quota(db, team, limits)
     free_failed_name(db, layout, "ski", name, team)
-    item = _add_item(db, "ski", name, meta, team)
-    try:
-        with atomic_path(layout.ski_csv(item.id)) as tmp:
+
+    def write(item_id: str) -> None:
+        with atomic_path(layout.ski_csv(item_id)) as tmp:
             tmp.write_bytes(data)
-        job = db.add_job(SKI_JOB, item.id, "queued: network training")
-    except BaseException:
-        layout.remove_item_files(item.id)
-        db.delete_item(item.id)
-        raise
+
+    item, job = _add_item_with_job(
+        db, layout, "ski", name, meta, team, limits, SKI_JOB, "queued: network training", write
+    )
     return item, job.id, figures

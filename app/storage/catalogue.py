@@ -50,6 +50,8 @@ __all__ = ["ITEM_KINDS", "JOB_STATES", "CatalogueDB", "ItemRow", "JobRow", "Name
 ITEM_KINDS = ("ski", "grind")
 ITEM_STATES = ("pending", "ready", "failed")
 JOB_STATES = ("queued", "running", "done", "failed")
+#: PostgreSQL advisory lock key of the job-quota check (:meth:`CatalogueDB.add_item_with_job`)
+QUOTA_LOCK_KEY = 0x736B69736E6F77  # "skisnow"
 
 _meta = sa.MetaData()
 
@@ -306,6 +308,74 @@ class CatalogueDB:
         rows = sorted((_item(r) for r in rows), key=lambda r: r.name != name)
         return rows[0] if rows else None
 
+    def add_item_with_job(
+        self,
+        kind: str,
+        name: str,
+        job_kind: str,
+        *,
+        item_id: str | None = None,
+        metadata: dict | None = None,
+        team: str | None = None,
+        message: str = "queued",
+        check_quota=None,
+    ) -> tuple[ItemRow, JobRow]:
+        """Insert a ``pending`` item and its queued job in one transaction that first calls
+        ``check_quota(counts)`` with :meth:`active_job_counts` as the transaction sees them
+        (it raises to refuse; nothing is written then).
+
+        The check and the inserts are serialised across threads and processes, so that
+        concurrent uploads cannot all pass a quota that leaves room for one: SQLite takes its
+        write lock first (``BEGIN IMMEDIATE``); PostgreSQL takes a transaction-scoped advisory
+        lock (:data:`QUOTA_LOCK_KEY`), held until the commit. ``item_id`` (default: a new
+        one) lets the caller write the item's files before the job becomes visible to a
+        runner. :class:`NameTakenError` if ``(kind, name)`` exists.
+        """
+        if kind not in ITEM_KINDS:
+            raise InputError(f"bad item kind {kind!r}")
+        now = _now()
+        item_id = item_id or uuid.uuid4().hex
+        job_id = uuid.uuid4().hex
+        dialect = self.engine.dialect.name
+        with self.engine.connect() as c:
+            if dialect == "sqlite":
+                c.exec_driver_sql("BEGIN IMMEDIATE")
+            elif dialect == "postgresql":
+                c.execute(sa.text("SELECT pg_advisory_xact_lock(:k)"), {"k": QUOTA_LOCK_KEY})
+            if check_quota is not None:
+                check_quota(self._active_job_counts(c))
+            self._refuse_clash(c, kind, name)
+            try:
+                c.execute(
+                    ITEMS.insert().values(
+                        id=item_id,
+                        kind=kind,
+                        name=name,
+                        metadata=metadata or {},
+                        state="pending",
+                        read_only=False,
+                        team=team,
+                        created_at=now,
+                        updated_at=now,
+                    )
+                )
+            except sa.exc.IntegrityError:  # a concurrent insert won the race (unique indexes)
+                raise self._taken(kind, name) from None
+            c.execute(
+                JOBS.insert().values(
+                    id=job_id,
+                    kind=job_kind,
+                    item_id=item_id,
+                    state="queued",
+                    progress=0.0,
+                    message=message,
+                    created_at=now,
+                    updated_at=now,
+                )
+            )
+            c.commit()
+        return self.item(item_id), self.job(job_id)
+
     def item(self, item_id: str) -> ItemRow | None:
         with self.engine.connect() as c:
             row = c.execute(ITEMS.select().where(ITEMS.c.id == item_id)).first()
@@ -446,14 +516,18 @@ class CatalogueDB:
 
     def active_job_counts(self) -> dict[str | None, int]:
         """Queued and running jobs per team of their item (``None``: items of no team)."""
+        with self.engine.connect() as c:
+            return self._active_job_counts(c)
+
+    @staticmethod
+    def _active_job_counts(c) -> dict[str | None, int]:
         q = (
             sa.select(ITEMS.c.team, sa.func.count())
             .select_from(JOBS.outerjoin(ITEMS, JOBS.c.item_id == ITEMS.c.id))
             .where(JOBS.c.state.in_(("queued", "running")))
             .group_by(ITEMS.c.team)
         )
-        with self.engine.connect() as c:
-            return {team: int(n) for team, n in c.execute(q)}
+        return {team: int(n) for team, n in c.execute(q)}
 
     def update_job(self, job_id: str, *, owner: str | None = None, **values) -> bool:
         """Update columns of a job; with ``owner``, only while the job's runner is ``owner``

@@ -39,6 +39,7 @@ from skisnow.solvers.beam import G_STANDARD, BeamSki
 from skisnow.solvers.errors import DataFileError, InputError
 
 from .common import atomic_path, provenance, read_json_manifest, sha256_file, tables_dir
+from .deadline import checkpoint
 
 __all__ = [
     "CSV_COLUMNS",
@@ -59,6 +60,8 @@ __all__ = [
 ]
 
 SCHEMA = "skisnow.ski/1"
+#: rows of a camber CSV between two :func:`app.storage.deadline.checkpoint` calls (~1 ms)
+_CHECKPOINT_ROWS = 32
 CSV_COLUMNS = ("ski_id", "side", "load_kg", "load_position_mm", "position_mm", "gap_mm")
 SIDES = ("left", "right", "mean")
 LOAD_KG_RANGE = (0.0, 200.0)
@@ -278,6 +281,8 @@ def read_camber_csv(
         if not row or all(not c.strip() for c in row):
             continue
         rows += 1
+        if not rows % _CHECKPOINT_ROWS:
+            checkpoint()  # let the event loop run; the upload's time bound
         if max_rows is not None and rows > max_rows:
             raise InputError(
                 f"line {lineno}: more than {max_rows} data rows, the cap of a camber CSV "

@@ -116,6 +116,49 @@ def test_serve_exits_non_zero_when_a_worker_fails_to_start(tmp_path):
     assert (tmp_path / "data" / "catalogue.db").exists()  # the parent's own checks passed
 
 
+#: a sitecustomize for the test below: a spawned process (a uvicorn worker) dies at once with
+#: exit code 1, as a worker whose app fails to import does
+_WORKERS_DIE = """
+import os, sys
+if any("spawn_main" in a for a in getattr(sys, "orig_argv", [])):
+    sys.stderr.write("worker: simulated import failure\\n")
+    os._exit(1)
+"""
+
+
+def test_serve_exits_non_zero_when_a_worker_dies_at_start_with_another_code(tmp_path):
+    """With two workers, a worker that dies before it serves with a code other than uvicorn's
+    startup failure (an import error exits 1) stops ``skisnow serve`` with code 3; uvicorn's
+    supervisor restarted such a worker without end (issue #27, "left from the last round")."""
+    import os
+    import socket
+    import subprocess
+    import sys
+
+    (tmp_path / "hook").mkdir()
+    (tmp_path / "hook" / "sitecustomize.py").write_text(_WORKERS_DIE)
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    env = {
+        **os.environ,
+        "PYTHONPATH": str(tmp_path / "hook"),
+        "SKISNOW_DATA_DIR": str(tmp_path / "data"),
+        "SKISNOW_WARM_UP": "false",
+        "OMP_NUM_THREADS": "1",
+    }
+    env.pop("SKISNOW_DATABASE_URL", None)
+    cmd = [sys.executable, "-m", "skisnow.app.cli", "serve", "--port", str(port), "--workers", "2"]
+    try:
+        proc = subprocess.run(
+            cmd, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=90
+        )
+    except subprocess.TimeoutExpired as exc:
+        raise AssertionError("serve kept restarting a worker that dies at start") from exc
+    assert proc.returncode == 3, proc.stderr[-2000:]
+    assert "failed to start" in proc.stderr
+
+
 def test_serve_with_two_workers_stops_cleanly_with_exit_code_0_on_sigterm(tmp_path):
     """The other side of the test above: ``docker stop`` (SIGTERM) is a clean stop, exit 0."""
     import os
