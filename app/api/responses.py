@@ -300,6 +300,21 @@ class JobView(BaseModel):
     error: str | None
     created_at: str
     updated_at: str
+    lane: str = Field(
+        ...,
+        description="short (grind tables) or long (ski networks): the lanes "
+        "run side by side, so a short job never waits behind a long one",
+    )
+    queue_position: int | None = Field(
+        None, description="1: the next job of its lane to start; null unless queued"
+    )
+    ahead: int = Field(0, description="jobs of its lane running or queued before it")
+    estimate_s: float | None = Field(
+        None,
+        description="rough seconds until done, from the median upload-to-done time of the "
+        "last finished jobs of its kind [s]; null without such jobs or once finished",
+    )
+    estimate_basis: int = Field(0, description="finished jobs the estimate rests on")
 
 
 class JobList(BaseModel):
