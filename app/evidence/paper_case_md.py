@@ -258,30 +258,6 @@ def _flexible(case: PaperCase) -> list[str]:
     ]
 
 
-def _mid_zone_note(case: PaperCase) -> list[str]:
-    """What a "mid" zone is and which side it counts on, where one is in the table."""
-    mids = [
-        z
-        for s in SKIS
-        for z in case.results[(s, GRINDS[0])]["apparent"]["zones"]
-        if z["name"] == "mid"
-    ]
-    if not mids:
-        return []
-    rear = [0.5 * (z["start_mm"] + z["end_mm"]) < 0 for z in mids]
-    if all(rear):
-        side = "as rear because it lies behind the balance point"
-    elif not any(rear):
-        side = "as front because it lies ahead of the balance point"
-    else:
-        side = "with the side of its midpoint"
-    return [
-        f'("mid" marks a zone that spans the load position; in the E_snow sweep below it '
-        f"counts {side}.)",
-        "",
-    ]
-
-
 def _zones(case: PaperCase) -> list[str]:
     rows = []
     for s in SKIS:
@@ -312,11 +288,11 @@ def _zones(case: PaperCase) -> list[str]:
         "mean P [kPa]",
     ]
     return [
-        "Contact zones of our skis (rear to front):",
+        "Contact zones of our skis (rear to front; a zone is named by the side of the balance "
+        "point its middle lies on, whatever the load):",
         "",
         *_table(header, rows),
         "",
-        *_mid_zone_note(case),
     ]
 
 

@@ -252,7 +252,7 @@ def contact(
             "mean_pressure_kpa": ms.mean_apparent_pressure_pa / 1e3,
             "zones": [
                 {
-                    "name": "rear" if z.end_m <= x_f else ("front" if z.start_m >= x_f else "mid"),
+                    "name": name,
                     "start_mm": z.start_m * 1e3,
                     "end_mm": z.end_m * 1e3,
                     "length_mm": (z.end_m - z.start_m) * 1e3,
@@ -261,7 +261,7 @@ def contact(
                     "apparent_area_cm2": z.apparent_area_m2 * 1e4,
                     "real_area_mm2": z.real_area_m2 * 1e6,
                 }
-                for z in ms.zones
+                for z, name in zip(ms.zones, zone_names(ms.zones), strict=True)
             ],
         },
         "warnings": result_warnings(inp, gmap, macro, ms) + model_info.pop("warnings"),
@@ -386,6 +386,24 @@ def pixel_error_estimate(
                 float(np.sum(ar[ok] * rel[ok]) / total) if total > 0 else None
             )
     return out
+
+
+def zone_names(zones) -> list[str]:
+    """Names of contact zones by their position along the ski, whatever the load: ``rear``
+    when the zone's middle lies behind the balance point (X < 0), ``front`` ahead of it; where
+    several zones share a side they are numbered from the tail towards the tip (``front 1``,
+    ``front 2``). The same zone keeps its name from one load to another as long as its middle
+    stays on its side of the balance point."""
+    sides = ["rear" if 0.5 * (z.start_m + z.end_m) < 0.0 else "front" for z in zones]
+    order = sorted(range(len(zones)), key=lambda i: zones[i].start_m)
+    count = {side: sides.count(side) for side in set(sides)}
+    seen: dict[str, int] = {}
+    names = [""] * len(zones)
+    for i in order:
+        side = sides[i]
+        seen[side] = seen.get(side, 0) + 1
+        names[i] = side if count[side] == 1 else f"{side} {seen[side]}"
+    return names
 
 
 def rigid_minus_flexible(rigid, flex, ms_rigid=None, ms_flex=None) -> dict[str, float]:

@@ -61,7 +61,6 @@ CSV_COLUMNS = (
     "min_average_separation_band90_rel",
     "total_reciprocal_separation_band90_rel",
     "rear_zone_load_share",
-    "mid_zone_load_share",
     "front_zone_load_share",
     "ski_model",
     "table_file",
@@ -158,10 +157,9 @@ def render_csv(out: Outcome) -> str:
     w.writerow(CSV_COLUMNS)
     for r in out.results:
         inp, m, a, p = r["inputs"], r["metrics"], r["apparent"], r["provenance"]
-        share = {"rear": 0.0, "mid": 0.0, "front": 0.0}
+        share = {"rear": 0.0, "front": 0.0}  # zones behind / ahead of the balance point
         for z in a["zones"]:
-            if z["name"] in share:
-                share[z["name"]] += z["load_share"]
+            share[z["name"].split()[0]] += z["load_share"]
         row = {
             **{k: inp[k] for k in CSV_COLUMNS[:8]},
             **m,
@@ -172,7 +170,6 @@ def render_csv(out: Outcome) -> str:
                 for q, w in r.get("band", {}).get("relative_half_width", {}).items()
             },
             "rear_zone_load_share": share["rear"],
-            "mid_zone_load_share": share["mid"],
             "front_zone_load_share": share["front"],
             "ski_model": p["ski_model"]["used"],
             "table_file": p["table"]["file"],
