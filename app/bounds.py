@@ -109,7 +109,7 @@ _PRESET_DOC = (
 SkiModelName = Literal["rigid", "flexible", "auto"]
 _SKI_MODEL_DOC = (
     "rigid: the ski keeps its loaded shape on the measuring device's flat (the papers' model); "
-    "flexible: the ski bends on the snow (beam and snow solved together, method.md §4b); "
+    "flexible: the ski bends on the snow (beam and snow solved together, docs/physics.md §4b); "
     "auto: rigid where it is within 2 % of flexible in apparent area, rear load share and the "
     "four metrics, flexible elsewhere. provenance.ski_model says which was used and why."
 )

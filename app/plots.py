@@ -3,7 +3,7 @@
 Every function takes answers of :func:`app.service.contact` (technician units: mm, kPa, µm), or
 for a ski's page the ``beam`` report of :func:`app.service.beam_report` (mm, kg, N·m², µm), and
 returns one SVG document as a string, ready to be inlined in HTML. Quantities and symbols follow
-``shared/method.md``: P(X) apparent pressure, H(X) loaded camber clearance, a_r(X) real contact
+``docs/physics.md``: P(X) apparent pressure, H(X) loaded camber clearance, a_r(X) real contact
 area fraction, h̄_n(X) average interfacial separation, (1/h)‾_n(X) average reciprocal separation.
 X is the position along the ski from the balance point, positive towards the tip.
 """

@@ -110,8 +110,8 @@ def result_warnings(inp: ContactInputs, gmap, macro, ms) -> list[dict]:
             {
                 "code": "porosity_near_one",
                 "detail": f"porosity {inp.porosity:g} ≥ {POROSITY_WARN:g}: the texture carries "
-                "only P·(1 − n) (method.md eq. 2), so the real contact area shrinks towards zero "
-                "while the average real contact pressure F/A_tot (full load F, §6) grows "
+                "only P·(1 − n) (docs/physics.md eq. 2), so the real contact area shrinks towards "
+                "zero while the average real contact pressure F/A_tot (full load F, §6) grows "
                 "without bound; very loose snow is outside what the method was made for",
             }
         )

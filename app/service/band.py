@@ -28,7 +28,7 @@ in quadrature (:func:`solvers.band.combine`):
     out (:func:`solvers.band.table_interpolation_error`), weighted by where the answer loads the
     table.
 ``flat_base``
-    A rigid answer in the flat-base regime (method.md §4c): the spread of the answer when the
+    A rigid answer in the flat-base regime (docs/physics.md §4c): the spread of the answer when the
     stretch of its loaded profile within ``FLAT_GAP_M`` of the flat is perturbed by
     ``FLAT_SIGMA_M`` (:mod:`app.service.band_calibration`); such an answer also warns.
 ``ski_model``
@@ -381,7 +381,7 @@ def answer_band(
     flat_base = None
     if flat is not None and flat.widths.get("apparent_contact_area", 0.0) > FLAT_MIN_WIDTH:
         # the apparent area (and with it the mean apparent pressure and the zone loads) is what
-        # the regime leaves unfixed (method.md §4c); the other quantities' spread is not added
+        # the regime leaves unfixed (docs/physics.md §4c); the other quantities' spread is not added
         # (docs/limits.md: it would take the held-out calibration's width past its target
         # without covering one more case)
         components["flat_base"] = {"apparent_contact_area": flat.widths["apparent_contact_area"]}

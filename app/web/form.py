@@ -25,7 +25,7 @@ from skisnow.app.web.templating import page
 #: density of ice used to turn snow density into porosity, n = 1 − ρ/ρ_ice [kg/m³]
 ICE_DENSITY_KG_M3 = 917.0
 
-#: the published case (method.md §2): 40 kg at 160 mm behind the balance point, E_snow 200 MPa
+#: the published case (docs/physics.md §2): 40 kg at 160 mm behind the balance point, E_snow 200 MPa
 DEFAULTS = {
     "load_kg": "40",
     "load_position_mm": "-160",
