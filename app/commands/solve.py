@@ -5,14 +5,21 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 from skisnow.app.presets import DEFAULT_PRESET, PRESETS
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     v = sub.add_parser("solve", help="one ski × grind case (the same answer as /v1/contact)")
-    v.add_argument("--ski", required=True)
-    v.add_argument("--grind", required=True)
+    v.add_argument(
+        "--ski", required=True, help="a shipped ski, or one uploaded to the service (--data-dir)"
+    )
+    v.add_argument(
+        "--grind",
+        required=True,
+        help="a shipped grind, or one uploaded to the service (--data-dir)",
+    )
     v.add_argument("--load-kg", type=float, required=True, help="equivalent load [kg]")
     v.add_argument(
         "--load-position-mm",
@@ -70,6 +77,10 @@ def run_solve(args: argparse.Namespace) -> int:
         raise InputError(msgs) from None
     settings = Settings(**({"tables_dir": args.tables_dir} if args.tables_dir else {}))
     cat = service.load_catalogue(settings.tables_dir)
+    from skisnow.app.service.live import add_uploads
+
+    for note in add_uploads(cat, settings):  # the service's uploads (--data-dir)
+        print(f"skisnow solve: {note}", file=sys.stderr)
     try:
         out = service.contact(cat, service.ContactInputs(**body.model_dump()))
     except service.UnknownItemError as exc:
