@@ -70,8 +70,15 @@ def run_solve(args: argparse.Namespace) -> int:
             ski_model=args.ski_model,
         )
     except ValidationError as exc:
+        from skisnow.app.bounds import out_of_bounds_message
+
+        def reason(e: dict) -> str:
+            if e["type"] in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
+                return out_of_bounds_message(str(e["loc"][0]), float(e["input"]))
+            return e["msg"]
+
         msgs = "; ".join(
-            f"--{'-'.join(str(x) for x in e['loc']).replace('_', '-')}: {e['msg']}"
+            f"--{'-'.join(str(x) for x in e['loc']).replace('_', '-')}: {reason(e)}"
             for e in exc.errors()
         )
         raise InputError(msgs) from None

@@ -17,7 +17,7 @@ from fastapi import Request
 from fastapi.responses import HTMLResponse
 from pydantic import ValidationError
 from skisnow.app import service
-from skisnow.app.bounds import CaseInputs
+from skisnow.app.bounds import CaseInputs, out_of_bounds_message
 from skisnow.app.presets import DEFAULT_PRESET
 from skisnow.app.presets import PRESETS as ACCURACY_PRESETS
 from skisnow.app.web.templating import page
@@ -77,6 +77,10 @@ SKI_MODEL_LABELS = {
     "rigid": "rigid — the shape on the measuring device (the papers' model)",
     "flexible": "flexible — the ski bends on the snow",
 }
+
+
+#: pydantic's error types of a number outside its bounds
+BOUND_ERRORS = ("greater_than", "greater_than_equal", "less_than", "less_than_equal")
 
 
 # ----------------------------------------------------------------------------- parsing
@@ -187,6 +191,8 @@ def parse_query(request: Request, cat: service.Catalogue, max_cells: int) -> Que
             reason = err.get("msg", "invalid")
             if err.get("type") == "missing":
                 reason = "required"
+            elif err.get("type") in BOUND_ERRORS:  # pydantic's words → plain ones
+                reason = out_of_bounds_message(str(err["loc"][0]), _finite(str(err.get("input"))))
             q.errors.setdefault(key, reason)
     else:
         q.numbers = body.model_dump()

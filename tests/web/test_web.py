@@ -504,3 +504,13 @@ def test_result_cache_is_keyed_on_content_not_names(catalogue):
     other = results.compute(cat, Q(), cache).results[0]
     assert other is not first
     assert other["apparent"]["contact_area_cm2"] != first["apparent"]["contact_area_cm2"]
+
+
+def test_form_messages_are_plain_words(client):
+    """Porosity 50 says it is a fraction and what was meant, not pydantic's "Input should be
+    less than 1" (issue #28)."""
+    html = client.get("/results", params=_q(porosity="50")).text
+    assert "Input should be" not in html
+    assert "it is a fraction" in html and "enter 0.5" in html
+    html = client.get("/results", params=_q(load_kg="400")).text
+    assert "Input should be" not in html and "at most 150 kg; got 400 kg" in html
