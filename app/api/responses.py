@@ -121,7 +121,12 @@ class Metrics(BaseModel):
 
 class Zone(BaseModel):
     model_config = _FIXED
-    name: str = Field(..., description="rear, mid or front of the load position")
+    name: str = Field(
+        ...,
+        description="by position along the ski, whatever the load: tail, rear (behind the "
+        "balance point), front, tip (ahead of it); tail and tip are the outer halves towards the "
+        "ends; numbered from the tail where several share a section (front 1, front 2)",
+    )
     start_mm: float
     end_mm: float
     length_mm: float
@@ -130,6 +135,14 @@ class Zone(BaseModel):
     apparent_area_cm2: float
     real_area_mm2: float
     load_band_90_n: list[float] | None = Field(None, description="[low, high], with a band")
+    min_average_separation_um: float | None = Field(
+        None, description="the smallest average separation inside this zone [µm]"
+    )
+    unresolved: str | None = Field(
+        None,
+        description="why this zone's minimum separation is not grid-converged (too short, or "
+        "at the end of the measured profile); null for a resolved zone",
+    )
 
 
 class Apparent(BaseModel):

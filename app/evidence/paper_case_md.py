@@ -288,8 +288,8 @@ def _zones(case: PaperCase) -> list[str]:
         "mean P [kPa]",
     ]
     return [
-        "Contact zones of our skis (rear to front; a zone is named by the side of the balance "
-        "point its middle lies on, whatever the load):",
+        "Contact zones of our skis (rear to front; zones are named by their position along the "
+        "ski, whatever the load: docs/physics.md §4):",
         "",
         *_table(header, rows),
         "",

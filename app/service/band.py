@@ -168,6 +168,38 @@ def min_separation_unresolved(gap_map, macro, ms) -> str | None:
     return None
 
 
+def footprint_ends_m(gap_map) -> tuple[float, float]:
+    """X of the tail end and the tip end of the ski's footprint [m] (its first and last rows
+    with a finite gap; ±inf without any)."""
+    rows = np.flatnonzero(np.any(np.isfinite(gap_map.gap_m), axis=1))
+    if not rows.size:
+        return -np.inf, np.inf
+    return float(gap_map.positions_m[rows[0]]), float(gap_map.positions_m[rows[-1]])
+
+
+def zone_unresolved_reasons(gap_map, zones) -> list[str | None]:
+    """Per contact zone, why its minimum average separation is not grid-converged (the rules
+    of :func:`min_separation_unresolved`: shorter than :data:`MIN_SEPARATION_ZONE_PIXELS`
+    pixels, or reaching the end of the measured profile), or ``None`` for a resolved zone."""
+    rows = np.flatnonzero(np.any(np.isfinite(gap_map.gap_m), axis=1))
+    dx = gap_map.pixel_size_m[0]
+    first = gap_map.positions_m[rows[0]] if rows.size else -np.inf
+    last = gap_map.positions_m[rows[-1]] if rows.size else np.inf
+    out: list[str | None] = []
+    for z in zones:
+        length = z.end_m - z.start_m
+        if z.start_m <= first + 1.5 * dx or z.end_m >= last - 1.5 * dx:
+            out.append("it reaches the end of the measured profile")
+        elif length < MIN_SEPARATION_ZONE_PIXELS * dx:
+            out.append(
+                f"it is {length * 1e3:.0f} mm long ({length / dx:.0f} pixels of {dx * 1e3:g} mm), "
+                "too short to resolve its peak pressure"
+            )
+        else:
+            out.append(None)
+    return out
+
+
 _TABLE_ERRORS: dict[int, tuple[MicroTable, dict[str, np.ndarray]]] = {}
 
 

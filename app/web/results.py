@@ -146,6 +146,7 @@ def render_results(request: Request, q: Query, out: Outcome) -> HTMLResponse:
         wall_ms=out.wall_ms,
         metrics=METRICS,
         band_keys=BAND_KEYS,
+        resolved=[service.resolved_min_separation(r["apparent"]["zones"]) for r in out.results],
         ski_url=ski_url,
         plots=[(key, caption, svg(figure)) for key, caption, figure in plots.all_svgs(out.results)],
     )
@@ -159,7 +160,8 @@ def render_csv(out: Outcome) -> str:
         inp, m, a, p = r["inputs"], r["metrics"], r["apparent"], r["provenance"]
         share = {"rear": 0.0, "front": 0.0}  # zones behind / ahead of the balance point
         for z in a["zones"]:
-            share[z["name"].split()[0]] += z["load_share"]
+            behind = z["start_mm"] + z["end_mm"] < 0
+            share["rear" if behind else "front"] += z["load_share"]
         row = {
             **{k: inp[k] for k in CSV_COLUMNS[:8]},
             **m,
