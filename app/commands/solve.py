@@ -104,7 +104,7 @@ def run_solve(args: argparse.Namespace) -> int:
 
     def pm(q: str) -> str:
         w = rel.get(q)
-        return "  (no band: not grid-converged)" if w is None else f"  ± {100 * w:4.1f} %"
+        return "  (not grid-converged: see below)" if w is None else f"  ± {100 * w:4.1f} %"
 
     print("  90 % error band after each value (sources: --json, band)")
     rows = (
@@ -137,6 +137,16 @@ def run_solve(args: argparse.Namespace) -> int:
     )
     for label, value, unit, q in rows:
         print(f"  {label:32s} {value:10.4g} {unit}{pm(q)}")
+        if q == "min_average_separation" and rel.get(q) is None:
+            sep = service.resolved_min_separation(a["zones"])
+            over = (
+                f"{sep['value_um']:.4g} µm ({sep['zone']} zone)"
+                if sep["value_um"] is not None
+                else "no zone is resolved"
+            )
+            print(f"    over the resolved zones: {over}")
+            for u in sep["unresolved"]:
+                print(f"    not resolved: {u['zone']} zone ({u['reason']})")
     for z in a["zones"]:
         print(
             f"  zone {z['name']:5s} {z['start_mm']:7.0f} … {z['end_mm']:5.0f} mm  "
