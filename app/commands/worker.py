@@ -11,9 +11,9 @@ one or more workers with the same ``SKISNOW_DATA_DIR`` / ``SKISNOW_DATABASE_URL`
 
 A worker claims queued jobs (and running ones whose process stopped beating, see
 :mod:`app.jobs.runner`) in two lanes of ``--jobs`` slots each, short (grind tables) and long
-(ski networks), so a grind never waits behind a ski; runs them and writes the finished items into the data directory and
-the database; SIGTERM or Ctrl-C puts its running jobs back in the queue (a grind table resumes
-from its checkpoints in the next process) and exits 0.
+(ski networks), so a grind never waits behind a ski; it runs them and writes the finished items
+into the data directory and the database; SIGTERM or Ctrl-C puts its running jobs back in the
+queue (a grind table resumes from its checkpoints in the next process) and exits 0.
 """
 
 from __future__ import annotations
