@@ -19,7 +19,7 @@ from dataclasses import astuple, dataclass
 from fastapi import Request
 from fastapi.responses import HTMLResponse
 from skisnow.app import plots, service
-from skisnow.app.web.form import Query, ski_url
+from skisnow.app.web.form import Query, ski_url, upload_labels
 from skisnow.app.web.templating import page, svg
 from skisnow.solvers.errors import SkisnowError
 
@@ -147,6 +147,7 @@ def render_results(request: Request, q: Query, out: Outcome) -> HTMLResponse:
         metrics=METRICS,
         band_keys=BAND_KEYS,
         resolved=[service.resolved_min_separation(r["apparent"]["zones"]) for r in out.results],
+        labels=upload_labels(request),
         ski_url=ski_url,
         plots=[(key, caption, svg(figure)) for key, caption, figure in plots.all_svgs(out.results)],
     )

@@ -74,3 +74,8 @@ def test_the_form_defaults_to_the_last_ones_used(shop):
     # a remembered item that is gone falls back to the shipped default
     shop.cookies.set("skisnow_last", "ski%3Dgone-ski")
     assert _checked(shop.get("/").text, "ski") == ["ski-a"]
+
+
+def test_results_label_the_upload_with_its_metadata(shop):
+    html = shop.get("/results", params={"ski": "ski-a", "grind": "Grind-1", **CASE}).text
+    assert "grind Grind-1: uploaded; shop S7; machine Wintersteiger Micro" in html
