@@ -13,6 +13,7 @@ from skisnow.app.jobs import handlers as job_handlers_module
 from skisnow.app.jobs.runner import queue_info
 from skisnow.app.jobs.uploads import GRIND_JOB, SKI_JOB
 from skisnow.app.storage.catalogue import CatalogueDB
+from skisnow.app.web.upload_page import example_camber_csv
 from skisnow.solvers.errors import SkisnowError
 from test_uploads import make_client, post_grind, post_ski, wait_job
 
@@ -77,7 +78,7 @@ def test_queue_position_and_estimate_from_finished_jobs(tmp_path):
 
 
 def test_a_grind_uploaded_behind_a_ski_upload_is_done_before_the_ski_job_ends(
-    catalogue, tmp_path, upload_csv, monkeypatch
+    catalogue, tmp_path, monkeypatch
 ):
     """Through the API with SKISNOW_JOB_WORKERS = 1: the ski job (held open here to stand for
     a network that trains for minutes) is still running when the grind uploaded after it is
@@ -93,7 +94,8 @@ def test_a_grind_uploaded_behind_a_ski_upload_is_done_before_the_ski_job_ends(
     monkeypatch.setattr(job_handlers_module, "run_ski_job", slow_ski_job)
     with make_client(catalogue, tmp_path, job_workers=1) as client:
         try:
-            r = post_ski(client, upload_csv, name="slow-ski")
+            # the upload page's example file: a valid camber CSV, quick to make
+            r = post_ski(client, example_camber_csv(), name="slow-ski")
             assert r.status_code == 202, r.text
             ski_job = r.json()["job"]
             r = post_grind(client, name="quick-grind")
