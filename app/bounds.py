@@ -35,6 +35,7 @@ __all__ = [
     "CaseInputs",
     "PresetName",
     "SkiModelName",
+    "out_of_bounds_message",
 ]
 
 
@@ -99,6 +100,52 @@ POISSON_RATIO = Bound("poisson_ratio", 0, 0.5, high_open=True)
 BODY_WEIGHT_KG = Bound("body_weight_kg", 0, 300, "kg", low_open=True)
 
 
+#: every bound by its input name
+BOUNDS: dict[str, Bound] = {
+    b.name: b
+    for b in (
+        LOAD_KG,
+        LOAD_POSITION_MM,
+        SNOW_MODULUS_MPA,
+        POROSITY,
+        BASE_MODULUS_MPA,
+        POISSON_RATIO,
+        BODY_WEIGHT_KG,
+    )
+}
+
+#: what an input is, in a technician's words, where the bare interval does not say it
+_WHAT = {
+    "porosity": "a fraction, 0 for solid ice up to below 1 (a groomed track is about 0.5)",
+    "poisson_ratio": "a fraction below 0.5 (0.3 for snow and polyethylene)",
+}
+
+
+def out_of_bounds_message(name: str, value: float | None = None) -> str:
+    """A plain-words message for an input outside its bound (instead of pydantic's "Input
+    should be less than 1"): the interval in words and, where the input is a fraction typed as
+    a percentage (porosity 50), what was probably meant. Names without a bound get a generic
+    message."""
+    bound = BOUNDS.get(name)
+    if bound is None:
+        return "is outside the accepted range"
+    unit = f" {bound.unit}" if bound.unit else ""
+    lo, hi = f"{bound.low:g}", f"{bound.high:g}"
+    text = {
+        (False, False): f"must be from {lo} to {hi}{unit}",
+        (False, True): f"must be from {lo} to below {hi}{unit}",
+        (True, False): f"must be more than {lo} and at most {hi}{unit}",
+        (True, True): f"must be more than {lo} and below {hi}{unit}",
+    }[bound.low_open, bound.high_open]
+    if name in _WHAT:
+        text += f": it is {_WHAT[name]}"
+    if value is not None and math.isfinite(value):
+        text += f"; got {value:g}{unit}"
+        if name in _WHAT and 1 < value <= 100 and bound.contains(value / 100):
+            text += f" — if you meant {value:g} %, enter {value / 100:g}"
+    return text
+
+
 #: names of :data:`app.presets.PRESETS` (checked equal in tests/service/test_presets.py)
 PresetName = Literal["fast", "default", "fine"]
 _PRESET_DOC = (
@@ -110,7 +157,7 @@ _PRESET_DOC = (
 SkiModelName = Literal["rigid", "flexible", "auto"]
 _SKI_MODEL_DOC = (
     "rigid: the ski keeps its loaded shape on the measuring device's flat (the papers' model); "
-    "flexible: the ski bends on the snow (beam and snow solved together, method.md §4b); "
+    "flexible: the ski bends on the snow (beam and snow solved together, docs/physics.md §4b); "
     "auto: rigid where it is within 2 % of flexible in apparent area, rear load share and the "
     "four metrics, flexible elsewhere. provenance.ski_model says which was used and why."
 )

@@ -3,7 +3,7 @@
 Every function takes answers of :func:`app.service.contact` (technician units: mm, kPa, µm), or
 for a ski's page the ``beam`` report of :func:`app.service.beam_report` (mm, kg, N·m², µm), and
 returns one SVG document as a string, ready to be inlined in HTML. Quantities and symbols follow
-``shared/method.md``: P(X) apparent pressure, H(X) loaded camber clearance, a_r(X) real contact
+``docs/physics.md``: P(X) apparent pressure, H(X) loaded camber clearance, a_r(X) real contact
 area fraction, h̄_n(X) average interfacial separation, (1/h)‾_n(X) average reciprocal separation.
 X is the position along the ski from the balance point, positive towards the tip.
 """
@@ -15,6 +15,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 #: wax-layer thicknesses drawn on the clearance plot [mm]
 WAX_LAYERS_MM = (0.1, 0.2)
@@ -70,6 +71,21 @@ def _panels(title: str, rows: int = 1, cols: int = 1, **kwargs) -> tuple[Figure,
     return fig, axes
 
 
+def _legend_below(fig: Figure, ax, ncols: int = 3) -> None:
+    """The legend under the axes, outside them, so that it never covers a curve (a legend
+    inside the axes hid the tail end of the clearance curves and the flex sheet's peak)."""
+    handles, labels = ax.get_legend_handles_labels()
+    unique = dict(zip(labels, handles, strict=True))  # one entry per label
+    fig.legend(
+        list(unique.values()),
+        list(unique),
+        loc="outside lower center",
+        ncols=min(ncols, len(unique)),
+        fontsize=9,
+        frameon=False,
+    )
+
+
 def _label(result: dict, *, with_grind: bool = True) -> str:
     inp = result["inputs"]
     return f"{inp['ski']} × {inp['grind']}" if with_grind else str(inp["ski"])
@@ -104,10 +120,23 @@ def pressure_svg(results: Sequence[dict]) -> str:
         if "pressure_band_low_kpa" in d:
             lo, hi = _array(d["pressure_band_low_kpa"]), _array(d["pressure_band_high_kpa"])
             ax.fill_between(
-                x, lo, hi, color=colour, alpha=0.25, lw=0, label="90 % band (camber model)"
+                x,
+                lo,
+                hi,
+                color=colour,
+                alpha=0.35,
+                lw=0,
+                label=f"{_label(r, with_grind=False)} 90 % band",
             )
         for z in r["apparent"]["zones"]:
-            ax.axvspan(z["start_mm"], z["end_mm"], color=colour, alpha=0.12, lw=0)
+            ax.axvspan(
+                z["start_mm"],
+                z["end_mm"],
+                color="0.5",
+                alpha=0.10,
+                lw=0,
+                label="contact zone",
+            )
             ax.annotate(
                 f"{z['name']} {100 * z['load_share']:.0f} %",
                 xy=(0.5 * (z["start_mm"] + z["end_mm"]), 1.0),
@@ -122,7 +151,7 @@ def pressure_svg(results: Sequence[dict]) -> str:
     _load_line(ax, results)
     ax.set_ylim(bottom=0)
     ax.margins(y=0.25)
-    ax.legend(fontsize=8, loc="center left")
+    _legend_below(fig, ax, ncols=3)
     return _svg(fig)
 
 
@@ -145,7 +174,7 @@ def clearance_svg(results: Sequence[dict]) -> str:
         ax.axhline(thickness, color="0.35", ls=style, lw=1, label=f"{thickness:g} mm wax layer")
     _load_line(ax, results)
     ax.set_ylim(0, CLEARANCE_TOP_MM)
-    ax.legend(fontsize=8, loc="upper left")
+    _legend_below(fig, ax, ncols=5)
     return _svg(fig)
 
 
@@ -228,12 +257,17 @@ BAND_QUANTITIES = (
 )
 
 
+#: font size of the error-band chart's labels [pt]: its SVG is drawn at 72 px per inch and
+#: shown about that wide, so 10 pt is about 10 px (7 pt, before, was unreadable)
+BAND_FONT_PT = 10
+
+
 def band_svg(results: Sequence[dict]) -> str:
     """Every case's apparent area and four metrics with their 90 % error bands, one panel per
     quantity (a missing band: no whisker and an open marker)."""
-    fig = Figure(figsize=(7.2, 1.2 + 0.28 * max(len(results), 1) * 1.0 + 1.2), layout="constrained")
+    fig = Figure(figsize=(7.2, 1.6 + 0.4 * max(len(results), 1) + 1.2), layout="constrained")
     axes = fig.subplots(1, len(BAND_QUANTITIES), sharey=True)
-    fig.suptitle("The five answers with their 90 % error bands", fontsize=10)
+    fig.suptitle("The five answers with their 90 % error bands", fontsize=11)
     labels = [_label(r) for r in results]
     y = np.arange(len(results))
     for ax, (section, key, bkey, name, unit) in zip(axes, BAND_QUANTITIES, strict=True):
@@ -245,10 +279,12 @@ def band_svg(results: Sequence[dict]) -> str:
                 ax.plot([v], [i], "o", mfc="none", color=colour)
             else:
                 ax.errorbar([v], [i], xerr=[[v * w], [v * w]], fmt="o", color=colour, capsize=3)
-        ax.set_title(f"{name} [{unit}]", fontsize=8)
-        ax.tick_params(labelsize=7)
+        ax.set_title(f"{name}\n[{unit}]", fontsize=BAND_FONT_PT)
+        ax.tick_params(labelsize=BAND_FONT_PT)
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=2, min_n_ticks=2))
+        ax.margins(x=0.25)
         ax.grid(True, alpha=0.3)
-    axes[0].set_yticks(y, labels, fontsize=7)
+    axes[0].set_yticks(y, labels, fontsize=BAND_FONT_PT)
     axes[0].invert_yaxis()
     return _svg(fig)
 
@@ -256,7 +292,13 @@ def band_svg(results: Sequence[dict]) -> str:
 #: (key, caption, function) of the plots on the results page, in page order
 PLOTS = (
     ("band", "The answers with their 90 % error bands", band_svg),
-    ("pressure", "Apparent pressure P(X) with the contact zones shaded", pressure_svg),
+    (
+        "pressure",
+        "Apparent pressure P(X) of each ski with its 90 % band from the camber model (shaded in "
+        "the ski's colour); contact zones shaded grey, each labelled at the top with its name "
+        "and load share; dotted: the load position",
+        pressure_svg,
+    ),
     ("clearance", "Loaded camber clearance H(X) with 0.1 and 0.2 mm wax layers", clearance_svg),
     ("real_area", "Real contact area fraction a_r(X)", real_area_svg),
     ("separation", "Average interfacial separation h̄(X)", separation_svg),
@@ -451,7 +493,7 @@ def flex_profile_svg(answer: dict) -> str:
     mid = np.abs(x) < 600
     top = np.nanmax(half[mid]) if np.any(mid) else np.nanmax(half)
     ax.set_ylim(0, float(np.clip(1.15 * top, 0.4, 3.0)))
-    ax.legend(fontsize=8, loc="upper right")
+    _legend_below(fig, ax, ncols=2)
     return _svg(fig)
 
 

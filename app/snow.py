@@ -18,7 +18,7 @@ Density ρ [kg/m³]
     track densities below are our reading of those ranges for a prepared track, stated as
     ranges.
 Porosity n [-]
-    ``n = 1 − ρ/ρ_ice`` with ρ_ice = 917 kg/m³ (method.md §5).
+    ``n = 1 − ρ/ρ_ice`` with ρ_ice = 917 kg/m³ (docs/physics.md §5).
 Young's modulus E_snow [MPa]
     Sigrist (2006), PhD thesis, ETH Zürich, cantilever-beam tests at fast loading:
     ``E = 968 MPa · (ρ/ρ_ice)^2.94``. The range's low end is the lower of Sigrist's relation and
@@ -35,7 +35,7 @@ Temperature
     above were measured on dry snow well below 0 °C, and wet snow near 0 °C is softer than they
     say (not quantified here: use the raw numbers).
 ``study``
-    The papers' study value (Holmberg & Almqvist, method.md §3 and §5): 200 MPa, n = 0.5
+    The papers' study value (Holmberg & Almqvist, docs/physics.md §3 and §5): 200 MPa, n = 0.5
     (groomed track ≈ 460 kg/m³). It is the default everywhere, so that a request naming no
     snow answers as before; at 460 kg/m³ Sigrist's relation gives 130 MPa, inside the papers'
     range 20–400 MPa.
@@ -62,7 +62,7 @@ __all__ = [
     "snow_record",
 ]
 
-#: density of ice [kg/m³] (n = 1 − ρ/ρ_ice; method.md §5)
+#: density of ice [kg/m³] (n = 1 − ρ/ρ_ice; docs/physics.md §5)
 ICE_DENSITY_KG_M3 = 917.0
 
 SIGRIST_2006 = (
@@ -80,7 +80,7 @@ PATERSON_2010 = (
     "(densities of snow types); Fierz C. et al. (2009) The International Classification for "
     "Seasonal Snow on the Ground, UNESCO-IHP (grain shapes)"
 )
-HOLMBERG = "Holmberg & Almqvist (the papers of method.md): study value 200 MPa, n = 0.5"
+HOLMBERG = "Holmberg & Almqvist (the papers of docs/physics.md): study value 200 MPa, n = 0.5"
 
 
 def modulus_sigrist_mpa(density_kg_m3: float) -> float:

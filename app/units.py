@@ -31,7 +31,7 @@ def kg_to_n(load_kg: float) -> float:
 
 
 def n_to_kg(load_n: float) -> float:
-    """Load [N] → the equivalent mass [kg] (g = 9.82 m/s², method.md §2), for messages."""
+    """Load [N] → the equivalent mass [kg] (g = 9.82 m/s², docs/physics.md §2), for messages."""
     return load_n / G_STANDARD
 
 

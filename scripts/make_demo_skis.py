@@ -1,6 +1,6 @@
 """Build the shipped skis ``ski-a``, ``ski-b`` (calibrated demos), ``ski-c`` (tables/skis/*.h5).
 
-The papers' camber data are not public (method.md §4), so each demo ski is a classic beam ski
+The papers' camber data are not public (docs/physics.md §4), so each demo ski is a classic beam ski
 (:class:`solvers.beam.ClassicSkiDesign`) whose pocket (kick-zone camber) height is calibrated by a
 1-D root-find so that the macro BEM — true beam profile at 40 kg (g = 9.82) 160 mm behind the
 balance point, E_snow = 200 MPa, E_base = 0.7 GPa, ν = 0.3, default grid of
@@ -30,7 +30,7 @@ when only the sampling changes: a fresh calibration depends on the macro solver'
 would move the pocket height slightly.
 
 ``--add-unloaded`` keeps everything in the existing file (the loaded measurements bit for bit,
-the network, the calibration) and appends the unloaded profile (load 0, method.md §4c), which
+the network, the calibration) and appends the unloaded profile (load 0, docs/physics.md §4c), which
 real devices record first: the virtual device's ``measure_unloaded`` of the true beam with the
 same noise model (3 µm) and its own seed (UNLOADED_SEEDS). The stored identification is dropped
 (its held-out indices refer to the old cases): identify again with ``skisnow identify-ski --ski
@@ -69,7 +69,7 @@ WIDTH_M = 0.044
 LOAD_N = 40.0 * G_STANDARD
 LOAD_POSITION_M = -0.160
 E_EFF_PA = effective_modulus(200e6, 0.7e9, 0.3)
-#: papers' targets (method.md §4): apparent contact area [m²]
+#: papers' targets (docs/physics.md §4): apparent contact area [m²]
 TARGETS = {"ski-a": 63.98e-4, "ski-b": 121.84e-4}
 #: base designs and the bracket of the calibrated pocket height [m]
 DESIGNS = {

@@ -1,6 +1,6 @@
 """Fit and write the shipped synthetic linear grinds ``grind-1.h5`` and ``grind-2.h5``.
 
-The two grinds of method.md §7 are matched by :func:`solvers.texture.fit_linear_grind` on a
+The two grinds of docs/physics.md §7 are matched by :func:`solvers.texture.fit_linear_grind` on a
 1024 × 1024 grid of 1.5 µm pixels (a 1.536 mm square patch, white-light-interferometer
 sampling). Pitches: grind 1 (fine) 0.384 mm, 4 grooves per cell; grind 2 (coarse) 0.768 mm,
 2 grooves per cell. The starting points below come from an earlier, longer exploration with
@@ -70,8 +70,8 @@ INITIAL: dict[str, GrindParameters] = {
 }
 
 DESCRIPTION = {
-    "grind-1": "fine linear stone grind (synthetic stand-in for method.md §7 Grind 1)",
-    "grind-2": "coarse linear stone grind (synthetic stand-in for method.md §7 Grind 2)",
+    "grind-1": "fine linear stone grind (synthetic stand-in for docs/physics.md §7 Grind 1)",
+    "grind-2": "coarse linear stone grind (synthetic stand-in for docs/physics.md §7 Grind 2)",
 }
 
 

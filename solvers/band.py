@@ -1,6 +1,6 @@
 """Error bands: the pieces that turn measured error sources into a 90 % band on an answer.
 
-An answer of skisnow carries three kinds of error (method.md §4, docs/limits.md):
+An answer of skisnow carries three kinds of error (docs/physics.md §4, docs/limits.md):
 
 - the **camber model** (the loaded profile H*(X) from the network or a beam identified from
   noisy camber data) — propagated here by solving again with perturbed profiles;
@@ -218,7 +218,7 @@ def position_error_sigma(
 def flat_stretch(
     positions_m: np.ndarray, gap_m: np.ndarray, flat_gap_m: float, taper_m: float
 ) -> tuple[float, float, np.ndarray]:
-    """Where a loaded profile lies near the flat (method.md §4c, the flat-base regime).
+    """Where a loaded profile lies near the flat (docs/physics.md §4c, the flat-base regime).
 
     Returns the length [m] and midpoint [m] of the longest run of positions with
     ``gap_m < flat_gap_m`` (contact points, gap 0, included), and a weight in [0, 1] per

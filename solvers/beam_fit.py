@@ -1,4 +1,5 @@
-"""Forward-model fit of a ski's beam to its camber cases (method.md §4c, the Gauss–Newton polish).
+"""Forward-model fit of a ski's beam to its camber cases (docs/physics.md §4c, the Gauss–Newton
+polish).
 
 The start (:mod:`solvers.identify`, variable projection with free reactions at contact points
 read from the data) fits the measured cases at the device noise but leaves two freedoms that

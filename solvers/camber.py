@@ -1,4 +1,4 @@
-"""Macro scale, step 2: one small neural network per ski for the loaded camber (method.md §4).
+"""Macro scale, step 2: one small neural network per ski for the loaded camber (docs/physics.md §4).
 
 A camber measuring device presses the ski with one point load ``(F, x_F)`` against a rigid flat
 and records the gap ``H*(X) ≥ 0`` between base and flat. The network, trained per ski on such

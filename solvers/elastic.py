@@ -1,6 +1,6 @@
 """Elastic half-space kernels: periodic (micro scale) and non-periodic (macro scale).
 
-Elasticity convention (method.md §3)
+Elasticity convention (docs/physics.md §3)
 ------------------------------------
 One effective modulus ``E'`` with ``2/E' = (1-ν²)/E_snow + (1-ν²)/E_base``. The surface
 displacement under a pressure ``p`` is ``u(x, y) = 2/(π E') ∬ p(x', y') / r dx' dy'``, i.e.
@@ -50,7 +50,7 @@ __all__ = [
 def effective_modulus(
     snow_modulus_pa: float, base_modulus_pa: float = 0.7e9, poisson_ratio: float = 0.3
 ) -> float:
-    """Effective modulus E' of method.md eq. (1).
+    """Effective modulus E' of docs/physics.md eq. (1).
 
     Parameters
     ----------
@@ -271,7 +271,7 @@ class PeriodicHalfSpace:
     pixel_size_m : float or tuple of float
         Pixel size ``dx`` (and ``dy``) [m].
     effective_modulus_pa : float
-        E' of method.md eq. (1) [Pa].
+        E' of docs/physics.md eq. (1) [Pa].
     backend, workers :
         Passed to :class:`FFTBackend`.
     """

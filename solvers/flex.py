@@ -2,7 +2,7 @@
 
 What a camber device (SkiSelector, Sentax, a Gear West flex tester, a Caldwell flex sheet) reads
 off a classic ski pressed onto its rigid flat, computed from any profile model that answers the
-loaded gap H*(X) for a load F at x_F (method.md §4 step 1; :func:`beam_profile` for a
+loaded gap H*(X) for a load F at x_F (docs/physics.md §4 step 1; :func:`beam_profile` for a
 :class:`solvers.beam.BeamSki`). Pure kernels: arrays, SI floats and a profile callable in,
 frozen dataclasses out; no I/O, no settings.
 

@@ -1,4 +1,4 @@
-"""Macro scale with a ski that bends on the snow (method.md §4b).
+"""Macro scale with a ski that bends on the snow (docs/physics.md §4b).
 
 Problem
 -------
@@ -9,10 +9,10 @@ down) the clearance is
 
     H(X, Y) = c(X) + w(X; P, F) + u(X, Y; P) − δ − θ (X − x_F) ≥ 0,   P ≥ 0,   P · H = 0,
 
-with w the beam's *upward* deflection (method.md writes −w with w downward), known up to a rigid
-motion that δ and θ carry, u the half-space displacement of :mod:`solvers.macro`, ``Σ P dA = F``
-and ``Σ P (X − x_F) dA = 0``. With rigid snow (E' = ∞, u = 0) this is the measuring device of
-:func:`solvers.beam.solve_beam_contact`.
+with w the beam's *upward* deflection (docs/physics.md writes −w with w downward), known up to a
+rigid motion that δ and θ carry, u the half-space displacement of :mod:`solvers.macro`,
+``Σ P dA = F`` and ``Σ P (X − x_F) dA = 0``. With rigid snow (E' = ∞, u = 0) this is the measuring
+device of :func:`solvers.beam.solve_beam_contact`.
 
 Discretisation
 --------------
@@ -1391,7 +1391,7 @@ def solve_flexible(
     max_iterations: int = 3000,
     initial_pressure_pa: np.ndarray | None = None,
 ) -> macro.MacroResult:
-    """Press a bending beam ski into the snow half-space (method.md §4b).
+    """Press a bending beam ski into the snow half-space (docs/physics.md §4b).
 
     Parameters
     ----------
@@ -1402,7 +1402,8 @@ def solve_flexible(
     load_position_m : float
         x_F [m], inside the footprint, with footprint rows on both sides.
     effective_modulus_pa : float
-        E' of method.md eq. (1) [Pa], > 0; ``numpy.inf`` for rigid snow (the measuring device).
+        E' of docs/physics.md eq. (1) [Pa], > 0; ``numpy.inf`` for rigid snow (the measuring
+        device).
     tol : float
         Relative residual: RMS clearance on the contact set plus RMS penetration outside it,
         over the largest elastic displacement (snow plus beam) [-].

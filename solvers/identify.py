@@ -1,5 +1,5 @@
 """Beam identification: a ski's bending stiffness EI(X) and unloaded camber c(X) from its camber
-measurements (method.md §4c).
+measurements (docs/physics.md §4c).
 
 Problem
 -------

@@ -1,4 +1,4 @@
-"""Micro-scale lookup tables: interpolation of tabulated texture solves (method.md §5).
+"""Micro-scale lookup tables: interpolation of tabulated texture solves (docs/physics.md §5).
 
 A table holds, for one texture, the results of :func:`solvers.micro.solve_micro` over the
 dimensionless nominal pressure ratio ``P_n / E'`` (by linear elasticity the contact set and the
@@ -8,7 +8,7 @@ never opens files (see :mod:`app.storage.tables` for reading and writing).
 
 Lookup rules
 ------------
-- **Pressure ratio.** ``r = P_n / E'`` with ``P_n = P (1 − n)`` (method.md eq. 2,
+- **Pressure ratio.** ``r = P_n / E'`` with ``P_n = P (1 − n)`` (docs/physics.md eq. 2,
   :func:`nominal_pressure_ratio`).
 - **Interpolation** is shape-preserving piecewise-cubic Hermite (PCHIP, monotone wherever the
   data are monotone) in ``x = ln r``:
@@ -155,7 +155,7 @@ class MicroTable:
     pressure_ratio : ndarray, shape (N,)
         Nominal pressure ratio ``P_n / E'`` [-], strictly increasing, > 0.
     real_contact_area_fraction : ndarray, shape (N,)
-        a_r [-] (method.md eq. 3).
+        a_r [-] (docs/physics.md eq. 3).
     mean_gap_m : ndarray, shape (N,)
         Mean gap h̄_n over the whole cell [m] (eq. 4 with H = 0).
     mean_reciprocal_gap_per_m : ndarray, shape (N,)
@@ -316,7 +316,7 @@ class MicroTable:
 
 
 def nominal_pressure_ratio(pressure_pa, porosity, effective_modulus_pa) -> np.ndarray | float:
-    """Dimensionless nominal pressure ``P_n / E' = P (1 − n) / E'`` (method.md eq. 2).
+    """Dimensionless nominal pressure ``P_n / E' = P (1 − n) / E'`` (docs/physics.md eq. 2).
 
     Parameters
     ----------
@@ -325,7 +325,7 @@ def nominal_pressure_ratio(pressure_pa, porosity, effective_modulus_pa) -> np.nd
     porosity : float or array_like
         Snow porosity n, 0 ≤ n < 1 [-].
     effective_modulus_pa : float or array_like
-        Effective modulus E' > 0 of method.md eq. (1) [Pa].
+        Effective modulus E' > 0 of docs/physics.md eq. (1) [Pa].
 
     Returns
     -------
@@ -429,7 +429,7 @@ def _loaded(
 def real_contact_area_fraction(
     table: MicroTable, nominal_pressure_pa, effective_modulus_pa, *, out_of_range: str = "raise"
 ):
-    """Real contact area fraction a_r(P_n) [-] (method.md eq. 3).
+    """Real contact area fraction a_r(P_n) [-] (docs/physics.md eq. 3).
 
     Parameters
     ----------
@@ -454,7 +454,7 @@ def real_contact_area_fraction(
 def mean_gap_m(
     table: MicroTable, nominal_pressure_pa, effective_modulus_pa, *, out_of_range: str = "raise"
 ):
-    """Mean interfacial separation h̄_n(P_n) over the cell [m] (method.md eq. 4, H = 0).
+    """Mean interfacial separation h̄_n(P_n) over the cell [m] (docs/physics.md eq. 4, H = 0).
 
     Parameters and return as :func:`real_contact_area_fraction`; ⟨h_0⟩ at zero load, 0 at
     full contact.

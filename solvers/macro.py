@@ -1,12 +1,12 @@
-"""Macro scale: the rigid loaded ski pressed into the non-periodic half-space (method.md §4).
+"""Macro scale: the rigid loaded ski pressed into the non-periodic half-space (docs/physics.md §4).
 
 Problem
 -------
 The running surface is rigid; its loaded camber profile H*(X, Y) ≥ 0 [m] (from the measuring
 device, the camber network or the beam model) is pressed into the infinite half-space of
-effective modulus E' (method.md eq. 1) by the equivalent load F at x_F. With the rigid approach
-δ and the tilt θ (rotation about the Y axis, small angle, positive when the tip goes down) the
-clearance is
+effective modulus E' (docs/physics.md eq. 1) by the equivalent load F at x_F. With the rigid
+approach δ and the tilt θ (rotation about the Y axis, small angle, positive when the tip goes
+down) the clearance is
 
     H(X, Y) = H*(X, Y) + u(X, Y) − δ − θ (X − x_F) ≥ 0,   P ≥ 0,   P · H = 0,
 
@@ -280,7 +280,7 @@ def extrude_profile(
     pixels_across: int = DEFAULT_PIXEL_ACROSS,
     width_positions_m: np.ndarray | None = None,
 ) -> GapMap:
-    """Gap map of a 1-D profile H*(X) held constant across the width (method.md §4.3).
+    """Gap map of a 1-D profile H*(X) held constant across the width (docs/physics.md §4.3).
 
     Parameters as :func:`interpolate_sides` with one profile ``gap_m`` [m] for both edges.
     """
@@ -866,7 +866,7 @@ def solve_macro(
     load_position_m : float
         Load position x_F from the balance point [m].
     effective_modulus_pa : float
-        E' of method.md eq. (1) [Pa].
+        E' of docs/physics.md eq. (1) [Pa].
     tilt : bool
         Solve for the tilt θ with moment balance about x_F (default); False: θ = 0, force only.
     tol : float

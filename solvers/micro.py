@@ -1,4 +1,4 @@
-"""Micro scale: a rigid periodic texture pressed into an elastic half-space (method.md §5).
+"""Micro scale: a rigid periodic texture pressed into an elastic half-space (docs/physics.md §5).
 
 Load-controlled constrained conjugate gradients after Polonsky & Keer (Wear 231, 1999, 206-219),
 on the periodic FFT half-space of :mod:`solvers.elastic` (FFT convention stated there), with
@@ -8,7 +8,7 @@ iteration costs three single-precision FFT pairs (preconditioner, ``u(t)`` of th
 displacement ``u(p)`` itself is kept in double precision and recomputed exactly in double
 precision every 50 iterations and before convergence is accepted (see :func:`_pk_cg`).
 
-Gap convention (method.md §5): the texture's highest point touches first, so the unloaded gap
+Gap convention (docs/physics.md §5): the texture's highest point touches first, so the unloaded gap
 is ``h_0 = max h* − h*``; under load ``g = h_0 + u(p) − δ ≥ 0`` with rigid approach ``δ``,
 ``p ≥ 0`` and ``p·g = 0``. The contact set ``ω_c`` is decided by the pressure (``p > 0``); the
 gap is exactly zero there.
@@ -35,7 +35,7 @@ __all__ = ["DEFAULT_GAP_FLOOR_M", "MicroResult", "full_contact_pressure", "solve
 
 log = logging.getLogger(__name__)
 
-#: Gap floor h_c of the reported mean reciprocal gap (method.md §5, our choice) [m]
+#: Gap floor h_c of the reported mean reciprocal gap (docs/physics.md §5, our choice) [m]
 DEFAULT_GAP_FLOOR_M = 10e-9
 #: tolerance of the nested coarse levels [-]: they only supply the fine level's start; solving
 #: them to 1e-4 instead gave the same fine iterations (260 vs 258 over the 12-point benchmark
@@ -60,13 +60,13 @@ class MicroResult:
     pixel_size_m : tuple of float
         Pixel size (dx, dy) [m].
     real_contact_area_fraction : float
-        a_r = |ω_c| / |ω| [-] (method.md eq. 3).
+        a_r = |ω_c| / |ω| [-] (docs/physics.md eq. 3).
     mean_gap_m : float
-        (1/|ω|) ∬ h_n [m] (method.md eq. 4 with H = 0).
+        (1/|ω|) ∬ h_n [m] (docs/physics.md eq. 4 with H = 0).
     mean_reciprocal_gap_per_m : float
         Mean over the gap set ω_g of 1/max(h_n, h_c) [1/m] (eq. 5 with H = 0, n = 0, floored).
     mean_reciprocal_gap_raw_per_m : float
-        Mean over ω_g of 1/h_n without floor [1/m] (resolution dependent, see method.md §5).
+        Mean over ω_g of 1/h_n without floor [1/m] (resolution dependent, see docs/physics.md §5).
     gap_floor_m : float
         h_c used for the floored value [m].
     rigid_approach_m : float
@@ -336,7 +336,7 @@ def solve_micro(
     nominal_pressure_pa : float
         Nominal (mean) pressure P_n ≥ 0 [Pa].
     effective_modulus_pa : float
-        E' of method.md eq. (1) [Pa].
+        E' of docs/physics.md eq. (1) [Pa].
     tol : float
         Tolerance on the relative residual (RMS gap on the contact set over RMS height) [-].
     max_iterations : int

@@ -1,6 +1,6 @@
 """Multi-scale step: from the apparent contact (macro) to the four functional parameters.
 
-For every pixel of the ski's footprint Ω (method.md §5, §6), with P(X, Y) and H(X, Y) from
+For every pixel of the ski's footprint Ω (docs/physics.md §5, §6), with P(X, Y) and H(X, Y) from
 :func:`solvers.macro.solve_macro` and the texture's :class:`~solvers.lookup.MicroTable`:
 
 - loaded pixels (P > 0, H = 0): ``P_n = P (1 − n)`` (eq. 2) and, from the table at ``P_n/E'``,
@@ -147,7 +147,7 @@ def _separated_reciprocal(table: MicroTable, clearance_m: np.ndarray) -> np.ndar
 def multiscale(
     macro: MacroResult, table: MicroTable, porosity: float, effective_modulus_pa: float
 ) -> MultiscaleResult:
-    """Combine a macro solve with a texture table (method.md eqs. 2–5 and §6).
+    """Combine a macro solve with a texture table (docs/physics.md eqs. 2–5 and §6).
 
     Parameters
     ----------
@@ -158,7 +158,7 @@ def multiscale(
     porosity : float
         Snow porosity n, 0 ≤ n < 1 [-].
     effective_modulus_pa : float
-        E' of method.md eq. (1) [Pa]; must be the one the macro solve used.
+        E' of docs/physics.md eq. (1) [Pa]; must be the one the macro solve used.
 
     Returns
     -------

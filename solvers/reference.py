@@ -1,6 +1,6 @@
 """Closed-form contact solutions used as references by the tests and benchmarks.
 
-All use the modulus convention of method.md §3: E' with ``û = 4 p̂ / (E'|q|)``, i.e. Johnson's
+All use the modulus convention of docs/physics.md §3: E' with ``û = 4 p̂ / (E'|q|)``, i.e. Johnson's
 composite modulus ``E* = E'/2``.
 
 References

@@ -1,6 +1,6 @@
 """Textures: height maps, ISO 25178 areal parameters and synthetic linear grinds.
 
-A texture is the ski-base height map h*(x, y) of a patch ω (method.md §2, §5), stored as a 2-D
+A texture is the ski-base height map h*(x, y) of a patch ω (docs/physics.md §2, §5), stored as a 2-D
 float64 array in metres. **Axis 0 runs along the ski** (the x direction, the direction of the
 grinding grooves of a linear grind); axis 1 runs across the ski (y). ``heights_m[i, j]`` is the
 height at ``x = i·Δ``, ``y = j·Δ`` with one square pixel size Δ [m].
@@ -13,8 +13,8 @@ ISO 25178-2 parameters (our own small implementation, :func:`iso25178_parameters
   grid (``periodic=True``, the synthetic grinds, which feed a periodic FFT solver) the neighbours
   wrap around, on an open grid (``periodic=False``, measured maps) the edge rows and columns use
   one-sided first-order differences (``numpy.gradient``). ``Sdq`` is the RMS gradient
-  [dimensionless, m/m]; method.md quotes it in µm/mm, so 65.79 µm/mm is 0.06579. ``Sdr`` is the
-  mean of ``sqrt(1 + |∇h|²) − 1`` in per cent;
+  [dimensionless, m/m]; docs/physics.md quotes it in µm/mm, so 65.79 µm/mm is 0.06579. ``Sdr``
+  is the mean of ``sqrt(1 + |∇h|²) − 1`` in per cent;
 - the functional ``Sk`` family comes from the areal material ratio curve as in ISO 13565-2,
   adapted to areal data: the 40 % window of the curve whose secant has the least slope is the
   core; the equivalent straight line is the least-squares line through the curve inside that
@@ -755,7 +755,7 @@ def linear_grind(
 
 _UM = 1e-6
 
-#: ISO 25178 parameters of the two linear grinds of method.md §7, SI (Sdq: 65.79 µm/mm → m/m)
+#: ISO 25178 parameters of the two linear grinds of docs/physics.md §7, SI (Sdq: 65.79 µm/mm → m/m)
 GRIND_TARGETS: dict[str, dict[str, float]] = {
     "grind-1": {
         "Sa_m": 1.77 * _UM,

@@ -31,6 +31,7 @@ from skisnow.app.errors import (
 )
 from skisnow.app.jobs import JobRunner, uploads
 from skisnow.app.jobs.handlers import job_handlers
+from skisnow.app.jobs.runner import queue_info
 from skisnow.app.service import UnknownItemError
 from skisnow.app.service.live import LiveCatalogue, register_shipped
 from skisnow.app.storage.catalogue import CatalogueDB, ItemRow, JobRow
@@ -151,6 +152,7 @@ def writer(request: Request, team: str | None) -> Caller:
 
 def job_view(db: CatalogueDB, job: JobRow) -> dict:
     item = db.item(job.item_id) if job.item_id else None
+    queue = queue_info(db, job)
     return {
         "id": job.id,
         "kind": job.kind,
@@ -162,6 +164,11 @@ def job_view(db: CatalogueDB, job: JobRow) -> dict:
         "error": job.error,
         "created_at": job.created_at.isoformat(timespec="seconds"),
         "updated_at": job.updated_at.isoformat(timespec="seconds"),
+        "lane": queue["lane"],
+        "queue_position": queue["queue_position"],
+        "ahead": queue["ahead"],
+        "estimate_s": queue["estimate_s"],
+        "estimate_basis": queue["estimate_basis"],
     }
 
 

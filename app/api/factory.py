@@ -8,6 +8,8 @@ the same-origin check of changes, team filtering) is :mod:`app.api.access`.
 
 from __future__ import annotations
 
+import logging
+import time
 from contextlib import asynccontextmanager
 
 from fastapi import FastAPI
@@ -20,6 +22,9 @@ from skisnow.app.api.limits import BodyLimitMiddleware
 from skisnow.app.settings import Settings
 
 __all__ = ["create_api"]
+
+#: uvicorn's own logger: what it logs appears under ``skisnow serve`` beside uvicorn's lines
+start_log = logging.getLogger("uvicorn.error")
 
 DESCRIPTION = (
     "Multi-scale contact between cross-country skis and snow (Kalliorinne et al. "
@@ -34,11 +39,19 @@ def create_api(settings: Settings | None = None, catalogue: service.Catalogue | 
 
     @asynccontextmanager
     async def lifespan(app: FastAPI):
+        t0 = time.perf_counter()
         if app.state.catalogue is None:
+            start_log.info("loading the catalogue from %s", settings.tables_dir)
             app.state.catalogue = service.load_catalogue(settings.tables_dir)
         if settings.warm_up:
-            service.warm_up(app.state.catalogue)
+            start_log.info(
+                "warming up: solving one case so that the first request is fast "
+                "(compiling the kernels; up to ~30 s at the first start)"
+            )
+            took_s = service.warm_up(app.state.catalogue)
+            start_log.info("warm-up done in %.1f s", took_s)
         catalogue_state.start(app)
+        start_log.info("skisnow ready after %.1f s", time.perf_counter() - t0)
         try:
             yield
         finally:

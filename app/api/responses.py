@@ -140,7 +140,12 @@ class Metrics(BaseModel):
 
 class Zone(BaseModel):
     model_config = _FIXED
-    name: str = Field(..., description="rear, mid or front of the load position")
+    name: str = Field(
+        ...,
+        description="by position along the ski, whatever the load: tail, rear (behind the "
+        "balance point), front, tip (ahead of it); tail and tip are the outer halves towards the "
+        "ends; numbered from the tail where several share a section (front 1, front 2)",
+    )
     start_mm: float
     end_mm: float
     length_mm: float
@@ -149,6 +154,14 @@ class Zone(BaseModel):
     apparent_area_cm2: float
     real_area_mm2: float
     load_band_90_n: list[float] | None = Field(None, description="[low, high], with a band")
+    min_average_separation_um: float | None = Field(
+        None, description="the smallest average separation inside this zone [µm]"
+    )
+    unresolved: str | None = Field(
+        None,
+        description="why this zone's minimum separation is not grid-converged (too short, or "
+        "at the end of the measured profile); null for a resolved zone",
+    )
 
 
 class Apparent(BaseModel):
@@ -328,6 +341,21 @@ class JobView(BaseModel):
     error: str | None
     created_at: str
     updated_at: str
+    lane: str = Field(
+        ...,
+        description="short (grind tables) or long (ski networks): the lanes "
+        "run side by side, so a short job never waits behind a long one",
+    )
+    queue_position: int | None = Field(
+        None, description="1: the next job of its lane to start; null unless queued"
+    )
+    ahead: int = Field(0, description="jobs of its lane running or queued before it")
+    estimate_s: float | None = Field(
+        None,
+        description="rough seconds until done, from the median upload-to-done time of the "
+        "last finished jobs of its kind [s]; null without such jobs or once finished",
+    )
+    estimate_basis: int = Field(0, description="finished jobs the estimate rests on")
 
 
 class JobList(BaseModel):

@@ -1,4 +1,4 @@
-"""``skisnow macro``: apparent contact of one ski on snow (method.md §4).
+"""``skisnow macro``: apparent contact of one ski on snow (docs/physics.md §4).
 
 Technician units (kg, mm, MPa) are converted to SI in :func:`_si_inputs` only.
 """

@@ -59,6 +59,13 @@ def run_serve(args: argparse.Namespace) -> int:
     }
     settings = Settings(**overrides)
     # fail fast, before binding, with a message naming a missing or corrupt file
+    print(
+        f"skisnow serve: checking the tables in {settings.tables_dir} and the data folder "
+        f"{settings.data_dir}; then each worker loads them and warms up (the first start "
+        "compiles the kernels: up to ~30 s)",
+        file=sys.stderr,
+        flush=True,
+    )
     from skisnow.app.service import load_catalogue
 
     load_catalogue(settings.tables_dir)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 from skisnow.app.presets import DEFAULT_PRESET, PRESETS
 from skisnow.app.snow import DEFAULT_SNOW, SNOW_PRESETS
@@ -12,8 +13,14 @@ from skisnow.app.snow import DEFAULT_SNOW, SNOW_PRESETS
 
 def register(sub: argparse._SubParsersAction) -> None:
     v = sub.add_parser("solve", help="one ski × grind case (the same answer as /v1/contact)")
-    v.add_argument("--ski", required=True)
-    v.add_argument("--grind", required=True)
+    v.add_argument(
+        "--ski", required=True, help="a shipped ski, or one uploaded to the service (--data-dir)"
+    )
+    v.add_argument(
+        "--grind",
+        required=True,
+        help="a shipped grind, or one uploaded to the service (--data-dir)",
+    )
     v.add_argument("--load-kg", type=float, required=True, help="equivalent load [kg]")
     v.add_argument(
         "--load-position-mm",
@@ -80,13 +87,24 @@ def run_solve(args: argparse.Namespace) -> int:
             },
         )
     except ValidationError as exc:
+        from skisnow.app.bounds import out_of_bounds_message
+
+        def reason(e: dict) -> str:
+            if e["type"] in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
+                return out_of_bounds_message(str(e["loc"][0]), float(e["input"]))
+            return e["msg"]
+
         msgs = "; ".join(
-            f"--{'-'.join(str(x) for x in e['loc']).replace('_', '-')}: {e['msg']}"
+            f"--{'-'.join(str(x) for x in e['loc']).replace('_', '-')}: {reason(e)}"
             for e in exc.errors()
         )
         raise InputError(msgs) from None
     settings = Settings(**({"tables_dir": args.tables_dir} if args.tables_dir else {}))
     cat = service.load_catalogue(settings.tables_dir)
+    from skisnow.app.service.live import add_uploads
+
+    for note in add_uploads(cat, settings):  # the service's uploads (--data-dir)
+        print(f"skisnow solve: {note}", file=sys.stderr)
     try:
         out = service.contact(cat, service.ContactInputs(**body.model_dump()))
     except service.UnknownItemError as exc:
@@ -104,7 +122,7 @@ def run_solve(args: argparse.Namespace) -> int:
 
     def pm(q: str) -> str:
         w = rel.get(q)
-        return "  (no band: not grid-converged)" if w is None else f"  ± {100 * w:4.1f} %"
+        return "  (not grid-converged: see below)" if w is None else f"  ± {100 * w:4.1f} %"
 
     print("  90 % error band after each value (sources: --json, band)")
     rows = (
@@ -137,6 +155,16 @@ def run_solve(args: argparse.Namespace) -> int:
     )
     for label, value, unit, q in rows:
         print(f"  {label:32s} {value:10.4g} {unit}{pm(q)}")
+        if q == "min_average_separation" and rel.get(q) is None:
+            sep = service.resolved_min_separation(a["zones"])
+            over = (
+                f"{sep['value_um']:.4g} µm ({sep['zone']} zone)"
+                if sep["value_um"] is not None
+                else "no zone is resolved"
+            )
+            print(f"    over the resolved zones: {over}")
+            for u in sep["unresolved"]:
+                print(f"    not resolved: {u['zone']} zone ({u['reason']})")
     for z in a["zones"]:
         print(
             f"  zone {z['name']:5s} {z['start_mm']:7.0f} … {z['end_mm']:5.0f} mm  "

@@ -10,9 +10,10 @@ one or more workers with the same ``SKISNOW_DATA_DIR`` / ``SKISNOW_DATABASE_URL`
     skisnow worker --jobs 1
 
 A worker claims queued jobs (and running ones whose process stopped beating, see
-:mod:`app.jobs.runner`), runs them and writes the finished items into the data directory and
-the database; SIGTERM or Ctrl-C puts its running jobs back in the queue (a grind table resumes
-from its checkpoints in the next process) and exits 0.
+:mod:`app.jobs.runner`) in two lanes of ``--jobs`` slots each, short (grind tables) and long
+(ski networks), so a grind never waits behind a ski; it runs them and writes the finished items
+into the data directory and the database; SIGTERM or Ctrl-C puts its running jobs back in the
+queue (a grind table resumes from its checkpoints in the next process) and exits 0.
 """
 
 from __future__ import annotations
@@ -36,7 +37,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--jobs",
         type=int,
         default=None,
-        help="jobs run at once (default SKISNOW_JOB_WORKERS, at least 1)",
+        help="jobs run at once in each lane, short (grind tables) and long (ski networks) "
+        "(default SKISNOW_JOB_WORKERS, at least 1)",
     )
     w.add_argument(
         "--poll-s", type=float, default=None, help="poll interval [s] (default SKISNOW_JOB_POLL_S)"

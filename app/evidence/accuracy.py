@@ -11,7 +11,7 @@ Stages (issue #6 §2), each measured in the same run so that times compare as ra
   and 2048², :func:`solvers.lookup.combine_pixel_levels`) is compared with the limit from the
   finer grids (before: 1024² alone; after: the two-level value).
   Every metric of :class:`solvers.micro.MicroResult` is checked for convergence: the floored
-  reciprocal gap should converge, the raw one (no floor) is expected not to (method.md §5).
+  reciprocal gap should converge, the raw one (no floor) is expected not to (docs/physics.md §5).
 - ``table``: PCHIP interpolation of the shipped 72-point tables and of tables thinned to fewer
   pressure points against direct solves of the same texture at off-grid pressures (and at the
   72-point nodes a thinned table leaves out).

@@ -318,7 +318,7 @@ def _raw_gap_note() -> list[str]:
         "",
         "The raw reciprocal gap (no floor) is not expected to converge: next to a contact "
         "spot the gap opens like distance^1.5, so finer pixels sample ever smaller gaps "
-        "there and the mean of 1/h keeps moving with the pixel size (method.md §5). The "
+        "there and the mean of 1/h keeps moving with the pixel size (docs/physics.md §5). The "
         f"floored value ⟨1/max(h, {floor_nm:g} nm)⟩ is what the tables and the API report; the "
         "raw value is stored in the tables for diagnosis only. Every answer of `/v1/contact` "
         "carries the micro error of its table's pixel size, so the answer reports it: "

@@ -1,15 +1,15 @@
 """``skisnow report paper-case``: the published 2 skis × 2 grinds study in one command.
 
-Reproduces the case of Kalliorinne et al. (Lubricants 2023, 11, 427; ``shared/method.md``):
+Reproduces the case of Kalliorinne et al. (Lubricants 2023, 11, 427; ``docs/physics.md``):
 skis ``ski-a`` and ``ski-b`` with grinds ``grind-1`` and ``grind-2``, 40 kg at 160 mm behind the
-balance point, E_snow = 200 MPa and the porosity the docs state (n = 0.5, method.md §5, a choice
-of ours). It writes ``<out-dir>/paper-case.md`` with tables, figures (SVG) in
+balance point, E_snow = 200 MPa and the porosity the docs state (n = 0.5, docs/physics.md §5,
+a choice of ours). It writes ``<out-dir>/paper-case.md`` with tables, figures (SVG) in
 ``<out-dir>/paper-case/`` and the numbers behind them in ``<out-dir>/paper-case/paper-case.json``.
 
 Every contact result comes from :func:`app.service.contact` — the same computation as
 ``POST /v1/contact`` — so the report's 2 × 2 tables are the service's answers. The along-the-ski
 figures are those of the web form (:mod:`app.plots`). Our choices where the papers are silent
-are stated in the report; the findings of method.md §8 are checked by measurement, with the
+are stated in the report; the findings of docs/physics.md §8 are checked by measurement, with the
 thresholds written next to each verdict.
 """
 
@@ -45,24 +45,24 @@ __all__ = ["PaperCase", "compute_paper_case", "fmt", "zone_pressures"]
 
 SKIS = ("ski-a", "ski-b")
 GRINDS = ("grind-1", "grind-2")
-#: the finer of the two grinds (method.md §7: "Grind 1 (fine linear)")
+#: the finer of the two grinds (docs/physics.md §7: "Grind 1 (fine linear)")
 FINE_GRIND = "grind-1"
 PAPER_LOAD_KG = 40.0
 PAPER_POSITION_MM = -160.0
 PAPER_SNOW_MODULUS_MPA = 200.0
-#: the porosity the docs state (method.md §5, README): a choice of ours, the papers give none
+#: the porosity the docs state (docs/physics.md §5, README): a choice of ours, the papers give none
 DOC_POROSITY = 0.5
 BASE_MODULUS_MPA = 700.0
 POISSON_RATIO = 0.3
 
-#: method.md §4: published apparent contact at the paper case
+#: docs/physics.md §4: published apparent contact at the paper case
 PUBLISHED_APPARENT = {
     "ski-a": {"mean_pressure_kpa": 61.40, "contact_area_cm2": 63.98},
     "ski-b": {"mean_pressure_kpa": 32.24, "contact_area_cm2": 121.84},
 }
-#: method.md §4: rear-zone load share in a related study (range over ski types and poses) [-]
+#: docs/physics.md §4: rear-zone load share in a related study (range over ski types and poses) [-]
 PUBLISHED_REAR_SHARE = (0.635, 0.930)
-#: method.md §7: published ISO 25178 parameters (heights in µm, Sdq in µm/mm)
+#: docs/physics.md §7: published ISO 25178 parameters (heights in µm, Sdq in µm/mm)
 PUBLISHED_ISO = {
     "grind-1": {"Sa": 1.77, "Sq": 2.16, "Ssk": -0.16, "Sku": 2.58, "Sdq": 65.79,
                 "Spk": 1.44, "Sk": 6.01, "Svk": 1.92},
@@ -70,13 +70,13 @@ PUBLISHED_ISO = {
                 "Spk": 2.16, "Sk": 11.65, "Svk": 20.02},
 }  # fmt: skip
 
-#: E_snow sweep of the zone-pressure figure, 20 … 400 MPa (method.md §3 range) [MPa]
+#: E_snow sweep of the zone-pressure figure, 20 … 400 MPa (docs/physics.md §3 range) [MPa]
 SWEEP_MODULI_MPA = (20, 30, 40, 50, 60, 80, 100, 125, 150, 200, 250, 300, 350, 400)
 #: porosities of the real-area curve: the documented 0.5 and, our choice, 0.3 and 0.7 [-]
 CURVE_POROSITIES = (0.3, 0.5, 0.7)
 #: apparent pressures of the real-area curve [kPa]
 CURVE_PRESSURES_KPA = tuple(float(v) for v in np.geomspace(1.0, 1000.0, 121))
-#: loads of the load-dependence checks of method.md §8 (paper load, and half and 1.5×) [kg]
+#: loads of the load-dependence checks of docs/physics.md §8 (paper load, and half and 1.5×) [kg]
 LOAD_CHECK_KG = (20.0, 40.0, 60.0)
 
 #: thresholds of the §8 verdicts (ours; the papers state the findings only in words)
@@ -128,7 +128,7 @@ class PaperCase:
         ``{"pressure_kpa": [...], grind: {porosity: a_r [%] list}}`` at E_snow 200 MPa.
     flexible : dict
         ``{(ski, grind): contact() answer}`` at the paper case with the bending ski
-        (``ski_model: flexible``, method.md §4b), or ``{"error": message}``.
+        (``ski_model: flexible``, docs/physics.md §4b), or ``{"error": message}``.
     tables, skis : dict
         Per file: name, sha256 and profile model (skis) / pixel size and gap floor (tables).
     provenance : dict
@@ -222,7 +222,7 @@ def _file_info(cat: Catalogue) -> tuple[dict, dict]:
 
 
 def _iso(cat: Catalogue) -> dict:
-    """Our textures' ISO 25178 parameters in the units of method.md §7 (µm, µm/mm)."""
+    """Our textures' ISO 25178 parameters in the units of docs/physics.md §7 (µm, µm/mm)."""
     out = {}
     for g in GRINDS:
         p = cat.grind(g).table.iso_parameters
@@ -283,7 +283,7 @@ def compute_paper_case(
     curve_porosities : sequence of float
         Porosities of the real-area-against-pressure curves [-].
     load_check_kg : sequence of float
-        Loads of the load-dependence checks of method.md §8 [kg], at least two distinct.
+        Loads of the load-dependence checks of docs/physics.md §8 [kg], at least two distinct.
     progress : bool
         Show a tqdm bar over the sweep (stderr).
     """

@@ -1,4 +1,4 @@
-"""The findings of method.md §8, measured on the paper case (thresholds in
+"""The findings of docs/physics.md §8, measured on the paper case (thresholds in
 :mod:`app.evidence.paper_case`)."""
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ def _spread(values: Sequence[float]) -> float:
 
 
 def measure_findings(case: PaperCase) -> list[dict]:
-    """Check each finding of method.md §8 on our results.
+    """Check each finding of docs/physics.md §8 on our results.
 
     Returns
     -------

@@ -16,6 +16,11 @@ dead local pids at start without waiting for the lease. A runner that finds its 
 own heartbeats lapsed, e.g. a frozen process) stops it with :class:`JobLeaseLost` and writes
 nothing more about it. ``stale_s`` must exceed the longest pause between two polls.
 
+Lanes: each job kind runs in a lane of its own with ``workers`` slots (:data:`LANES`), so a
+grind table that builds in seconds never waits behind a ski network that trains for minutes, even
+with ``workers`` = 1 (a process then runs up to one job of each lane at once). Within a lane, jobs
+run oldest first. :func:`queue_info` gives a queued job's position in its lane and an estimate.
+
 Job states: ``queued`` → ``running`` → ``done`` | ``failed`` (``running`` → ``queued`` when the
 service stops mid-job).
 """
@@ -36,9 +41,26 @@ from dataclasses import dataclass, field
 from skisnow.app.storage.catalogue import CatalogueDB, ItemRow, JobRow
 from skisnow.solvers.errors import SkisnowError
 
-__all__ = ["JobContext", "JobInterrupted", "JobLeaseLost", "JobRunner"]
+__all__ = [
+    "LANES",
+    "JobContext",
+    "JobInterrupted",
+    "JobLeaseLost",
+    "JobRunner",
+    "lane_of",
+    "queue_info",
+]
 
 log = logging.getLogger(__name__)
+
+#: Job kind → lane. Short jobs (grind tables, seconds to a minute) and long ones (ski networks,
+#: minutes) have lanes of their own; a kind not listed gets a lane named after itself.
+LANES: dict[str, str] = {"grind-table": "short", "ski-network": "long"}
+
+
+def lane_of(kind: str) -> str:
+    """The lane a job of ``kind`` runs in (:data:`LANES`)."""
+    return LANES.get(kind, kind)
 
 
 class JobInterrupted(Exception):
@@ -112,8 +134,9 @@ class JobRunner:
     on_poll : callable, optional
         Called on every poll (the service syncs its live catalogue with the database there).
     workers : int
-        Jobs run at once; 0: this process claims no job and only polls (``on_poll``), the
-        jobs run in separate ``skisnow worker`` processes on the same database.
+        Jobs run at once in each lane (:data:`LANES`); 0: this process claims no job and only
+        polls (``on_poll``), the jobs run in separate ``skisnow worker`` processes on the same
+        database.
     poll_s : float
         Poll interval [s].
     stale_s : float
@@ -142,9 +165,9 @@ class JobRunner:
         self.runner_id = f"{self.host}:{os.getpid()}:{uuid.uuid4().hex[:8]}"
         self._stop = threading.Event()
         self._wake = threading.Event()
-        self._active: dict[str, Future] = {}
+        self._active: dict[str, tuple[str | None, Future, str]] = {}  # job → (item, fut, lane)
         self._lock = threading.Lock()
-        self._pool: ThreadPoolExecutor | None = None
+        self._pools: dict[str, ThreadPoolExecutor] = {}
         self._thread: threading.Thread | None = None
         self._beat_thread: threading.Thread | None = None
 
@@ -154,7 +177,10 @@ class JobRunner:
         """Requeue jobs of dead processes on this host, then start polling."""
         self._requeue_dead_local_runners()
         if self.workers > 0:  # 0: poll only (on_poll); the jobs run in `skisnow worker`
-            self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="skisnow-job")
+            for lane in sorted({lane_of(kind) for kind in self.handlers}):
+                self._pools[lane] = ThreadPoolExecutor(
+                    self.workers, thread_name_prefix=f"skisnow-job-{lane}"
+                )
         self._thread = threading.Thread(target=self._loop, name="skisnow-jobs", daemon=True)
         self._thread.start()
         self._beat_thread = threading.Thread(
@@ -169,8 +195,8 @@ class JobRunner:
         for thread in (self._thread, self._beat_thread):
             if thread is not None:
                 thread.join(timeout)
-        if self._pool is not None:
-            self._pool.shutdown(wait=True, cancel_futures=True)
+        for pool in self._pools.values():
+            pool.shutdown(wait=True, cancel_futures=True)
 
     def wake(self) -> None:
         """Poll now (a job was just queued)."""
@@ -178,7 +204,7 @@ class JobRunner:
 
     def busy_item_ids(self) -> set[str]:
         with self._lock:
-            return {item for item, _ in self._active.values() if item}
+            return {item for item, _, _ in self._active.values() if item}
 
     # ------------------------------------------------------------------------ internals
 
@@ -213,7 +239,7 @@ class JobRunner:
         lease expire, which would have another process take it over and redo it."""
         while not self._stop.wait(self.poll_s):
             with self._lock:
-                active = [j for j, (_, fut) in self._active.items() if not fut.done()]
+                active = [j for j, (_, fut, _) in self._active.items() if not fut.done()]
             try:
                 self.db.heartbeat(active, self.runner_id)
             except Exception:  # pragma: no cover - keep beating through DB hiccups
@@ -221,27 +247,34 @@ class JobRunner:
 
     def _poll(self) -> None:
         with self._lock:
-            done = [j for j, (_, fut) in self._active.items() if fut.done()]
+            done = [j for j, (_, fut, _) in self._active.items() if fut.done()]
             for j in done:
                 del self._active[j]
-            active = list(self._active)
+            active = dict(self._active)
         if self.on_poll is not None:
             self.on_poll()
-        free = self.workers - len(active)
-        if free <= 0 or self._stop.is_set():
+        if not self._pools or self._stop.is_set():
+            return
+        free = {lane: self.workers for lane in self._pools}
+        for _, _, lane in active.values():
+            free[lane] -= 1
+        if all(n <= 0 for n in free.values()):
             return
         stale_before = _dt.datetime.now(_dt.UTC) - _dt.timedelta(seconds=self.stale_s)
-        for job in self.db.claimable_jobs(stale_before):
-            if free <= 0 or self._stop.is_set():
+        for job in self.db.claimable_jobs(stale_before):  # oldest first
+            if self._stop.is_set() or all(n <= 0 for n in free.values()):
                 break
             if job.id in active or job.kind not in self.handlers:
                 continue
+            lane = lane_of(job.kind)
+            if free[lane] <= 0:
+                continue  # its lane is full; a job of another lane may still start
             if not self.db.claim_job(job.id, self.runner_id, stale_before):
                 continue  # another process was quicker
-            fut = self._pool.submit(self._run, job.id)
+            fut = self._pools[lane].submit(self._run, job.id)
             with self._lock:
-                self._active[job.id] = (job.item_id, fut)
-            free -= 1
+                self._active[job.id] = (job.item_id, fut, lane)
+            free[lane] -= 1
 
     def _run(self, job_id: str) -> None:
         job = self.db.job(job_id)
@@ -297,3 +330,41 @@ class JobRunner:
         )
         if not finished:
             log.warning("job %s finished in %s after another runner took it over", job_id, me)
+
+
+def queue_info(db: CatalogueDB, job: JobRow, *, history: int = 20) -> dict:
+    """Where ``job`` stands in its lane, and a rough estimate of when it is done.
+
+    Returns ``queue_position`` (1: next to start in its lane; None unless queued), ``ahead``
+    (jobs of its lane queued before it or running), ``estimate_s`` (seconds until done: the
+    median upload-to-done time of the last ``history`` finished jobs of its kind, times the
+    jobs ahead plus itself for a queued job, times the part left for a running one; None when
+    no job of its kind has finished yet or the job is no longer active) and ``estimate_basis``
+    (how many finished jobs the estimate rests on). The estimate assumes one slot per lane.
+    """
+    out = {"lane": lane_of(job.kind), "queue_position": None, "ahead": 0}
+    out |= {"estimate_s": None, "estimate_basis": 0}
+    if job.state not in ("queued", "running"):
+        return out
+    lane = out["lane"]
+    kinds = [k for k in {*LANES, job.kind} if lane_of(k) == lane]
+    active = [j for j in db.jobs(states=("queued", "running"), limit=1000) if j.kind in kinds]
+    if job.state == "queued":
+        ahead = [
+            j
+            for j in active
+            if j.id != job.id and (j.state == "running" or j.created_at < job.created_at)
+        ]
+        out["ahead"] = len(ahead)
+        out["queue_position"] = 1 + sum(1 for j in ahead if j.state == "queued")
+    done = [j for j in db.jobs(states=("done",), limit=500) if j.kind == job.kind][:history]
+    if done:
+        took = sorted((j.updated_at - j.created_at).total_seconds() for j in done)
+        typical_s = took[len(took) // 2]
+        if job.state == "queued":
+            estimate = typical_s * (out["ahead"] + 1)
+        else:
+            estimate = typical_s * (1.0 - job.progress)
+        out["estimate_s"] = round(max(estimate, 0.0), 1)
+        out["estimate_basis"] = len(done)
+    return out

@@ -182,9 +182,9 @@ def _choose_model(identified: dict, network: dict, cases, held_m, item) -> tuple
 
 
 def _identify(data, item, callback=None, held_out_index=None) -> tuple[dict, str]:
-    """Identify the beam of an uploaded ski (method.md §4c): the stored ``identified`` group and
-    one sentence for the job result. A failure is recorded, never raised: the ski still works
-    with the rigid model and its network. ``callback(fraction, message)``: the
+    """Identify the beam of an uploaded ski (docs/physics.md §4c): the stored ``identified``
+    group and one sentence for the job result. A failure is recorded, never raised: the ski still
+    works with the rigid model and its network. ``callback(fraction, message)``: the
     identification's progress (the job shows it; minutes on a loaded machine).
     ``held_out_index``: the job's held-out cases (indices into the cases of
     :func:`app.storage.skis.mean_profiles`), not identified, the check's cases."""

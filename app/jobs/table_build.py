@@ -1,7 +1,7 @@
 """The micro-scale lookup tables, built on a Dask cluster (``skisnow build-tables``,
 :mod:`app.commands.build_tables`; the grind-table job of an upload).
 
-For each texture the job computes (method.md §5):
+For each texture the job computes (docs/physics.md §5):
 
 1. the full-contact ratio ``p_fc / E'`` (one FFT), the unloaded statistics and the
    separated-regime curve ``⟨1/(h_0 + H)⟩`` (no solve);

@@ -18,8 +18,10 @@ from skisnow.app.presets import DEFAULT_PRESET, Preset, get_preset
 from skisnow.app.service.band import (
     answer_band,
     band_json,
+    footprint_ends_m,
     min_separation_unresolved,
     touches_profile_end,
+    zone_unresolved_reasons,
 )
 from skisnow.app.service.catalogue import (
     AUTO_RIGID_TOLERANCE,
@@ -112,8 +114,8 @@ def result_warnings(inp: ContactInputs, gmap, macro, ms) -> list[dict]:
             {
                 "code": "porosity_near_one",
                 "detail": f"porosity {inp.porosity:g} ≥ {POROSITY_WARN:g}: the texture carries "
-                "only P·(1 − n) (method.md eq. 2), so the real contact area shrinks towards zero "
-                "while the average real contact pressure F/A_tot (full load F, §6) grows "
+                "only P·(1 − n) (docs/physics.md eq. 2), so the real contact area shrinks towards "
+                "zero while the average real contact pressure F/A_tot (full load F, §6) grows "
                 "without bound; very loose snow is outside what the method was made for",
             }
         )
@@ -255,7 +257,7 @@ def contact(
             "mean_pressure_kpa": ms.mean_apparent_pressure_pa / 1e3,
             "zones": [
                 {
-                    "name": "rear" if z.end_m <= x_f else ("front" if z.start_m >= x_f else "mid"),
+                    "name": name,
                     "start_mm": z.start_m * 1e3,
                     "end_mm": z.end_m * 1e3,
                     "length_mm": (z.end_m - z.start_m) * 1e3,
@@ -263,8 +265,15 @@ def contact(
                     "load_share": z.load_share,
                     "apparent_area_cm2": z.apparent_area_m2 * 1e4,
                     "real_area_mm2": z.real_area_m2 * 1e6,
+                    "min_average_separation_um": zone_min_separation_um(ms, z),
+                    "unresolved": why,
                 }
-                for z in ms.zones
+                for z, name, why in zip(
+                    ms.zones,
+                    zone_names(ms.zones, *footprint_ends_m(gmap)),
+                    zone_unresolved_reasons(gmap, ms.zones),
+                    strict=True,
+                )
             ],
         },
         "warnings": result_warnings(inp, gmap, macro, ms) + model_info.pop("warnings"),
@@ -389,6 +398,58 @@ def pixel_error_estimate(
                 float(np.sum(ar[ok] * rel[ok]) / total) if total > 0 else None
             )
     return out
+
+
+def zone_min_separation_um(ms, zone) -> float | None:
+    """The smallest average interfacial separation inside one contact zone [µm] (rows of the
+    zone with a finite value; None without any)."""
+    x = ms.positions_m
+    inside = (x >= zone.start_m - 1e-12) & (x <= zone.end_m + 1e-12)
+    h = ms.average_separation_m[inside]
+    h = h[np.isfinite(h)]
+    return float(h.min() * 1e6) if h.size else None
+
+
+def resolved_min_separation(zones: list[dict]) -> dict:
+    """The minimum average separation over the grid-resolved contact zones of an answer's
+    ``apparent.zones`` (each with ``min_average_separation_um`` and ``unresolved``): its value
+    [µm] (None when no zone is resolved), the zone it lies in, and the unresolved zones with
+    their reasons. The answer's own minimum (``metrics``) is over the whole ski."""
+    resolved = [z for z in zones if not z.get("unresolved")]
+    resolved = [z for z in resolved if z.get("min_average_separation_um") is not None]
+    best = min(resolved, key=lambda z: z["min_average_separation_um"], default=None)
+    return {
+        "value_um": best["min_average_separation_um"] if best else None,
+        "zone": best["name"] if best else None,
+        "unresolved": [
+            {"zone": z["name"], "reason": z["unresolved"]} for z in zones if z.get("unresolved")
+        ],
+    }
+
+
+def zone_names(zones, tail_m: float = -np.inf, tip_m: float = np.inf) -> list[str]:
+    """Names of contact zones by their position along the ski, whatever the load: the middle
+    of a zone behind the balance point (X < 0) names it ``rear``, or ``tail`` when it lies in
+    the rear half of the way to the tail end ``tail_m`` [m]; ahead of it ``front``, or ``tip``
+    in the front half of the way to the tip end ``tip_m`` [m] (the ends of the footprint).
+    Several zones in one section are numbered from the tail (``front 1``, ``front 2``). The foot
+    zone is thus ``rear`` at 13, 40 and 70 kg, whether or not a tail or tip contact appears."""
+    mids = [0.5 * (z.start_m + z.end_m) for z in zones]
+    sections = [
+        ("tail" if m < 0.5 * tail_m else "rear")
+        if m < 0.0
+        else ("tip" if m > 0.5 * tip_m else "front")
+        for m in mids
+    ]
+    order = sorted(range(len(zones)), key=lambda i: zones[i].start_m)
+    count = {section: sections.count(section) for section in set(sections)}
+    seen: dict[str, int] = {}
+    names = [""] * len(zones)
+    for i in order:
+        section = sections[i]
+        seen[section] = seen.get(section, 0) + 1
+        names[i] = section if count[section] == 1 else f"{section} {seen[section]}"
+    return names
 
 
 def rigid_minus_flexible(rigid, flex, ms_rigid=None, ms_flex=None) -> dict[str, float]:

@@ -28,7 +28,7 @@ in quadrature (:func:`solvers.band.combine`):
     out (:func:`solvers.band.table_interpolation_error`), weighted by where the answer loads the
     table.
 ``flat_base``
-    A rigid answer in the flat-base regime (method.md §4c): the spread of the answer when the
+    A rigid answer in the flat-base regime (docs/physics.md §4c): the spread of the answer when the
     stretch of its loaded profile within ``FLAT_GAP_M`` of the flat is perturbed by
     ``FLAT_SIGMA_M`` (:mod:`app.service.band_calibration`); such an answer also warns.
 ``ski_model``
@@ -166,6 +166,38 @@ def min_separation_unresolved(gap_map, macro, ms) -> str | None:
             "pressure, and the minimum moves there as the grid is refined"
         )
     return None
+
+
+def footprint_ends_m(gap_map) -> tuple[float, float]:
+    """X of the tail end and the tip end of the ski's footprint [m] (its first and last rows
+    with a finite gap; ±inf without any)."""
+    rows = np.flatnonzero(np.any(np.isfinite(gap_map.gap_m), axis=1))
+    if not rows.size:
+        return -np.inf, np.inf
+    return float(gap_map.positions_m[rows[0]]), float(gap_map.positions_m[rows[-1]])
+
+
+def zone_unresolved_reasons(gap_map, zones) -> list[str | None]:
+    """Per contact zone, why its minimum average separation is not grid-converged (the rules
+    of :func:`min_separation_unresolved`: shorter than :data:`MIN_SEPARATION_ZONE_PIXELS`
+    pixels, or reaching the end of the measured profile), or ``None`` for a resolved zone."""
+    rows = np.flatnonzero(np.any(np.isfinite(gap_map.gap_m), axis=1))
+    dx = gap_map.pixel_size_m[0]
+    first = gap_map.positions_m[rows[0]] if rows.size else -np.inf
+    last = gap_map.positions_m[rows[-1]] if rows.size else np.inf
+    out: list[str | None] = []
+    for z in zones:
+        length = z.end_m - z.start_m
+        if z.start_m <= first + 1.5 * dx or z.end_m >= last - 1.5 * dx:
+            out.append("it reaches the end of the measured profile")
+        elif length < MIN_SEPARATION_ZONE_PIXELS * dx:
+            out.append(
+                f"it is {length * 1e3:.0f} mm long ({length / dx:.0f} pixels of {dx * 1e3:g} mm), "
+                "too short to resolve its peak pressure"
+            )
+        else:
+            out.append(None)
+    return out
 
 
 _TABLE_ERRORS: dict[int, tuple[MicroTable, dict[str, np.ndarray]]] = {}
@@ -381,7 +413,7 @@ def answer_band(
     flat_base = None
     if flat is not None and flat.widths.get("apparent_contact_area", 0.0) > FLAT_MIN_WIDTH:
         # the apparent area (and with it the mean apparent pressure and the zone loads) is what
-        # the regime leaves unfixed (method.md §4c); the other quantities' spread is not added
+        # the regime leaves unfixed (docs/physics.md §4c); the other quantities' spread is not added
         # (docs/limits.md: it would take the held-out calibration's width past its target
         # without covering one more case)
         components["flat_base"] = {"apparent_contact_area": flat.widths["apparent_contact_area"]}

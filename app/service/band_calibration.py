@@ -12,7 +12,7 @@ Three things an answer used to leave out of its band:
     estimated σ is the smallest that puts the truth inside in ≥ 90 % of the ``calib`` cases at
     every modulus.
 ``FLAT_*``
-    The flat-base regime (method.md §4c): where the loaded base lies within
+    The flat-base regime (docs/physics.md §4c): where the loaded base lies within
     :data:`FLAT_GAP_M` of the flat over a stretch of at least :data:`FLAT_STRETCH_M`, camber
     data at a few µm of noise do not fix which part of it touches the snow first. The answer is
     solved again with the profile perturbed in that stretch by :data:`FLAT_SIGMA_M`; when that

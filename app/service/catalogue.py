@@ -48,7 +48,7 @@ class ModelUnavailableError(SkisnowError):
     """The requested ski model cannot be used for this ski (HTTP 422, the message says why)."""
 
 
-#: ski models a request can ask for (method.md §4 step 3 and §4b)
+#: ski models a request can ask for (docs/physics.md §4 step 3 and §4b)
 SKI_MODELS = ("rigid", "flexible", "auto")
 #: an identified beam answers loads up to this × the heaviest measured load (the one rule:
 #: :class:`app.service.profiles.ProfileModel.load_range_n`; docs/camber-network.md)
@@ -77,7 +77,7 @@ class Ski:
     def beam(self) -> tuple[BeamSki | None, str]:
         """The ski's beam model and where it comes from; or (None, why there is none).
 
-        A beam identified from the ski's camber measurements (method.md §4c) that passed the
+        A beam identified from the ski's camber measurements (docs/physics.md §4c) that passed the
         held-out check comes first: the demo skis and uploaded skis alike. A design beam stored
         with the ski (the demo skis' truth) is the fallback.
         """

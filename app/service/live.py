@@ -175,3 +175,32 @@ def register_shipped(db: CatalogueDB, cat: service.Catalogue) -> None:
                 kind,
                 name,
             )
+
+
+def add_uploads(cat: service.Catalogue, settings) -> list[str]:
+    """Add the ready uploaded skis and grinds of the service's data folder to ``cat`` (for the
+    command line, which serves nothing: ``skisnow --data-dir DIR solve`` or
+    ``SKISNOW_DATA_DIR``). Uploads of every team are included: whoever runs the command reads
+    the folder anyway. A folder without a catalogue is left alone (none is created); an
+    upload whose file is missing or changed is skipped and named in the returned notes, as is
+    one whose name a shipped item takes."""
+    notes: list[str] = []
+    url = settings.catalogue_url
+    if settings.database_url is None and not (Path(settings.data_dir) / "catalogue.db").is_file():
+        return notes
+    db = CatalogueDB(url)
+    try:
+        for item in db.items(state="ready"):
+            if item.read_only:
+                continue
+            attr = "grinds" if item.kind == "grind" else "skis"
+            if item.name in getattr(cat, attr):
+                notes.append(f"upload {item.kind} {item.name!r} hidden by a shipped one")
+                continue
+            try:
+                getattr(cat, attr)[item.name] = load_live(item)
+            except SkisnowError as exc:
+                notes.append(f"upload {item.kind} {item.name!r} skipped: {exc}")
+    finally:
+        db.close()
+    return notes

@@ -1,4 +1,4 @@
-"""The loaded camber profile H*(X) of a stored ski for any load (method.md §4 step 2).
+"""The loaded camber profile H*(X) of a stored ski for any load (docs/physics.md §4 step 2).
 
 Three profile models (``source`` names the one that answers, as
 ``provenance.ski.profile_model`` of every answer does):

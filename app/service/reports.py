@@ -66,7 +66,7 @@ _IDENT_PROVENANCE = ("created_utc", "code_version", "git_commit", "command_line"
 
 
 def _identification_report(ski: Ski) -> dict:
-    """The identification of a ski (method.md §4c) in technician units: its verdict, noise and
+    """The identification of a ski (docs/physics.md §4c) in technician units: its verdict, noise and
     misfit, the misfit per identified case with the case's load [kg] and position [mm], the
     held-out check (per held-out case: RMS of prediction − measurement [µm]) and provenance."""
     ident = ski.record.identified

@@ -20,7 +20,7 @@ Neutral camber CSV (one row per sample; see docs/macro.md)::
 - Spreadsheet dialects: ``,`` with decimal points, ``;`` or tab with decimal commas (or points);
   headers in any order and case; empty trailing columns ignored (docs/uploads.md).
 
-Units are converted here, once: kg → N with g = 9.82 m/s² (method.md §2), mm → m.
+Units are converted here, once: kg → N with g = 9.82 m/s² (docs/physics.md §2), mm → m.
 """
 
 from __future__ import annotations

@@ -61,8 +61,8 @@ CHECKPOINT_SCHEMA = "skisnow.table-chunk/1"
 #: (dataset, units, description) of the /loaded group, in file order
 LOADED_DATASETS = [
     ("pressure_ratio", "1", "nominal pressure over effective modulus P_n/E'"),
-    ("real_contact_area_fraction", "1", "a_r = |omega_c|/|omega| (method.md eq. 3)"),
-    ("mean_gap_m", "m", "mean gap over the cell (method.md eq. 4, H = 0)"),
+    ("real_contact_area_fraction", "1", "a_r = |omega_c|/|omega| (docs/physics.md eq. 3)"),
+    ("mean_gap_m", "m", "mean gap over the cell (docs/physics.md eq. 4, H = 0)"),
     (
         "mean_reciprocal_gap_per_m",
         "1/m",

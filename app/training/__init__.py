@@ -1,4 +1,4 @@
-"""Camber network training (method.md §4 step 2): fitting the per-ski network in PyTorch.
+"""Camber network training (docs/physics.md §4 step 2): fitting the per-ski network in PyTorch.
 
 - :mod:`.data`: training data checks, the split by load case, arrays from a ski file (numpy).
 - :mod:`.model`: the network in torch (layers, forward pass, smoother) and the fold of an

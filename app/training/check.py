@@ -92,7 +92,7 @@ def contact_area_check(
     width_m : float or ndarray
         Running-surface width [m] (array: at ``width_positions_m``).
     effective_modulus_pa : float
-        E' [Pa] (method.md eq. 1).
+        E' [Pa] (docs/physics.md eq. 1).
     width_positions_m : ndarray, optional
         Positions of a width profile [m].
 

@@ -1,4 +1,4 @@
-"""Train the per-ski camber network (method.md §4 step 2): :func:`train_camber_network`.
+"""Train the per-ski camber network (docs/physics.md §4 step 2): :func:`train_camber_network`.
 
 Training needs PyTorch (``pip install 'skisnow[train]'``); torch is imported lazily inside the
 training functions, so the rest of skisnow (and inference, :mod:`solvers.camber`) runs without.

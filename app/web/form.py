@@ -11,13 +11,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from urllib.parse import quote, urlencode
+from pathlib import Path
+from urllib.parse import parse_qs, quote, unquote, urlencode
 
 from fastapi import Request
 from fastapi.responses import HTMLResponse
 from pydantic import ValidationError
 from skisnow.app import service
-from skisnow.app.bounds import CaseInputs
+from skisnow.app.bounds import CaseInputs, out_of_bounds_message
 from skisnow.app.presets import DEFAULT_PRESET
 from skisnow.app.presets import PRESETS as ACCURACY_PRESETS
 from skisnow.app.snow import DEFAULT_SNOW, SNOW_PRESETS, snow_choices
@@ -26,7 +27,7 @@ from skisnow.app.web.templating import page
 #: density of ice used to turn snow density into porosity, n = 1 − ρ/ρ_ice [kg/m³]
 ICE_DENSITY_KG_M3 = 917.0
 
-#: the published case (method.md §2): 40 kg at 160 mm behind the balance point, E_snow 200 MPa
+#: the published case (docs/physics.md §2): 40 kg at 160 mm behind the balance point, E_snow 200 MPa
 DEFAULTS = {
     "load_kg": "40",
     "load_position_mm": "-160",
@@ -87,6 +88,10 @@ SKI_MODEL_LABELS = {
 }
 
 
+#: pydantic's error types of a number outside its bounds
+BOUND_ERRORS = ("greater_than", "greater_than_equal", "less_than", "less_than_equal")
+
+
 # ----------------------------------------------------------------------------- parsing
 
 
@@ -100,6 +105,8 @@ class Query:
     errors: dict[str, str] = field(default_factory=dict)
     numbers: dict[str, float] = field(default_factory=dict)
     status: int = 200
+    #: the skis and grinds of the last results page this browser showed (cookie)
+    last: dict[str, list[str]] = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -139,6 +146,7 @@ def parse_query(request: Request, cat: service.Catalogue, max_cells: int) -> Que
     raw = {k: qp.get(k, "").strip() for k in (*FIELDS, "snow_input", "preset", "ski_model")}
     raw["snow"] = chosen_snow(qp)
     q = Query(_unique(qp.getlist("ski")), _unique(qp.getlist("grind")), raw)
+    q.last = last_used(request)
     if raw["snow_input"] not in ("porosity", "density"):
         raw["snow_input"] = "porosity"
 
@@ -206,6 +214,8 @@ def parse_query(request: Request, cat: service.Catalogue, max_cells: int) -> Que
             reason = err.get("msg", "invalid")
             if err.get("type") == "missing":
                 reason = "required"
+            elif err.get("type") in BOUND_ERRORS:  # pydantic's words → plain ones
+                reason = out_of_bounds_message(str(err["loc"][0]), _finite(str(err.get("input"))))
             q.errors.setdefault(key, reason)
     else:
         q.numbers = body.model_dump()
@@ -275,18 +285,103 @@ def _number_field(q: Query, name: str, *, disabled: bool = False) -> dict:
     }
 
 
-def _choices(q: Query, kind: str, items: dict, describe, pages: bool = False) -> dict:
-    """The checkboxes of ``items``; ``pages``: each links to its ski page."""
+#: the cookie that remembers the skis and grinds of the last results page (a query string)
+LAST_USED_COOKIE = "skisnow_last"
+
+
+def last_used(request: Request) -> dict[str, list[str]]:
+    """The skis and grinds of the last results page this browser showed (its cookie)."""
+    text = unquote(request.cookies.get(LAST_USED_COOKIE, ""))
+    pairs = parse_qs(text, keep_blank_values=False)
+    return {kind: _unique(pairs.get(kind, []))[:16] for kind in ("ski", "grind")}
+
+
+def last_used_cookie(q: Query) -> str:
+    """The cookie value that makes ``q``'s skis and grinds the form's next defaults."""
+    return quote(urlencode([("ski", s) for s in q.skis] + [("grind", g) for g in q.grinds]))
+
+
+def default_choice(kind: str, items: dict, shipped_dir, last: list[str]) -> list[str]:
+    """What the form pre-checks when the query names no ``kind``: the last ones used (cookie)
+    that still exist, else the first shipped item by name (never an upload just because its
+    name sorts first: an upload named ``Grind-1`` became every technician's default), else the
+    first item."""
+    known = [name for name in last if name in items]
+    if known:
+        return known
+    shipped = sorted(n for n, obj in items.items() if _is_shipped(obj, shipped_dir))
+    return (shipped or sorted(items))[:1]
+
+
+def _is_shipped(obj, shipped_dir) -> bool:
+    try:
+        return Path(obj.path).resolve().is_relative_to(Path(shipped_dir).resolve())
+    except (OSError, TypeError, ValueError):
+        return False
+
+
+def upload_labels(request: Request) -> dict[tuple[str, str], str]:
+    """``(kind, name)`` → the metadata line of each ready upload (shop, machine, brand…), so
+    uploads are told apart from the shipped items and from each other on the pages."""
+    state = getattr(request.app.state, "uploads", None)
+    if state is None:
+        return {}
+    out = {}
+    for row in state.db.items(state="ready"):
+        if not row.read_only:
+            out[(row.kind, row.name)] = metadata_label(row.kind, row.metadata)
+    return out
+
+
+#: (metadata key, words) shown for uploads, in this order
+_LABEL_KEYS = {
+    "grind": (
+        ("shop_code", "shop"),
+        ("machine", "machine"),
+        ("pattern_family", "pattern"),
+        ("coarseness_grade", "grade"),
+        ("temperature_window", "for"),
+    ),
+    "ski": (("brand_model", "brand"), ("style", "style"), ("owner_team", "team")),
+}
+
+
+def metadata_label(kind: str, metadata: dict) -> str:
+    """ "uploaded; shop S1; machine Wintersteiger" from an upload's metadata (empty fields left
+    out)."""
+    parts = ["uploaded"]
+    for key, words in _LABEL_KEYS.get(kind, ()):
+        value = str(metadata.get(key) or "").strip()
+        if value:
+            parts.append(f"{words} {value}")
+    return "; ".join(parts)
+
+
+def _choices(
+    q: Query,
+    kind: str,
+    items: dict,
+    describe,
+    pages: bool = False,
+    *,
+    shipped_dir=None,
+    labels: dict | None = None,
+) -> dict:
+    """The checkboxes of ``items``; ``pages``: each links to its ski page. With nothing chosen,
+    :func:`default_choice` pre-checks one; ``labels``: upload metadata lines by name."""
     chosen = q.skis if kind == "ski" else q.grinds
     if not chosen and not q.errors:
-        chosen = sorted(items)[:1]
+        chosen = default_choice(kind, items, shipped_dir, q.last.get(kind, []))
+    labels = labels or {}
     return {
         "kind": kind,
         "options": [
             {
                 "name": name,
                 "checked": name in chosen,
-                "description": describe(items[name]),
+                "description": "; ".join(
+                    x for x in (labels.get((kind, name)), describe(items[name])) if x
+                ),
                 "page": ski_url(name) if pages else None,
             }
             for name in sorted(items)
@@ -323,6 +418,7 @@ def render_form(
     request: Request, cat: service.Catalogue, q: Query, status: int = 200
 ) -> HTMLResponse:
     density_mode = q.raw.get("snow_input") == "density"
+    labels = upload_labels(request)
     advanced = {"base_modulus_mpa", "poisson_ratio", "preset", "ski_model"}
     advanced_open = (
         bool(advanced & set(q.errors))
@@ -344,8 +440,18 @@ def render_form(
         "skisnow — contact form",
         status,
         errors=[(FIELDS.get(k, (k,))[0], v) for k, v in q.errors.items()],
-        skis=_choices(q, "ski", cat.skis, _describe_ski, pages=True),
-        grinds=_choices(q, "grind", cat.grinds, _describe_grind),
+        skis=_choices(
+            q,
+            "ski",
+            cat.skis,
+            _describe_ski,
+            pages=True,
+            shipped_dir=cat.tables_dir,
+            labels=labels,
+        ),
+        grinds=_choices(
+            q, "grind", cat.grinds, _describe_grind, shipped_dir=cat.tables_dir, labels=labels
+        ),
         fields=fields,
         load_presets=PRESETS,
         density_mode=density_mode,

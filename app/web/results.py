@@ -20,7 +20,7 @@ from fastapi import Request
 from fastapi.responses import HTMLResponse
 from skisnow.app import plots, service
 from skisnow.app.snow import SNOW_PRESETS
-from skisnow.app.web.form import Query, ski_url
+from skisnow.app.web.form import Query, ski_url, upload_labels
 from skisnow.app.web.templating import page, svg
 from skisnow.solvers.errors import SkisnowError
 
@@ -62,7 +62,6 @@ CSV_COLUMNS = (
     "min_average_separation_band90_rel",
     "total_reciprocal_separation_band90_rel",
     "rear_zone_load_share",
-    "mid_zone_load_share",
     "front_zone_load_share",
     "ski_model",
     "table_file",
@@ -151,6 +150,8 @@ def render_results(request: Request, q: Query, out: Outcome) -> HTMLResponse:
         wall_ms=out.wall_ms,
         metrics=METRICS,
         band_keys=BAND_KEYS,
+        resolved=[service.resolved_min_separation(r["apparent"]["zones"]) for r in out.results],
+        labels=upload_labels(request),
         ski_url=ski_url,
         plots=[(key, caption, svg(figure)) for key, caption, figure in plots.all_svgs(out.results)],
     )
@@ -162,10 +163,10 @@ def render_csv(out: Outcome) -> str:
     w.writerow(CSV_COLUMNS)
     for r in out.results:
         inp, m, a, p = r["inputs"], r["metrics"], r["apparent"], r["provenance"]
-        share = {"rear": 0.0, "mid": 0.0, "front": 0.0}
+        share = {"rear": 0.0, "front": 0.0}  # zones behind / ahead of the balance point
         for z in a["zones"]:
-            if z["name"] in share:
-                share[z["name"]] += z["load_share"]
+            behind = z["start_mm"] + z["end_mm"] < 0
+            share["rear" if behind else "front"] += z["load_share"]
         row = {
             **{k: inp[k] for k in CSV_COLUMNS[:8]},
             **m,
@@ -176,7 +177,6 @@ def render_csv(out: Outcome) -> str:
                 for q, w in r.get("band", {}).get("relative_half_width", {}).items()
             },
             "rear_zone_load_share": share["rear"],
-            "mid_zone_load_share": share["mid"],
             "front_zone_load_share": share["front"],
             "ski_model": p["ski_model"]["used"],
             "table_file": p["table"]["file"],

@@ -29,7 +29,14 @@ from skisnow.app import service
 from skisnow.app.api.access import caller, visible_catalogue
 from skisnow.app.storage.layout import Layout
 from skisnow.app.web import flex_pages, login
-from skisnow.app.web.form import Query, failure_field, parse_query, render_form
+from skisnow.app.web.form import (
+    LAST_USED_COOKIE,
+    Query,
+    failure_field,
+    last_used_cookie,
+    parse_query,
+    render_form,
+)
 from skisnow.app.web.results import ResultCache, compute, render_csv, render_results
 from skisnow.app.web.ski_page import render_ski, render_unknown_ski
 from skisnow.app.web.upload_page import EXAMPLE_CSV_URL, example_camber_csv, render_upload
@@ -69,7 +76,12 @@ def mount(app: FastAPI) -> None:
             for inp, msg in out.failures:
                 q.errors.setdefault(failure_field(msg), f"{inp.ski} × {inp.grind}: {msg}")
             return render_form(request, cat, q, 422)
-        return render_results(request, q, out)
+        response = render_results(request, q, out)
+        # the form's next defaults: these skis and grinds (a year; the browser's only)
+        response.set_cookie(
+            LAST_USED_COOKIE, last_used_cookie(q), max_age=365 * 86400, samesite="lax"
+        )
+        return response
 
     @app.get("/skis/{name:path}", response_class=HTMLResponse, include_in_schema=False)
     def ski_page(request: Request, name: str) -> HTMLResponse:

@@ -15,7 +15,7 @@ from fastapi.responses import HTMLResponse
 from skisnow.app import service, units
 from skisnow.app.service.profiles import CHOICE_RULE, model_choice
 from skisnow.app.service.ski_figures import ski_figures
-from skisnow.app.web.form import DEFAULTS, NUMERIC, ski_url
+from skisnow.app.web.form import DEFAULTS, NUMERIC, metadata_label, ski_url
 from skisnow.app.web.templating import DELETE_JS, JS, fmt, page, svg
 from skisnow.solvers.band import Z90
 from skisnow.solvers.identify import HELD_OUT_LIMIT
@@ -34,7 +34,10 @@ def _summary(ski: service.Ski) -> dict:
     m, o = rec.measurements, rec.outline
     loads_kg = units.n_to_kg(m.loads_n)
     return {
-        "description": rec.metadata.get("description") or rec.metadata.get("brand_model") or "",
+        # an upload: its metadata (brand, style, team), not "uploaded ski NAME"
+        "description": metadata_label("ski", rec.metadata)
+        if rec.metadata.get("item_id")
+        else rec.metadata.get("description") or rec.metadata.get("brand_model") or "",
         "length_mm": o.length_m * 1e3,
         "width_min_mm": o.width_m.min() * 1e3,
         "width_max_mm": o.width_m.max() * 1e3,

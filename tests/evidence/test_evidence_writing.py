@@ -131,15 +131,6 @@ def _case_with_zones(zones: list[dict], sweep: list[dict]) -> paper_case.PaperCa
     return case
 
 
-def test_paper_case_mid_zone_note_follows_the_zones():
-    mid = {"name": "mid", "start_mm": -338.0, "end_mm": -122.0}
-    assert "counts as rear" in paper_case_md._mid_zone_note(_case_with_zones([mid], []))[0]
-    ahead = {"name": "mid", "start_mm": -100.0, "end_mm": 300.0}
-    assert "counts as front" in paper_case_md._mid_zone_note(_case_with_zones([ahead], []))[0]
-    rear = {"name": "rear", "start_mm": -300.0, "end_mm": -200.0}
-    assert paper_case_md._mid_zone_note(_case_with_zones([rear], [])) == []
-
-
 def test_paper_case_soft_snow_clause_needs_a_second_piece():
     def row(e: float, pieces: int) -> dict:
         return {

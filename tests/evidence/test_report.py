@@ -77,10 +77,10 @@ def test_markdown_states_inputs_choices_published_and_provenance(written, cat):
     for needle in (
         "| snow porosity n | 0.5 (−) | **our choice**",
         "Synthetic stand-ins",
-        "| ski-a | 63.98 |",  # published apparent area, method.md §4
+        "| ski-a | 63.98 |",  # published apparent area, docs/physics.md §4
         "| 61.4 |",  # published mean apparent pressure of ski-a
         "| ski-b | 121.84 |",
-        "## Findings of method.md §8, measured",
+        "## Findings of docs/physics.md §8, measured",
         "git commit",
     ):
         assert needle in text, needle

@@ -11,7 +11,7 @@ from skisnow.app import service
 from skisnow.app.main import create_app
 from skisnow.app.settings import Settings
 
-#: papers' apparent areas (method.md §4) [cm²]
+#: papers' apparent areas (docs/physics.md §4) [cm²]
 PAPERS_AREA_CM2 = {"ski-a": 63.98, "ski-b": 121.84}
 
 
@@ -30,7 +30,7 @@ def _contact(client, **over):
 
 @pytest.mark.parametrize(
     ("ski", "flexible_range"),
-    # dense complementarity estimate on the demo skis' beams (method.md §4b): −5 % and −27 %
+    # dense complementarity estimate on the demo skis' beams (docs/physics.md §4b): −5 % and −27 %
     [("ski-a", (-0.09, -0.03)), ("ski-b", (-0.32, -0.22))],
 )
 def test_papers_case_under_each_model(client, ski, flexible_range):

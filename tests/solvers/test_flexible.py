@@ -1,4 +1,4 @@
-"""Flexible ski on snow (method.md §4b): device limit, dense reference, balance, stiff limit,
+"""Flexible ski on snow (docs/physics.md §4b): device limit, dense reference, balance, stiff limit,
 mesh convergence, input errors."""
 
 import numpy as np
@@ -16,7 +16,7 @@ from skisnow.solvers.elastic import (
 from skisnow.solvers.errors import InputError
 from skisnow.solvers.flexible import FlexibleModel, prepare_flexible, solve_flexible
 
-#: the papers' case (method.md §4): 40 kg at −160 mm, E_snow = 200 MPa
+#: the papers' case (docs/physics.md §4): 40 kg at −160 mm, E_snow = 200 MPa
 PAPER_LOAD_N = 40 * G_STANDARD
 PAPER_POSITION_M = -0.160
 PAPER_E_EFF = effective_modulus(200e6, 0.7e9, 0.3)

@@ -48,7 +48,7 @@ def test_midpoints_match_direct_solves(table_128, surface_128):
 
     Measured on this surface: a_r within 0.7 %, mean gap within 0.4 % for a_r in [0.1, 0.92];
     the floored reciprocal gap scatters by up to ~5 % (it is carried by the pixels next to
-    contact spots, method.md §5), hence its looser bound.
+    contact spots, docs/physics.md §5), hence its looser bound.
     """
     r = table_128.pressure_ratio
     mids = np.sqrt(r[:-1] * r[1:])[::2]

@@ -188,7 +188,7 @@ def test_micro_rising_load_closes_the_gap(n, hurst, log_start, decades, log_modu
 def test_micro_depends_on_pressure_over_modulus_only(
     nx, ny, hurst, log_ratio, log_e1, log_e2, seed
 ):
-    """Same P/E' with two moduli: the same contact set and gap field (method.md §5)."""
+    """Same P/E' with two moduli: the same contact set and gap field (docs/physics.md §5)."""
     h = _surface(nx, ny, hurst, seed)
     ratio = 10.0**log_ratio
     out = []

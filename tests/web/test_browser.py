@@ -183,7 +183,7 @@ def test_bad_input_shows_the_field_error(server, page):
         "&snow_modulus_mpa=200&porosity=0.5"
     )
     expect(page.locator(".alert")).to_contain_text("Equivalent load on the ski")
-    expect(page.locator("#load_kg-error")).to_contain_text("less than or equal to 150")
+    expect(page.locator("#load_kg-error")).to_contain_text("at most 150 kg")
     expect(page.locator("#contact-form")).to_be_visible()
 
 

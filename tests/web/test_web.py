@@ -504,3 +504,25 @@ def test_result_cache_is_keyed_on_content_not_names(catalogue):
     other = results.compute(cat, Q(), cache).results[0]
     assert other is not first
     assert other["apparent"]["contact_area_cm2"] != first["apparent"]["contact_area_cm2"]
+
+
+def test_form_messages_are_plain_words(client):
+    """Porosity 50 says it is a fraction and what was meant, not pydantic's "Input should be
+    less than 1" (issue #28)."""
+    html = client.get("/results", params=_q(porosity="50")).text
+    assert "Input should be" not in html
+    assert "it is a fraction" in html and "enter 0.5" in html
+    html = client.get("/results", params=_q(load_kg="400")).text
+    assert "Input should be" not in html and "at most 150 kg; got 400 kg" in html
+
+
+def test_summary_names_the_ski_model_and_the_resolved_min_separation(client):
+    """The ski model that answered is in each card's summary and the comparison table; a
+    separation minimum set by a contact too short to resolve is reported over the resolved
+    zones with the unresolved ones named, not as "(no band: not grid-converged)" (issue #28)."""
+    html = client.get("/results", params=_q(load_kg="13", ski_model="rigid")).text
+    assert 'data-ski-model="rigid"' in html and "Ski model that answered: <b>rigid</b>" in html
+    metric = html[html.index('data-metric="min_average_separation_um"') :].split("</div>")[0]
+    assert "no band" not in metric
+    assert "over the resolved zones:" in metric and "(rear zone)" in metric
+    assert re.search(r"not resolved: (tail|tip) zone \(it is \d+ mm long", metric), metric

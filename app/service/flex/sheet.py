@@ -87,20 +87,20 @@ PAIR_LOAD_POSITION_MM = GLIDE_POSITION_M * 1e3
 SHARE_FLOOR_PERCENT = 0.1
 GAP_FLOOR_MM = 1e-3
 
-#: ranking criteria: (metric key of the contact answer, larger is better, why; method.md §1)
+#: ranking criteria: (metric key of the contact answer, larger is better, why; docs/physics.md §1)
 CRITERIA = {
     "real_area": (
         "total_real_contact_area_mm2",
         True,
         "largest real contact area: cold, abrasive snow, where friction is dry and a larger "
         "real area spreads the load over more asperities (lower real pressure, less "
-        "ploughing and wear; method.md §1)",
+        "ploughing and wear; docs/physics.md §1)",
     ),
     "reciprocal_separation": (
         "total_reciprocal_separation_m",
         False,
         "smallest total reciprocal separation: wet snow, where the melt-water film's viscous "
-        "shear and capillary bridges grow with 1/separation (method.md §1)",
+        "shear and capillary bridges grow with 1/separation (docs/physics.md §1)",
     ),
 }
 

@@ -119,11 +119,17 @@
     return "Accepted " + kind + " " + (item.name || "") + ".";
   }
 
+  function fmtDuration(s) {
+    if (s < 90) { return Math.max(1, Math.round(s)) + " s"; }
+    return Math.round(s / 60) + " min";
+  }
+
   // Follow a job until done or failed; on done, link to the form with the item selected.
   function watch(form, jobId, note) {
     var kind = form.dataset.kind, panel = document.getElementById(kind + "-job");
     var bar = panel.querySelector("progress"), percent = panel.querySelector(".percent");
     var state = panel.querySelector(".state"), message = panel.querySelector(".message");
+    var queue = panel.querySelector(".queue");
     var error = panel.querySelector(".job-error"), link = panel.querySelector(".done-link");
     panel.hidden = false;
     panel.dataset.job = jobId;
@@ -139,6 +145,7 @@
     percent.textContent = "0 %";
     state.textContent = "queued";
     message.textContent = "";
+    queue.textContent = "";
     var failures = 0;
     function poll() {
       if (panel.dataset.job !== jobId) { return; }  // a newer upload took the panel
@@ -162,6 +169,17 @@
           state.textContent = job.state;
           state.dataset.state = job.state;
           message.textContent = job.message ? "— " + job.message : "";
+          var where = "";
+          if (job.state === "queued" && job.queue_position) {
+            where = " — number " + job.queue_position + " in the " + job.lane + "-job queue (" +
+              job.ahead + " ahead)";
+          }
+          if (job.estimate_s !== null && job.estimate_s !== undefined &&
+              (job.state === "queued" || job.state === "running")) {
+            where += "; done in about " + fmtDuration(job.estimate_s) + " (estimate from " +
+              job.estimate_basis + " finished job" + (job.estimate_basis === 1 ? "" : "s") + ")";
+          }
+          queue.textContent = where;
           if (job.state === "done") {
             link.href = form.dataset.return + "&" + kind + "=" + encodeURIComponent(job.item);
             link.textContent = "Compute a contact with " + kind + " " + job.item;

@@ -1,0 +1,88 @@
+"""Figures a technician can read (issue #28): the error-band chart's labels are ≥ 10 pt (they
+were 7), the legends of the clearance, pressure and flex plots sit outside the axes (they
+covered curves), and the pressure plot's caption names what its legend shows."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from skisnow.app import plots, service
+
+CASE = {"load_kg": 40, "load_position_mm": -160, "snow_modulus_mpa": 200, "porosity": 0.5}
+
+
+@pytest.fixture(scope="module")
+def answers(catalogue):
+    return [
+        service.contact(
+            catalogue, service.ContactInputs(ski=s, grind="tiny-grind", ski_model="rigid", **CASE)
+        )
+        for s in ("ski-a", "ski-b")
+    ]
+
+
+def _figure_of(monkeypatch, draw, *args):
+    seen = {}
+
+    def keep(fig):
+        seen["fig"] = fig
+        return ""
+
+    monkeypatch.setattr(plots, "_svg", keep)
+    draw(*args)
+    fig = seen["fig"]
+    FigureCanvasAgg(fig).draw()  # lay out (constrained layout places the legend)
+    return fig
+
+
+def _overlap(a, b) -> bool:
+    return a.x0 < b.x1 and b.x0 < a.x1 and a.y0 < b.y1 and b.y0 < a.y1
+
+
+@pytest.mark.parametrize("draw", [plots.clearance_svg, plots.pressure_svg])
+def test_legends_do_not_cover_the_curves(monkeypatch, answers, draw):
+    fig = _figure_of(monkeypatch, draw, answers)
+    ax = fig.axes[0]
+    assert not ax.get_legend(), "a legend inside the axes covers curves"
+    (legend,) = fig.legends
+    renderer = fig.canvas.get_renderer()
+    assert not _overlap(legend.get_window_extent(renderer), ax.get_window_extent(renderer))
+
+
+def test_flex_plot_legend_is_outside_the_axes(monkeypatch):
+    x = np.linspace(-900, 900, 181)
+    half = 0.45 * np.exp(-(((x - 80) / 200) ** 2))  # a pocket peaking under the old legend
+    answer = {
+        "profiles": {
+            "positions_mm": x.tolist(),
+            "half_weight_gap_mm": half.tolist(),
+            "full_weight_gap_mm": (0.6 * half).tolist(),
+        },
+        "inputs": {"ski": "ski-a", "body_weight_kg": 25, "pocket_position_mm": -80},
+        "wax_zone": {"start_mm": -180, "end_mm": 320, "length_mm": 500},
+    }
+    fig = _figure_of(monkeypatch, plots.flex_profile_svg, answer)
+    renderer = fig.canvas.get_renderer()
+    (legend,) = fig.legends
+    assert not fig.axes[0].get_legend()
+    assert not _overlap(legend.get_window_extent(renderer), fig.axes[0].get_window_extent(renderer))
+
+
+def test_band_chart_labels_are_legible(monkeypatch, answers):
+    fig = _figure_of(monkeypatch, plots.band_svg, answers)
+    for ax in fig.axes:
+        for label in [*ax.get_xticklabels(), *ax.get_yticklabels()]:
+            if label.get_text():
+                assert label.get_fontsize() >= 10, label.get_text()
+        assert ax.title.get_fontsize() >= 10
+
+
+def test_pressure_caption_names_what_the_legend_shows(monkeypatch, answers):
+    fig = _figure_of(monkeypatch, plots.pressure_svg, answers)
+    entries = [t.get_text() for t in fig.legends[0].get_texts()]
+    caption = dict((k, c) for k, c, _ in plots.PLOTS)["pressure"]
+    assert "contact zone" in entries and "load position" in entries
+    assert any("90 % band" in e for e in entries)
+    for words in ("90 % band", "contact zones", "load position", "load share"):
+        assert words in caption
