@@ -56,7 +56,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "report": ("skisnow.app.commands.report", "generated reports in docs/"),
     "adopt": (
         "skisnow.app.commands.adopt",
-        "assign items of no team to a team (token mode; docs/deployment.md)",
+        "give uploads of no team to a team (token mode)",
     ),
 }
 
