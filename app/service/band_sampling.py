@@ -79,10 +79,14 @@ def camber_sigma_m(record, positions_m: np.ndarray) -> tuple[np.ndarray | float 
             return None, "the identified beam stores no profile spread"
         x = np.asarray(ident["positions_m"], dtype=float)
         sd = np.asarray(sd, dtype=float)
-        return np.interp(np.asarray(positions_m, dtype=float), x, sd), (
+        scale = band_calibration.IDENTIFIED_SIGMA_SCALE  # read at call time: a study varies it
+        return scale * np.interp(np.asarray(positions_m, dtype=float), x, sd), (
             "identified beam: spread of the loaded profile over plausible beams drawn from the "
             f"fit's covariance where H < {CONTACT_BAND_M * 1e3:.1f} mm "
-            f"({np.min(sd) * 1e6:.2f}–{np.max(sd) * 1e6:.2f} µm along the ski)"
+            f"({np.min(sd) * 1e6:.2f}–{np.max(sd) * 1e6:.2f} µm along the ski), × {scale:g} "
+            "(the covariance understates the identified profile's error on designs the model "
+            "does not fit exactly; calibrated on the own-ski study: "
+            "app/service/band_calibration.py)"
         )
     net = record.network
     if net is None:
