@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Literal
 
 from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -64,6 +65,11 @@ class Settings(BaseSettings):
     table_chunk_size: int = Field(4, ge=1, description="grid points per table-build task")
     table_workers: int = Field(1, ge=1, le=64, description="Dask workers of a table build")
     table_processes: bool = Field(True, description="Dask workers as processes (else threads)")
+    table_device: Literal["cpu", "cuda", "torch-cpu"] = Field(
+        "cpu",
+        description="where an uploaded grind's table is solved: cpu (numpy/pyFFTW), cuda (the "
+        "torch backend on a GPU, one per Dask worker; docs/deployment.md) or torch-cpu",
+    )
     dask_scheduler: str | None = Field(None, description="existing Dask scheduler for builds")
     train_epochs: int = Field(4000, ge=1, description="max Adam epochs of a ski's network")
     train_lbfgs_epochs: int = Field(1500, ge=0, description="max L-BFGS iterations")

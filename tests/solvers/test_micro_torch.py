@@ -99,3 +99,36 @@ def test_the_service_and_the_micro_solver_do_not_import_torch():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False", out.stderr[-2000:]
+
+
+def test_a_table_chunk_on_the_torch_backend_matches_the_cpu_chunk():
+    """``build-tables --device cuda`` solves its chunks with the torch backend
+    (:func:`solvers.lookup.solve_table_chunk`); here on the CPU ("torch-cpu")."""
+    from skisnow.solvers.lookup import solve_table_chunk
+
+    h = _texture(seed=7)
+    kw = dict(
+        effective_modulus_pa=E_PA,
+        full_contact_pressure_ratio=1.0,
+        tol=1e-6,
+        max_iterations=2000,
+        gap_floor_m=1e-8,
+    )
+    ratios = np.array([3e-4, 1e-3])
+    a = solve_table_chunk(h, PIXEL_M, ratios, **kw)
+    b = solve_table_chunk(h, PIXEL_M, ratios, device="torch-cpu", **kw)
+    assert np.array_equal(a["iterations"], b["iterations"])
+    for k in METRICS:
+        np.testing.assert_allclose(b[k], a[k], rtol=1e-6, atol=0)
+    with pytest.raises(InputError, match="device"):
+        solve_table_chunk(h, PIXEL_M, ratios, device="gpu", **kw)
+
+
+def test_build_tables_and_the_grind_job_take_a_device():
+    from skisnow.app.cli import build_parser
+    from skisnow.app.settings import Settings
+
+    args = build_parser().parse_args(["build-tables", "grind-1", "--out", "x", "--device", "cuda"])
+    assert args.device == "cuda"
+    assert Settings().table_device == "cpu"
+    assert Settings(table_device="cuda").table_device == "cuda"
