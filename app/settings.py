@@ -65,6 +65,14 @@ class Settings(BaseSettings):
     table_chunk_size: int = Field(4, ge=1, description="grid points per table-build task")
     table_workers: int = Field(1, ge=1, le=64, description="Dask workers of a table build")
     table_processes: bool = Field(True, description="Dask workers as processes (else threads)")
+    ski_cache_mb: float = Field(
+        256,
+        gt=0,
+        le=65536,
+        description="memory budget [MB] of the per-ski caches of one worker (profile models, the "
+        "band's plausible beams, flex draws, page figures; app/storage/memory.py): least "
+        "recently used entries beyond it are dropped and rebuilt on use",
+    )
     table_device: Literal["cpu", "cuda", "torch-cpu"] = Field(
         "cpu",
         description="where an uploaded grind's table is solved: cpu (numpy/pyFFTW), cuda (the "

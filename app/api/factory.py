@@ -31,6 +31,9 @@ DESCRIPTION = (
 def create_api(settings: Settings | None = None, catalogue: service.Catalogue | None = None):
     """Build the API; the catalogue is loaded (and verified) once at start-up."""
     settings = settings or Settings()
+    from skisnow.app.storage import memory
+
+    memory.BUDGET.set_max_bytes(int(settings.ski_cache_mb * 2**20))
 
     @asynccontextmanager
     async def lifespan(app: FastAPI):
