@@ -65,6 +65,12 @@ class Settings(BaseSettings):
     table_chunk_size: int = Field(4, ge=1, description="grid points per table-build task")
     table_workers: int = Field(1, ge=1, le=64, description="Dask workers of a table build")
     table_processes: bool = Field(True, description="Dask workers as processes (else threads)")
+    idle_trim_s: float = Field(
+        10.0,
+        ge=0,
+        description="after this long [s] without a request a worker gives freed memory back to "
+        "the system (gc and malloc_trim, app/api/idle.py); 0: never",
+    )
     ski_cache_mb: float = Field(
         256,
         gt=0,

@@ -16,6 +16,7 @@ from skisnow.app import service
 from skisnow.app.api import catalogue as catalogue_state
 from skisnow.app.api import contact, flex, grinds, handlers, jobs, ops, problems, skis
 from skisnow.app.api.access import WriteGuardMiddleware
+from skisnow.app.api.idle import ActivityMiddleware, IdleTrimmer
 from skisnow.app.api.limits import BodyLimitMiddleware
 from skisnow.app.settings import Settings
 
@@ -34,6 +35,7 @@ def create_api(settings: Settings | None = None, catalogue: service.Catalogue | 
     from skisnow.app.storage import memory
 
     memory.BUDGET.set_max_bytes(int(settings.ski_cache_mb * 2**20))
+    trimmer = IdleTrimmer(settings.idle_trim_s)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI):
@@ -42,9 +44,11 @@ def create_api(settings: Settings | None = None, catalogue: service.Catalogue | 
         if settings.warm_up:
             service.warm_up(app.state.catalogue)
         catalogue_state.start(app)
+        trimmer.start()
         try:
             yield
         finally:
+            trimmer.stop()
             catalogue_state.stop(app)
 
     app = FastAPI(
@@ -55,6 +59,8 @@ def create_api(settings: Settings | None = None, catalogue: service.Catalogue | 
     )
     app.state.catalogue = catalogue
     app.state.settings = settings
+    app.state.idle_trimmer = trimmer
+    app.add_middleware(ActivityMiddleware, tracker=trimmer)
     app.add_middleware(
         BodyLimitMiddleware,
         limit=settings.max_body_bytes,
