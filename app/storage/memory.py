@@ -197,3 +197,8 @@ class SkiCache(MutableMapping):
 
     def __repr__(self) -> str:
         return f"SkiCache({sorted(map(str, self._data))})"
+
+    def __reduce__(self):
+        # a copy or another process starts empty (the objects are rebuilt there on use): the
+        # cache is per process, and its budget holds a lock
+        return (SkiCache, ())

@@ -103,3 +103,13 @@ def test_the_setting_must_be_positive(mb):
 
     with pytest.raises(ValidationError):
         Settings(ski_cache_mb=mb)
+
+
+def test_a_pickled_or_copied_cache_starts_empty():
+    import copy
+    import pickle
+
+    c = SkiCache(CacheBudget(10 * MB))
+    c["x"] = _block(1)
+    for other in (pickle.loads(pickle.dumps(c)), copy.deepcopy(c)):
+        assert isinstance(other, SkiCache) and len(other) == 0
