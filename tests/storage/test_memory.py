@@ -71,9 +71,12 @@ def test_a_collected_cache_leaves_the_budget():
     assert budget.total_bytes == 0
 
 
-def test_the_service_bounds_the_ski_records_caches_by_the_setting():
+def test_the_service_bounds_the_ski_records_caches_by_the_setting(monkeypatch):
     """Two demo skis' profile models hold 61 MB each once their beam flexibility is built;
-    a 100 MB budget keeps one of them (SKISNOW_SKI_CACHE_MB)."""
+    a 100 MB budget keeps one of them (SKISNOW_SKI_CACHE_MB). Entries are measured again on
+    every read here (in service at most once a second: a model that grew is caught by its
+    next read after that)."""
+    monkeypatch.setattr(memory, "REMEASURE_S", 0.0)
     from skisnow.app import service
     from skisnow.app.api.factory import create_api
     from skisnow.app.settings import Settings
@@ -113,3 +116,33 @@ def test_a_pickled_or_copied_cache_starts_empty():
     c["x"] = _block(1)
     for other in (pickle.loads(pickle.dumps(c)), copy.deepcopy(c)):
         assert isinstance(other, SkiCache) and len(other) == 0
+
+
+def test_concurrent_first_requests_build_a_skis_flexibility_once(monkeypatch):
+    """Eight threads asking a fresh profile model for its flexibility at once build one (each
+    built its own 61 MB copy before: one of two workers at 1148 MB after 100 answers)."""
+    import threading
+    import time
+
+    from skisnow.app import service
+    from skisnow.app.service import profiles
+    from skisnow.app.storage.common import tables_dir
+
+    built = []
+    real = profiles.BeamFlexibility
+
+    def slow(beam):
+        built.append(1)
+        time.sleep(0.2)
+        return real(beam)
+
+    monkeypatch.setattr(profiles, "BeamFlexibility", slow)
+    rec = service.load_catalogue(tables_dir()).ski("ski-a").record
+    model = profiles.ProfileModel(rec)
+    assert model.beam is not None
+    threads = [threading.Thread(target=lambda: model.flexibility) for _ in range(8)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len(built) == 1
