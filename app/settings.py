@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Literal
 
 from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -76,6 +77,25 @@ class Settings(BaseSettings):
     table_chunk_size: int = Field(4, ge=1, description="grid points per table-build task")
     table_workers: int = Field(1, ge=1, le=64, description="Dask workers of a table build")
     table_processes: bool = Field(True, description="Dask workers as processes (else threads)")
+    idle_trim_s: float = Field(
+        10.0,
+        ge=0,
+        description="after this long [s] without a request a worker gives freed memory back to "
+        "the system (gc and malloc_trim, app/api/idle.py); 0: never",
+    )
+    ski_cache_mb: float = Field(
+        256,
+        gt=0,
+        le=65536,
+        description="memory budget [MB] of the per-ski caches of one worker (profile models, the "
+        "band's plausible beams, flex draws, page figures; app/storage/memory.py): least "
+        "recently used entries beyond it are dropped and rebuilt on use",
+    )
+    table_device: Literal["cpu", "cuda", "torch-cpu"] = Field(
+        "cpu",
+        description="where an uploaded grind's table is solved: cpu (numpy/pyFFTW), cuda (the "
+        "torch backend on a GPU, one per Dask worker; docs/deployment.md) or torch-cpu",
+    )
     dask_scheduler: str | None = Field(None, description="existing Dask scheduler for builds")
     train_epochs: int = Field(4000, ge=1, description="max Adam epochs of a ski's network")
     train_lbfgs_epochs: int = Field(1500, ge=0, description="max L-BFGS iterations")

@@ -88,6 +88,32 @@ def rss_mb(pid: int) -> float:
         return float("nan")
 
 
+def rss_per_process_mb(pid: int) -> dict[str, float]:
+    """Resident memory [MB] of the server's processes: the supervisor (with several workers)
+    and each worker, keyed "pid (role)"."""
+    try:
+        import psutil
+
+        p = psutil.Process(pid)
+        procs = [p, *p.children(recursive=True)]
+        out = {}
+        for q in procs:
+            role = "worker" if (q is not p or len(procs) == 1) else "supervisor"
+            try:
+                if (
+                    role == "worker"
+                    and "multiprocessing" in " ".join(q.cmdline())
+                    and ("resource_tracker" in " ".join(q.cmdline()))
+                ):
+                    role = "helper"
+                out[f"{q.pid} ({role})"] = q.memory_info().rss / 1e6
+            except psutil.Error:
+                continue
+        return out
+    except Exception:
+        return {}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--url", default=None, help="existing server (default: start one)")
@@ -103,6 +129,12 @@ def main(argv: list[str] | None = None) -> int:
         help="run the concurrent phase for this long instead of a fixed number of requests",
     )
     ap.add_argument("--stage", default="service", help="name of the docs/bench entry")
+    ap.add_argument(
+        "--idle-s",
+        type=float,
+        default=0,
+        help="after the concurrent run, leave the server idle this long and sample its memory",
+    )
     args = ap.parse_args(argv)
 
     proc = None
@@ -146,6 +178,7 @@ def main(argv: list[str] | None = None) -> int:
                 errors_single += 1
                 reference[i] = f"status {resp.status_code}: {resp.text[:200]}"
         mem_before = rss_mb(proc.pid) if proc else float("nan")
+        per_process_before = rss_per_process_mb(proc.pid) if proc else {}
 
         rng = np.random.default_rng(args.seed + 1)
         order = rng.integers(0, len(reqs), size=10**7 if args.duration_s else args.requests)
@@ -194,6 +227,14 @@ def main(argv: list[str] | None = None) -> int:
         sampling.set()
         sampler.join()
         mem_after = rss_mb(proc.pid) if proc else float("nan")
+        per_process_after = rss_per_process_mb(proc.pid) if proc else {}
+        idle = []
+        if args.idle_s and proc is not None:
+            t_idle = time.time()
+            while time.time() - t_idle < args.idle_s:
+                time.sleep(1.0)
+                idle.append(rss_mb(proc.pid))
+        per_process_idle = rss_per_process_mb(proc.pid) if (proc and idle) else {}
         tenth = max(len(samples) // 10, 1)
         result = {
             "url_started_here": proc is not None,
@@ -217,6 +258,12 @@ def main(argv: list[str] | None = None) -> int:
                 "answers_differing_from_single_client": mismatches,
                 "server_rss_mb_before": mem_before,
                 "server_rss_mb_after": mem_after,
+                # per process (supervisor, workers) before, after and after the idle time
+                "server_rss_mb_per_process_before": per_process_before,
+                "server_rss_mb_per_process_after": per_process_after,
+                "server_rss_mb_per_process_idle": per_process_idle,
+                "idle_s": args.idle_s,
+                "server_rss_mb_idle_end": idle[-1] if idle else float("nan"),
                 # memory drift during the run: median of the last tenth of the 1 s samples
                 # against the first tenth (flat memory: close to 0)
                 "server_rss_mb_samples": len(samples),

@@ -39,6 +39,7 @@ Lookup rules
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 
@@ -961,6 +962,7 @@ def solve_table_chunk(
     tol: float,
     max_iterations: int,
     gap_floor_m: float,
+    device: str = "cpu",
 ) -> dict[str, np.ndarray]:
     """Solve one chunk of a table: its ratios in rising order, each warm-started from the last.
 
@@ -982,6 +984,12 @@ def solve_table_chunk(
         ``p_fc / E'`` of the texture [-].
     tol, max_iterations, gap_floor_m :
         Passed to :func:`solvers.micro.solve_micro` (single FFT thread).
+    device : str
+        ``"cpu"``: the numpy/pyFFTW solver (:func:`solvers.micro.solve_micro`); ``"cuda"``:
+        the same algorithm on the GPU (:func:`solvers.micro_torch.solve_micro_torch`, torch
+        imported only then); ``"torch-cpu"``: that backend on the CPU (checks). The results
+        agree within the solver tolerance (tests/solvers/test_micro_torch.py), so the device
+        is not a table setting.
 
     Returns
     -------
@@ -1008,12 +1016,22 @@ def solve_table_chunk(
         "full_contact": np.ones(n, dtype=bool),
         "solve_time_s": np.zeros(n),
     }
-    hs = PeriodicHalfSpace(np.shape(heights_m), pixel_size_m, effective_modulus_pa, workers=1)
+    if device == "cpu":
+        hs = PeriodicHalfSpace(np.shape(heights_m), pixel_size_m, effective_modulus_pa, workers=1)
+        solve = functools.partial(solve_micro, workers=1, halfspace=hs)
+    elif device in ("cuda", "torch-cpu"):
+        from .micro_torch import TorchHalfSpace, solve_micro_torch
+
+        torch_device = "cuda" if device == "cuda" else "cpu"
+        hs = TorchHalfSpace(np.shape(heights_m), pixel_size_m, effective_modulus_pa, torch_device)
+        solve = functools.partial(solve_micro_torch, device=torch_device, halfspace=hs)
+    else:
+        raise InputError(f"device must be 'cpu', 'cuda' or 'torch-cpu', got {device!r}")
     previous = None
     for i, ratio in enumerate(ratios):
         if ratio >= full_contact_pressure_ratio:
             continue
-        res = solve_micro(
+        res = solve(
             heights_m,
             pixel_size_m,
             ratio * effective_modulus_pa,
@@ -1022,8 +1040,6 @@ def solve_table_chunk(
             max_iterations=max_iterations,
             initial_pressure_pa=previous,
             gap_floor_m=gap_floor_m,
-            workers=1,
-            halfspace=hs,
         )
         out["real_contact_area_fraction"][i] = res.real_contact_area_fraction
         out["mean_gap_m"][i] = res.mean_gap_m

@@ -409,25 +409,20 @@ class _LineOperator:
     coupling is a dense ``ny × ny`` product per wavenumber. Exactly the same operator as
     :class:`solvers.elastic.NonPeriodicHalfSpace` (same coefficients, same convention), cheaper
     when ``ny`` is small.
+
+    The kernel is proportional to 1/E': its transform is built once per window shape and pixel
+    size for E' = 1 Pa (:func:`_unit_line_coupling`) and divided by E' here, so that a request
+    at a new snow modulus does not rebuild it (~1 ms per solve of the Love integrals and the
+    transform; issue #29).
     """
 
     def __init__(self, n: int, ny: int, dx: float, dy: float, e_eff: float) -> None:
         self.n, self.ny = n, ny
         self.padded = 2 * n
-        ix = np.arange(self.padded)
-        ix = np.where(ix < n, ix, ix - self.padded).astype(float)
-        iy = np.arange(ny, dtype=float)
-        kern = (
-            2.0
-            / (np.pi * e_eff)
-            * love_rectangle_influence(ix[:, None] * dx, iy[None, :] * dy, dx / 2, dy / 2)
-        )
-        kern[n, :] = 0.0  # an offset that an n-long window never reaches
-        self.self_compliance = float(kern[0, 0])
-        kh = scipy.fft.rfft(kern, axis=0).real  # (nf, ny), real: the kernel is even in X
-        j = np.arange(ny)
-        #: coupling[f, j, k] = K̂(f; |j − k|)
-        self.coupling = np.ascontiguousarray(kh[:, np.abs(j[:, None] - j[None, :])])
+        unit_self, unit_coupling = _unit_line_coupling(n, ny, float(dx), float(dy))
+        self.self_compliance = unit_self / e_eff
+        #: coupling[f, j, k] = K̂(f; |j − k|) [m/Pa]
+        self.coupling = unit_coupling / e_eff
 
     def displacement(self, pressure_pa: np.ndarray) -> np.ndarray:
         """Displacement [m] at the pixel centres of the window under ``pressure_pa`` [Pa]."""
@@ -489,6 +484,30 @@ def _couple_across(coupling: np.ndarray, ph: np.ndarray) -> np.ndarray:
 
 #: widest window (pixels across) solved with :class:`_LineOperator`; wider uses 2-D FFTs
 _LINE_OPERATOR_MAX_ACROSS = 8
+
+
+#: window shapes × pixel sizes whose unit-modulus kernel transform is kept (a few hundred KB
+#: each: (n + 1) × ny² doubles; a process serves a few presets and window lengths)
+UNIT_KERNELS_MAX = 64
+
+
+@functools.lru_cache(maxsize=UNIT_KERNELS_MAX)
+def _unit_line_coupling(n: int, ny: int, dx: float, dy: float) -> tuple[float, np.ndarray]:
+    """Self-compliance [m/Pa · Pa] and kernel transform (n + 1, ny, ny) of
+    :class:`_LineOperator` for E' = 1 Pa (read-only; divide by E')."""
+    padded = 2 * n
+    ix = np.arange(padded)
+    ix = np.where(ix < n, ix, ix - padded).astype(float)
+    iy = np.arange(ny, dtype=float)
+    kern = (
+        2.0 / np.pi * love_rectangle_influence(ix[:, None] * dx, iy[None, :] * dy, dx / 2, dy / 2)
+    )
+    kern[n, :] = 0.0  # an offset that an n-long window never reaches
+    kh = scipy.fft.rfft(kern, axis=0).real  # (nf, ny), real: the kernel is even in X
+    j = np.arange(ny)
+    coupling = np.ascontiguousarray(kh[:, np.abs(j[:, None] - j[None, :])])
+    coupling.flags.writeable = False
+    return float(kern[0, 0]), coupling
 
 
 @functools.lru_cache(maxsize=32)

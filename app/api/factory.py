@@ -18,6 +18,7 @@ from skisnow.app import service
 from skisnow.app.api import catalogue as catalogue_state
 from skisnow.app.api import contact, flex, grinds, handlers, jobs, ops, problems, skis
 from skisnow.app.api.access import HostGuardMiddleware, WriteGuardMiddleware, allowed_hosts
+from skisnow.app.api.idle import ActivityMiddleware, IdleTrimmer
 from skisnow.app.api.limits import BodyLimitMiddleware
 from skisnow.app.settings import Settings
 
@@ -36,6 +37,10 @@ DESCRIPTION = (
 def create_api(settings: Settings | None = None, catalogue: service.Catalogue | None = None):
     """Build the API; the catalogue is loaded (and verified) once at start-up."""
     settings = settings or Settings()
+    from skisnow.app.storage import memory
+
+    memory.BUDGET.set_max_bytes(int(settings.ski_cache_mb * 2**20))
+    trimmer = IdleTrimmer(settings.idle_trim_s)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI):
@@ -51,10 +56,12 @@ def create_api(settings: Settings | None = None, catalogue: service.Catalogue | 
             took_s = service.warm_up(app.state.catalogue)
             start_log.info("warm-up done in %.1f s", took_s)
         catalogue_state.start(app)
+        trimmer.start()
         start_log.info("skisnow ready after %.1f s", time.perf_counter() - t0)
         try:
             yield
         finally:
+            trimmer.stop()
             catalogue_state.stop(app)
 
     app = FastAPI(
@@ -65,6 +72,8 @@ def create_api(settings: Settings | None = None, catalogue: service.Catalogue | 
     )
     app.state.catalogue = catalogue
     app.state.settings = settings
+    app.state.idle_trimmer = trimmer
+    app.add_middleware(ActivityMiddleware, tracker=trimmer)
     app.add_middleware(
         BodyLimitMiddleware,
         limit=settings.max_body_bytes,

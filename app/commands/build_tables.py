@@ -77,6 +77,7 @@ def _command(args: argparse.Namespace) -> int:
         workers=args.workers,
         keep_checkpoints=args.keep_checkpoints,
         refined=refined,
+        device=args.device,
         fourth_level=fourth_level,
     )
     for name, path in paths.items():
@@ -100,6 +101,7 @@ def _fourth_level_command(args: argparse.Namespace) -> int:
         args.out,
         functools.partial(refined_texture, spec),
         keep_checkpoints=args.keep_checkpoints,
+        device=args.device,
     )
     print(f"{read_table(path).name}: {path} ({time.perf_counter() - t0:.1f} s)")
     return 0
@@ -123,6 +125,13 @@ def register(subparsers) -> None:
     p.add_argument("--chunk-size", type=int, default=d.chunk_size, help="points per task")
     p.add_argument("--tol", type=float, default=d.tol, help="solver tolerance [-]")
     p.add_argument("--max-iterations", type=int, default=d.max_iterations)
+    p.add_argument(
+        "--device",
+        choices=("cpu", "cuda", "torch-cpu"),
+        default="cpu",
+        help="where the micro solves run: cpu (numpy/pyFFTW, default), cuda (the torch "
+        "backend on a GPU; torch with CUDA needed, one GPU per Dask worker) or torch-cpu",
+    )
     p.add_argument(
         "--gap-floor-nm", type=float, default=d.gap_floor_m * 1e9, help="gap floor h_c [nm]"
     )

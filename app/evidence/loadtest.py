@@ -49,4 +49,32 @@ def render_md(d: dict) -> list[str]:
             if len(c.get("server_rss_mb_by_minute", [])) >= 5
             else []
         ),
+        *_per_process(c),
     ]
+
+
+def _per_process(c: dict) -> list[str]:
+    """Resident memory per server process (supervisor, workers): before the concurrent run,
+    after it, and after ``idle_s`` seconds idle (issue #27 point 6)."""
+    before, after = (
+        c.get("server_rss_mb_per_process_before"),
+        c.get("server_rss_mb_per_process_after"),
+    )
+    if not before or not after:
+        return []
+    idle = c.get("server_rss_mb_per_process_idle") or {}
+    head = "| process | before [MB] | after the run [MB] |" + (
+        f" after {c.get('idle_s', 0):.0f} s idle [MB] |" if idle else ""
+    )
+    rows = [
+        "Resident memory per server process:",
+        "",
+        head,
+        "|---|---|---|" + ("---|" if idle else ""),
+    ]
+    for name in sorted(set(before) | set(after)):
+        cells = [before.get(name), after.get(name)] + ([idle.get(name)] if idle else [])
+        rows.append(
+            f"| {name} | " + " | ".join("—" if v is None else f"{v:.0f}" for v in cells) + " |"
+        )
+    return [*rows, ""]

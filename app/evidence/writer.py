@@ -17,7 +17,7 @@ import platform
 from collections.abc import Callable
 from pathlib import Path
 
-from skisnow.app.evidence import accuracy_md, loadtest, macro, micro, peers_md
+from skisnow.app.evidence import accuracy_md, loadtest, macro, micro, peers_md, speed_md
 from skisnow.app.storage.common import atomic_path, provenance
 from skisnow.app.storage.common import docs_dir as _docs_dir
 
@@ -57,6 +57,8 @@ STAGE_RENDERERS: dict[str, Callable[[dict], list[str]]] = {
     "service": loadtest.render_md,
     "service-32": loadtest.render_md,
     "memory": loadtest.render_md,
+    "memory-1-worker": loadtest.render_md,
+    "speed": speed_md.render_md,
     "micro-peers": peers_md.render_md,
 }
 

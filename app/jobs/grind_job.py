@@ -73,6 +73,7 @@ def run_grind_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready)
         scheduler=settings.dask_scheduler,
         workers=settings.table_workers,
         processes=settings.table_processes,
+        device=settings.table_device,
         progress=False,
         on_chunk_done=on_chunk,
     )

@@ -113,6 +113,7 @@ def build_tables(
     refined: dict[str, Texture] | None = None,
     fourth_level: dict[str, Callable[[int], Texture]] | None = None,
     on_node_done: Callable[[int], None] | None = None,
+    device: str = "cpu",
 ) -> dict[str, Path]:
     """Build one table file ``OUT/<texture name>.h5`` per texture, and ``OUT/manifest.json``.
 
@@ -150,6 +151,11 @@ def build_tables(
         ``refine3``), called only if a node is selected.
     on_node_done : callable(node), optional
         Passed to :func:`fourth_level_pass`.
+    device : str
+        Where the chunks are solved (:func:`solvers.lookup.solve_table_chunk`): ``"cpu"`` (the
+        numpy/pyFFTW solver), ``"cuda"`` (the torch backend on a GPU; torch imported only in
+        the workers that solve) or ``"torch-cpu"``. With ``cuda``, give each Dask worker one
+        GPU (docs/deployment.md, Table builds on GPUs).
 
     Returns
     -------
@@ -196,7 +202,7 @@ def build_tables(
         if own_client:
             client, cluster = _open_client(scheduler, workers, processes)
         try:
-            computed = _run(client, jobs, pending, settings, progress, on_chunk_done)
+            computed = _run(client, jobs, pending, settings, progress, on_chunk_done, device)
         finally:
             if own_client:
                 client.close()
@@ -237,6 +243,7 @@ def build_tables(
                 keep_checkpoints=keep_checkpoints,
                 on_node_done=on_node_done,
                 write_out_manifest=False,
+                device=device,
             )
             three_level_path.unlink()
         if not keep_checkpoints:
@@ -258,7 +265,7 @@ def build_tables(
     return paths
 
 
-def _run(client, jobs, pending, settings, progress, on_chunk_done) -> int:
+def _run(client, jobs, pending, settings, progress, on_chunk_done, device="cpu") -> int:
     from dask.distributed import as_completed
     from tqdm import tqdm
 
@@ -289,6 +296,7 @@ def _run(client, jobs, pending, settings, progress, on_chunk_done) -> int:
             tol=settings.tol,
             max_iterations=settings.max_iterations,
             gap_floor_m=settings.gap_floor_m,
+            device=device,
             pure=False,
             key=f"table-chunk-{name}-{index:03d}-{job.key[:12]}",
         )

@@ -83,6 +83,7 @@ def fourth_level_pass(
     keep_checkpoints: bool = False,
     on_node_done: Callable[[int], None] | None = None,
     write_out_manifest: bool = True,
+    device: str = "cpu",
 ) -> Path:
     """Add the adaptive fourth pixel level to a three-level table; write ``OUT/<name>.h5``.
 
@@ -191,6 +192,7 @@ def fourth_level_pass(
                     tol=table.tol,
                     max_iterations=max_iterations,
                     gap_floor_m=table.gap_floor_m,
+                    device=device,
                 )
                 write_checkpoint(directory / f"node-{node:03d}.h5", results[node], key)
                 bar.update(1)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -353,6 +354,8 @@ BEAM_SAMPLES = 4
 BEAM_SCALE = 16.0
 #: models of plausible beams kept per ski record (one entry per coarse grid and draw setting)
 _BEAM_MODELS_MAX = 8
+#: one build of plausible beam models at a time (concurrent first requests built one set each)
+_BEAM_MODELS_LOCK = threading.Lock()
 
 
 def _prepare(beam, outline, dx: float, ny: int) -> FlexibleModel:
@@ -389,16 +392,26 @@ def beam_models(
         record.cache["band_beam_models"] = store
     hit = store[2].get(key)
     if hit is None:
-        nominal = _prepare(beam, record.outline, dx, ny)
-        drawn = []
-        if drawable and samples > 0 and scale > 0:
-            ib = identification_for_sampling(ident)
-            if ib is not None:
-                beams = sample_beams(ib, samples, seed, scale=scale, antithetic=True)
-                drawn = [_prepare(b, record.outline, dx, ny) for b in beams]
-        if len(store[2]) >= _BEAM_MODELS_MAX:
-            store[2].clear()
-        hit = store[2][key] = (nominal, drawn)
+        with _BEAM_MODELS_LOCK:
+            hit = store[2].get(key)
+            if hit is None:
+                hit = _build_beam_models(record, ident, beam, drawable, store, key, dx, ny)
+    return hit
+
+
+def _build_beam_models(record, ident, beam, drawable, store, key, dx, ny):
+    """The models of :func:`beam_models` for ``key`` (dx, ny, samples, seed, scale), stored."""
+    samples, seed, scale = key[2], key[3], key[4]
+    nominal = _prepare(beam, record.outline, dx, ny)
+    drawn = []
+    if drawable and samples > 0 and scale > 0:
+        ib = identification_for_sampling(ident)
+        if ib is not None:
+            beams = sample_beams(ib, samples, seed, scale=scale, antithetic=True)
+            drawn = [_prepare(b, record.outline, dx, ny) for b in beams]
+    if len(store[2]) >= _BEAM_MODELS_MAX:
+        store[2].clear()
+    hit = store[2][key] = (nominal, drawn)
     return hit
 
 

@@ -22,6 +22,8 @@ above the heaviest measured load the identified beam answers, the network never 
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 from skisnow.app.storage.common import provenance
 from skisnow.app.storage.skis import (
@@ -283,6 +285,9 @@ class ProfileModel:
         self.extrapolation_beam: BeamSki | None = self.beam
         self._flex: BeamFlexibility | None = None
         self._xflex: BeamFlexibility | None = None
+        #: one build of the flexibility at a time: concurrent first requests of a ski each built
+        #: their own 61 MB copy (one of two workers at 1148 MB after 100 answers to 8 clients)
+        self._build_lock = threading.Lock()
         if self.beam is not None:
             self.source = "identified_beam"
             a = record.identified["attrs"]
@@ -389,7 +394,9 @@ class ProfileModel:
         """Positions X [m] and loaded gap H*(X) [m] under F [N] at x_F [m] on the rigid flat."""
         if self._extrapolates(load_n):
             if self._xflex is None:
-                self._xflex = BeamFlexibility(self.extrapolation_beam)
+                with self._build_lock:
+                    if self._xflex is None:
+                        self._xflex = BeamFlexibility(self.extrapolation_beam)
             res = _solve_flat(self.extrapolation_beam, load_n, load_position_m, self._xflex)
             return res.positions_m, res.gap_m
         if self.beam is None:
@@ -405,7 +412,9 @@ class ProfileModel:
         if self.beam is None:
             return None
         if self._flex is None:
-            self._flex = BeamFlexibility(self.beam)
+            with self._build_lock:
+                if self._flex is None:
+                    self._flex = BeamFlexibility(self.beam)
         return self._flex
 
     def beam_result(self, load_n: float, load_position_m: float) -> BeamResult:

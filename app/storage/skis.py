@@ -35,6 +35,7 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+from skisnow.app.storage.memory import SkiCache, not_owned
 from skisnow.solvers.beam import G_STANDARD, BeamSki
 from skisnow.solvers.errors import DataFileError, InputError
 
@@ -134,12 +135,17 @@ class SkiRecord:
     beam_design: dict | None = None
     network: dict | None = None
     identified: dict | None = None
-    #: per-process objects built from this record (the profile model, :mod:`app.service.profiles`)
-    cache: dict = field(default_factory=dict, repr=False, compare=False)
+    #: per-process objects built from this record (the profile model, :mod:`app.service.profiles`),
+    #: within the process-wide byte budget of :mod:`app.storage.memory` (SKISNOW_SKI_CACHE_MB)
+    cache: SkiCache = field(default_factory=SkiCache, repr=False, compare=False)
 
     @property
     def ski_id(self) -> str:
         return self.measurements.ski_id
+
+
+# a cached profile model refers to its record: the record is not part of the cache's size
+not_owned(SkiRecord)
 
 
 def _parse_float(text: str, column: str, lineno: int, decimal: list[str]) -> float:
