@@ -58,7 +58,8 @@ DEFAULT_REDUCTION = "block"
 #: N loads × M positions every ≤ K mm": N distinct loads > 0 (MIN_GRID_LOADS), M distinct load
 #: positions (MIN_GRID_LOAD_POSITIONS), samples every ≤ K mm (MAX_SAMPLE_SPACING_MM), plus the
 #: unloaded 0 kg profile (recommended, not required). Measured (issue #26 point 6,
-#: ``scripts/own_ski_study.py --grids coarse --draws 1``, docs/own-ski-study-coarse.md): at
+#: ``scripts/own_ski_study.py --grids coarse --draws 1``,
+#: docs/studies/own-ski-study-coarse.md): at
 #: 9 loads × 5 positions with the unloaded profile, samples every 1 mm, a beam was served on
 #: 6 of 6 designs (misfit 0.99–1.01 × the noise; held-out profile 0.34–1.48 µm from the truth,
 #: against 0.35–0.60 µm at 13 × 9); smaller grids were not measured, so they are refused.
