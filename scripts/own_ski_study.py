@@ -432,6 +432,12 @@ def study_ski(
         shown = client.get(f"/v1/skis/{name}").json()
         listed = {s["name"]: s for s in client.get("/v1/skis").json()["skis"]}
         ski = client.app.state.catalogue.ski(name)
+        # the served ski file is kept beside the per-ski results: a band factor or another
+        # answer can be studied again from it without redoing the job (minutes per ski)
+        kept = work / "skis" / f"{name}.h5"
+        kept.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(ski.path, kept)
+        out["ski_file"] = str(kept)
         ident = (ski.record.identified or {}).get("attrs", {})
         out["served"] = {
             "profile_model": listed.get(name, {}).get("profile_model"),

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 from skisnow.app import units
 from skisnow.app.presets import get_preset
-from skisnow.app.storage.skis import write_camber_csv
+from skisnow.app.storage.skis import read_ski, write_camber_csv
 from skisnow.solvers.beam import G_STANDARD
 from skisnow.solvers.elastic import effective_modulus
 from skisnow.solvers.flexible import prepare_flexible, solve_flexible
@@ -89,6 +89,10 @@ def test_results_file_structure(study):
     assert ski["served"]["reason"]
     assert np.isfinite(ski["served"]["profile_rms_um"]) and ski["served"]["profile_rms_um"] > 0
     assert 0.9 < ski["identification"]["noise_m"] / oss.NOISE_M < 1.1
+    # the served ski file is kept in the work folder (a band can be re-scored from it)
+    kept = Path(ski["ski_file"])
+    assert kept.parent == tmp / "work" / "skis" and kept.stat().st_size > 10_000
+    assert read_ski(kept).network is not None
 
 
 def test_every_case_has_truth_and_answers(study):
