@@ -182,9 +182,12 @@ def fill_snow(data):
     """``data`` (a request's fields) with ``snow_modulus_mpa`` and ``porosity`` taken from the
     snow preset it names, where they are missing or None; anything else unchanged (an unknown
     name is left for the field's own check)."""
-    if not isinstance(data, dict) or data.get("snow") not in SNOW_PRESETS:
+    if not isinstance(data, dict):
         return data
-    p = SNOW_PRESETS[data["snow"]]
+    name = data.get("snow")
+    if not isinstance(name, str) or name not in SNOW_PRESETS:  # a list is unhashable: a 422
+        return data
+    p = SNOW_PRESETS[name]
     out = dict(data)
     for key, value in (("snow_modulus_mpa", p.snow_modulus_mpa), ("porosity", p.porosity)):
         if out.get(key) is None:

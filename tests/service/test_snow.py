@@ -76,6 +76,22 @@ def test_unknown_snow_is_a_problem_naming_the_field(shipped_client):
     assert "snow" in r.text and "fine-grained" in r.text
 
 
+@pytest.mark.parametrize("snow", [[], {}, 3, ["study"]])
+def test_a_snow_that_is_not_a_name_is_a_problem(shipped_client, snow):
+    """Not a 500 (the fuzz run sent ``"snow": []``: the preset lookup hashed a list)."""
+    for path in ("/v1/contact", "/v1/compare"):
+        body = {**CASE, "snow": snow}
+        if path == "/v1/compare":
+            body = {
+                **{k: v for k, v in body.items() if k not in ("ski", "grind")},
+                "skis": [CASE["ski"]],
+                "grinds": [CASE["grind"]],
+            }
+        r = shipped_client.post(path, json=body)
+        assert r.status_code == 422, (path, r.status_code, r.text[:300])
+        assert r.headers["content-type"].startswith("application/problem+json")
+
+
 def test_one_answer_through_form_api_and_cli(shipped_client, capsys):
     """A snow preset gives the same answer through the form, the API and the CLI (#28)."""
     snow = "new-cold"
