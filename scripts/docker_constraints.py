@@ -5,7 +5,9 @@ The pins are the runtime closure of pyproject.toml's ``dependencies`` and
 ``build-system.requires`` (each requirement with its extras, followed through the installed
 packages' metadata), at the versions installed in this environment (the venv the test suite
 passed in); the build tools the test venv does not hold at a version the build accepts
-(``wheel``; ``setuptools`` older than the build's floor) keep the pins of the existing file.
+(``wheel``; ``setuptools`` older than the build's floor) keep the pins of the existing file,
+and so do packages outside this environment's closure that a fresh resolve may need
+(``tzdata``: python-dateutil 4 requires it, the 2.9 installed here does not).
 
     python scripts/docker_constraints.py            # rewrite scripts/docker-constraints.txt
     python scripts/docker_constraints.py --check    # exit 1 naming what is missing or off
@@ -107,7 +109,15 @@ def generate(reqs: list[Requirement], closure: dict, old: dict[str, str]) -> str
         if version is None:
             raise SystemExit(f"{name}: not installed here and not pinned in {CONSTRAINTS.name}")
         lines.append(f"{metadata_name(name)}=={version}")
-    return HEADER + "\n".join(lines) + "\n"
+    # pins of the existing file outside this environment's closure are kept: another fresh
+    # resolve may need them (python-dateutil 4, which a fresh venv gets, requires tzdata; this
+    # venv's 2.9 does not), and a constraint on a package that is not installed does nothing
+    lines += [f"{n}=={v}" for n, v in old.items() if n not in closure]
+    return (
+        HEADER
+        + "\n".join(sorted(lines, key=lambda line: canonicalize_name(line.split("==")[0])))
+        + "\n"
+    )
 
 
 def metadata_name(name: str) -> str:
