@@ -170,6 +170,49 @@ def _job(row) -> JobRow:
     return JobRow(**d)
 
 
+def _item_values(
+    item_id: str,
+    kind: str,
+    name: str,
+    now,
+    *,
+    metadata: dict | None = None,
+    state: str = "pending",
+    file_path: str | None = None,
+    sha256: str | None = None,
+    read_only: bool = False,
+    team: str | None = None,
+) -> dict:
+    """The columns of a new ``items`` row."""
+    return {
+        "id": item_id,
+        "kind": kind,
+        "name": name,
+        "metadata": metadata or {},
+        "file_path": file_path,
+        "sha256": sha256,
+        "state": state,
+        "read_only": read_only,
+        "team": team,
+        "created_at": now,
+        "updated_at": now,
+    }
+
+
+def _job_values(job_id: str, kind: str, item_id: str | None, message: str, now) -> dict:
+    """The columns of a new, queued ``jobs`` row."""
+    return {
+        "id": job_id,
+        "kind": kind,
+        "item_id": item_id,
+        "state": "queued",
+        "progress": 0.0,
+        "message": message,
+        "created_at": now,
+        "updated_at": now,
+    }
+
+
 class CatalogueDB:
     """Items and jobs in one database (thread-safe: one short transaction per call).
 
@@ -256,19 +299,18 @@ class CatalogueDB:
         if kind not in ITEM_KINDS or state not in ITEM_STATES:
             raise InputError(f"bad item kind/state {kind!r}/{state!r}")
         now = _now()
-        values = {
-            "id": uuid.uuid4().hex,
-            "kind": kind,
-            "name": name,
-            "metadata": metadata or {},
-            "file_path": file_path,
-            "sha256": sha256,
-            "state": state,
-            "read_only": read_only,
-            "team": team,
-            "created_at": now,
-            "updated_at": now,
-        }
+        values = _item_values(
+            uuid.uuid4().hex,
+            kind,
+            name,
+            now,
+            metadata=metadata,
+            state=state,
+            file_path=file_path,
+            sha256=sha256,
+            read_only=read_only,
+            team=team,
+        )
         try:
             with self.engine.begin() as c:
                 self._refuse_clash(c, kind, name)
@@ -348,31 +390,12 @@ class CatalogueDB:
             try:
                 c.execute(
                     ITEMS.insert().values(
-                        id=item_id,
-                        kind=kind,
-                        name=name,
-                        metadata=metadata or {},
-                        state="pending",
-                        read_only=False,
-                        team=team,
-                        created_at=now,
-                        updated_at=now,
+                        **_item_values(item_id, kind, name, now, metadata=metadata, team=team)
                     )
                 )
             except sa.exc.IntegrityError:  # a concurrent insert won the race (unique indexes)
                 raise self._taken(kind, name) from None
-            c.execute(
-                JOBS.insert().values(
-                    id=job_id,
-                    kind=job_kind,
-                    item_id=item_id,
-                    state="queued",
-                    progress=0.0,
-                    message=message,
-                    created_at=now,
-                    updated_at=now,
-                )
-            )
+            c.execute(JOBS.insert().values(**_job_values(job_id, job_kind, item_id, message, now)))
             c.commit()
         return self.item(item_id), self.job(job_id)
 
@@ -468,18 +491,7 @@ class CatalogueDB:
         now = _now()
         job_id = uuid.uuid4().hex
         with self.engine.begin() as c:
-            c.execute(
-                JOBS.insert().values(
-                    id=job_id,
-                    kind=kind,
-                    item_id=item_id,
-                    state="queued",
-                    progress=0.0,
-                    message=message,
-                    created_at=now,
-                    updated_at=now,
-                )
-            )
+            c.execute(JOBS.insert().values(**_job_values(job_id, kind, item_id, message, now)))
         return self.job(job_id)
 
     def job(self, job_id: str) -> JobRow | None:
