@@ -10,6 +10,41 @@ from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
 from skisnow.app.storage.common import tables_dir as default_tables_dir
 
+#: memory of one serving worker [MB]: one worker held 640 MB at rest and 692 MB at most under
+#: 32 clients; two workers held 750–890 MB each after an 8-client run (docs/deployment.md)
+WORKER_MEMORY_MB = 900
+#: most worker processes chosen by default (each answer runs on one core: app.service.gate)
+WORKERS_MAX = 8
+
+
+def _available_memory_mb() -> float | None:
+    """MemAvailable of /proc/meminfo [MB], or None where there is none (not Linux)."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) / 1024
+    except OSError:
+        return None
+    return None
+
+
+def default_workers(cores: int | None = None, available_mb: float | None = None) -> int:
+    """The default number of serving workers: one per usable core (each computes one answer
+    at a time, app.service.gate), at most :data:`WORKERS_MAX`, and at most one per
+    :data:`WORKER_MEMORY_MB` of half the available memory; at least 1.
+
+    On the 2-core benchmark machine that is 2: 8 clients got 80 answers/s (p99 181 ms) with
+    two workers and 52/s (p99 174 ms) with one (docs/benchmarks.md, issue #29)."""
+    if cores is None:
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    if available_mb is None:
+        available_mb = _available_memory_mb()
+    n = min(int(cores or 1), WORKERS_MAX)
+    if available_mb is not None:
+        n = min(n, int(0.5 * available_mb // WORKER_MEMORY_MB))
+    return max(n, 1)
+
 
 class Settings(BaseSettings):
     """Settings of ``skisnow serve``; each can be set as ``SKISNOW_<NAME>``."""
@@ -18,7 +53,14 @@ class Settings(BaseSettings):
 
     host: str = Field("127.0.0.1", description="interface to listen on")
     port: int = Field(8000, ge=1, le=65535, description="TCP port")
-    workers: int = Field(1, ge=1, le=64, description="uvicorn worker processes")
+    workers: int | None = Field(
+        None,
+        ge=1,
+        le=64,
+        description="uvicorn worker processes (default: one per usable core, at most "
+        "WORKERS_MAX and at most one per WORKER_MEMORY_MB of half the available memory; "
+        "default_workers)",
+    )
     threads_per_worker: int = Field(1, ge=1, le=64, description="FFT/numba threads per worker")
     tables_dir: Path = Field(
         default_factory=default_tables_dir,

@@ -117,7 +117,13 @@ def rss_per_process_mb(pid: int) -> dict[str, float]:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--url", default=None, help="existing server (default: start one)")
-    ap.add_argument("--workers", type=int, default=2, help="server workers if started here")
+    ap.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="server workers if started here (default: the service's default, "
+        "app.settings.default_workers)",
+    )
     ap.add_argument("--clients", type=int, default=8)
     ap.add_argument("--requests", type=int, default=1000, help="requests of the concurrent run")
     ap.add_argument("--distinct", type=int, default=200, help="distinct seeded inputs")
@@ -142,7 +148,7 @@ def main(argv: list[str] | None = None) -> int:
     if url is None:
         port = free_port()
         url = f"http://127.0.0.1:{port}"
-        env = {**os.environ, "SKISNOW_THREADS_PER_WORKER": "1"}
+        env = {k: v for k, v in os.environ.items() if k != "SKISNOW_WORKERS"}
         proc = subprocess.Popen(
             [
                 sys.executable,
@@ -151,8 +157,7 @@ def main(argv: list[str] | None = None) -> int:
                 "serve",
                 "--port",
                 str(port),
-                "--workers",
-                str(args.workers),
+                *(["--workers", str(args.workers)] if args.workers else []),
             ],
             cwd=REPO,
             env=env,
@@ -238,7 +243,12 @@ def main(argv: list[str] | None = None) -> int:
         tenth = max(len(samples) // 10, 1)
         result = {
             "url_started_here": proc is not None,
-            "server_workers": args.workers if proc else None,
+            "server_workers": (
+                sum(k.endswith("(worker)") for k in per_process_before) or None
+            )
+            if proc
+            else None,
+            "server_workers_default": proc is not None and args.workers is None,
             "distinct_inputs": len(reqs),
             "single": {
                 "requests": len(reqs),

@@ -1,6 +1,7 @@
 """CPU time of one `/v1/contact` answer, this checkout against a baseline checkout, measured in
 pairs at the same time (issue #29: the machine is shared, so only ratios measured together
-count), and the load test's throughput with 1 and 2 server workers. Writes the ``speed``
+count), and the load test's throughput of both checkouts with the given server workers (0: each
+checkout's default settings), one after the other. Writes the ``speed``
 stage of docs/benchmarks.md (:mod:`app.evidence.speed_md`).
 
 Each pair runs two processes at once, one per checkout: each answers the same 200 seeded
@@ -9,7 +10,7 @@ computation and the route's JSON encoding with the thread's CPU clock (``time.th
 less sensitive to the other jobs on the machine than wall time, not immune to them).
 
     git archive BASE | tar -x -C /tmp/base
-    python scripts/speed_compare.py --baseline /tmp/base --pairs 3 --loadtest-workers 1 2
+    python scripts/speed_compare.py --baseline /tmp/base --pairs 3 --loadtest-workers 1 0
 """
 
 from __future__ import annotations
@@ -71,17 +72,63 @@ def _load() -> float:
     return float(Path("/proc/loadavg").read_text().split()[0])
 
 
+def _loadtest(checkout: str, workers: int, env: dict, requests: int) -> dict:
+    """One ``scripts/loadtest.py`` run (8 clients) against ``checkout``'s ``skisnow serve``
+    (``env`` puts it first on the path) with ``workers`` processes (0: the checkout's default
+    settings)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        load0 = _load()
+        subprocess.run(
+            [
+                sys.executable,
+                str(REPO / "scripts" / "loadtest.py"),
+                *(["--workers", str(workers)] if workers else []),
+                "--clients",
+                "8",
+                "--requests",
+                str(requests),
+                "--stage",
+                "speed-loadtest-tmp",
+            ],
+            check=False,
+            env=env,
+            stdout=open(Path(tmp) / "out.json", "w"),
+        )
+        d = json.loads((Path(tmp) / "out.json").read_text())
+    c = d["concurrent"]
+    return {
+        "checkout": checkout,
+        "workers": d.get("server_workers") or workers,
+        "default_settings": not workers,
+        "single_p50_ms": d["single"]["p50_ms"],
+        "clients": c["clients"],
+        "throughput_rps": c["throughput_rps"],
+        "p50_ms": c["p50_ms"],
+        "p99_ms": c["p99_ms"],
+        "rss_mb_before": c["server_rss_mb_before"],
+        "rss_mb_after": c["server_rss_mb_after"],
+        "server_errors_5xx": c["server_errors_5xx"],
+        "load_average": [load0, _load()],
+    }
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--baseline", type=Path, required=True, help="checkout of the baseline")
     ap.add_argument("--baseline-name", default=None, help="its commit, for the record")
     ap.add_argument("--pairs", type=int, default=3)
-    ap.add_argument("--loadtest-workers", type=int, nargs="*", default=[])
+    ap.add_argument(
+        "--loadtest-workers",
+        type=int,
+        nargs="*",
+        default=[],
+        help="server workers of the load tests, each run on both checkouts (0: default settings)",
+    )
     ap.add_argument("--loadtest-requests", type=int, default=500)
     args = ap.parse_args(argv)
     pairs = []
-    with tempfile.TemporaryDirectory() as tmp:
-        shim = _shim(args.baseline.resolve(), Path(tmp) / "base")
+    with tempfile.TemporaryDirectory() as shim_tmp:
+        shim = _shim(args.baseline.resolve(), Path(shim_tmp) / "base")
         env_new = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
         env_base = {**env_new, "PYTHONPATH": str(shim)}
         cmd = [sys.executable, "-c", MEASURE, str(REPO / "scripts")]
@@ -97,43 +144,11 @@ def main(argv=None) -> int:
             got["load_average"] = [load0, _load()]
             pairs.append(got)
             print(json.dumps(got))
-    runs = []
-    for w in args.loadtest_workers:
-        with tempfile.TemporaryDirectory() as tmp:
-            load0 = _load()
-            subprocess.run(
-                [
-                    sys.executable,
-                    str(REPO / "scripts" / "loadtest.py"),
-                    "--workers",
-                    str(w),
-                    "--clients",
-                    "8",
-                    "--requests",
-                    str(args.loadtest_requests),
-                    "--stage",
-                    "speed-loadtest-tmp",
-                ],
-                check=False,
-                stdout=open(Path(tmp) / "out.json", "w"),
-            )
-            d = json.loads((Path(tmp) / "out.json").read_text())
-            c = d["concurrent"]
-            runs.append(
-                {
-                    "workers": w,
-                    "single_p50_ms": d["single"]["p50_ms"],
-                    "clients": c["clients"],
-                    "throughput_rps": c["throughput_rps"],
-                    "p50_ms": c["p50_ms"],
-                    "p99_ms": c["p99_ms"],
-                    "rss_mb_before": c["server_rss_mb_before"],
-                    "rss_mb_after": c["server_rss_mb_after"],
-                    "server_errors_5xx": c["server_errors_5xx"],
-                    "load_average": [load0, _load()],
-                }
-            )
-            print(json.dumps(runs[-1]))
+        runs = []
+        for w in args.loadtest_workers:
+            for name, env in (("baseline", env_base), ("this", env_new)):
+                runs.append(_loadtest(name, w, env, args.loadtest_requests))
+                print(json.dumps(runs[-1]))
     for stale in (REPO / "docs" / "bench").glob("speed-loadtest-tmp.json"):
         stale.unlink()
     from skisnow.app.evidence.writer import write_stage

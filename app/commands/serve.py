@@ -14,7 +14,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     s = sub.add_parser("serve", help="run the REST API and the technician web form")
     s.add_argument("--host", default=None, help="interface (default 127.0.0.1)")
     s.add_argument("--port", type=int, default=None, help="TCP port (default 8000)")
-    s.add_argument("--workers", type=int, default=None, help="worker processes (default 1)")
+    s.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="worker processes (default: one per usable core, capped by memory)",
+    )
     s.add_argument("--tables-dir", default=None, help="tables and skis directory")
     s.set_defaults(func=run_serve)
 
@@ -80,13 +85,22 @@ def run_serve(args: argparse.Namespace) -> int:
     warning = open_writes_warning(settings.host, settings.team_tokens)
     if warning:
         print(f"skisnow serve: WARNING: {warning}", file=sys.stderr)
-    if settings.workers == 1:
+    from skisnow.app.settings import default_workers
+
+    workers = settings.workers or default_workers()
+    print(
+        f"skisnow serve: {workers} worker process{'es' if workers > 1 else ''}"
+        + ("" if settings.workers else " (one per usable core, capped by memory; SKISNOW_WORKERS)"),
+        file=sys.stderr,
+        flush=True,
+    )
+    if workers == 1:
         # uvicorn exits with its STARTUP_FAILURE code (3) itself when the one worker fails
         uvicorn.run(
             "skisnow.app.main:app", host=settings.host, port=settings.port, log_level="info"
         )
         return 0
-    return _run_workers(settings.host, settings.port, settings.workers)
+    return _run_workers(settings.host, settings.port, workers)
 
 
 def _run_workers(host: str, port: int, workers: int) -> int:

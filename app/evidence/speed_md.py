@@ -40,18 +40,19 @@ def render_md(d: dict) -> list[str]:
     if runs:
         lines += [
             "",
-            "`scripts/loadtest.py` against this commit, 8 clients, one run per worker count, "
-            "one after the other (2 cores shared with other jobs: the load average says how "
-            "much of them this run had):",
+            "`scripts/loadtest.py`, 8 clients, one run per checkout and worker count, one after "
+            "the other (the load average says how much of the 2 cores each run had):",
             "",
-            "| workers | 1 client p50 [ms] | 8 clients [req/s] | p50 [ms] | p99 [ms] | RSS before "
-            "→ after [MB] | 5xx | load average |",
-            "|---|---|---|---|---|---|---|---|",
+            "| checkout | workers | 1 client p50 [ms] | 8 clients [req/s] | p50 [ms] | p99 [ms] "
+            "| RSS before → after [MB] | 5xx | load average |",
+            "|---|---|---|---|---|---|---|---|---|",
         ]
         for r in runs:
             la = r.get("load_average", [float("nan")] * 2)
+            who = f"`{d.get('baseline')}`" if r.get("checkout") == "baseline" else "this commit"
+            workers = f"{r['workers']}" + (" (default)" if r.get("default_settings") else "")
             lines.append(
-                f"| {r['workers']} | {r['single_p50_ms']:.1f} | {r['throughput_rps']:.1f} | "
+                f"| {who} | {workers} | {r['single_p50_ms']:.1f} | {r['throughput_rps']:.1f} | "
                 f"{r['p50_ms']:.0f} | {r['p99_ms']:.0f} | {r['rss_mb_before']:.0f} → "
                 f"{r['rss_mb_after']:.0f} | {r['server_errors_5xx']} | {la[0]:.1f} → {la[1]:.1f} |"
             )

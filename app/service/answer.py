@@ -30,6 +30,7 @@ from skisnow.app.service.catalogue import (
     ModelUnavailableError,
     Ski,
 )
+from skisnow.app.service.gate import gated
 from skisnow.app.service.profiles import (
     profile_model,
 )
@@ -144,6 +145,7 @@ def result_warnings(inp: ContactInputs, gmap, macro, ms) -> list[dict]:
     return out
 
 
+@gated
 def contact(
     cat: Catalogue,
     inp: ContactInputs,

@@ -42,6 +42,7 @@ from skisnow.app.service.band import (
     camber_sigma_m,
 )
 from skisnow.app.service.catalogue import Catalogue, Ski
+from skisnow.app.service.gate import gated
 from skisnow.app.service.profiles import profile_model
 from skisnow.app.snow import snow_record
 from skisnow.app.storage.common import code_version
@@ -538,6 +539,7 @@ def _profile_json(sheet: FlexSheet, step_m: float = 5e-3) -> dict:
     }
 
 
+@gated
 def flex_sheet_answer(cat: Catalogue, req: FlexRequest, *, profiles: bool = True) -> dict:
     """The flex sheet of ``GET /v1/skis/{name}/flex`` and ``skisnow flex``: numbers in mm, kg
     and percent with their 90 % bands (module docstring, docs/flex.md).
