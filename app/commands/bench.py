@@ -57,6 +57,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     m.set_defaults(func=_run_micro)
     mac = bsub.add_parser("macro", help="macro BEM per demo ski: default grid vs fine reference")
     mac.add_argument("--repeats", type=int, default=7)
+    mac.add_argument(
+        "--no-identification",
+        dest="identification",
+        action="store_false",
+        help="leave out the beam identification (demo skis and study designs; minutes per ski)",
+    )
     mac.set_defaults(func=_run_macro)
     _register_accuracy(bsub)
 
@@ -111,7 +117,8 @@ def _run_micro(args: argparse.Namespace) -> int:
 
 
 def _run_macro(args: argparse.Namespace) -> int:
-    path = writer.write_stage("macro", macro.bench_macro_stage(args.repeats), None)
+    data = macro.bench_macro_stage(args.repeats, identification=args.identification)
+    path = writer.write_stage("macro", data, None)
     print(f"wrote {path} and {writer.DOCS / 'benchmarks.md'}")
     return 0
 

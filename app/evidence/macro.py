@@ -12,6 +12,7 @@ import statistics
 import time
 
 import numpy as np
+from skisnow.app.evidence import identification as identification_bench
 from skisnow.app.evidence.paper_case import (
     BASE_MODULUS_MPA,
     DOC_POROSITY,
@@ -40,14 +41,16 @@ def bench_macro_stage(
 ) -> dict:
     """``skisnow bench macro``: one macro solve per demo ski at the default grid against the
     fine reference (:func:`bench_macro`), the bending ski, the network inference
-    time and (``identification``) the beam identification of both demo skis (about 1.5–2 min
-    each on 2 cores; the tests leave it out, tests/test_identify*.py cover it)."""
+    time and (``identification``) the beam identification, several starts included, of the
+    three demo skis and three study designs on the coarse grid
+    (:func:`app.evidence.identification.bench_identification`; minutes per ski on 2 cores; the
+    tests leave it out, tests/solvers/test_identify*.py cover the identification)."""
     from skisnow.solvers import camber
 
     out = {"skis": bench_macro(repeats=repeats), "inference": {}}
     out["flexible"] = bench_flexible(repeats=repeats)
     if identification:
-        out["identification"] = bench_identification()
+        out["identification"] = identification_bench.bench_identification()
     for name in out["skis"]:
         net = read_ski(SHIPPED_SKI_DIR / f"{name}.h5").network
         if net is None:
@@ -60,67 +63,6 @@ def bench_macro_stage(
             times.append(time.perf_counter() - t0)
         out["inference"][name] = {"calls": inference_calls, "median_s": statistics.median(times)}
     return out
-
-
-def bench_identification(skis: tuple[str, ...] = ("ski-a", "ski-b")) -> dict:
-    """Beam identification of each demo ski from its shipped measurements, as ``skisnow
-    identify-ski`` runs it (20 % held out, seed 0): wall time, misfit, held-out errors against
-    the measurements and against the design beam near contact (one run each; target ≤ 2 min)."""
-    from skisnow.app.service.identification import identify_report
-
-    out = {}
-    for name in skis:
-        rec = read_ski(SHIPPED_SKI_DIR / f"{name}.h5")
-        rep = identify_report(rec.measurements, rec.beam, 0.2, 0)
-        out[name] = {
-            k: rep.get(k)
-            for k in (
-                "identified",
-                "cases",
-                "held_out_cases",
-                "time_s",
-                "start_time_s",
-                "forward_time_s",
-                "noise_um",
-                "misfit_um",
-                "held_out_vs_measured_rms_um",
-                "held_out_vs_design_beam_rms_um",
-            )
-        }
-    return out
-
-
-def _identification_md(d: dict) -> list[str]:
-    if not d:
-        return []
-    first = next(iter(d.values()))
-    cases, held = first.get("cases"), first.get("held_out_cases")
-    shipped = (
-        f"its {cases} shipped cases ({first['noise_um']:.0f} µm noise), "
-        f"{100 * held / cases:.0f} % held out "
-        if cases and held
-        else "its shipped cases, 20 % held out "
-    )
-    lines = [
-        "### Beam identification (issue #12)",
-        "",
-        f"Each demo ski's beam identified from {shipped}"
-        "(seed 0), as `skisnow identify-ski` runs it: variable-projection start on 30 cases, then "
-        "the forward fit of the exact device model (docs/camber-identification.md). One run each "
-        "(target ≤ 2 min per ski; held-out profile ≤ 0.3 µm from the truth where H* < 0.2 mm).",
-        "",
-        "| ski | time [s] (start + forward) | misfit / noise [µm] | held-out vs measured [µm] "
-        "| held-out vs truth near contact [µm] |",
-        "|---|---|---|---|---|",
-    ]
-    for name, r in d.items():
-        lines.append(
-            f"| {name} | {r['time_s']:.0f} ({r['start_time_s']:.0f} + {r['forward_time_s']:.0f}) "
-            f"| {r['misfit_um']:.2f} / {r['noise_um']:.2f} | "
-            f"{r['held_out_vs_measured_rms_um']:.2f} | {r['held_out_vs_design_beam_rms_um']:.3f} |"
-        )
-    lines.append("")
-    return lines
 
 
 def bench_flexible(repeats: int = 7, skis: tuple[str, ...] = ("ski-a", "ski-b")) -> dict:
@@ -289,7 +231,7 @@ def render_md(d: dict) -> list[str]:
         )
     lines.append("")
     lines += _flexible_md(d.get("flexible", {}))
-    lines += _identification_md(d.get("identification", {}))
+    lines += identification_bench.render_md(d.get("identification", {}))
     return lines
 
 

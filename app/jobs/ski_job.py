@@ -32,12 +32,7 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
         read_ski,
         write_ski,
     )
-    from skisnow.app.training.data import (
-        HELD_OUT_FRACTION,
-        HELD_OUT_SEED,
-        camber_training_arrays,
-        draw_held_out,
-    )
+    from skisnow.app.training.data import camber_training_arrays, job_held_out
     from skisnow.app.training.files import write_network_to_ski
     from skisnow.app.training.fit import train_camber_network
 
@@ -48,8 +43,7 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
     # identified without these cases, and both are judged on them (app.service.profiles)
     # (drawn on the network's cases; every one of them is also a case of the identification)
     fm, xfm, ym, _ = mean_profiles(data)
-    held_t = draw_held_out(f, xf, fraction=HELD_OUT_FRACTION, seed=HELD_OUT_SEED)
-    held_m = np.sort(_same_cases(f[held_t], xf[held_t], fm, xfm))
+    held_t, held_m = job_held_out(data, (fm, xfm))
     total = settings.train_ensemble * (settings.train_epochs + settings.train_lbfgs_epochs)
     calls = 0
 
@@ -145,19 +139,6 @@ def _draw_page_figures(item, path: Path, layout: Layout) -> None:
         log.warning(
             "figures of ski %r not drawn in its job (%s): its page draws them", item.name, exc
         )
-
-
-def _same_cases(f_n, xf_m, loads_n, positions_m) -> np.ndarray:
-    """Indices into (``loads_n``, ``positions_m``) of the cases (``f_n``, ``xf_m``) (the
-    network's cases and the identification's may be ordered differently)."""
-    keys = {
-        (round(float(a), 9), round(float(b), 9)): k
-        for k, (a, b) in enumerate(zip(loads_n, positions_m, strict=True))
-    }
-    return np.array(
-        [keys[(round(float(a), 9), round(float(b), 9))] for a, b in zip(f_n, xf_m, strict=True)],
-        dtype=int,
-    )
 
 
 def _choose_model(identified: dict, network: dict, cases, held_m, item) -> tuple[dict, str]:

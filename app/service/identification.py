@@ -27,10 +27,13 @@ def identify_report(
     *,
     keep: dict | None = None,
     callback=None,
+    held_out_index=None,
 ) -> dict:
     """Identify on the kept cases and measure on the held-out ones; a JSON-ready report.
     ``keep``: a dict that receives the identification and its check (for ``--store``);
-    ``callback(fraction, message)``: progress of the identification."""
+    ``callback(fraction, message)``: progress of the identification; ``held_out_index``
+    (indices into the cases of :func:`app.storage.skis.mean_profiles`), if given, the held-out
+    cases instead of the seeded draw (a ski job's choice, or the one stored with a ski)."""
     if not (0.0 <= holdout < 0.9):
         raise InputError(f"--holdout must be in [0, 0.9), got {holdout}")
     f, xf, y, sides_note = mean_profiles(data)
@@ -44,6 +47,7 @@ def identify_report(
         y,
         holdout=holdout,
         seed=seed,
+        held_out_index=held_out_index,
         callback=callback,
     )
     elapsed = time.perf_counter() - t0
@@ -72,6 +76,7 @@ def identify_report(
         "time_s": elapsed,
         "start_time_s": ident.extra.get("start_time_s"),
         "forward_time_s": ident.extra.get("forward_time_s"),
+        **_starts_and_fits(ident.extra),
         "kinks_mm": [k * 1e3 for k in ident.extra.get("kinks_m", [])],
         "stiffness": [
             {
@@ -92,3 +97,36 @@ def identify_report(
             err = (pred - truth)[near]
             report["held_out_vs_design_beam_rms_um"] = float(np.sqrt(np.mean(err**2))) * 1e6
     return report
+
+
+def _starts_and_fits(extra: dict) -> dict:
+    """What the several starts cost and how far apart their fits ended (from
+    :func:`solvers.identify.identify_beam`'s ``extra``): wall times [s] of the starts and of the
+    forward fits, the starts run and the forward fits run, the converged candidates' objectives
+    (lowest, range [-]) and misfits [µm], and their largest beam distance in the middle of the
+    ski (max |Δc| [µm], max |Δ ln EI| [-])."""
+    spread = extra.get("candidate_spread") or {}
+    cands = extra.get("forward_candidates") or []
+    um = 1e6
+    return {
+        "starts_wall_s": extra.get("wall_starts_s"),
+        "forward_wall_s": extra.get("wall_forward_s"),
+        "starts_run": extra.get("starts_run"),
+        "starts_checked": len(extra.get("starts") or []),
+        "forward_fits": extra.get("forward_fits", len(cands)),
+        "forward_fits_time_s": float(sum(c["time_s"] for c in cands)),
+        "restarted": extra.get("restarted"),
+        "tried_rejected_starts": extra.get("tried_rejected_starts"),
+        "chosen_start": extra.get("start"),
+        "candidates_converged": spread.get("converged", 0),
+        "candidates_objective_min": spread.get("objective_min"),
+        "candidates_objective_range": spread.get("objective_range"),
+        "candidates_misfit_um": [
+            spread["misfit_min_m"] * um if "misfit_min_m" in spread else None,
+            spread["misfit_max_m"] * um if "misfit_max_m" in spread else None,
+        ],
+        "candidates_max_dc_middle_um": (
+            spread["max_dc_middle_m"] * um if "max_dc_middle_m" in spread else None
+        ),
+        "candidates_max_dlog_ei_middle": spread.get("max_dlog_ei_middle"),
+    }

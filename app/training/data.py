@@ -15,7 +15,9 @@ __all__ = [
     "camber_training_arrays",
     "check_training_data",
     "draw_held_out",
+    "job_held_out",
     "present_unloaded",
+    "same_cases",
     "split_load_cases",
 ]
 
@@ -271,3 +273,28 @@ def camber_training_arrays(data) -> tuple[str, np.ndarray, np.ndarray, np.ndarra
         profiles,
         "left+right",
     )
+
+
+def same_cases(f_n, xf_m, loads_n, positions_m) -> np.ndarray:
+    """Indices into (``loads_n`` [N], ``positions_m`` [m]) of the cases (``f_n``, ``xf_m``)
+    (the network's cases and the identification's may be ordered differently)."""
+    keys = {
+        (round(float(a), 9), round(float(b), 9)): k
+        for k, (a, b) in enumerate(zip(loads_n, positions_m, strict=True))
+    }
+    return np.array(
+        [keys[(round(float(a), 9), round(float(b), 9))] for a, b in zip(f_n, xf_m, strict=True)],
+        dtype=int,
+    )
+
+
+def job_held_out(data, mean_cases) -> tuple[np.ndarray, np.ndarray]:
+    """The cases a ski job holds out of both its models: the seeded draw
+    (:func:`draw_held_out`, HELD_OUT_FRACTION, HELD_OUT_SEED) on the network's cases of
+    ``data`` (:func:`camber_training_arrays`), and the same cases as indices into
+    ``mean_cases`` = (F [N], x_F [m]) of :func:`app.storage.skis.mean_profiles`, the
+    identification's cases. Returns (network indices, identification indices, sorted)."""
+    _, _, f, xf, _, _ = camber_training_arrays(data)
+    held_t = draw_held_out(f, xf, fraction=HELD_OUT_FRACTION, seed=HELD_OUT_SEED)
+    fm, xfm = mean_cases
+    return held_t, np.sort(same_cases(f[held_t], xf[held_t], fm, xfm))

@@ -57,23 +57,3 @@ def test_benchmarks_md_renders_stages_and_skips_other_json(tmp_path):
     text = out.read_text()
     assert "## custom" in text and "on 2 cores" in text
     assert "notes" not in text
-
-
-def test_identification_table_renders_each_ski():
-    """The identification rows of ``skisnow bench macro`` (the stage is run without them above:
-    identifying both demo skis takes minutes; tests/test_identify*.py check the identification)."""
-    row = {
-        "time_s": 95.2,
-        "start_time_s": 20.1,
-        "forward_time_s": 75.1,
-        "misfit_um": 3.004,
-        "noise_um": 3.01,
-        "held_out_vs_measured_rms_um": 2.998,
-        "held_out_vs_design_beam_rms_um": 0.0964,
-    }
-    lines = macro._identification_md({"ski-a": row, "ski-b": row})
-    rows = [line for line in lines if line.startswith("| ski-")]
-    assert rows == [
-        f"| {s} | 95 (20 + 75) | 3.00 / 3.01 | 3.00 | 0.096 |" for s in ("ski-a", "ski-b")
-    ]
-    assert macro._identification_md({}) == []

@@ -368,6 +368,16 @@ def test_several_starts_are_checked_run_and_reported():
     )
     # the unloaded case is fitted like the others: its residual is at the noise
     assert ident.case_misfit_m[0] < 1.5 * ident.noise_m
+    # what the several starts cost (the bench's columns): starts and fits counted, wall times
+    # split between the forward fits (here one after the other: at least their own times) and
+    # the rest
+    assert ident.extra["starts_run"] == len({(c["start"], c["start_smoothing"]) for c in cands})
+    assert ident.extra["forward_fits"] == len(cands)
+    assert ident.extra["wall_forward_s"] >= sum(c["time_s"] for c in cands)
+    assert ident.extra["wall_starts_s"] > 0
+    assert ident.extra["wall_forward_s"] + ident.extra["wall_starts_s"] == pytest.approx(
+        ident.solve_time_s, rel=1e-9
+    )
 
 
 def test_a_start_whose_device_model_misses_by_far_is_not_used(monkeypatch):
