@@ -858,7 +858,45 @@ OTHER_DESIGNS = {
 
 def flat_supports(x: np.ndarray, c: np.ndarray) -> tuple[int, int]:
     """The two nodes (i0 < i1) on which the unloaded camber ``c`` rests on the flat: the edge of
-    its lower convex hull that spans the middle of the ski (:func:`camber_on_flat`)."""
+    its lower convex hull that spans the middle of the ski (:func:`camber_on_flat`).
+
+    Compiled for float64 nodes (every evaluation of a forward fit calls it: 2-5 ms a call in
+    Python at 2001 nodes); the same comparisons as :func:`_flat_supports_reference`."""
+    x = np.asarray(x)
+    c = np.asarray(c)
+    if x.dtype == np.float64 and c.dtype == np.float64 and x.ndim == c.ndim == 1 and x.size >= 2:
+        i0, i1 = _flat_supports_compiled(x, c)
+        return int(i0), int(i1)
+    return _flat_supports_reference(x, c)
+
+
+@numba.njit(cache=True)
+def _flat_supports_compiled(x, c):
+    """:func:`_flat_supports_reference` compiled (the hull a stack of node indices)."""
+    n = x.size
+    hull = np.empty(n, dtype=np.int64)
+    top = 0
+    for i in range(n):
+        while top >= 2:
+            i0, i1 = hull[top - 2], hull[top - 1]
+            cross = (x[i1] - x[i0]) * (c[i] - c[i0]) - (c[i1] - c[i0]) * (x[i] - x[i0])
+            if cross <= 0:
+                top -= 1
+            else:
+                break
+        hull[top] = i
+        top += 1
+    mid = 0.5 * (x[0] + x[-1])
+    i0, i1 = hull[0], hull[1]
+    for k in range(top - 1):
+        i0, i1 = hull[k], hull[k + 1]
+        if x[i0] <= mid <= x[i1]:
+            break
+    return i0, i1
+
+
+def _flat_supports_reference(x: np.ndarray, c: np.ndarray) -> tuple[int, int]:
+    """:func:`flat_supports` in Python (the reference of the compiled form)."""
     hull: list[int] = []
     for i in range(x.size):
         while len(hull) >= 2:

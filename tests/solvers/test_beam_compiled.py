@@ -145,3 +145,25 @@ def test_compiled_double_integral_is_the_reference_bit_for_bit():
     np.testing.assert_array_equal(
         double_integral(strided, spacings), _double_integral_reference(strided, spacings)
     )
+
+
+def test_compiled_flat_supports_are_the_reference():
+    """solvers.beam.flat_supports (the unloaded ski's two supports on the flat; every forward
+    fit evaluation calls it) compiled names the nodes the Python reference names: design and
+    identified cambers, the same with 3 µm noise, rough random cambers, a flat one, short skis."""
+    from skisnow.solvers.beam import _flat_supports_reference, flat_supports
+
+    rng = np.random.default_rng(5)
+    cambers = []
+    for name in ("ski-a", "ski-b"):
+        for _, beam in _beams(name):
+            cambers.append((beam.positions_m, beam.unloaded_gap_m))
+            cambers.append((beam.positions_m, beam.unloaded_gap_m + rng.normal(0, 3e-6, 2001)))
+    x = cambers[0][0]
+    cambers += [(x, rng.normal(0.0, 1e-3, x.size)) for _ in range(20)]
+    cambers += [(x[:n], rng.normal(0.0, 1.0, n)) for n in (2, 3, 4, 7, 50)]
+    cambers.append((x, np.zeros_like(x)))
+    for xs, c in cambers:
+        got = flat_supports(xs, c)
+        assert got == _flat_supports_reference(xs, c)
+        assert all(type(i) is int for i in got)
