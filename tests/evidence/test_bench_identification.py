@@ -52,7 +52,7 @@ def test_section_renders_each_ski_and_says_whether_the_target_is_met():
         "target_s": 120.0,
         "skis": {
             "ski-a": _row(95.2, vs_shipped_beam={"max_dc_um": 0.0, "max_dlog_ei": 0.0}),
-            "skate-coarse-d0": _row(130.6, cases=46),
+            "skate-coarse-d0": _row(130.6, cases=46, held_out_cases=9),
         },
         "job": {
             "source": "docs/studies/own-ski-study-coarse.json",
@@ -69,13 +69,18 @@ def test_section_renders_each_ski_and_says_whether_the_target_is_met():
         "| ski-a | 46 | 95 (20 + 75) | 170 | 2 / 4 | 2.0e-03 | 3.001–3.046 | 1.23 / 0.046 "
         "| 3.00 / 3.01 | 3.00 | 0.096 |"
     )
-    assert rows[1].startswith("| skate-coarse-d0 | 46 | 131 (20 + 75) |")
+    assert rows[1].startswith("| skate-coarse-d0 | 46 (9 held out) | 131 (20 + 75) |")
     text = "\n".join(lines)
     assert "Target: ≤ 2 min per ski on 2 cores, several starts included; not met: 1 of 2" in text
-    assert "(skate-coarse-d0; the slowest 131 s)" in text
+    assert "(skate-coarse-d0; the slowest 131 s)." in text  # load 2.4: not a loaded machine
     assert "load average 1.9–2.4" in text
     assert "ski-a max |Δc| 0.000 µm, max |Δ ln EI| 0.0000" in text
     assert "192–454 s over 2 study designs" in text and "skate-coarse-d0 192 s" in text
+    assert "quick network: train_epochs 300)" in text
+    # under load the verdict says the wall times are upper bounds
+    loaded = "\n".join(ib.render_md({"skis": {"a": _row(130.0, load_avg_1min=[6.4, 6.9])}}))
+    assert "(a; the slowest 130 s), measured while other jobs loaded the 2 cores" in loaded
+    assert "load average 6.4–6.9): the wall times are upper bounds" in loaded
     # all within the target
     met = ib.render_md({"skis": {"ski-a": _row(95.2)}})
     assert any("; met: the slowest ski took 95 s." in line for line in met)
@@ -104,8 +109,8 @@ def test_section_renders_a_run_from_before_the_several_starts():
     }
     rows = [line for line in macro.render_md({"skis": {}, "identification": old})]
     assert (
-        "| ski-a | 426 | 73 (— + —) | — | — / — | — | —–— | — / — | 3.00 / 3.01 | 3.00 | 0.087 |"
-        in rows
+        "| ski-a | 426 (85 held out) | 73 (— + —) | — | — / — | — | —–— | — / — | 3.00 / 3.01 "
+        "| 3.00 | 0.087 |" in rows
     )
 
 
