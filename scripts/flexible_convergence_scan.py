@@ -1,10 +1,16 @@
 """How often does the bending-ski solve (:func:`solvers.flexible.solve_flexible`) fail to converge?
 
 Issue #26 (the own-ski study's non-converged flexible answers): every study design
-(:data:`solvers.ski_designs.STUDY_DESIGNS`, true beams at 1 mm), on the answer's grid (the
-default preset) and on the band's coarse grid (:func:`app.service.band_sampling.coarse_grid`),
-over a grid of loads × positions × snow moduli, solved as the service solves them (the
-answer: default tolerance, no warm start; E' from the snow modulus and the default base).
+(:data:`solvers.ski_designs.STUDY_DESIGNS`, true beams at 1 mm) over a grid of loads ×
+positions × snow moduli, solved as the service solves them (E' from the snow modulus and the
+default base, 44 mm wide as the study's uploads), on up to three grids (``--grids``):
+
+- ``answer``: the default preset's grid, default tolerance, no warm start (the answer);
+- ``coarse``: the band's coarse grid (:func:`app.service.band_sampling.coarse_grid`), solved
+  as the answer is;
+- ``band``: the coarse grid as the band solves its nominal beam: warm-started from the
+  answer's line pressure, tolerance ``SAMPLE_TOL``.
+
 Optionally beams perturbed as an identification might miss them (``--perturb N``: N seeded
 draws per design of EI × (1 + s_ei·smooth noise) and c + s_c·smooth noise).
 
@@ -14,7 +20,7 @@ Prints one line per non-converged case and a table of counts per design, grid an
 Usage::
 
     python scripts/flexible_convergence_scan.py [--designs binding-plate ...] [--loads 20 30 ...]
-        [--positions -100 -80 ...] [--moduli 20 200 2000] [--grids answer,coarse]
+        [--positions -100 -80 ...] [--moduli 20 200 2000] [--grids answer,coarse,band]
         [--perturb 0] [--seed 2026] [--json out.json]
 """
 
@@ -33,7 +39,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from skisnow.app.presets import get_preset  # noqa: E402
-from skisnow.app.service.band_sampling import coarse_grid  # noqa: E402
+from skisnow.app.service.band_sampling import SAMPLE_TOL, coarse_grid  # noqa: E402
 from skisnow.solvers.beam import G_STANDARD, BeamSki  # noqa: E402
 from skisnow.solvers.elastic import effective_modulus  # noqa: E402
 from skisnow.solvers.flexible import prepare_flexible, solve_flexible  # noqa: E402
@@ -65,12 +71,17 @@ def perturbed(beam: BeamSki, rng: np.random.Generator, s_ei: float, s_c_m: float
     return BeamSki(x, ei, c - c.min())
 
 
-def solve_case(model, kg: float, mm: float, e_mpa: float) -> dict:
-    """One solve as the service's answer runs it (default tolerance, no warm start)."""
+def solve_case(
+    model, kg: float, mm: float, e_mpa: float, tol: float = 1e-8, start_pa=None
+) -> tuple[dict, object]:
+    """One solve as the service runs it (the answer: default tolerance, no warm start);
+    returns (the case's numbers, the MacroResult)."""
     e_eff = effective_modulus(e_mpa * 1e6, BASE_MODULUS_PA, POISSON)
     t0 = time.perf_counter()
-    r = solve_flexible(model, kg * G_STANDARD, mm * 1e-3, e_eff)
-    return {
+    r = solve_flexible(
+        model, kg * G_STANDARD, mm * 1e-3, e_eff, tol=tol, initial_pressure_pa=start_pa
+    )
+    case = {
         "snow_modulus_mpa": e_mpa,
         "load_kg": kg,
         "load_position_mm": mm,
@@ -82,6 +93,7 @@ def solve_case(model, kg: float, mm: float, e_mpa: float) -> dict:
         "area_cm2": float(r.apparent_contact_area_m2 * 1e4),
         "message": r.message,
     }
+    return case, r
 
 
 def study_beams(
@@ -114,11 +126,12 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     preset = get_preset("default")
-    grids = {
+    spacing = {
         "answer": (preset.pixel_along_m, preset.pixels_across),
         "coarse": coarse_grid(preset),
+        "band": coarse_grid(preset),
     }
-    grids = {k: grids[k] for k in args.grids.split(",")}
+    grids = args.grids.split(",")
     cases = []
     counts: dict[tuple, list[int]] = {}
     t_all = time.perf_counter()
@@ -126,10 +139,32 @@ def main(argv: list[str] | None = None) -> int:
         args.designs, args.perturb, args.seed, args.ei_scale, args.c_scale_um * 1e-6
     )
     for name, label, beam in beams:
-        for gname, (dx, ny) in grids.items():
-            model = prepare_flexible(beam, WIDTH_M, pixel_along_m=dx, pixels_across=ny)
-            for e_mpa, kg, mm in itertools.product(args.moduli, args.loads, args.positions):
-                case = solve_case(model, kg, mm, e_mpa)
+        models = {
+            g: prepare_flexible(beam, WIDTH_M, pixel_along_m=dx, pixels_across=ny)
+            for g, (dx, ny) in spacing.items()
+            if g in grids or (g == "answer" and "band" in grids)
+        }
+        for e_mpa, kg, mm in itertools.product(args.moduli, args.loads, args.positions):
+            done = {}
+            for gname in ("answer", "coarse", "band"):
+                if gname not in models:
+                    continue
+                if gname == "band":
+                    # as app.service.band_sampling solves the nominal coarse beam: warm-started
+                    # from the answer's line pressure, at SAMPLE_TOL
+                    ans = done["answer"][1]
+                    m = models["band"]
+                    inside = np.isfinite(m.unloaded_map.gap_m)
+                    line = np.interp(
+                        m.positions_m, ans.positions_m, np.nan_to_num(ans.pressure_line_pa)
+                    )
+                    start = np.where(inside, line[:, None], 0.0)
+                    done[gname] = solve_case(m, kg, mm, e_mpa, SAMPLE_TOL, start)
+                else:
+                    done[gname] = solve_case(models[gname], kg, mm, e_mpa)
+                if gname not in grids:
+                    continue
+                case = done[gname][0]
                 case.update(design=name, beam=label, grid=gname)
                 cases.append(case)
                 tally = counts.setdefault((name, gname, e_mpa), [0, 0])
