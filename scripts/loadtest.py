@@ -243,9 +243,7 @@ def main(argv: list[str] | None = None) -> int:
         tenth = max(len(samples) // 10, 1)
         result = {
             "url_started_here": proc is not None,
-            "server_workers": (
-                sum(k.endswith("(worker)") for k in per_process_before) or None
-            )
+            "server_workers": (sum(k.endswith("(worker)") for k in per_process_before) or None)
             if proc
             else None,
             "server_workers_default": proc is not None and args.workers is None,

@@ -31,7 +31,13 @@ from . import _pk_kernels as _k
 from .elastic import PeriodicHalfSpace
 from .errors import InputError
 
-__all__ = ["DEFAULT_GAP_FLOOR_M", "MicroResult", "full_contact_pressure", "solve_micro"]
+__all__ = [
+    "DEFAULT_GAP_FLOOR_M",
+    "MicroResult",
+    "check_micro_inputs",
+    "full_contact_pressure",
+    "solve_micro",
+]
 
 log = logging.getLogger(__name__)
 
@@ -309,6 +315,47 @@ def _pk_cg(
     return p, gap, delta, it, float(residual), converged
 
 
+def check_micro_inputs(
+    heights_m,
+    nominal_pressure_pa: float,
+    effective_modulus_pa: float,
+    *,
+    tol: float,
+    gap_floor_m: float,
+    initial_pressure_pa,
+) -> tuple[np.ndarray, float, float, np.ndarray | None]:
+    """The checks of :func:`solve_micro`'s inputs, shared with the torch backend
+    (:func:`solvers.micro_torch.solve_micro_torch`). Returns the heights [m] as a float array,
+    the nominal pressure [Pa], the effective modulus [Pa] and the initial pressure [Pa] (a
+    float array, or None); raises :class:`InputError` naming the bad argument."""
+    h = _check_heights(heights_m)
+    p_nom = float(nominal_pressure_pa)
+    if not np.isfinite(p_nom) or p_nom < 0:
+        raise InputError(
+            f"nominal_pressure_pa must be finite and >= 0, got {nominal_pressure_pa!r}"
+        )
+    e_eff = float(effective_modulus_pa)
+    if not np.isfinite(e_eff) or e_eff <= 0:
+        raise InputError(
+            f"effective_modulus_pa must be finite and > 0, got {effective_modulus_pa!r}"
+        )
+    if not np.isfinite(gap_floor_m) or gap_floor_m <= 0:
+        raise InputError(f"gap_floor_m must be finite and > 0, got {gap_floor_m!r}")
+    if not (np.isfinite(tol) and tol > 0):
+        raise InputError(f"tol must be finite and > 0, got {tol!r}")
+    if initial_pressure_pa is not None:
+        initial_pressure_pa = np.asarray(initial_pressure_pa, dtype=float)
+        if initial_pressure_pa.shape != h.shape:
+            raise InputError(
+                f"initial_pressure_pa has shape {initial_pressure_pa.shape}, expected {h.shape}"
+            )
+        if not np.all(np.isfinite(initial_pressure_pa)):
+            raise InputError("initial_pressure_pa contains NaN or inf values")
+    if np.ptp(h) == 0:
+        raise InputError("heights_m is flat (peak-to-valley 0): no texture to solve")
+    return h, p_nom, e_eff, initial_pressure_pa
+
+
 def solve_micro(
     heights_m: np.ndarray,
     pixel_size_m: float | tuple[float, float],
@@ -360,31 +407,14 @@ def solve_micro(
     MicroResult
     """
     t0 = time.perf_counter()
-    h = _check_heights(heights_m)
-    p_nom = float(nominal_pressure_pa)
-    if not np.isfinite(p_nom) or p_nom < 0:
-        raise InputError(
-            f"nominal_pressure_pa must be finite and >= 0, got {nominal_pressure_pa!r}"
-        )
-    e_eff = float(effective_modulus_pa)
-    if not np.isfinite(e_eff) or e_eff <= 0:
-        raise InputError(
-            f"effective_modulus_pa must be finite and > 0, got {effective_modulus_pa!r}"
-        )
-    if not np.isfinite(gap_floor_m) or gap_floor_m <= 0:
-        raise InputError(f"gap_floor_m must be finite and > 0, got {gap_floor_m!r}")
-    if not (np.isfinite(tol) and tol > 0):
-        raise InputError(f"tol must be finite and > 0, got {tol!r}")
-    if initial_pressure_pa is not None:
-        initial_pressure_pa = np.asarray(initial_pressure_pa, dtype=float)
-        if initial_pressure_pa.shape != h.shape:
-            raise InputError(
-                f"initial_pressure_pa has shape {initial_pressure_pa.shape}, expected {h.shape}"
-            )
-        if not np.all(np.isfinite(initial_pressure_pa)):
-            raise InputError("initial_pressure_pa contains NaN or inf values")
-    if np.ptp(h) == 0:
-        raise InputError("heights_m is flat (peak-to-valley 0): no texture to solve")
+    h, p_nom, e_eff, initial_pressure_pa = check_micro_inputs(
+        heights_m,
+        nominal_pressure_pa,
+        effective_modulus_pa,
+        tol=tol,
+        gap_floor_m=gap_floor_m,
+        initial_pressure_pa=initial_pressure_pa,
+    )
     hs = halfspace or PeriodicHalfSpace(
         h.shape, pixel_size_m, e_eff, backend=backend, workers=workers
     )

@@ -28,8 +28,8 @@ from .micro import (
     COARSE_TOL,
     DEFAULT_GAP_FLOOR_M,
     MicroResult,
-    _check_heights,
     _gap_statistics,
+    check_micro_inputs,
 )
 
 __all__ = ["DEVICES", "TorchHalfSpace", "solve_micro_torch"]
@@ -324,31 +324,14 @@ def solve_micro_torch(
     size, modulus and device), as a table chunk does across its rising pressures."""
     t0 = time.perf_counter()
     torch = _torch()
-    h_np = _check_heights(heights_m)
-    p_nom = float(nominal_pressure_pa)
-    if not np.isfinite(p_nom) or p_nom < 0:
-        raise InputError(
-            f"nominal_pressure_pa must be finite and >= 0, got {nominal_pressure_pa!r}"
-        )
-    e_eff = float(effective_modulus_pa)
-    if not np.isfinite(e_eff) or e_eff <= 0:
-        raise InputError(
-            f"effective_modulus_pa must be finite and > 0, got {effective_modulus_pa!r}"
-        )
-    if not np.isfinite(gap_floor_m) or gap_floor_m <= 0:
-        raise InputError(f"gap_floor_m must be finite and > 0, got {gap_floor_m!r}")
-    if not (np.isfinite(tol) and tol > 0):
-        raise InputError(f"tol must be finite and > 0, got {tol!r}")
-    if initial_pressure_pa is not None:
-        initial_pressure_pa = np.asarray(initial_pressure_pa, dtype=float)
-        if initial_pressure_pa.shape != h_np.shape:
-            raise InputError(
-                f"initial_pressure_pa has shape {initial_pressure_pa.shape}, expected {h_np.shape}"
-            )
-        if not np.all(np.isfinite(initial_pressure_pa)):
-            raise InputError("initial_pressure_pa contains NaN or inf values")
-    if np.ptp(h_np) == 0:
-        raise InputError("heights_m is flat (peak-to-valley 0): no texture to solve")
+    h_np, p_nom, e_eff, initial_pressure_pa = check_micro_inputs(
+        heights_m,
+        nominal_pressure_pa,
+        effective_modulus_pa,
+        tol=tol,
+        gap_floor_m=gap_floor_m,
+        initial_pressure_pa=initial_pressure_pa,
+    )
     hs = halfspace or TorchHalfSpace(h_np.shape, pixel_size_m, e_eff, device)
     if hs.shape != h_np.shape:
         raise InputError(f"halfspace has shape {hs.shape}, heights {h_np.shape}")

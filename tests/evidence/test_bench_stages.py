@@ -57,3 +57,36 @@ def test_benchmarks_md_renders_stages_and_skips_other_json(tmp_path):
     text = out.read_text()
     assert "## custom" in text and "on 2 cores" in text
     assert "notes" not in text
+
+
+def _speed_run(checkout: str, default: bool, rps: float, p99: float, p50: float = 18.0) -> dict:
+    return {
+        "checkout": checkout,
+        "workers": 2,
+        "default_settings": default,
+        "single_p50_ms": p50,
+        "clients": 8,
+        "throughput_rps": rps,
+        "p50_ms": 90.0,
+        "p99_ms": p99,
+        "rss_mb_before": 1400.0,
+        "rss_mb_after": 1700.0,
+        "server_errors_5xx": 0,
+        "load_average": [1.0, 1.5],
+    }
+
+
+def test_speed_stage_judges_the_default_settings_run_of_this_commit():
+    from skisnow.app.evidence import speed_md
+
+    runs = [
+        _speed_run("baseline", True, 24.0, 555.0),  # the baseline's misses are not judged
+        _speed_run("this", False, 51.0, 174.0),  # nor a run with explicit workers
+        _speed_run("this", True, 73.1, 153.0),
+    ]
+    text = "\n".join(speed_md.render_md({"baseline": "abc1234", "pairs": [], "loadtest": runs}))
+    assert "| `abc1234` | 2 (default) | 18.0 | 24.0 |" in text
+    assert "8 clients 73.1 req/s against ≥ 60 (met) at p99 153 ms against ≤ 400 ms (met)" in text
+    slow = [_speed_run("this", True, 59.9, 401.0, p50=30.5)]
+    text = "\n".join(speed_md.render_md({"baseline": "abc1234", "pairs": [], "loadtest": slow}))
+    assert text.count("**not met**") == 3

@@ -280,7 +280,8 @@ def _start_replica(url: str, data_dir: Path, log: Path) -> tuple[subprocess.Pope
         "SKISNOW_DATA_DIR": str(data_dir),
         "PYTHONPATH": str(REPO),
     }
-    cmd = [sys.executable, "-m", "skisnow.app.cli", "serve", "--port", str(port)]
+    # one worker process per replica: the test tells the replicas apart by their pid
+    cmd = [sys.executable, "-m", "skisnow.app.cli", "serve", "--port", str(port), "--workers", "1"]
     with open(log, "ab") as out:
         proc = subprocess.Popen(cmd, env=env, cwd=REPO, stdout=out, stderr=subprocess.STDOUT)
     return proc, f"http://127.0.0.1:{port}"

@@ -11,62 +11,19 @@ Skipped only when Chromium or Playwright is missing outside CI; on CI (``CI`` se
 
 from __future__ import annotations
 
-import contextlib
-import io
 import os
 import shutil
-import socket
-import threading
-import time
 from pathlib import Path
 
 import pytest
-
-CHROMIUM = "/usr/bin/chromium"
-REPO = Path(__file__).resolve().parents[2]
-SCREENSHOTS = REPO / "docs" / "screenshots"
-ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--no-first-run",
-]
+from browser_support import ARGS, CHROMIUM, REPO, SCREENSHOTS, npy_bytes, serve, serve_uploads
 
 if not os.environ.get("CI"):
     if not Path(CHROMIUM).exists():
         pytest.skip(f"{CHROMIUM} is missing (apt-get install chromium)", allow_module_level=True)
     pytest.importorskip("playwright", reason="pip install -e '.[test]' installs playwright")
 
-from playwright.sync_api import expect, sync_playwright  # noqa: E402
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-@contextlib.contextmanager
-def _serve(app):
-    """Run ``app`` under uvicorn in a background thread; yield its base URL."""
-    import uvicorn
-
-    port = _free_port()
-    srv = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
-    thread = threading.Thread(target=srv.run, daemon=True)
-    thread.start()
-    deadline = time.monotonic() + 30
-    while not srv.started:
-        if time.monotonic() > deadline or not thread.is_alive():
-            pytest.fail("uvicorn did not start")
-        time.sleep(0.05)
-    try:
-        yield f"http://127.0.0.1:{port}"
-    finally:
-        srv.should_exit = True
-        thread.join(timeout=10)
+from playwright.sync_api import expect, sync_playwright
 
 
 @pytest.fixture(scope="module")
@@ -74,31 +31,14 @@ def server(catalogue):
     from skisnow.app.main import create_app
     from skisnow.app.settings import Settings
 
-    with _serve(create_app(Settings(), catalogue=catalogue)) as url:
+    with serve(create_app(Settings(), catalogue=catalogue)) as url:
         yield url
 
 
 @pytest.fixture(scope="module")
 def upload_server(catalogue, tmp_path_factory):
-    """The app on its own data directory and a copy of the catalogue, with table settings so
-    small that a grind's table builds in seconds (as tests/jobs/test_uploads.py)."""
-    from skisnow.app import service
-    from skisnow.app.main import create_app
-    from skisnow.app.settings import Settings
-
-    cat = service.Catalogue(
-        tables_dir=catalogue.tables_dir, skis=dict(catalogue.skis), grinds=dict(catalogue.grinds)
-    )
-    settings = Settings(
-        data_dir=tmp_path_factory.mktemp("browser-uploads"),
-        warm_up=False,
-        table_points=8,
-        table_chunk_size=2,
-        table_processes=False,
-        job_poll_s=0.05,
-        max_upload_bytes=1_000_000,
-    )
-    with _serve(create_app(settings, catalogue=cat)) as url:
+    """The app on its own data directory, tables built in seconds (browser_support)."""
+    with serve_uploads(catalogue, tmp_path_factory.mktemp("browser-uploads")) as url:
         yield url
 
 
@@ -213,14 +153,6 @@ def test_ski_page_from_the_form(server, page, tmp_path):
     assert errors == []
 
 
-def _npy_bytes(a) -> bytes:
-    import numpy as np
-
-    buf = io.BytesIO()
-    np.save(buf, a)
-    return buf.getvalue()
-
-
 def test_upload_a_grind_then_compute_with_it(upload_server, page, tmp_path):
     import numpy as np
     from skisnow.solvers.texture import self_affine_surface
@@ -238,7 +170,7 @@ def test_upload_a_grind_then_compute_with_it(upload_server, page, tmp_path):
     form = page.locator("#grind-form")
 
     # a raw grid without its calibration: both fields say what is missing
-    page.set_input_files("#grind-file", files=[{**npy, "buffer": _npy_bytes(heights_um)}])
+    page.set_input_files("#grind-file", files=[{**npy, "buffer": npy_bytes(heights_um)}])
     page.fill("#grind-name", "shop7-fine")
     page.click("#grind-submit")
     for field in ("pixel_size_um", "height_unit"):
@@ -254,7 +186,7 @@ def test_upload_a_grind_then_compute_with_it(upload_server, page, tmp_path):
     assert "Traceback" not in page.inner_text("main")
 
     # the real upload with its metadata
-    page.set_input_files("#grind-file", files=[{**npy, "buffer": _npy_bytes(heights_um)}])
+    page.set_input_files("#grind-file", files=[{**npy, "buffer": npy_bytes(heights_um)}])
     for field, value in (
         ("shop_code", "S7"),
         ("machine", "Wintersteiger Mono"),
@@ -312,7 +244,7 @@ def flex_server(catalogue):
     for name, design in DESIGNS.items():
         r = dataclasses.replace(rec, beam=design.build(), identified=None, network=None, cache={})
         cat.skis[name] = service.Ski(name, catalogue.ski("ski-a").path, "0" * 64, r)
-    with _serve(create_app(Settings(), catalogue=cat)) as url:
+    with serve(create_app(Settings(), catalogue=cat)) as url:
         yield url
 
 
@@ -465,7 +397,7 @@ def test_delete_buttons_delete_from_the_upload_and_ski_pages(catalogue, page, tm
     errors: list[str] = []
     page.on("pageerror", lambda exc: errors.append(str(exc)))
     page.on("dialog", lambda dialog: dialog.accept())
-    with _serve(app) as url:
+    with serve(app) as url:
         state = app.state.uploads
         state.runner.stop()  # the jobs below are set by hand
         broken = state.db.add_item("ski", "broken", metadata={})

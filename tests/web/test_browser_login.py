@@ -9,29 +9,14 @@ import numpy as np
 import pytest
 
 # test_browser skips (module level) where Chromium or Playwright is missing outside CI
-from test_browser import ARGS, CHROMIUM, _npy_bytes, _serve, expect, sync_playwright
+from browser_support import ARGS, CHROMIUM, npy_bytes, serve_uploads
+from test_browser import expect, sync_playwright
 
 
 @pytest.fixture(scope="module")
 def token_server(catalogue, tmp_path_factory):
-    from skisnow.app import service
-    from skisnow.app.main import create_app
-    from skisnow.app.settings import Settings
-
-    cat = service.Catalogue(
-        tables_dir=catalogue.tables_dir, skis=dict(catalogue.skis), grinds=dict(catalogue.grinds)
-    )
-    settings = Settings(
-        data_dir=tmp_path_factory.mktemp("browser-login"),
-        warm_up=False,
-        table_points=8,
-        table_chunk_size=2,
-        table_processes=False,
-        job_poll_s=0.05,
-        max_upload_bytes=1_000_000,
-        team_tokens={"token-a": "team-a"},
-    )
-    with _serve(create_app(settings, catalogue=cat)) as url:
+    data_dir = tmp_path_factory.mktemp("browser-login")
+    with serve_uploads(catalogue, data_dir, team_tokens={"token-a": "team-a"}) as url:
         yield url
 
 
@@ -61,7 +46,7 @@ def test_log_in_upload_and_compute_with_the_teams_grind(token_server):
             assert page.locator("#grind-token").count() == 0  # the cookie carries the token
 
             npy = {"name": "team.npy", "mimeType": "application/octet-stream"}
-            page.set_input_files("#grind-file", files=[{**npy, "buffer": _npy_bytes(heights_um)}])
+            page.set_input_files("#grind-file", files=[{**npy, "buffer": npy_bytes(heights_um)}])
             page.fill("#grind-name", "team-a-fine")
             page.fill("#grind-pixel_size_um", "1")
             page.select_option("#grind-height_unit", "um")
