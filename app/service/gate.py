@@ -10,12 +10,14 @@ time handing it over. Measured on the 2-core benchmark machine (``scripts/loadte
 - with it: 21 ms of CPU per answer (a single client's 18 ms plus the HTTP work), 52.3 answers/s,
   p99 174 ms.
 
-Gated: :func:`app.service.contact` and the flex sheet, pair and ranking, the answers users wait
-for. A ski's model report and page figures (longer, rarer, cached per ski) are not, so that an
-answer never queues behind one.
+Gated: :func:`app.service.contact` and the flex sheet, the answers users wait for. A flex pair or
+ranking (up to 16 cells) and a compare pass the gate once per sheet or answer, so that other
+answers take their turn between its cells instead of waiting for all of them. A ski's model
+report and page figures (longer, rarer, cached per ski) are not gated, so that an answer never
+queues behind one.
 
-The gate is re-entrant (a flex pair or ranking computes sheets and contact answers inside its own
-slot) and holds nothing but the order of the computations: the answers are the same. Waiting
+The gate is re-entrant (a gated computation may call another) and holds nothing but the order of
+the computations: the answers are the same. Waiting
 requests keep their place in the server's thread pool; the job runner's threads are not gated.
 """
 

@@ -21,7 +21,6 @@ from skisnow.app.service.flex.sheet import (
     flex_sheet_answer,
     sig_or_none,
 )
-from skisnow.app.service.gate import gated
 from skisnow.solvers.errors import InputError, OutOfRangeError
 
 # ----------------------------------------------------------------------------- pair
@@ -191,7 +190,6 @@ def _camber_abs_band(ans: dict, key: str) -> float:
     return 0.0 if rel is None or v is None else abs(rel * v)
 
 
-@gated
 def flex_pair(
     cat: Catalogue,
     left: str,
@@ -276,7 +274,6 @@ def flex_pair(
 # ----------------------------------------------------------------------------- ranking
 
 
-@gated
 def flex_ranking(
     cat: Catalogue,
     skis: list[str],
