@@ -28,21 +28,16 @@ import threading
 from collections.abc import Callable
 from typing import TypeVar
 
-__all__ = ["compute_slot", "gated"]
+__all__ = ["gated"]
 
 _GATE = threading.RLock()
 
 F = TypeVar("F", bound=Callable)
 
 
-def compute_slot() -> threading.RLock:
-    """The process's compute slot: ``with compute_slot(): …`` runs the block alone among the
-    process's gated computations."""
-    return _GATE
-
-
 def gated(fn: F) -> F:
-    """``fn`` run inside :func:`compute_slot`."""
+    """``fn`` run alone among the process's gated computations (the process's one
+    re-entrant lock)."""
 
     @functools.wraps(fn)
     def run(*args, **kwargs):

@@ -10,7 +10,8 @@ from concurrent.futures import ThreadPoolExecutor
 import pytest
 from skisnow.app import service
 from skisnow.app.service import answer as answer_module
-from skisnow.app.service.gate import compute_slot, gated
+from skisnow.app.service import gate
+from skisnow.app.service.gate import gated
 from skisnow.app.settings import WORKER_MEMORY_MB, WORKERS_MAX, default_workers
 
 
@@ -64,8 +65,8 @@ def test_contact_answers_run_one_at_a_time_with_the_same_answers(catalogue, monk
     for a, b in zip(alone, together, strict=True):
         assert a["metrics"] == b["metrics"] and a["band"] == b["band"]
     # nothing holds the slot afterwards
-    assert compute_slot().acquire(blocking=False)
-    compute_slot().release()
+    assert gate._GATE.acquire(blocking=False)
+    gate._GATE.release()
 
 
 @pytest.mark.parametrize(
