@@ -13,7 +13,8 @@ porosity 0.5, default preset; ``--modulus`` for other snow), one ``service.conta
     the coarse nominal solve only (the per-answer grid estimate, no beam draws);
 ``draws2``, ``draws4``, ``draws8``
     the coarse nominal and 2, 4 or 8 plausible beams, their deviations × the factor given by
-    ``--draw-scale N=S`` (default :data:`app.service.band.BEAM_SCALE`; the factor changes how far
+    ``--draw-scale N=S`` (default: the service's factor at the case's snow modulus,
+    :func:`app.service.band_calibration.beam_scale_at`; the factor changes how far
     the perturbed solves start from their answer, so it changes their cost a little).
 
 Variants run round-robin, one call each per round, after one warm-up round (which also
@@ -56,7 +57,7 @@ def run(cat, inp, variant: str, scales: dict[int, float]) -> dict:
         elif variant.startswith("draws"):
             n = int(variant[5:])
             service_contact.answer_band = functools.partial(
-                band.answer_band, beam_samples=n, beam_scale=scales.get(n, band.BEAM_SCALE)
+                band.answer_band, beam_samples=n, beam_scale=scales.get(n)
             )
         return service.contact(cat, inp, error_band=variant != "no_band")
     finally:

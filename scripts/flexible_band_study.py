@@ -34,7 +34,7 @@ The summary fits, per kind of draw, the factor (the smallest of :data:`SCALES` w
 part alone covers 90 % of the ``calib`` identification errors), then per quantity the grid
 factor (the smallest of :data:`GRID_FACTORS` that puts 90 % of the ``calib`` truths inside the
 whole band), and checks both on ``test``; then it prints the service's own constants
-(:data:`app.service.band.BEAM_SAMPLES`, :data:`app.service.band.BEAM_SCALE`,
+(:data:`app.service.band.BEAM_SAMPLES`, :data:`app.service.band_sampling.BEAM_SCALE`,
 :data:`app.service.band.FLEXIBLE_GRID_FACTOR`) on both sets. ``--summary`` reprints it from a
 written file.
 
@@ -334,23 +334,27 @@ def summary(rows) -> None:
             )
     kind = f"full{band.BEAM_SAMPLES}"
     k = band.FLEXIBLE_GRID_FACTOR
-    print(f"\nthe service: {kind}, scale {band.BEAM_SCALE:g}, grid factors {k}")
+    # contact answers now scale their draws per snow modulus (band_calibration.beam_scale_at,
+    # calibrated on the own-ski study); this summary keeps the demo-ski factor (the flex sheet's)
+    print(
+        f"\nthe flex sheet's factor: {kind}, scale {band_sampling.BEAM_SCALE:g}, grid factors {k}"
+    )
     print("| set | quantity | cases | inside | mean half-width | RMS error | ratio |")
     print("|---|---|---|---|---|---|---|")
     for name, sel in (("calib", calib), ("test", test)):
         for q in band.QUANTITIES:
-            print(_row(f"{name} | {q}", pairs(sel, kind, band.BEAM_SCALE, k, "coarse", q)))
-        print(_row(f"{name} | all", pairs(sel, kind, band.BEAM_SCALE, k)))
+            print(_row(f"{name} | {q}", pairs(sel, kind, band_sampling.BEAM_SCALE, k, "coarse", q)))
+        print(_row(f"{name} | all", pairs(sel, kind, band_sampling.BEAM_SCALE, k)))
     for name, sel in (("calib", calib), ("test", test)):
         for e_mpa in sorted({r["e_snow_mpa"] for r in sel}):
             sub = [r for r in sel if r["e_snow_mpa"] == e_mpa]
             print(
                 _row(
                     f"{name} | {e_mpa:g} MPa",
-                    pairs(sub, kind, band.BEAM_SCALE, band.FLEXIBLE_GRID_FACTOR),
+                    pairs(sub, kind, band_sampling.BEAM_SCALE, band.FLEXIBLE_GRID_FACTOR),
                 )
             )
-        print(_row(f"{name} | all, grid × 1", pairs(sel, kind, band.BEAM_SCALE)))
+        print(_row(f"{name} | all, grid × 1", pairs(sel, kind, band_sampling.BEAM_SCALE)))
         print(
             _row(
                 f"{name} | all, no camber part", pairs(sel, "none", 1.0, band.FLEXIBLE_GRID_FACTOR)

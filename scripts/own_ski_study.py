@@ -633,18 +633,7 @@ def rescore_ski(catalogue: service.Catalogue, res: dict, settings: dict, work: P
         "answers_git_commit": commit,
     }
     if settings["reference_fit"] and not res.get("reference_fit"):
-        # a run without reference fits, completed from the kept ski file
-        kg = np.asarray(res["held_out"]["load_kg"], dtype=float)
-        mm = np.asarray(res["held_out"]["load_position_mm"], dtype=float)
-        t2 = time.perf_counter()
-        try:
-            fields["reference_fit"] = reference_fit(
-                cat.skis[name].record, truth, kg, mm, settings["grind"], tcat, settings["moduli"]
-            )
-        except Exception as exc:  # the reference is a diagnostic: record, go on
-            fields["reference_fit"] = {"error": f"{type(exc).__name__}: {exc}"}
-        fields["reference_fit_time_s"] = round(time.perf_counter() - t2, 1)
-        log.info("  %s: reference fit %s", name, _brief_ref(fields["reference_fit"]))
+        fields.update(_added_reference_fit(res, cat.skis[name].record, truth, tcat, settings, work))
     cache.parent.mkdir(parents=True, exist_ok=True)
     with common.atomic_path(cache) as tmp:
         tmp.write_text(
@@ -680,6 +669,29 @@ def _add_reference_truth(
     case.update(got)
     if store is not None:
         store[key] = got
+
+
+def _added_reference_fit(res, record, truth, tcat, settings, work: Path) -> dict:
+    """The reference fit of a ski cached without one, from its kept ski file; stored in
+    ``work/reference-fits`` (it depends on the measured data and the truth only, not on the
+    commit whose bands are rescored)."""
+    name = f"{res['design']}-{res['grid']}-d{res['draw']}"
+    path = work / "reference-fits" / f"{name}.json"
+    if path.is_file():
+        return json.loads(path.read_text(encoding="utf-8"))
+    kg = np.asarray(res["held_out"]["load_kg"], dtype=float)
+    mm = np.asarray(res["held_out"]["load_position_mm"], dtype=float)
+    t2 = time.perf_counter()
+    try:
+        ref = reference_fit(record, truth, kg, mm, settings["grind"], tcat, settings["moduli"])
+    except Exception as exc:  # the reference is a diagnostic: record, go on
+        ref = {"error": f"{type(exc).__name__}: {exc}"}
+    out = {"reference_fit": ref, "reference_fit_time_s": round(time.perf_counter() - t2, 1)}
+    log.info("  %s: reference fit %s", name, _brief_ref(ref))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with common.atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(out, default=_json), encoding="utf-8")
+    return out
 
 
 def _write_reference_truths(path: Path, refs: dict) -> None:

@@ -11,9 +11,10 @@ in quadrature (:func:`solvers.band.combine`):
     gives its width. A design beam (the demo skis' own beams) is taken as exact. An answer of
     the bending ski (``flexible``, or ``auto`` when it bends) from an identified beam is solved
     again with :data:`BEAM_SAMPLES` plausible beams (EI(X) and c(X)) drawn from the
-    identification's covariance, their deviations × :data:`BEAM_SCALE` (:func:`beam_models`;
-    the covariance understates the identified beam's actual error, and the factor is
-    calibrated against the demo skis' true beams).
+    identification's covariance, their deviations × a factor per snow modulus
+    (:func:`app.service.band_calibration.beam_scale_at`, :func:`beam_models`; the covariance
+    understates the identified beam's actual error, the more so the stiffer the snow, and the
+    factor is calibrated against the own-ski study designs' true beams).
 ``macro_grid``
     Per answer (:func:`grid_component`): the apparent area from the share of its contact length
     in its zones' end pixels, the minimum average separation from its difference to the grid
@@ -61,12 +62,12 @@ from skisnow.app.service.band_calibration import (
     FLAT_MIN_WIDTH,
     FLAT_SIGMA_M,
     FLAT_STRETCH_M,
+    beam_scale_at,
     bending_ignored_widths,
 )
 from skisnow.app.service.band_sampling import (
     BAND_SEED,
     BEAM_SAMPLES,
-    BEAM_SCALE,
     PROFILE_CORRELATION_M,
     PROFILE_SAMPLES,
     QUANTITIES,
@@ -352,7 +353,7 @@ def answer_band(
     samples: int = PROFILE_SAMPLES,
     seed: int = BAND_SEED,
     beam_samples: int = BEAM_SAMPLES,
-    beam_scale: float = BEAM_SCALE,
+    beam_scale: float | None = None,
 ) -> Band:
     """The band of one answer (``macro``/``ms`` are the answer's own solves, ``positions_m``/
     ``gap_m`` the rigid model's loaded profile behind them). ``min_separation_unresolved``: why
@@ -362,7 +363,9 @@ def answer_band(
     A rigid answer (``ski_model_used`` "rigid") is solved again with ``samples`` perturbed
     loaded profiles (:func:`camber_sigma_m`); an answer of the bending ski with
     ``beam_samples`` plausible beams drawn from the identification's covariance, deviations
-    × ``beam_scale`` (:func:`beam_models`; none for a design beam). Both on the grid twice as
+    × ``beam_scale`` (default: calibrated per snow modulus,
+    :func:`app.service.band_calibration.beam_scale_at`; :func:`beam_models`; none for a design
+    beam). Both on the grid twice as
     coarse, whose nominal solve also gives the per-answer grid estimate.
 
     A rigid answer whose loaded profile lies within :data:`FLAT_GAP_M` of the flat over at
@@ -395,6 +398,8 @@ def answer_band(
         flat_sigma = FLAT_SIGMA_M * weight if stretch >= FLAT_STRETCH_M else None
         sampled = _sample(case, 0.0 if sigma is None else sigma, samples, seed, flat_sigma)
     else:
+        if beam_scale is None:
+            beam_scale = beam_scale_at(e_eff)
         models = beam_models(record, preset, samples=beam_samples, seed=seed, scale=beam_scale)
         if models is not None:
             sampled = _sample_flexible(macro, ms, models, table, porosity, e_eff)

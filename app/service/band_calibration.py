@@ -16,6 +16,14 @@ Things an answer used to leave out of its band:
     from the fit's covariance understates the identified profile's actual error on designs
     the spline model does not fit exactly; the factor is measured on the own-ski study's
     designs (``scripts/own_ski_study.py``).
+``BEAM_SCALE_NODES``
+    A bending-ski answer of an identified beam is solved again with beams drawn from the
+    fit's covariance, their parameter deviations × a factor. What the covariance leaves out
+    (the smooth spline model's error on steep EI or camber changes) matters more the stiffer
+    the snow: on soft snow the ski's overall bending sets the contact, on stiff snow the last
+    µm of its profile. The factor is calibrated per snow modulus on the own-ski study's designs
+    against their true beams (``scripts/own_ski_study.py``, then
+    ``scripts/beam_scale_study.py``).
 ``FLAT_*``
     The flat-base regime (docs/physics.md §4c): where the loaded base lies within
     :data:`FLAT_GAP_M` of the flat over a stretch of at least :data:`FLAT_STRETCH_M`, camber
@@ -60,7 +68,37 @@ NETWORK_SIGMA_SCALE = 1.5
 #: place on the two worst designs (docs/studies/own-ski-study-verify.md): binding-plate 200 MPa
 #: 58 → 75 %, asymmetric 83 → 92 %; at 2000 MPa 42 → 42 % and 54 → 71 %, where the flat-base
 #: part (below), not this one, sets the band (those answers carry the ``flat_base`` warning)
+#: Rechecked against the reference truth (the true beam on 1 mm × 32, which the band's grid
+#: part is for) by ``scripts/beam_scale_study.py`` on the study's draw 0, both grids, 288
+#: answers per modulus: inside at 20 / 200 / 2000 MPa 90 / 87 / 89 % at × 1, 92 / 91 / 90 % at
+#: × 1.5 (mean half-width ÷ RMS error 1.56 / 1.73 / 1.39), 94 / 95 / 92 % at × 2
 IDENTIFIED_SIGMA_SCALE = 1.5
+
+# ----------------------------------------------------------------------------- bending ski
+
+#: snow moduli of the beam-draw factor's nodes [MPa] (base 700 MPa, ν 0.3)
+BEAM_SCALE_E_SNOW_MPA = (20.0, 200.0, 2000.0)
+#: factor on the identification covariance's parameter deviations of the beam draws per node
+#: [-]: at each modulus the smallest of 1, 2, 4, 8, 16 that puts ≥ 90 % of the calibration
+#: skis' reference truths inside the whole band (``python scripts/beam_scale_study.py --work
+#: <own-ski study work folder>``; calibration: the own-ski study's draw 0, six designs × both
+#: grids, 288 answers per modulus; the truth: the true beam bending on 1 mm × 32). Inside at
+#: 20 MPa 81 / 92 / 97 / 99 / 100 % (mean half-width ÷ RMS error 1.09 / 1.57 / 2.76 / 5.19 /
+#: 9.41), at 200 MPa 74 / 84 / 92 / 99 / 99 % (0.63 / 0.90 / 1.43 / 2.28 / 3.40), at 2000 MPa
+#: 65 / 75 / 90 / 97 / 100 % (0.58 / 0.84 / 1.26 / 1.82 / 2.58); the demo skis' factor 16
+#: (:data:`app.service.band_sampling.BEAM_SCALE`) was 2–6× too wide for them. Checked on the
+#: study's other draws (docs/own-ski-study.md) and the demo skis' calibration test
+BEAM_SCALE_NODES = (2.0, 4.0, 8.0)
+
+
+def beam_scale_at(e_eff_pa: float) -> float:
+    """:data:`BEAM_SCALE_NODES` at the answer's effective modulus [Pa]: linear in log E' between
+    the nodes, held at the ends."""
+    from skisnow.solvers.elastic import effective_modulus
+
+    e_nodes = np.log([effective_modulus(e * 1e6, 700e6, 0.3) for e in BEAM_SCALE_E_SNOW_MPA])
+    return float(np.interp(np.log(e_eff_pa), e_nodes, BEAM_SCALE_NODES))
+
 
 # ----------------------------------------------------------------------------- flat base
 

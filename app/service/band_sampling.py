@@ -349,11 +349,13 @@ def _spread(macro, ms, base, perturbed, failed: int) -> _Sampled:
 #: the band's cost; 2 need a larger factor and cover the apparent area less (87.5 %)
 #: (``scripts/flexible_band_study.py``; docs/limits.md, Error band)
 BEAM_SAMPLES = 4
-#: factor on the covariance's parameter deviations of those draws [-]: the smallest of the
-#: study's candidates whose camber part alone covers 90 % of the identification's own error in
-#: the ``calib`` cases (the answer against the ski's true beam on the answer's grid; 93.3 %,
-#: test cases 95.8 %). The covariance understates that error far more than the loaded
-#: profile's (about 3×, docs/limits.md): at factor 1 the camber part covers 34 % of it
+#: factor on the covariance's parameter deviations of those draws [-] for the flex sheet (its
+#: profile draws and snow shares). Contact answers use a factor per snow modulus instead
+#: (:func:`app.service.band_calibration.beam_scale_at`). This one is the smallest of
+#: ``scripts/flexible_band_study.py``'s candidates whose camber part alone covers 90 % of the
+#: identification's own error in the demo skis' ``calib`` cases (93.3 %, test cases 95.8 %);
+#: on the own-ski study's six designs it is 2–8× wider than their errors need
+#: (docs/limits.md, "Answers of the bending ski")
 BEAM_SCALE = 16.0
 #: models of plausible beams kept per ski record (one entry per coarse grid and draw setting)
 _BEAM_MODELS_MAX = 8

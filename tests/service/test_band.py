@@ -13,6 +13,7 @@ import pytest
 from skisnow.app import service
 from skisnow.app.presets import PRESETS
 from skisnow.app.service import band, band_sampling
+from skisnow.app.service.band_calibration import beam_scale_at
 from skisnow.app.storage.skis import read_ski
 from skisnow.app.storage.tables import read_table
 from skisnow.solvers.band import (
@@ -196,7 +197,9 @@ def test_flexible_answers_carry_the_identified_beams_uncertainty(shipped):
     assert "identified beam" in b["camber_model"]["source"]
     assert "plausible beams" in b["camber_model"]["source"]
     assert b["camber_model"]["perturbed_solves"] == band.BEAM_SAMPLES
-    assert b["camber_model"]["beam_deviation_scale"] == band.BEAM_SCALE
+    # the draws' factor is the calibrated one at this answer's snow modulus
+    e_eff = ans["inputs"]["effective_modulus_mpa"] * 1e6
+    assert b["camber_model"]["beam_deviation_scale"] == pytest.approx(beam_scale_at(e_eff))
     assert not any("identified beam" in n for n in b["not_covered"])
     for q in band.QUANTITIES:
         w = b["components"]["camber_model"][q]

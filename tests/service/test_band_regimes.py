@@ -175,6 +175,48 @@ def test_bending_ignored_width_follows_the_study_and_is_held_at_the_ends():
     assert low["apparent_contact_area"] == pytest.approx(w[0])
 
 
+def test_beam_scale_follows_its_nodes_and_is_held_at_the_ends():
+    """The bending-ski answer's beam-draw factor: the calibrated node values at their snow
+    moduli, between them linear in log E', beyond them the end values."""
+    from skisnow.solvers.elastic import effective_modulus
+
+    nodes = band_calibration.BEAM_SCALE_NODES
+    e_nodes = band_calibration.BEAM_SCALE_E_SNOW_MPA
+    for e_mpa, expect in zip(e_nodes, nodes, strict=True):
+        got = band_calibration.beam_scale_at(effective_modulus(e_mpa * 1e6, 700e6, 0.3))
+        assert got == pytest.approx(expect)
+    assert band_calibration.beam_scale_at(effective_modulus(2e6, 700e6, 0.3)) == nodes[0]
+    assert band_calibration.beam_scale_at(effective_modulus(20e9, 700e6, 0.3)) == nodes[-1]
+    lo, hi = (effective_modulus(e * 1e6, 700e6, 0.3) for e in e_nodes[:2])
+    mid = band_calibration.beam_scale_at(float(np.sqrt(lo * hi)))
+    assert mid == pytest.approx(0.5 * (nodes[0] + nodes[1]))
+
+
+def test_flexible_band_widens_its_beam_draws_with_the_snow_modulus(shipped):
+    """The factor enters the answer: its band reports the factor at its modulus, and the same
+    answer with the draws forced to another factor gets another camber part."""
+    from functools import partial
+
+    from skisnow.app.service import answer as answer_mod
+
+    req = service.ContactInputs("ski-a", "grind-1", 40, -160, 2000, 0.5, ski_model="flexible")
+    ans = service.contact(shipped, req)
+    e_eff = ans["inputs"]["effective_modulus_mpa"] * 1e6
+    got = ans["band"]["camber_model"]["beam_deviation_scale"]
+    assert got == pytest.approx(band_calibration.beam_scale_at(e_eff))
+    original = answer_mod.answer_band
+    try:
+        answer_mod.answer_band = partial(original, beam_scale=2 * got)
+        wider = service.contact(shipped, req)["band"]
+    finally:
+        answer_mod.answer_band = original
+    assert wider["camber_model"]["beam_deviation_scale"] == pytest.approx(2 * got)
+    assert (
+        wider["components"]["camber_model"]["apparent_contact_area"]
+        > ans["band"]["components"]["camber_model"]["apparent_contact_area"]
+    )
+
+
 # ----------------------------------------------------------------------------- the rule
 
 #: the rule's cases: (ski, served by, load kg, position mm) at each of RULE_MODULI_MPA

@@ -12,7 +12,8 @@ Band (90 % half-width, absolute, in the quantity's unit)
     (:mod:`app.service.band`):
 
     - identified beam: :data:`app.service.band.BEAM_SAMPLES` beams drawn from the identification's
-      covariance in antithetic pairs, deviations × :data:`app.service.band.BEAM_SCALE`, seed
+      covariance in antithetic pairs, deviations ×
+      :data:`app.service.band_sampling.BEAM_SCALE`, seed
       :data:`app.service.band.BAND_SEED` (:func:`app.service.band.beam_models` on snow, the same
       draws on the flat);
     - camber network: :data:`app.service.band.PROFILE_SAMPLES` smooth profile perturbations of the

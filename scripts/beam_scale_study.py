@@ -1,0 +1,266 @@
+"""The beam-draw factor of a bending-ski answer's band, per snow modulus, on the own-ski study's
+skis (issue #26 point 4; :data:`app.service.band_calibration.BEAM_SCALE_NODES`).
+
+Input: the work folder of ``scripts/own_ski_study.py`` after a run and a ``--rescore`` (the kept
+ski files ``skis/<design>-<grid>-d<draw>.h5`` and the rescored cases with their reference truths,
+``rescored/<name>.json``). For every ski with an identified beam, every held-out case is asked
+again through :func:`app.service.contact`:
+
+- ``flexible`` with the beam draws' deviations × each of :data:`FLEX_SCALES` (the band's
+  ``beam_scale``);
+- ``rigid`` with the identified profile's spread × each of :data:`RIGID_SCALES`
+  (:data:`app.service.band_calibration.IDENTIFIED_SIGMA_SCALE`), for comparison.
+
+Per case it records the answer, its same-grid and reference truths (the true beam on the answer's
+grid and on ``own_ski_study.REFERENCE_GRID``), the band's apparent-area half-width and its
+components, and the warnings. The summary, per model, snow modulus and factor, over the
+calibration draws (``--calib-draws``, default draw 0) and the others: the share of reference
+truths inside the band, the mean half-width over the RMS error against the reference truth, and
+the answers more than 3 % off, outside the band and without a warning. The chosen factor per
+modulus is the smallest candidate that puts ≥ 90 % of the calibration draws' reference truths
+inside.
+
+Usage::
+
+    python scripts/beam_scale_study.py --work /work/study/s6/work --out docs/studies/beam-scale.json
+
+About 2–3 min per ski on a 2-core machine; per-ski results are cached in ``<work>/beam-scale``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import hashlib
+import json
+import logging
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from skisnow.app import service  # noqa: E402
+from skisnow.app.service import answer as answer_mod  # noqa: E402
+from skisnow.app.service import band_calibration  # noqa: E402
+from skisnow.app.service.profiles import served_beam  # noqa: E402
+from skisnow.app.storage import common  # noqa: E402
+from skisnow.app.storage.skis import read_ski  # noqa: E402
+
+log = logging.getLogger("beam_scale_study")
+
+SCHEMA = "skisnow.beam-scale-study/1"
+FLEX_SCALES = (1.0, 2.0, 4.0, 8.0, 16.0)
+RIGID_SCALES = (1.0, 1.5, 2.0, 3.0)
+COVERAGE_TARGET = 0.90
+POROSITY = 0.5
+AREA_OFF = 0.03
+
+
+def ski_rows(work: Path, name: str, grind: str) -> list[dict]:
+    """Every held-out case of ski ``name`` answered at every candidate factor (cached)."""
+    cache = work / "beam-scale" / f"{name}.json"
+    if cache.is_file():
+        return json.loads(cache.read_text(encoding="utf-8"))
+    fields = json.loads((work / "rescored" / f"{name}.json").read_text(encoding="utf-8"))["fields"]
+    path = work / "skis" / f"{name}.h5"
+    rec = read_ski(path)
+    sha = hashlib.sha256(path.read_bytes()).hexdigest()
+    base = service.load_catalogue(REPO / "tables")
+    original = answer_mod.answer_band
+    rigid_scale = band_calibration.IDENTIFIED_SIGMA_SCALE
+    rows: list[dict] = []
+    try:
+        for model, scales in (("flexible", FLEX_SCALES), ("rigid", RIGID_SCALES)):
+            for s in scales:
+                # a fresh record per factor: the band's beam models are cached per record
+                cat = service.Catalogue(
+                    tables_dir=base.tables_dir,
+                    skis={name: service.Ski(name, path, sha, read_ski(path))},
+                    grinds=dict(base.grinds),
+                )
+                if model == "flexible":
+                    answer_mod.answer_band = functools.partial(original, beam_scale=s)
+                else:
+                    answer_mod.answer_band = original
+                    band_calibration.IDENTIFIED_SIGMA_SCALE = s
+                for c in fields["answers"]:
+                    if "truth_ref_cm2" not in c:
+                        continue
+                    inp = service.ContactInputs(
+                        name,
+                        grind,
+                        c["load_kg"],
+                        c["load_position_mm"],
+                        c["snow_modulus_mpa"],
+                        POROSITY,
+                        ski_model=model,
+                    )
+                    row = {
+                        "model": model,
+                        "scale": s,
+                        "e_snow_mpa": c["snow_modulus_mpa"],
+                        "load_kg": c["load_kg"],
+                        "load_position_mm": c["load_position_mm"],
+                    }
+                    try:
+                        a = service.contact(cat, inp)
+                    except Exception as exc:  # a refusal is recorded, not fatal
+                        rows.append({**row, "error": f"{type(exc).__name__}: {exc}"[:300]})
+                        continue
+                    comp = a["band"].get("components", {})
+                    key = "rigid" if model == "rigid" else "flexible"
+                    rows.append(
+                        {
+                            **row,
+                            "area_cm2": a["apparent"]["contact_area_cm2"],
+                            "truth_cm2": c["truth_cm2"][key],
+                            "truth_ref_cm2": c["truth_ref_cm2"][key],
+                            "half_width": a["band"]["relative_half_width"]["apparent_contact_area"],
+                            "components": {
+                                k: v.get("apparent_contact_area", 0.0) for k, v in comp.items()
+                            },
+                            "warnings": sorted({w["code"] for w in a.get("warnings", [])}),
+                        }
+                    )
+    finally:
+        answer_mod.answer_band = original
+        band_calibration.IDENTIFIED_SIGMA_SCALE = rigid_scale
+    del rec
+    cache.parent.mkdir(parents=True, exist_ok=True)
+    with common.atomic_path(cache) as tmp:
+        tmp.write_text(json.dumps(rows), encoding="utf-8")
+    return rows
+
+
+def stats(rows: list[dict]) -> dict:
+    """Coverage of the reference truth, mean half-width over the RMS error, unwarned misses."""
+    ok = [r for r in rows if "area_cm2" in r]
+    if not ok:
+        return {"answers": 0}
+    err = np.array([r["area_cm2"] / r["truth_ref_cm2"] - 1 for r in ok])
+    hw = np.array([r["half_width"] for r in ok])
+    inside = np.array(
+        [
+            r["area_cm2"] * (1 - h) <= r["truth_ref_cm2"] <= r["area_cm2"] * (1 + h)
+            for r, h in zip(ok, hw, strict=True)
+        ]
+    )
+    rms = float(np.sqrt(np.mean(err**2)))
+    bad = int(
+        np.sum((np.abs(err) > AREA_OFF) & ~inside & np.array([not r["warnings"] for r in ok]))
+    )
+    comp = {
+        k: float(np.mean([r["components"].get(k, 0.0) for r in ok]))
+        for k in ("camber_model", "macro_grid", "flat_base", "table_interpolation")
+    }
+    return {
+        "answers": len(ok),
+        "coverage": float(inside.mean()),
+        "mean_half_width": float(hw.mean()),
+        "rms_error": rms,
+        "half_width_over_rms": float(hw.mean() / rms) if rms > 0 else None,
+        "off_3pct_outside_unwarned": bad,
+        "mean_components": comp,
+    }
+
+
+def summarise(rows: list[dict], calib_draws: set[int]) -> dict:
+    out: dict = {}
+    for model, scales in (("flexible", FLEX_SCALES), ("rigid", RIGID_SCALES)):
+        out[model] = {}
+        for e in sorted({r["e_snow_mpa"] for r in rows}):
+            per = {}
+            for s in scales:
+                sel = [
+                    r
+                    for r in rows
+                    if r["model"] == model and r["e_snow_mpa"] == e and r["scale"] == s
+                ]
+                per[f"{s:g}"] = {
+                    "calib": stats([r for r in sel if r["draw"] in calib_draws]),
+                    "other": stats([r for r in sel if r["draw"] not in calib_draws]),
+                    "all": stats(sel),
+                }
+            chosen = next(
+                (
+                    s
+                    for s in scales
+                    if (per[f"{s:g}"]["calib"].get("coverage") or 0) >= COVERAGE_TARGET
+                ),
+                scales[-1],
+            )
+            out[model][f"{e:g} MPa"] = {"per_scale": per, "chosen": chosen}
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--work", type=Path, required=True, help="own_ski_study.py's work folder")
+    ap.add_argument("--out", type=Path, default=REPO / "docs" / "studies" / "beam-scale.json")
+    ap.add_argument("--calib-draws", type=int, nargs="+", default=[0])
+    ap.add_argument("--grind", default="grind-1")
+    ap.add_argument("--skis", nargs="+", help="ski names (default: every rescored ski)")
+    args = ap.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
+    t0 = time.perf_counter()
+    names = args.skis or sorted(p.stem for p in (args.work / "rescored").glob("*.json"))
+    rows: list[dict] = []
+    for i, name in enumerate(names, 1):
+        rec = read_ski(args.work / "skis" / f"{name}.h5")
+        if served_beam(rec.identified) is None:
+            log.info("[%d/%d] %s: no identified beam served, skipped", i, len(names), name)
+            continue
+        t = time.perf_counter()
+        got = ski_rows(args.work, name, args.grind)
+        design, grid, draw = name.rsplit("-", 2)
+        for r in got:
+            r.update(ski=name, design=design, grid=grid, draw=int(draw[1:]))
+        rows += got
+        log.info(
+            "[%d/%d] %s: %d answers in %.0f s",
+            i,
+            len(names),
+            name,
+            len(got),
+            time.perf_counter() - t,
+        )
+    summary = summarise(rows, set(args.calib_draws))
+    doc = {
+        "schema": SCHEMA,
+        "provenance": common.provenance(
+            {"work": str(args.work), "calib_draws": args.calib_draws, "skis": names}
+        ),
+        "flex_scales": FLEX_SCALES,
+        "rigid_scales": RIGID_SCALES,
+        "coverage_target": COVERAGE_TARGET,
+        "summary": summary,
+        "rows": rows,
+        "time_s": round(time.perf_counter() - t0, 1),
+    }
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    with common.atomic_path(args.out) as tmp:
+        tmp.write_text(json.dumps(doc, indent=0), encoding="utf-8")
+    for model, per_e in summary.items():
+        for e, v in per_e.items():
+            print(f"{model} {e}: chosen ×{v['chosen']:g}")
+            for s, st in v["per_scale"].items():
+                line = []
+                for part in ("calib", "other"):
+                    x = st[part]
+                    if x.get("answers"):
+                        line.append(
+                            f"{part} {x['answers']:3d}: inside {x['coverage']:.0%}, "
+                            f"hw/rms {x['half_width_over_rms']:.2f}, "
+                            f"unwarned {x['off_3pct_outside_unwarned']}"
+                        )
+                print(f"   ×{s:>4}: " + " | ".join(line))
+    print(f"written {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
