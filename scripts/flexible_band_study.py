@@ -66,6 +66,7 @@ from skisnow.app.service import (  # noqa: E402
     band,
     band_sampling,
 )
+from skisnow.app.service.band_calibration import beam_scale_at  # noqa: E402
 from skisnow.app.service.profiles import served_beam  # noqa: E402
 from skisnow.app.storage.skis import identification_for_sampling, read_ski  # noqa: E402
 from skisnow.app.storage.tables import read_table  # noqa: E402
@@ -116,19 +117,23 @@ def calib_loads(rec) -> list[tuple[float, float]]:
 
 
 class SkiModels:
-    """Every flexible model of one demo ski the study needs, prepared once."""
+    """Every flexible model of one demo ski the study needs, prepared once. ``service_only``:
+    only the service's own draws (:meth:`service_draws`), not the candidates of
+    :data:`SCALES` and :data:`KINDS`."""
 
-    def __init__(self, rec, preset):
+    def __init__(self, rec, preset, service_only: bool = False):
         self.rec = rec
+        self._service: dict[float, list] = {}
         dx, ny = band_sampling.coarse_grid(preset)
         ident = served_beam(rec.identified)
         self.answer = _prepare(ident, rec, preset.pixel_along_m, preset.pixels_across)
         self.coarse = _prepare(ident, rec, dx, ny)
         self.design = _prepare(rec.beam, rec, preset.pixel_along_m, preset.pixels_across)
         self.truth = _prepare(rec.beam, rec, *REFERENCE_GRID)
-        ib = identification_for_sampling(rec.identified)
+        ib = self._ib = identification_for_sampling(rec.identified)
+        self._coarse_grid = (dx, ny)
         self.draws = {}
-        for s in SCALES:
+        for s in () if service_only else SCALES:
             beams = sample_beams(ib, max(DRAW_COUNTS), band.BAND_SEED, scale=s, antithetic=True)
             full = [_prepare(b, rec, dx, ny) for b in beams]
             half = len(full) // 2
@@ -138,6 +143,16 @@ class SkiModels:
                 BeamSki(b.positions_m, ident.bending_stiffness_nm2, b.unloaded_gap_m) for b in beams
             ]
             self.draws[("camber8", s)] = [_prepare(b, rec, dx, ny) for b in shared]
+
+    def service_draws(self, scale: float) -> list:
+        """The service's draws at ``scale`` (:data:`app.service.band.BEAM_SAMPLES`, antithetic,
+        seed :data:`app.service.band.BAND_SEED`) on the coarse grid, prepared once per scale."""
+        if scale not in self._service:
+            beams = sample_beams(
+                self._ib, band.BEAM_SAMPLES, band.BAND_SEED, scale=scale, antithetic=True
+            )
+            self._service[scale] = [_prepare(b, self.rec, *self._coarse_grid) for b in beams]
+        return self._service[scale]
 
 
 def case_row(name, models: SkiModels, table, f, xf, e_mpa, preset):
@@ -156,6 +171,14 @@ def case_row(name, models: SkiModels, table, f, xf, e_mpa, preset):
         draws = band._sample_flexible(m, ms, (models.coarse, drawn), table, 0.5, e)
         t_band[f"{key[0]}:{key[1]:g}"] = time.perf_counter() - t0
         spreads[f"{key[0]}:{key[1]:g}"] = None if draws is None else draws.widths
+    # the service's own camber part: its draws at its factor for this snow modulus
+    scale = beam_scale_at(e)
+    t0 = time.perf_counter()
+    draws = band._sample_flexible(
+        m, ms, (models.coarse, models.service_draws(scale)), table, 0.5, e
+    )
+    t_band["service"] = time.perf_counter() - t0
+    spreads[SERVICE_KEY] = None if draws is None else draws.widths
     grid = band.grid_component(preset, m, sampled)
     grid_no_coarse = band.grid_component(preset, m, None)
     tab = band._table_component(table, m, 0.5, e)
@@ -188,6 +211,35 @@ def case_row(name, models: SkiModels, table, f, xf, e_mpa, preset):
 
 
 # ----------------------------------------------------------------------------- summary
+
+#: the camber part of the service's own draws (factor per snow modulus) in a row's spreads
+SERVICE_KEY = "service:0"
+
+
+def service_summary(rows) -> dict[str, float]:
+    """The grid factors fitted on ``calib`` with the service's own camber part (its draws at
+    :func:`app.service.band_calibration.beam_scale_at`), and the band they give on both sets,
+    per quantity and snow modulus; returns the factors."""
+    rows = [r for r in rows if "values" in r and r["converged"]]
+    calib = [r for r in rows if r["set"] == "calib"]
+    test = [r for r in rows if r["set"] == "test"]
+    k = fit_grid(calib, "service", 0.0, "coarse")
+    print("\nThe service's draws (factor per snow modulus); grid factors fitted on calib:", k)
+    print("served now:", band.FLEXIBLE_GRID_FACTOR)
+    print("| set | quantity | cases | inside | mean half-width | RMS error | ratio |")
+    print("|---|---|---|---|---|---|---|")
+    for factors, label in ((k, "fitted"), (band.FLEXIBLE_GRID_FACTOR, "served")):
+        for name, sel in (("calib", calib), ("test", test)):
+            for q in band.QUANTITIES:
+                print(
+                    _row(f"{label} {name} | {q}", pairs(sel, "service", 0.0, factors, "coarse", q))
+                )
+            print(_row(f"{label} {name} | all", pairs(sel, "service", 0.0, factors)))
+            for e_mpa in sorted({r["e_snow_mpa"] for r in sel}):
+                sub = [r for r in sel if r["e_snow_mpa"] == e_mpa]
+                print(_row(f"{label} {name} | {e_mpa:g} MPa", pairs(sub, "service", 0.0, factors)))
+    return k
+
 
 #: candidate factors on a bending-ski answer's grid part, per quantity
 GRID_FACTORS = tuple(float(k) for k in np.round(np.arange(0.5, 4.001, 0.05), 2))
@@ -371,9 +423,19 @@ def main(argv=None):
     ap.add_argument("--out", type=Path)
     ap.add_argument("--summary", type=Path, help="print the summary of a written file")
     ap.add_argument("--sets", nargs="+", default=["calib", "test"])
+    ap.add_argument(
+        "--service-only",
+        action="store_true",
+        help="only the service's own draws (its factor per snow modulus): fits the grid factors",
+    )
     args = ap.parse_args(argv)
     if args.summary:
-        summary(json.loads(args.summary.read_text()))
+        rows = json.loads(args.summary.read_text())
+        if not any(
+            SERVICE_KEY in r.get("camber_model", {}) and len(r["camber_model"]) == 1 for r in rows
+        ):
+            summary(rows)
+        service_summary(rows)
         return
     if args.out is None:
         ap.error("--out or --summary is required")
@@ -382,7 +444,7 @@ def main(argv=None):
     rows = []
     for name in ("ski-a", "ski-b"):
         rec = read_ski(TABLES / "skis" / f"{name}.h5")
-        models = SkiModels(replace(rec, cache={}), preset)
+        models = SkiModels(replace(rec, cache={}), preset, args.service_only)
         for s in args.sets:
             loads = test_loads(rec) if s == "test" else calib_loads(rec)
             moduli = TEST_MODULI_MPA if s == "test" else CALIB_MODULI_MPA
@@ -397,7 +459,9 @@ def main(argv=None):
                     rows.append(r)
                     print(s, name, f"{f:.0f} N {xf * 1e3:.0f} mm {e:g} MPa", file=sys.stderr)
                     args.out.write_text(json.dumps(rows, default=float, indent=1))
-    summary(rows)
+    if not args.service_only:
+        summary(rows)
+    service_summary(rows)
 
 
 if __name__ == "__main__":

@@ -82,13 +82,16 @@ BEAM_SCALE_E_SNOW_MPA = (20.0, 200.0, 2000.0)
 #: [-]: at each modulus the smallest of 1, 2, 4, 8, 16 that puts ≥ 90 % of the calibration
 #: skis' reference truths inside the whole band (``python scripts/beam_scale_study.py --work
 #: <own-ski study work folder>``; calibration: the own-ski study's draw 0, six designs × both
-#: grids, 288 answers per modulus; the truth: the true beam bending on 1 mm × 32). Inside at
-#: 20 MPa 81 / 92 / 97 / 99 / 100 % (mean half-width ÷ RMS error 1.09 / 1.57 / 2.76 / 5.19 /
-#: 9.41), at 200 MPa 74 / 84 / 92 / 99 / 99 % (0.63 / 0.90 / 1.43 / 2.28 / 3.40), at 2000 MPa
-#: 65 / 75 / 90 / 97 / 100 % (0.58 / 0.84 / 1.26 / 1.82 / 2.58); the demo skis' factor 16
-#: (:data:`app.service.band_sampling.BEAM_SCALE`) was 2–6× too wide for them. Checked on the
-#: study's other draws (docs/own-ski-study.md) and the demo skis' calibration test
-BEAM_SCALE_NODES = (2.0, 4.0, 8.0)
+#: grids, 288 answers per modulus; the truth: the true beam bending on 1 mm × 32), with the
+#: grid part's factor :data:`app.service.band.FLEXIBLE_GRID_FACTOR` in place (1.7 on the
+#: apparent area, refitted on the demo skis' ``calib`` cases with these draws; the study's
+#: components recombined in quadrature). Inside, and mean half-width ÷ RMS error, at × 1 / 2 /
+#: 4 / 8 / 16: 20 MPa 94 % 2.27, 98 % 2.66, 100 % 3.73, 100 % 6.00, 100 % 10.04; 200 MPa
+#: 79 % 1.18, 89 % 1.40, 95 % 1.87, 99 % 2.66, 100 % 3.73; 2000 MPa 74 % 1.15, 81 % 1.34,
+#: 92 % 1.70, 99 % 2.21, 100 % 2.92. The demo skis' factor 16
+#: (:data:`app.service.band_sampling.BEAM_SCALE`) is 2–4× wider than these skis need. Checked on
+#: the study's other draws (docs/own-ski-study.md) and the demo skis' calibration test
+BEAM_SCALE_NODES = (1.0, 4.0, 4.0)
 
 
 def beam_scale_at(e_eff_pa: float) -> float:

@@ -475,8 +475,10 @@ def _flexible_calibration() -> tuple[np.ndarray, np.ndarray, list[str]]:
 @pytest.mark.slow
 def test_flexible_band_covers_held_out_cases_of_the_demo_skis():
     """Bending-ski answers: ≥ 85 % of the truths inside the band, ≥ 80 % per quantity. The beam
-    draws' scale (band.BEAM_SCALE) was fitted on other cases (scripts/flexible_band_study.py,
-    set ``calib``: other held-out loads at 2, 10, 50 and 500 MPa)."""
+    draws' factor per snow modulus (band_calibration.beam_scale_at) was fitted on other skis
+    (scripts/beam_scale_study.py on the own-ski study's draw 0), the grid factors on other
+    cases (scripts/flexible_band_study.py, set ``calib``: other held-out loads at 2, 10, 50 and
+    500 MPa)."""
     err, width, qs = _flexible_calibration()
     assert np.mean(err <= width) >= 0.85, np.mean(err <= width)
     for q in band.QUANTITIES:
