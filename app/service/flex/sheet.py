@@ -36,12 +36,12 @@ from skisnow.app.presets import DEFAULT_PRESET, get_preset
 from skisnow.app.service.band import (
     BAND_SEED,
     BEAM_SAMPLES,
-    BEAM_SCALE,
     PROFILE_CORRELATION_M,
     PROFILE_SAMPLES,
     beam_models,
     camber_sigma_m,
 )
+from skisnow.app.service.band_sampling import BEAM_SCALE
 from skisnow.app.service.catalogue import Catalogue, Ski
 from skisnow.app.service.gate import gated
 from skisnow.app.service.profiles import profile_model
