@@ -258,9 +258,9 @@ def _restart_run(monkeypatch, sigmas):
 
 def test_a_fit_above_the_noise_is_redone_from_a_stiffer_start(monkeypatch):
     """The global step on demand: a forward fit whose misfit stays above the noise (forced
-    here: a threshold below 1) is redone from a second start with the prior
-    RESTART_SMOOTHING_FACTOR × smoothing, and the lowest objective of all paths is kept; a fit
-    under the threshold is not redone."""
+    here: a threshold below 1) is redone from further starts with the priors
+    RESTART_SMOOTHING_FACTORS × smoothing in turn, and the lowest objective of all paths is kept;
+    a fit under the threshold is not redone."""
     again = _restart_run(monkeypatch, -1e9)
     cands = again.extra["forward_candidates"]
     assert again.extra["restarted"] is True
@@ -271,8 +271,9 @@ def test_a_fit_above_the_noise_is_redone_from_a_stiffer_start(monkeypatch):
         for s in again.extra["starts"]
         if s["start"] == "projection"
     )
+    # forced above the noise, every restart prior runs in turn
     assert factors == pytest.approx(
-        [identify.START_SMOOTHING_FACTOR, identify.RESTART_SMOOTHING_FACTOR]
+        [identify.START_SMOOTHING_FACTOR, *identify.RESTART_SMOOTHING_FACTORS]
     )
     used = {
         s["smoothing"] for s in again.extra["starts"] if s["start"] == "projection" and s["used"]
