@@ -204,6 +204,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--calib-draws", type=int, nargs="+", default=[0])
     ap.add_argument("--grind", default="grind-1")
     ap.add_argument("--skis", nargs="+", help="ski names (default: every rescored ski)")
+    ap.add_argument(
+        "--rows",
+        action="store_true",
+        help="write every answer too (MBs; the per-ski cache in <work>/beam-scale keeps them)",
+    )
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
     t0 = time.perf_counter()
@@ -238,7 +243,7 @@ def main(argv: list[str] | None = None) -> int:
         "rigid_scales": RIGID_SCALES,
         "coverage_target": COVERAGE_TARGET,
         "summary": summary,
-        "rows": rows,
+        **({"rows": rows} if args.rows else {}),
         "time_s": round(time.perf_counter() - t0, 1),
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)

@@ -1,0 +1,65 @@
+"""The beam-draw factor's calibration rule (``scripts/beam_scale_study.py``): its statistics
+against the reference truth and the choice of the smallest factor with ≥ 90 % inside on the
+calibration draws, on rows written here with known answers."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO / "scripts"))
+
+import beam_scale_study as bss  # noqa: E402
+
+
+def _row(scale, draw, err, half, warned=False, e=200.0, model="flexible"):
+    """An answer ``err`` (relative) off its reference truth 100 cm², band half-width ``half``."""
+    return {
+        "model": model,
+        "scale": scale,
+        "e_snow_mpa": e,
+        "draw": draw,
+        "area_cm2": 100.0 * (1 + err),
+        "truth_cm2": 100.0,
+        "truth_ref_cm2": 100.0,
+        "half_width": half,
+        "components": {"camber_model": half},
+        "warnings": ["wide_error_band"] if warned else [],
+    }
+
+
+def test_stats_judge_the_band_against_the_reference_truth():
+    rows = [_row(1.0, 0, 0.02, 0.03), _row(1.0, 0, -0.05, 0.03), _row(1.0, 0, 0.05, 0.03, True)]
+    st = bss.stats(rows)
+    assert st["answers"] == 3
+    # inside: |answer − truth| ≤ half-width × answer, i.e. truth in [A(1−h), A(1+h)]
+    assert st["coverage"] == pytest.approx(1 / 3)
+    err = np.array([0.02, -0.05, 0.05])
+    assert st["rms_error"] == pytest.approx(np.sqrt(np.mean(err**2)))
+    assert st["half_width_over_rms"] == pytest.approx(0.03 / st["rms_error"])
+    # more than 3 % off, outside and unwarned: only the second (the third carries a warning)
+    assert st["off_3pct_outside_unwarned"] == 1
+    assert bss.stats([{"model": "flexible", "error": "refused"}]) == {"answers": 0}
+
+
+def test_the_chosen_factor_is_the_smallest_with_90_percent_of_the_calibration_draws_inside():
+    rows = []
+    for s in bss.FLEX_SCALES:
+        # calibration draw 0: 10 answers 4 % off; the band holds them from factor 4 on
+        half = 0.05 if s >= 4 else 0.01
+        rows += [_row(s, 0, 0.04, half) for _ in range(10)]
+        # another draw, left out of the choice: never inside
+        rows += [_row(s, 1, 0.2, half) for _ in range(10)]
+    for s in bss.RIGID_SCALES:
+        rows += [_row(s, 0, 0.01, 0.02, model="rigid") for _ in range(10)]
+    out = bss.summarise(rows, {0})
+    assert out["flexible"]["200 MPa"]["chosen"] == 4.0
+    per = out["flexible"]["200 MPa"]["per_scale"]
+    assert per["2"]["calib"]["coverage"] == 0.0 and per["4"]["calib"]["coverage"] == 1.0
+    assert per["4"]["other"]["coverage"] == 0.0
+    assert per["4"]["all"]["answers"] == 20
+    assert out["rigid"]["200 MPa"]["chosen"] == bss.RIGID_SCALES[0]
