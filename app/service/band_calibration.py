@@ -74,8 +74,8 @@ NETWORK_SIGMA_SCALE = 1.5
 #: 2000 MPa 88.5 / 87.2 / 88.5 % at × 1, 91.0 / 91.3 / 89.9 % at × 1.5, 92.7 / 94.4 / 92.0 %
 #: at × 2 (mean half-width ÷ RMS error 1.67 / 1.89 / 1.50), 95.1 / 96.9 / 95.5 % at × 3; so × 2
 #: (was 1.5). On the
-#: study's draws 1 and 2 at × 1.5: 93.6 / 89.6 / 88.7 % (1.57 / 1.40 / 1.45); at × 2 see
-#: docs/own-ski-study.md
+#: study's draws 1 and 2 at × 1.5: 93.6 / 89.6 / 88.7 % (1.57 / 1.40 / 1.45), at × 2:
+#: 95.7 / 92.4 / 91.1 % (1.70 / 1.52 / 1.55) (docs/own-ski-study.md)
 IDENTIFIED_SIGMA_SCALE = 2.0
 
 # ----------------------------------------------------------------------------- bending ski
