@@ -1144,8 +1144,9 @@ def identify_beam(
         ):
             break
         if callback is not None:
+            # rising fractions: a progress bar never goes back (0.60, 0.65, then 0.70, 0.75)
             callback(
-                0.6 + 0.02 * k,
+                0.6 + 0.1 * k,
                 f"misfit above the noise: another start with a stiffer prior (× {factor:g})",
             )
         start2 = make_start(factor * smoothing)
@@ -1153,7 +1154,9 @@ def identify_beam(
             beam2 = checked_projection(start2, u_miss)
             if beam2 is not None:
                 restarted = True
-                candidates += run_all([("projection", factor * smoothing, beam2)], at=0.65)
+                candidates += run_all(
+                    [("projection", factor * smoothing, beam2)], at=0.65 + 0.1 * k
+                )
     # "not one beam" rests on several starts: a failing fit from fewer than two starts is
     # tried again from the starts the device check set aside
     tried_rejected = False
