@@ -532,19 +532,7 @@ def study_ski(
                     "truth_auto_uses_flexible": t["auto_uses_flexible"],
                 }
                 _add_reference_truth(case, tcat, "__truth__", grind, refs)
-                body = {
-                    "ski": name,
-                    "grind": grind,
-                    "load_kg": kg[k],
-                    "load_position_mm": mm[k],
-                    "snow_modulus_mpa": e,
-                    "porosity": POROSITY,
-                }
-                for model in MODELS:
-                    a = served_answer(client, {**body, "ski_model": model})
-                    score_answer(a, case, model)
-                    case[model] = a
-                answers.append(case)
+                answers.append(answer_case(client, name, grind, case))
             log.info("  %s: %d cases answered at %g MPa", name, kg.size, e)
         _write_reference_truths(refs_path, refs)
         out["answers"] = answers
@@ -612,19 +600,7 @@ def rescore_ski(catalogue: service.Catalogue, res: dict, settings: dict, work: P
                     continue
                 if "truth_ref_cm2" not in case:
                     _add_reference_truth(case, tcat, "__truth__", settings["grind"], refs)
-                body = {
-                    "ski": name,
-                    "grind": settings["grind"],
-                    "load_kg": old["load_kg"],
-                    "load_position_mm": old["load_position_mm"],
-                    "snow_modulus_mpa": old["snow_modulus_mpa"],
-                    "porosity": POROSITY,
-                }
-                for model in MODELS:
-                    a = served_answer(client, {**body, "ski_model": model})
-                    score_answer(a, case, model)
-                    case[model] = a
-                answers.append(case)
+                answers.append(answer_case(client, name, settings["grind"], case))
     if len(refs) > n_refs:
         _write_reference_truths(refs_path, refs)
     fields = {
@@ -692,6 +668,24 @@ def _added_reference_fit(res, record, truth, tcat, settings, work: Path) -> dict
     with common.atomic_path(path) as tmp:
         tmp.write_text(json.dumps(out, default=_json), encoding="utf-8")
     return out
+
+
+def answer_case(client, name: str, grind: str, case: dict) -> dict:
+    """``case`` (its load, position, modulus and truths) with the served answer of every model
+    of :data:`MODELS`, each scored against the truths (:func:`score_answer`)."""
+    body = {
+        "ski": name,
+        "grind": grind,
+        "load_kg": case["load_kg"],
+        "load_position_mm": case["load_position_mm"],
+        "snow_modulus_mpa": case["snow_modulus_mpa"],
+        "porosity": POROSITY,
+    }
+    for model in MODELS:
+        a = served_answer(client, {**body, "ski_model": model})
+        score_answer(a, case, model)
+        case[model] = a
+    return case
 
 
 def _write_reference_truths(path: Path, refs: dict) -> None:
