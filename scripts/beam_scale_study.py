@@ -67,7 +67,6 @@ def ski_rows(work: Path, name: str, grind: str) -> list[dict]:
         return json.loads(cache.read_text(encoding="utf-8"))
     fields = json.loads((work / "rescored" / f"{name}.json").read_text(encoding="utf-8"))["fields"]
     path = work / "skis" / f"{name}.h5"
-    rec = read_ski(path)
     sha = hashlib.sha256(path.read_bytes()).hexdigest()
     base = service.load_catalogue(REPO / "tables")
     original = answer_mod.answer_band
@@ -129,7 +128,6 @@ def ski_rows(work: Path, name: str, grind: str) -> list[dict]:
     finally:
         answer_mod.answer_band = original
         band_calibration.IDENTIFIED_SIGMA_SCALE = rigid_scale
-    del rec
     cache.parent.mkdir(parents=True, exist_ok=True)
     with common.atomic_path(cache) as tmp:
         tmp.write_text(json.dumps(rows), encoding="utf-8")
