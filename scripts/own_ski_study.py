@@ -263,6 +263,7 @@ def served_answer(client, body: dict) -> dict:
     a = r.json()
     interval, half = _area_band(a)
     used = a["provenance"]["ski_model"].get("used")
+    comps = (a.get("band") or {}).get("components") or {}
     return {
         "status": 200,
         "area_cm2": a["apparent"]["contact_area_cm2"],
@@ -272,6 +273,14 @@ def served_answer(client, body: dict) -> dict:
         "used": used,
         "profile_model": a["provenance"]["ski"]["profile_model"],
         "time_ms": a.get("timing_ms", {}).get("total"),
+        # what the apparent area's band is made of (relative half-widths per part) and the
+        # footprint behind its grid part: the data a band factor is refitted from
+        "area_components": {
+            k: v.get("apparent_contact_area")
+            for k, v in comps.items()
+            if isinstance(v, dict) and v.get("apparent_contact_area") is not None
+        },
+        "zone_lengths_mm": [z["length_mm"] for z in a["apparent"].get("zones", [])],
     }
 
 
