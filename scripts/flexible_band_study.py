@@ -225,10 +225,10 @@ def service_summary(rows) -> dict[str, float]:
     test = [r for r in rows if r["set"] == "test"]
     k = fit_grid(calib, "service", 0.0, "coarse")
     print("\nThe service's draws (factor per snow modulus); grid factors fitted on calib:", k)
-    print("served now:", band.FLEXIBLE_GRID_FACTOR)
+    print("served now:", band.FLEXIBLE_GRID_FACTOR, "apparent area per snow modulus")
     print("| set | quantity | cases | inside | mean half-width | RMS error | ratio |")
     print("|---|---|---|---|---|---|---|")
-    for factors, label in ((k, "fitted"), (band.FLEXIBLE_GRID_FACTOR, "served")):
+    for factors, label in ((k, "fitted"), (served_factors, "served")):
         for name, sel in (("calib", calib), ("test", test)):
             for q in band.QUANTITIES:
                 print(
@@ -251,11 +251,20 @@ def _finite(w) -> bool:
     return w is not None and math.isfinite(w)
 
 
+def served_factors(row) -> dict[str, float]:
+    """The service's factors on the grid part of ``row``'s answer, per quantity
+    (:func:`app.service.band.flexible_grid_factors` at its snow modulus)."""
+    return band.flexible_grid_factors(effective_modulus(row["e_snow_mpa"] * 1e6, 700e6, 0.3))
+
+
 def widths(row, kind, scale, grid_factor=None, min_sep="coarse"):
     """The band of ``row`` (relative half-widths per quantity) with the camber part of draws
     ``kind`` at deviations × ``scale``, the grid part × ``grid_factor`` (per quantity; 1 when
-    missing) and the minimum separation's grid part from the coarse solve (``coarse``) or the
-    preset's constant (``preset``)."""
+    missing; a callable gives them per row, e.g. :func:`served_factors`) and the minimum
+    separation's grid part from the coarse solve (``coarse``) or the preset's constant
+    (``preset``)."""
+    if callable(grid_factor):
+        grid_factor = grid_factor(row)
     camber = row["camber_model"].get(f"{kind}:{scale:g}") or {}
     grid = dict(row["macro_grid"] if min_sep == "coarse" else row["macro_grid_preset"])
     grid = {q: w * (grid_factor or {}).get(q, 1.0) for q, w in grid.items()}
@@ -385,11 +394,12 @@ def summary(rows) -> None:
                 f"{t[1]:.1%} | {t[2] / t[3]:.2f} | {worst[1]} {worst[0]:.1%} |"
             )
     kind = f"full{band.BEAM_SAMPLES}"
-    k = band.FLEXIBLE_GRID_FACTOR
+    k = served_factors
     # contact answers now scale their draws per snow modulus (band_calibration.beam_scale_at,
     # calibrated on the own-ski study); this summary keeps the demo-ski factor (the flex sheet's)
     print(
-        f"\nthe flex sheet's factor: {kind}, scale {band_sampling.BEAM_SCALE:g}, grid factors {k}"
+        f"\nthe flex sheet's factor: {kind}, scale {band_sampling.BEAM_SCALE:g}, grid factors "
+        "served (apparent area per snow modulus)"
     )
     print("| set | quantity | cases | inside | mean half-width | RMS error | ratio |")
     print("|---|---|---|---|---|---|---|")
@@ -403,15 +413,11 @@ def summary(rows) -> None:
             print(
                 _row(
                     f"{name} | {e_mpa:g} MPa",
-                    pairs(sub, kind, band_sampling.BEAM_SCALE, band.FLEXIBLE_GRID_FACTOR),
+                    pairs(sub, kind, band_sampling.BEAM_SCALE, served_factors),
                 )
             )
         print(_row(f"{name} | all, grid × 1", pairs(sel, kind, band_sampling.BEAM_SCALE)))
-        print(
-            _row(
-                f"{name} | all, no camber part", pairs(sel, "none", 1.0, band.FLEXIBLE_GRID_FACTOR)
-            )
-        )
+        print(_row(f"{name} | all, no camber part", pairs(sel, "none", 1.0, served_factors)))
     tb = {k: np.median([r["time_s"]["band"][k] for r in rows]) for k in rows[0]["time_s"]["band"]}
     print("\nmedian band time [ms]:", {k: round(float(v) * 1e3, 1) for k, v in tb.items()})
     t_answer = np.median([r["time_s"]["answer"] for r in rows])

@@ -281,6 +281,10 @@ def served_answer(client, body: dict) -> dict:
             if isinstance(v, dict) and v.get("apparent_contact_area") is not None
         },
         "zone_lengths_mm": [z["length_mm"] for z in a["apparent"].get("zones", [])],
+        # the factor on the grid part that answer's band used (bending ski), 1 for rigid
+        "area_grid_factor": ((a.get("band") or {}).get("macro_grid_factor") or {}).get(
+            "apparent_contact_area", 1.0
+        ),
     }
 
 

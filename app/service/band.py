@@ -22,8 +22,9 @@ in quadrature (:func:`solvers.band.combine`):
     measured grid error (``skisnow bench accuracy``, :attr:`Preset.grid_band`), because no
     per-answer estimate follows their error. Factors calibrated on cases the calibration test
     does not use (``scripts/band_calibration_study.py``; docs/limits.md, Error band); for an
-    answer of the bending ski times :data:`FLEXIBLE_GRID_FACTOR`
-    (``scripts/flexible_band_study.py``).
+    answer of the bending ski times :func:`flexible_grid_factors` (:data:`FLEXIBLE_GRID_FACTOR`,
+    ``scripts/flexible_band_study.py``; the apparent area's per snow modulus,
+    ``scripts/flexible_grid_factor_study.py``).
 ``table_interpolation``
     The texture table's interpolation error between its own nodes, estimated by leaving nodes
     out (:func:`solvers.band.table_interpolation_error`), weighted by where the answer loads the
@@ -64,6 +65,7 @@ from skisnow.app.service.band_calibration import (
     FLAT_STRETCH_M,
     beam_scale_at,
     bending_ignored_widths,
+    flexible_area_grid_factor_at,
 )
 from skisnow.app.service.band_sampling import (
     BAND_SEED,
@@ -101,6 +103,7 @@ __all__ = [
     "Band",
     "answer_band",
     "camber_sigma_m",
+    "flexible_grid_factors",
     "grid_component",
 ]
 
@@ -125,6 +128,9 @@ class Band:
     flat_base: tuple[float, float, float] | None = None
     #: ``auto`` answered with the rigid shape without comparing it to the bending ski
     bending_ignored: str | None = None
+    #: factors on the grid part per quantity of a bending-ski answer
+    #: (:func:`flexible_grid_factors`), else None
+    grid_factors: dict[str, float] | None = None
 
 
 def touches_profile_end(gap_map, macro) -> bool:
@@ -287,14 +293,26 @@ GRID_BAND_FACTOR = {
 #: grid's real area is +1.7…+2.6 % off. The apparent area's was 0.65 while the beam draws were
 #: scaled × 16 at every modulus: those draws moved the demo skis' zones far beyond their
 #: identification's error and stood in for the grid's. With draws scaled to the identification's
-#: error it is 1.7 (calib 91.7 % inside at 1.96 × the RMS error; at 0.65 68.8 %)
+#: error one factor would be 1.7 (calib 91.7 % inside at 1.96 × the RMS error; at 0.65 68.8 %),
+#: but per snow modulus the demo skis need 2.0 at 2 MPa and 0.75–0.85 from 10 MPa up, so the
+#: apparent area's factor is calibrated per snow modulus on them and the own-ski study together
+#: (:data:`app.service.band_calibration.FLEXIBLE_AREA_GRID_NODES`)
 FLEXIBLE_GRID_FACTOR: dict[str, float] = {
-    "apparent_contact_area": 1.7,
     "total_real_contact_area": 1.4,
     "average_real_contact_pressure": 1.45,
     "min_average_separation": 1.65,
     "total_reciprocal_separation": 1.15,
 }
+
+
+def flexible_grid_factors(e_eff_pa: float) -> dict[str, float]:
+    """The factors on a bending-ski answer's grid part per quantity at the effective modulus
+    [Pa]: :data:`FLEXIBLE_GRID_FACTOR`, and for the apparent area its factor per snow modulus
+    (:func:`app.service.band_calibration.flexible_area_grid_factor_at`)."""
+    return {
+        "apparent_contact_area": flexible_area_grid_factor_at(e_eff_pa),
+        **FLEXIBLE_GRID_FACTOR,
+    }
 
 
 def grid_component(preset: Preset, macro, sampled: _Sampled | None) -> dict[str, float]:
@@ -440,7 +458,10 @@ def answer_band(
         flat = None
     grid = grid_component(preset, macro, sampled)
     if not rigid:
-        grid = {q: w * FLEXIBLE_GRID_FACTOR.get(q, 1.0) for q, w in grid.items()}
+        grid_factors = flexible_grid_factors(e_eff)
+        grid = {q: w * grid_factors.get(q, 1.0) for q, w in grid.items()}
+    else:
+        grid_factors = None
     components["macro_grid"] = grid
     components["table_interpolation"] = _table_component(table, macro, porosity, e_eff)
     if rigid and rigid_minus_flexible:
@@ -509,6 +530,7 @@ def answer_band(
         beam_scale=beam_scale if (not rigid and has_sigma) else None,
         flat_base=flat_base,
         bending_ignored=bending_ignored if "ski_model" in components and bending_ignored else None,
+        grid_factors=grid_factors,
     )
 
 
@@ -594,6 +616,10 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
             "beam_deviation_scale": band.beam_scale,
             "seed": BAND_SEED,
         },
+        # the bending ski's factors on the macro grid part, per quantity (None: rigid answers)
+        "macro_grid_factor": None
+        if band.grid_factors is None
+        else {q: _round(k) for q, k in band.grid_factors.items()},
         "not_covered": band.not_covered,
         "method": "relative 90 % half-widths per source combined in quadrature: camber model "
         "(the answer solved again with perturbed loaded profiles, or for the bending ski with "

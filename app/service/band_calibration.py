@@ -101,13 +101,47 @@ BEAM_SCALE_E_SNOW_MPA = (20.0, 200.0, 2000.0)
 BEAM_SCALE_NODES = (1.0, 4.0, 4.0)
 
 
+def _at_modulus(e_eff_pa: float, e_snow_mpa: tuple[float, ...], nodes: tuple[float, ...]) -> float:
+    """``nodes`` (values at the snow moduli ``e_snow_mpa`` [MPa], base 700 MPa, ν 0.3) at the
+    effective modulus ``e_eff_pa`` [Pa]: linear in log E' between the nodes, held at the ends."""
+    from skisnow.solvers.elastic import effective_modulus
+
+    e_nodes = np.log([effective_modulus(e * 1e6, 700e6, 0.3) for e in e_snow_mpa])
+    return float(np.interp(np.log(e_eff_pa), e_nodes, nodes))
+
+
 def beam_scale_at(e_eff_pa: float) -> float:
     """:data:`BEAM_SCALE_NODES` at the answer's effective modulus [Pa]: linear in log E' between
     the nodes, held at the ends."""
-    from skisnow.solvers.elastic import effective_modulus
+    return _at_modulus(e_eff_pa, BEAM_SCALE_E_SNOW_MPA, BEAM_SCALE_NODES)
 
-    e_nodes = np.log([effective_modulus(e * 1e6, 700e6, 0.3) for e in BEAM_SCALE_E_SNOW_MPA])
-    return float(np.interp(np.log(e_eff_pa), e_nodes, BEAM_SCALE_NODES))
+
+#: snow moduli of the nodes of the bending ski's apparent-area grid factor [MPa]
+FLEXIBLE_AREA_GRID_E_SNOW_MPA = (2.0, 20.0, 200.0, 2000.0)
+#: factor on the apparent area's grid part (the end-pixel estimate,
+#: :func:`app.service.band.grid_component`) of a bending-ski answer, per node [-]. How far a
+#: footprint's ends move with the grid, relative to its end-pixel share, depends on the snow:
+#: on soft snow the pressure runs out slowly at a zone's end, on stiff snow many short zones'
+#: end errors partly cancel. One factor (1.7, fitted on the demo skis' soft-snow cases) made
+#: stiff-snow bands 2–3× wider than their error (demo ski-a, 40 kg at −160 mm, 200 MPa: ±12.8 %
+#: for a 1.4 % error). Each node is the smallest factor (step 0.05) that puts ≥ 90 % inside for
+#: every calibration population nearest to it in log E': the own-ski study's bending-ski
+#: answers at its modulus, per measurement grid (six designs × 3 draws, 432 answers each, against
+#: the true beam on 1 mm × 32), and the demo skis' ``calib`` cases (12 per modulus, against
+#: their design beams on 0.5 mm × 64; 2 MPa → node 2, 10 and 50 → node 20, 500 → node 2000)
+#: (``python scripts/flexible_grid_factor_study.py``, docs/studies/flexible-grid-factor.json).
+#: Per population: 2 MPa demo 2.0; 20 MPa dense 1.5, coarse 1.95, demo 10 MPa 0.8, 50 MPa 0.85;
+#: 200 MPa dense 0.35, coarse 0.4; 2000 MPa dense 0.65, coarse 1.25, demo 500 MPa 0.75.
+#: Calibrated on draw 0 alone the same rule gives 2.0 / 1.4 / 0.85 / 1.55, and the draws 1 and
+#: 2 then hold 88.9 / 99.7 / 92.4 % (dense) and 81.6 / 95.8 / 91.7 % (coarse) at 20 / 200 /
+#: 2000 MPa: the 20 MPa node varies with the noise draw, so all three draws calibrate it
+FLEXIBLE_AREA_GRID_NODES = (2.0, 1.95, 0.4, 1.25)
+
+
+def flexible_area_grid_factor_at(e_eff_pa: float) -> float:
+    """:data:`FLEXIBLE_AREA_GRID_NODES` at the answer's effective modulus [Pa]: linear in
+    log E' between the nodes, held at the ends."""
+    return _at_modulus(e_eff_pa, FLEXIBLE_AREA_GRID_E_SNOW_MPA, FLEXIBLE_AREA_GRID_NODES)
 
 
 # ----------------------------------------------------------------------------- flat base

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from skisnow.app import service
 from skisnow.app.presets import PRESETS
-from skisnow.app.service import band_calibration
+from skisnow.app.service import band, band_calibration
 from skisnow.solvers.band import flat_stretch
 from skisnow.solvers.beam import solve_beam_contact
 from skisnow.solvers.errors import InputError
@@ -190,6 +190,48 @@ def test_beam_scale_follows_its_nodes_and_is_held_at_the_ends():
     lo, hi = (effective_modulus(e * 1e6, 700e6, 0.3) for e in e_nodes[:2])
     mid = band_calibration.beam_scale_at(float(np.sqrt(lo * hi)))
     assert mid == pytest.approx(0.5 * (nodes[0] + nodes[1]))
+
+
+def test_flexible_area_grid_factor_follows_its_nodes_and_is_held_at_the_ends():
+    """The bending-ski answer's apparent-area grid factor: the calibrated node values at their
+    snow moduli, between them linear in log E', beyond them the end values."""
+    from skisnow.solvers.elastic import effective_modulus
+
+    nodes = band_calibration.FLEXIBLE_AREA_GRID_NODES
+    e_nodes = band_calibration.FLEXIBLE_AREA_GRID_E_SNOW_MPA
+    at = band_calibration.flexible_area_grid_factor_at
+    for e_mpa, expect in zip(e_nodes, nodes, strict=True):
+        assert at(effective_modulus(e_mpa * 1e6, 700e6, 0.3)) == pytest.approx(expect)
+    assert at(effective_modulus(0.5e6, 700e6, 0.3)) == nodes[0]
+    assert at(effective_modulus(20e9, 700e6, 0.3)) == nodes[-1]
+    lo, hi = (effective_modulus(e * 1e6, 700e6, 0.3) for e in e_nodes[1:3])
+    assert at(float(np.sqrt(lo * hi))) == pytest.approx(0.5 * (nodes[1] + nodes[2]))
+
+
+@pytest.mark.parametrize("e_mpa", [5.0, 200.0])
+def test_flexible_answer_reports_its_grid_factors_and_uses_them(shipped, e_mpa):
+    """A bending-ski answer's band names its factors on the grid part (the apparent area's at
+    its snow modulus) and its apparent-area grid part is that factor × K_END_PIXELS × its
+    end-pixel share; a rigid answer names none and uses K_END_PIXELS alone."""
+    from skisnow.solvers.band import end_pixel_share
+
+    out = {}
+    for model in ("flexible", "rigid"):
+        req = service.ContactInputs("ski-a", "grind-1", 40, -160, e_mpa, 0.5, ski_model=model)
+        ans = service.contact(shipped, req)
+        e_eff = ans["inputs"]["effective_modulus_mpa"] * 1e6
+        dx = ans["provenance"]["preset"]["macro_pixel_size_mm"][0] * 1e-3
+        share = end_pixel_share([z["length_mm"] * 1e-3 for z in ans["apparent"]["zones"]], dx)
+        out[model] = (ans["band"], share, e_eff)
+    b, share, e_eff = out["flexible"]
+    k = band_calibration.flexible_area_grid_factor_at(e_eff)
+    assert b["macro_grid_factor"]["apparent_contact_area"] == pytest.approx(k, rel=1e-3)
+    grid = b["components"]["macro_grid"]["apparent_contact_area"]
+    assert grid == pytest.approx(k * band.K_END_PIXELS * share, rel=1e-3)
+    b, share, _ = out["rigid"]
+    assert b["macro_grid_factor"] is None
+    grid = b["components"]["macro_grid"]["apparent_contact_area"]
+    assert grid == pytest.approx(band.K_END_PIXELS * share, rel=1e-3)
 
 
 def test_flexible_band_widens_its_beam_draws_with_the_snow_modulus(shipped):

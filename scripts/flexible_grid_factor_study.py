@@ -1,0 +1,285 @@
+"""The bending ski's apparent-area grid factor per snow modulus (issue #26 point 4;
+:data:`app.service.band_calibration.FLEXIBLE_AREA_GRID_NODES`, docs/limits.md "Per snow
+modulus").
+
+The band's grid part of the apparent area is ``K_END_PIXELS`` × the answer's end-pixel share
+(:func:`app.service.band.grid_component`); a bending-ski answer multiplies it by a factor. How
+far the footprint's ends move with the grid, relative to that share, depends on the snow: on
+soft snow the pressure runs out slowly at a zone's end and the end moves by more than a pixel
+with the grid; on stiff snow a footprint of several short zones counts many end pixels whose
+errors partly cancel. One factor for every modulus (1.7, fitted on the demo skis, mostly their
+soft-snow cases) made stiff-snow bands 2–3× wider than their error.
+
+Calibration cases, per node of :data:`app.service.band_calibration.FLEXIBLE_AREA_GRID_E_SNOW_MPA`:
+
+- 2 MPa: the demo skis' ``calib`` cases at 2 MPa (``scripts/flexible_band_study.py
+  --service-only --sets calib``: their served beams against their design beams on 0.5 mm × 64);
+- 20, 200 and 2000 MPa: the own-ski study's draw 0 (``scripts/own_ski_study.py``; six designs,
+  both measurement grids), bending-ski answers against the reference truth (the true beam on
+  1 mm × 32).
+
+Each answer's recorded band parts (``area_components``) are recombined in quadrature with the
+grid part rescaled from the factor it was served with (``area_grid_factor``) to the candidate.
+The node's factor is the smallest of :data:`GRID_FACTORS` that puts ≥ 90 % of its cases inside.
+Checks, with the factor interpolated as the service does (linear in log E', held at the ends):
+the demo skis' ``calib`` cases at 10, 50 and 500 MPa, and the own-ski study's draws 1 and 2.
+
+Usage::
+
+    python scripts/flexible_grid_factor_study.py --own-ski docs/studies/own-ski-study.json \\
+        --demo <flexible_band_study --service-only rows> \\
+        --out docs/studies/flexible-grid-factor.json
+
+Seconds: it reads the answers those studies recorded and solves nothing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "scripts"))
+
+from skisnow.app.service import band_calibration  # noqa: E402
+from skisnow.app.storage import common  # noqa: E402
+from skisnow.solvers.elastic import effective_modulus  # noqa: E402
+
+SCHEMA = "skisnow.flexible-grid-factor-study/1"
+QUANTITY = "apparent_contact_area"
+GRID_FACTORS = tuple(float(k) for k in np.round(np.arange(0.2, 4.001, 0.05), 2))
+COVERAGE_TARGET = 0.90
+CALIB_DRAWS = (0, 1, 2)
+
+
+def _e_eff(e_snow_mpa: float) -> float:
+    return effective_modulus(e_snow_mpa * 1e6, 700e6, 0.3)
+
+
+def own_ski_cases(study: dict, draws=None) -> list[dict]:
+    """The bending-ski answers of the own-ski study (``draws``: a test of the noise draw, None:
+    all):
+    per answer its modulus [MPa], its error against the reference truth (relative to the
+    answer, as its band is), its band parts other than the grid and its grid part at factor 1."""
+    out = []
+    for ski in study["skis"]:
+        if draws is not None and not draws(ski["draw"]):
+            continue
+        for case in ski.get("answers", []):
+            a = case.get("flexible") or {}
+            ref = (case.get("truth_ref_cm2") or {}).get("flexible")
+            comps = a.get("area_components")
+            if a.get("status") != 200 or ref is None or not comps or not a.get("area_cm2"):
+                continue
+            k = a.get("area_grid_factor") or 1.0
+            out.append(
+                {
+                    "source": f"own-ski {ski['grid']}",
+                    "e_snow_mpa": float(case["snow_modulus_mpa"]),
+                    "error": abs(a["area_cm2"] - ref) / a["area_cm2"],
+                    "other": math.sqrt(
+                        sum(v * v for p, v in comps.items() if p != "macro_grid" and v is not None)
+                    ),
+                    "grid_at_1": comps.get("macro_grid", 0.0) / k,
+                }
+            )
+    return out
+
+
+def demo_cases(rows: list[dict]) -> list[dict]:
+    """The demo skis' bending-ski answers (``flexible_band_study.py --service-only`` rows): the
+    same fields as :func:`own_ski_cases`, the truth their design beams on 0.5 mm × 64."""
+    import flexible_band_study as fb
+
+    out = []
+    for r in rows:
+        if "values" not in r or not r.get("converged"):
+            continue
+        a, t = r["values"]["answer"][QUANTITY], r["values"]["truth"][QUANTITY]
+        other = fb.widths(r, "service", 0.0, {QUANTITY: 0.0})[QUANTITY]
+        out.append(
+            {
+                "source": f"demo {r['set']}",
+                "e_snow_mpa": float(r["e_snow_mpa"]),
+                # the demo study's error is relative to the truth; its band too
+                "error": abs(a / t - 1),
+                "other": other,
+                "grid_at_1": r["macro_grid"][QUANTITY],
+            }
+        )
+    return out
+
+
+def band_stats(cases: list[dict], factor) -> dict:
+    """Coverage and mean half-width ÷ RMS error of ``cases`` with the grid part × ``factor``
+    (a number, or a callable of the snow modulus [MPa])."""
+    if not cases:
+        return {"cases": 0}
+    err = np.array([c["error"] for c in cases])
+    k = np.array([factor(c["e_snow_mpa"]) if callable(factor) else factor for c in cases])
+    width = np.hypot([c["other"] for c in cases], k * np.array([c["grid_at_1"] for c in cases]))
+    rms = float(np.sqrt(np.mean(err**2)))
+    return {
+        "cases": len(cases),
+        "coverage": float(np.mean(err <= width)),
+        "mean_half_width": float(width.mean()),
+        "rms_error": rms,
+        "half_width_over_rms": float(width.mean() / rms) if rms > 0 else None,
+    }
+
+
+def fit_factor(cases: list[dict], target: float = COVERAGE_TARGET) -> float:
+    """The smallest of :data:`GRID_FACTORS` that puts ``target`` of ``cases`` inside their band
+    (the largest when none does)."""
+    for k in GRID_FACTORS:
+        if band_stats(cases, k)["coverage"] >= target:
+            return k
+    return GRID_FACTORS[-1]
+
+
+def nearest_node(e_snow_mpa: float, nodes_mpa) -> float:
+    """The node nearest to ``e_snow_mpa`` in log E (the interpolation's axis)."""
+    x = np.log(_e_eff(e_snow_mpa))
+    return min(nodes_mpa, key=lambda e: abs(np.log(_e_eff(e)) - x))
+
+
+def node_populations(own: list[dict], demo: list[dict], e_snow_mpa: float, nodes_mpa) -> dict:
+    """A node's calibration populations: the own-ski study's answers at that modulus, one
+    population per measurement grid, and the demo skis' ``calib`` cases at each of their moduli
+    whose nearest node it is."""
+    pops: dict[str, list[dict]] = {}
+    for c in own:
+        if c["e_snow_mpa"] == e_snow_mpa:
+            pops.setdefault(f"{c['source']} {c['e_snow_mpa']:g} MPa", []).append(c)
+    for c in demo:
+        if c["source"] == "demo calib" and nearest_node(c["e_snow_mpa"], nodes_mpa) == e_snow_mpa:
+            pops.setdefault(f"{c['source']} {c['e_snow_mpa']:g} MPa", []).append(c)
+    return pops
+
+
+def interpolated(nodes_mpa, values):
+    """The factor at a snow modulus [MPa], as the service interpolates it."""
+    x = np.log([_e_eff(e) for e in nodes_mpa])
+
+    def at(e_snow_mpa: float) -> float:
+        return float(np.interp(np.log(_e_eff(e_snow_mpa)), x, values))
+
+    return at
+
+
+def study(own_all: list[dict], own_draws: dict, demo: list[dict]) -> dict:
+    nodes = band_calibration.FLEXIBLE_AREA_GRID_E_SNOW_MPA
+    fitted, per_node = [], {}
+    for e in nodes:
+        pops = node_populations(own_draws["calib"], demo, e, nodes)
+        each = {name: fit_factor(cases) for name, cases in pops.items()}
+        k = max(each.values())
+        fitted.append(k)
+        per_node[f"{e:g} MPa"] = {
+            "factor": k,
+            "populations": {
+                name: {"factor": each[name], "at_node_factor": band_stats(cases, k)}
+                for name, cases in pops.items()
+            },
+        }
+    fit = interpolated(nodes, fitted)
+    served = interpolated(nodes, band_calibration.FLEXIBLE_AREA_GRID_NODES)
+    checks = {}
+    groups = [("demo calib", [c for c in demo if c["source"] == "demo calib"])]
+    for key, label in (("calib", "calibration draws"), ("check", "other draws")):
+        for grid in ("dense", "coarse"):
+            sel = [c for c in own_draws[key] if c["source"] == f"own-ski {grid}"]
+            groups.append((f"own-ski {grid}, {label}", sel))
+    for label, sel in groups:
+        for e in sorted({c["e_snow_mpa"] for c in sel}):
+            sub = [c for c in sel if c["e_snow_mpa"] == e]
+            checks[f"{label} | {e:g} MPa"] = {
+                "fitted": band_stats(sub, fit),
+                "served": band_stats(sub, served),
+                "one factor 1.7": band_stats(sub, 1.7),
+            }
+    return {
+        "nodes_e_snow_mpa": list(nodes),
+        "fitted": fitted,
+        "served": list(band_calibration.FLEXIBLE_AREA_GRID_NODES),
+        "per_node": per_node,
+        "checks": checks,
+        "own_ski_answers": len(own_all),
+        "demo_answers": len(demo),
+    }
+
+
+def _print(res: dict) -> None:
+    print(
+        "nodes [MPa]:", res["nodes_e_snow_mpa"], "fitted:", res["fitted"], "served:", res["served"]
+    )
+    for node, r in res["per_node"].items():
+        parts = ", ".join(
+            f"{name} {p['factor']:g} ({p['at_node_factor']['cases']} cases, "
+            f"{p['at_node_factor']['coverage']:.1%} at {r['factor']:g})"
+            for name, p in r["populations"].items()
+        )
+        print(f"{node}: factor {r['factor']:g}: {parts}")
+    print("| set | fitted inside | ratio | served inside | ratio | 1.7 inside | ratio |")
+    print("|---|---|---|---|---|---|---|")
+    for label, r in res["checks"].items():
+        cells = []
+        for key in ("fitted", "served", "one factor 1.7"):
+            s = r[key]
+            cells.append(f"{s['coverage']:.1%} | {s['half_width_over_rms']:.2f}")
+        print(f"| {label} ({r['fitted']['cases']}) | " + " | ".join(cells) + " |")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument(
+        "--own-ski", type=Path, default=REPO / "docs" / "studies" / "own-ski-study.json"
+    )
+    ap.add_argument("--demo", type=Path, required=True, help="flexible_band_study.py rows")
+    ap.add_argument(
+        "--calib-draws",
+        type=int,
+        nargs="+",
+        default=list(CALIB_DRAWS),
+        help="the own-ski study's noise draws to calibrate on (the others are checks)",
+    )
+    ap.add_argument("--out", type=Path)
+    args = ap.parse_args(argv)
+    own_study = json.loads(args.own_ski.read_text(encoding="utf-8"))
+    demo = demo_cases(json.loads(args.demo.read_text(encoding="utf-8")))
+    own_all = own_ski_cases(own_study, None)
+    draws = {
+        "calib": own_ski_cases(own_study, lambda d: d in args.calib_draws),
+        "check": own_ski_cases(own_study, lambda d: d not in args.calib_draws),
+    }
+    res = study(own_all, draws, demo)
+    _print(res)
+    if args.out:
+        doc = {
+            "schema": SCHEMA,
+            "provenance": common.provenance(
+                {
+                    "own_ski": str(args.own_ski),
+                    "own_ski_commit": own_study.get("provenance", {}).get("git_commit"),
+                    "demo": str(args.demo),
+                    "calib_draws": list(args.calib_draws),
+                    "coverage_target": COVERAGE_TARGET,
+                }
+            ),
+            **res,
+        }
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        with common.atomic_path(args.out) as tmp:
+            tmp.write_text(json.dumps(doc, indent=1), encoding="utf-8")
+        print("written", args.out)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,86 @@
+"""The bending ski's apparent-area grid factor rule (``scripts/flexible_grid_factor_study.py``):
+its band recombination, the smallest factor with ≥ 90 % inside, and which populations calibrate
+which node, on cases written here with known answers."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO / "scripts"))
+
+import flexible_grid_factor_study as fgs  # noqa: E402
+
+
+def _case(err, other, grid_at_1, e=200.0, source="own-ski dense"):
+    return {"source": source, "e_snow_mpa": e, "error": err, "other": other, "grid_at_1": grid_at_1}
+
+
+def test_band_recombines_the_rescaled_grid_part_in_quadrature():
+    cases = [_case(0.05, 0.03, 0.02), _case(0.01, 0.0, 0.02)]
+    at2 = fgs.band_stats(cases, 2.0)
+    # widths hypot(0.03, 0.04) = 0.05 (holds 0.05) and 0.04
+    assert at2["coverage"] == 1.0
+    assert at2["mean_half_width"] == pytest.approx(0.045)
+    assert at2["rms_error"] == pytest.approx(np.sqrt((0.05**2 + 0.01**2) / 2))
+    assert fgs.band_stats(cases, 1.0)["coverage"] == 0.5
+    # a callable gives the factor per snow modulus
+    assert fgs.band_stats(cases, lambda e: 2.0)["coverage"] == 1.0
+
+
+def test_fit_picks_the_smallest_factor_with_ninety_percent_inside():
+    # 10 cases: error = k_i × grid part for k_i = 0.25, 0.5, …, 2.5; nothing else in the band
+    cases = [_case(0.01 * k, 0.0, 0.01) for k in np.arange(1, 11) * 0.25]
+    assert fgs.fit_factor(cases) == pytest.approx(2.25)  # 9 of 10 inside
+    assert fgs.fit_factor(cases, target=0.5) == pytest.approx(1.25)
+    # none reachable: the largest candidate
+    assert fgs.fit_factor([_case(1.0, 0.0, 0.01)]) == fgs.GRID_FACTORS[-1]
+
+
+def test_own_ski_cases_undo_the_served_factor_and_judge_against_the_reference_truth():
+    study = {
+        "skis": [
+            {
+                "draw": 0,
+                "grid": "dense",
+                "answers": [
+                    {
+                        "snow_modulus_mpa": 20.0,
+                        "truth_ref_cm2": {"flexible": 95.0},
+                        "flexible": {
+                            "status": 200,
+                            "area_cm2": 100.0,
+                            "area_grid_factor": 2.0,
+                            "area_components": {"macro_grid": 0.04, "camber_model": 0.03},
+                        },
+                    }
+                ],
+            },
+            {"draw": 1, "grid": "coarse", "answers": []},
+        ]
+    }
+    (c,) = fgs.own_ski_cases(study)
+    assert c["error"] == pytest.approx(0.05)  # relative to the answer, as its band
+    assert c["grid_at_1"] == pytest.approx(0.02)
+    assert c["other"] == pytest.approx(0.03)
+    assert c["source"] == "own-ski dense"
+    assert fgs.own_ski_cases(study, lambda d: d == 1) == []
+
+
+def test_each_node_is_calibrated_by_the_populations_nearest_to_it():
+    nodes = (2.0, 20.0, 200.0, 2000.0)
+    assert fgs.nearest_node(10.0, nodes) == 20.0
+    assert fgs.nearest_node(2.0, nodes) == 2.0
+    own = [_case(0.01, 0.0, 0.01, e=20.0), _case(0.01, 0.0, 0.01, e=20.0, source="own-ski coarse")]
+    demo = [
+        _case(0.01, 0.0, 0.01, e=10.0, source="demo calib"),
+        _case(0.01, 0.0, 0.01, e=2.0, source="demo calib"),
+        _case(0.01, 0.0, 0.01, e=20.0, source="demo test"),
+    ]
+    pops = fgs.node_populations(own, demo, 20.0, nodes)
+    assert sorted(pops) == ["demo calib 10 MPa", "own-ski coarse 20 MPa", "own-ski dense 20 MPa"]
+    assert list(fgs.node_populations(own, demo, 2.0, nodes)) == ["demo calib 2 MPa"]
