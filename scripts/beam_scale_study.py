@@ -9,7 +9,8 @@ again through :func:`app.service.contact`:
 - ``flexible`` with the beam draws' deviations × each of :data:`FLEX_SCALES` (the band's
   ``beam_scale``);
 - ``rigid`` with the identified profile's spread × each of :data:`RIGID_SCALES`
-  (:data:`app.service.band_calibration.IDENTIFIED_SIGMA_SCALE`), for comparison.
+  (:data:`app.service.band_calibration.IDENTIFIED_SIGMA_NODES`, the same at every modulus), for
+  comparison.
 
 Per case it records the answer, its same-grid and reference truths (the true beam on the answer's
 grid and on ``own_ski_study.REFERENCE_GRID``), the band's apparent-area half-width and its
@@ -70,7 +71,7 @@ def ski_rows(work: Path, name: str, grind: str) -> list[dict]:
     sha = hashlib.sha256(path.read_bytes()).hexdigest()
     base = service.load_catalogue(REPO / "tables")
     original = answer_mod.answer_band
-    rigid_scale = band_calibration.IDENTIFIED_SIGMA_SCALE
+    rigid_nodes = band_calibration.IDENTIFIED_SIGMA_NODES
     rows: list[dict] = []
     try:
         for model, scales in (("flexible", FLEX_SCALES), ("rigid", RIGID_SCALES)):
@@ -85,7 +86,7 @@ def ski_rows(work: Path, name: str, grind: str) -> list[dict]:
                     answer_mod.answer_band = functools.partial(original, beam_scale=s)
                 else:
                     answer_mod.answer_band = original
-                    band_calibration.IDENTIFIED_SIGMA_SCALE = s
+                    band_calibration.IDENTIFIED_SIGMA_NODES = (s,) * len(rigid_nodes)
                 for c in fields["answers"]:
                     if "truth_ref_cm2" not in c:
                         continue
@@ -127,7 +128,7 @@ def ski_rows(work: Path, name: str, grind: str) -> list[dict]:
                     )
     finally:
         answer_mod.answer_band = original
-        band_calibration.IDENTIFIED_SIGMA_SCALE = rigid_scale
+        band_calibration.IDENTIFIED_SIGMA_NODES = rigid_nodes
     cache.parent.mkdir(parents=True, exist_ok=True)
     with common.atomic_path(cache) as tmp:
         tmp.write_text(json.dumps(rows), encoding="utf-8")

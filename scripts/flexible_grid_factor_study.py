@@ -10,19 +10,24 @@ with the grid; on stiff snow a footprint of several short zones counts many end 
 errors partly cancel. One factor for every modulus (1.7, fitted on the demo skis, mostly their
 soft-snow cases) made stiff-snow bands 2–3× wider than their error.
 
-Calibration cases, per node of :data:`app.service.band_calibration.FLEXIBLE_AREA_GRID_E_SNOW_MPA`:
+Each node of :data:`app.service.band_calibration.FLEXIBLE_AREA_GRID_E_SNOW_MPA` takes the
+larger of two factors:
 
-- 2 MPa: the demo skis' ``calib`` cases at 2 MPa (``scripts/flexible_band_study.py
-  --service-only --sets calib``: their served beams against their design beams on 0.5 mm × 64);
-- 20, 200 and 2000 MPa: the own-ski study's draw 0 (``scripts/own_ski_study.py``; six designs,
-  both measurement grids), bending-ski answers against the reference truth (the true beam on
-  1 mm × 32).
+- **the grid-only floor** (one number): the smallest of :data:`GRID_FACTORS` whose grid part
+  alone covers ≥ 90 % of the grid's own errors (the true beam on the answer's grid against it
+  on the reference grid) in every population: the own-ski study's answers per grid and modulus,
+  the demo skis' ``calib`` cases per modulus. The grid part is then an honest grid estimate;
+- **the whole-band factor**: the smallest that puts ≥ 90 % of the truths inside the whole band
+  in every calibration population nearest to the node in log E': the own-ski study's
+  bending-ski answers at its modulus, one population per measurement grid (``--calib-draws``,
+  default all three; truth the true beam on 1 mm × 32), and the demo skis' ``calib`` cases
+  (``scripts/flexible_band_study.py --service-only --sets calib``; truth their design beams on
+  0.5 mm × 64) at each modulus whose nearest node it is.
 
 Each answer's recorded band parts (``area_components``) are recombined in quadrature with the
 grid part rescaled from the factor it was served with (``area_grid_factor``) to the candidate.
-The node's factor is the smallest of :data:`GRID_FACTORS` that puts ≥ 90 % of its cases inside.
-Checks, with the factor interpolated as the service does (linear in log E', held at the ends):
-the demo skis' ``calib`` cases at 10, 50 and 500 MPa, and the own-ski study's draws 1 and 2.
+Checks, with the factors interpolated as the service does (linear in log E', held at the ends):
+every population, and with ``--calib-draws 0`` the own-ski study's draws 1 and 2.
 
 Usage::
 
@@ -56,6 +61,8 @@ QUANTITY = "apparent_contact_area"
 GRID_FACTORS = tuple(float(k) for k in np.round(np.arange(0.2, 4.001, 0.05), 2))
 COVERAGE_TARGET = 0.90
 CALIB_DRAWS = (0, 1, 2)
+#: candidate factors on the rigid answers' identified-profile spread
+RIGID_SCALES = (1.0, 1.5, 2.0, 2.5, 3.0, 4.0)
 
 
 def _e_eff(e_snow_mpa: float) -> float:
@@ -86,13 +93,60 @@ def own_ski_cases(study: dict, draws=None) -> list[dict]:
                     "other": math.sqrt(
                         sum(v * v for p, v in comps.items() if p != "macro_grid" and v is not None)
                     ),
-                    "grid_at_1": comps.get("macro_grid", 0.0) / k,
+                    "part_at_1": comps.get("macro_grid", 0.0) / k,
                     # the grid's own error: the true beam on the answer's grid against it on
                     # the reference grid
                     "grid_error": abs(case["truth_cm2"]["flexible"] - ref)
                     / case["truth_cm2"]["flexible"],
                 }
             )
+    return out
+
+
+def rigid_cases(study: dict) -> list[dict]:
+    """The rigid answers of the own-ski study: the fields of :func:`own_ski_cases`, the part
+    the factor scales (``part_at_1``) being the camber part (the identified profile's spread)
+    at factor 1, undone from the factor it was served with (``camber_scale``)."""
+    out = []
+    for ski in study["skis"]:
+        for case in ski.get("answers", []):
+            a = case.get("rigid") or {}
+            ref = (case.get("truth_ref_cm2") or {}).get("rigid")
+            comps = a.get("area_components")
+            k = a.get("camber_scale")
+            if a.get("status") != 200 or ref is None or not comps or not k:
+                continue
+            out.append(
+                {
+                    "source": f"own-ski {ski['grid']}",
+                    "draw": ski["draw"],
+                    "e_snow_mpa": float(case["snow_modulus_mpa"]),
+                    "error": abs(a["area_cm2"] - ref) / a["area_cm2"],
+                    "other": math.sqrt(
+                        sum(
+                            v * v for p, v in comps.items() if p != "camber_model" and v is not None
+                        )
+                    ),
+                    "part_at_1": comps.get("camber_model", 0.0) / k,
+                }
+            )
+    return out
+
+
+def fit_rigid(cases: list[dict]) -> dict:
+    """Per snow modulus of ``cases``: the smallest of :data:`RIGID_SCALES` that puts ≥ 90 % of
+    each measurement grid's answers inside (the largest over the grids is the node)."""
+    out = {}
+    for e in sorted({c["e_snow_mpa"] for c in cases}):
+        per = {}
+        for src in sorted({c["source"] for c in cases}):
+            sel = [c for c in cases if c["e_snow_mpa"] == e and c["source"] == src]
+            k = next(
+                (s for s in RIGID_SCALES if band_stats(sel, s)["coverage"] >= COVERAGE_TARGET),
+                RIGID_SCALES[-1],
+            )
+            per[src] = {"factor": k, **{f"{s:g}": band_stats(sel, s) for s in RIGID_SCALES}}
+        out[f"{e:g} MPa"] = {"factor": max(p["factor"] for p in per.values()), "per_grid": per}
     return out
 
 
@@ -114,7 +168,7 @@ def demo_cases(rows: list[dict]) -> list[dict]:
                 # the demo study's error is relative to the truth; its band too
                 "error": abs(a / t - 1),
                 "other": other,
-                "grid_at_1": r["macro_grid"][QUANTITY],
+                "part_at_1": r["macro_grid"][QUANTITY],
                 "grid_error": abs(r["values"]["design"][QUANTITY] / t - 1),
             }
         )
@@ -128,7 +182,7 @@ def band_stats(cases: list[dict], factor) -> dict:
         return {"cases": 0}
     err = np.array([c["error"] for c in cases])
     k = np.array([factor(c["e_snow_mpa"]) if callable(factor) else factor for c in cases])
-    width = np.hypot([c["other"] for c in cases], k * np.array([c["grid_at_1"] for c in cases]))
+    width = np.hypot([c["other"] for c in cases], k * np.array([c["part_at_1"] for c in cases]))
     rms = float(np.sqrt(np.mean(err**2)))
     return {
         "cases": len(cases),
@@ -142,7 +196,7 @@ def band_stats(cases: list[dict], factor) -> dict:
 def grid_only_stats(cases: list[dict], k: float) -> dict:
     """Coverage of the grid's own errors (``grid_error``) by the grid part alone × ``k``."""
     err = np.array([c["grid_error"] for c in cases])
-    width = k * np.array([c["grid_at_1"] for c in cases])
+    width = k * np.array([c["part_at_1"] for c in cases])
     return {"cases": len(cases), "coverage": float(np.mean(err <= width))}
 
 
@@ -248,6 +302,17 @@ def study(own_all: list[dict], own_draws: dict, demo: list[dict]) -> dict:
     }
 
 
+def _print_rigid(res: dict) -> None:
+    r = res["rigid_identified_sigma"]
+    print("\nrigid answers, factor on the identified profile's spread; served:", r["served"])
+    for e, p in r["per_modulus"].items():
+        cells = ", ".join(
+            "{} {:g} ({:.1%})".format(src, g["factor"], g["{:g}".format(g["factor"])]["coverage"])
+            for src, g in p["per_grid"].items()
+        )
+        print(f"{e}: {p['factor']:g} ({cells})")
+
+
 def _print(res: dict) -> None:
     print(
         "nodes [MPa]:", res["nodes_e_snow_mpa"], "fitted:", res["fitted"], "served:", res["served"]
@@ -273,6 +338,8 @@ def _print(res: dict) -> None:
             s = r[key]
             cells.append(f"{s['coverage']:.1%} | {s['half_width_over_rms']:.2f}")
         print(f"| {label} ({r['fitted']['cases']}) | " + " | ".join(cells) + " |")
+    if "rigid_identified_sigma" in res:
+        _print_rigid(res)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -298,6 +365,12 @@ def main(argv: list[str] | None = None) -> int:
         "check": own_ski_cases(own_study, lambda d: d not in args.calib_draws),
     }
     res = study(own_all, draws, demo)
+    rigid = [c for c in rigid_cases(own_study) if c["draw"] in args.calib_draws]
+    res["rigid_identified_sigma"] = {
+        "nodes_e_snow_mpa": list(band_calibration.IDENTIFIED_SIGMA_E_SNOW_MPA),
+        "served": list(band_calibration.IDENTIFIED_SIGMA_NODES),
+        "per_modulus": fit_rigid(rigid),
+    }
     _print(res)
     if args.out:
         doc = {

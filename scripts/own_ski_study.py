@@ -251,6 +251,17 @@ def _area_band(answer: dict) -> tuple[list | None, float | None]:
     return interval, half
 
 
+def _camber_scale(a: dict, used: str | None) -> float | None:
+    """The factor on the camber part of answer ``a``'s band (None: not an identified beam)."""
+    from skisnow.app.service.band_calibration import identified_sigma_scale_at
+
+    if a["provenance"]["ski"]["profile_model"] != "identified_beam":
+        return None
+    if used == "flexible":
+        return ((a.get("band") or {}).get("camber_model") or {}).get("beam_deviation_scale")
+    return identified_sigma_scale_at(a["inputs"]["effective_modulus_mpa"] * 1e6)
+
+
 def served_answer(client, body: dict) -> dict:
     """One ``POST /v1/contact``: the numbers the study compares (or the refusal)."""
     r = client.post("/v1/contact", json=body)
@@ -281,6 +292,9 @@ def served_answer(client, body: dict) -> dict:
             if isinstance(v, dict) and v.get("apparent_contact_area") is not None
         },
         "zone_lengths_mm": [z["length_mm"] for z in a["apparent"].get("zones", [])],
+        # the factor on the camber part's deviations that answer's band used: the beam draws'
+        # (bending ski) or the identified profile spread's (rigid; this process's constants)
+        "camber_scale": _camber_scale(a, used),
         # the factor on the grid part that answer's band used (bending ski), 1 for rigid
         "area_grid_factor": ((a.get("band") or {}).get("macro_grid_factor") or {}).get(
             "apparent_contact_area", 1.0

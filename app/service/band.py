@@ -410,7 +410,7 @@ def answer_band(
     sampled = None
     perturbed = samples
     if rigid:
-        sigma, source = camber_sigma_m(record, positions_m)
+        sigma, source = camber_sigma_m(record, positions_m, e_eff)
         if sigma is None:
             not_covered.insert(0, "the camber model (" + source + ")")
         case = _Case(positions_m, gap_m, record.outline, preset, macro, ms, table, porosity, e_eff)

@@ -63,14 +63,18 @@ SIGMA_WINDOW_M = 0.1
 _SIGMA_CACHE: dict[int, tuple[object, np.ndarray | float | None, str]] = {}
 
 
-def camber_sigma_m(record, positions_m: np.ndarray) -> tuple[np.ndarray | float | None, str]:
+def camber_sigma_m(
+    record, positions_m: np.ndarray, e_eff_pa: float | None = None
+) -> tuple[np.ndarray | float | None, str]:
     """Standard deviation [m] of the ski's loaded-profile model error at ``positions_m`` and
     where it comes from; ``(0, …)`` for a ski answered by its design beam, ``(None, …)`` when
     unknown.
 
     For an identified beam (the profile model of :mod:`app.service.profiles` when its identification
     passed): the stored ``profile_sd_m``, the spread of the loaded profile over beams drawn
-    from the identification's covariance (:func:`solvers.identify.profile_sigma`).
+    from the identification's covariance (:func:`solvers.identify.profile_sigma`), × the
+    factor at the answer's effective modulus ``e_eff_pa`` [Pa]
+    (:func:`app.service.band_calibration.identified_sigma_scale_at`).
 
     For a camber network: its held-out (test split) profiles against the measured ones, inside
     the contact band H < 0.2 mm, as a moving RMS along the ski with the device noise removed
@@ -83,7 +87,7 @@ def camber_sigma_m(record, positions_m: np.ndarray) -> tuple[np.ndarray | float 
             return None, "the identified beam stores no profile spread"
         x = np.asarray(ident["positions_m"], dtype=float)
         sd = np.asarray(sd, dtype=float)
-        scale = band_calibration.IDENTIFIED_SIGMA_SCALE  # read at call time: a study varies it
+        scale = band_calibration.identified_sigma_scale_at(e_eff_pa)  # a study varies its nodes
         return scale * np.interp(np.asarray(positions_m, dtype=float), x, sd), (
             "identified beam: spread of the loaded profile over plausible beams drawn from the "
             f"fit's covariance where H < {CONTACT_BAND_M * 1e3:.1f} mm "

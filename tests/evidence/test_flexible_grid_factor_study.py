@@ -16,8 +16,15 @@ sys.path.insert(0, str(REPO / "scripts"))
 import flexible_grid_factor_study as fgs  # noqa: E402
 
 
-def _case(err, other, grid_at_1, e=200.0, source="own-ski dense"):
-    return {"source": source, "e_snow_mpa": e, "error": err, "other": other, "grid_at_1": grid_at_1}
+def _case(err, other, part_at_1, e=200.0, source="own-ski dense", grid_error=0.0):
+    return {
+        "source": source,
+        "e_snow_mpa": e,
+        "error": err,
+        "other": other,
+        "part_at_1": part_at_1,
+        "grid_error": grid_error,
+    }
 
 
 def test_band_recombines_the_rescaled_grid_part_in_quadrature():
@@ -41,6 +48,15 @@ def test_fit_picks_the_smallest_factor_with_ninety_percent_inside():
     assert fgs.fit_factor([_case(1.0, 0.0, 0.01)]) == fgs.GRID_FACTORS[-1]
 
 
+def test_grid_only_floor_covers_the_grids_own_errors():
+    # grid errors 0.1…1.0 × the grid part at factor 1: 90 % covered from 0.9 on
+    cases = [_case(0.5, 0.5, 0.01, grid_error=0.001 * k) for k in range(1, 11)]
+    assert fgs.grid_only_stats(cases, 0.9)["coverage"] == pytest.approx(0.9)
+    assert fgs.fit_grid_only(cases) == pytest.approx(0.9)
+    # the whole band's other parts do not count toward the floor
+    assert fgs.grid_only_stats(cases, 0.5)["coverage"] == pytest.approx(0.5)
+
+
 def test_own_ski_cases_undo_the_served_factor_and_judge_against_the_reference_truth():
     study = {
         "skis": [
@@ -51,6 +67,7 @@ def test_own_ski_cases_undo_the_served_factor_and_judge_against_the_reference_tr
                     {
                         "snow_modulus_mpa": 20.0,
                         "truth_ref_cm2": {"flexible": 95.0},
+                        "truth_cm2": {"flexible": 98.0},
                         "flexible": {
                             "status": 200,
                             "area_cm2": 100.0,
@@ -65,9 +82,10 @@ def test_own_ski_cases_undo_the_served_factor_and_judge_against_the_reference_tr
     }
     (c,) = fgs.own_ski_cases(study)
     assert c["error"] == pytest.approx(0.05)  # relative to the answer, as its band
-    assert c["grid_at_1"] == pytest.approx(0.02)
+    assert c["part_at_1"] == pytest.approx(0.02)
     assert c["other"] == pytest.approx(0.03)
     assert c["source"] == "own-ski dense"
+    assert c["grid_error"] == pytest.approx(3.0 / 98.0)  # true beam: own grid vs reference
     assert fgs.own_ski_cases(study, lambda d: d == 1) == []
 
 
