@@ -102,3 +102,45 @@ def test_each_node_is_calibrated_by_the_populations_nearest_to_it():
     pops = fgs.node_populations(own, demo, 20.0, nodes)
     assert sorted(pops) == ["demo calib 10 MPa", "own-ski coarse 20 MPa", "own-ski dense 20 MPa"]
     assert list(fgs.node_populations(own, demo, 2.0, nodes)) == ["demo calib 2 MPa"]
+
+
+def test_rigid_factor_is_the_largest_any_measurement_grid_needs():
+    # dense: errors 0.5…5 × the camber part at factor 1 → 90 % inside from 4.5 on, i.e. never
+    # among the candidates (the largest, 4); coarse: all inside at 1
+    dense = [_case(0.001 * k, 0.0, 0.002, source="own-ski dense") for k in range(1, 11)]
+    coarse = [_case(0.001, 0.0, 0.002, source="own-ski coarse") for _ in range(10)]
+    got = fgs.fit_rigid(dense + coarse)["200 MPa"]
+    assert got["per_grid"]["own-ski coarse"]["factor"] == 1.0
+    assert got["per_grid"]["own-ski dense"]["factor"] == 4.0
+    assert got["factor"] == 4.0
+    # errors 0.1…1.0 %, camber part 0.3 % at 1: 9 of 10 inside first at 3 (0.9 %)
+    dense = [_case(0.001 * k, 0.0, 0.003, source="own-ski dense") for k in range(1, 11)]
+    assert fgs.fit_rigid(dense)["200 MPa"]["factor"] == 3.0
+
+
+def test_rigid_cases_undo_the_served_camber_factor():
+    study = {
+        "skis": [
+            {
+                "draw": 2,
+                "grid": "coarse",
+                "answers": [
+                    {
+                        "snow_modulus_mpa": 2000.0,
+                        "truth_ref_cm2": {"rigid": 110.0},
+                        "rigid": {
+                            "status": 200,
+                            "area_cm2": 100.0,
+                            "camber_scale": 2.5,
+                            "area_components": {"camber_model": 0.05, "macro_grid": 0.03},
+                        },
+                    }
+                ],
+            }
+        ]
+    }
+    (c,) = fgs.rigid_cases(study)
+    assert c["error"] == pytest.approx(0.10)
+    assert c["part_at_1"] == pytest.approx(0.02)
+    assert c["other"] == pytest.approx(0.03)
+    assert c["draw"] == 2
