@@ -249,6 +249,11 @@ class Band(BaseModel):
     zone_load_relative_half_width: list[float]
     components: dict[str, dict[str, float | None]]
     camber_model: dict[str, Any]
+    macro_grid_factor: dict[str, float | None] | None = Field(
+        None,
+        description="factors on the macro grid part per quantity of a bending-ski answer "
+        "(the apparent area's per snow modulus); null for rigid answers",
+    )
     not_covered: list[str]
     method: str
 
