@@ -24,6 +24,11 @@ Things an answer used to leave out of its band:
     µm of its profile. The factor is calibrated per snow modulus on the own-ski study's designs
     against their true beams (``scripts/own_ski_study.py``, then
     ``scripts/beam_scale_study.py``).
+``FLEXIBLE_AREA_GRID_NODES``
+    The factor on a bending-ski answer's apparent-area grid part, per snow modulus: never below
+    the grid-only floor (the grid part alone covers the grid's own errors), raised where the
+    whole band needs more (soft snow, where the beam draws miss the identified beam's error)
+    (``scripts/flexible_grid_factor_study.py``; it also fits ``IDENTIFIED_SIGMA_NODES``).
 ``FLAT_*``
     The flat-base regime (docs/physics.md §4c): where the loaded base lies within
     :data:`FLAT_GAP_M` of the flat over a stretch of at least :data:`FLAT_STRETCH_M`, camber
