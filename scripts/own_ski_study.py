@@ -75,7 +75,14 @@ from skisnow.app.service.answer import auto_uses_flexible, loaded_profile  # noq
 from skisnow.app.storage import common  # noqa: E402
 from skisnow.app.storage.skis import CamberData, mean_profiles, write_camber_csv  # noqa: E402
 from skisnow.solvers.beam import G_STANDARD, BeamSki, measure_camber, measure_unloaded  # noqa: E402
-from skisnow.solvers.ski_designs import FAMILIES, STUDY_DESIGNS  # noqa: E402
+from skisnow.solvers.ski_designs import (  # noqa: E402
+    FAMILIES,
+    STUDY_DESIGNS,
+    VALIDATION_DESIGNS,
+)
+
+#: every design a run may ask for: the study's (the default) and the held-out validation ones
+ALL_DESIGNS = {**STUDY_DESIGNS, **VALIDATION_DESIGNS}
 
 log = logging.getLogger("own_ski_study")
 
@@ -164,7 +171,7 @@ def held_out_cases(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def seeds_of(design: str, draw: int, grid: str) -> dict[str, int]:
-    d = list(STUDY_DESIGNS).index(design)
+    d = list(ALL_DESIGNS).index(design)
     return {
         "measurement": MEASURE_SEED + 100 * d + 10 * draw + list(GRIDS).index(grid),
         "held_out": HELD_OUT_SEED + 100 * d + draw,
@@ -430,7 +437,7 @@ def study_ski(
     """Upload one measured ski, wait for its job, answer its held-out cases; the ski's record."""
     name = f"{design}-{grid}-d{draw}"
     seeds = seeds_of(design, draw, grid)
-    truth = STUDY_DESIGNS[design].build(SPACING_M)
+    truth = ALL_DESIGNS[design].build(SPACING_M)
     data = camber_data(
         name, truth, grid, seeds["measurement"], settings["unloaded"], settings["csv_spacing_mm"]
     )
@@ -609,7 +616,7 @@ def rescore_ski(catalogue: service.Catalogue, res: dict, settings: dict, work: P
     )
     t1 = time.perf_counter()
     answers = []
-    truth = STUDY_DESIGNS[res["design"]].build(SPACING_M)
+    truth = ALL_DESIGNS[res["design"]].build(SPACING_M)
     tcat = service.Catalogue(
         tables_dir=catalogue.tables_dir,
         skis={"__truth__": truth_ski(cat.skis[name], truth, "__truth__")},
@@ -994,7 +1001,7 @@ def markdown(doc: dict) -> str:
         f"{REFERENCE_GRID[0] * 1e3:g} mm × {REFERENCE_GRID[1]} across (the **reference "
         "truth**: a band covers the answer's whole error, its grid part included, so the band "
         "columns judge it against this one; the grid columns of the tables give both). "
-        "Designs: `solvers.ski_designs.STUDY_DESIGNS`.",
+        "Designs: `solvers.ski_designs.STUDY_DESIGNS` (and `VALIDATION_DESIGNS` when asked).",
         "",
         f"Run: {doc['provenance'].get('created_utc', '?')}, commit "
         f"`{str(doc['provenance'].get('git_commit', '?'))[:12]}`, command "
@@ -1313,7 +1320,12 @@ def settings_from_args(args, catalogue: service.Catalogue) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--designs", nargs="+", choices=list(STUDY_DESIGNS))
+    ap.add_argument(
+        "--designs",
+        nargs="+",
+        choices=list(ALL_DESIGNS),
+        help="default: the study's; solvers.ski_designs.VALIDATION_DESIGNS are held out",
+    )
     ap.add_argument("--draws", type=int, default=DRAWS, help=f"noise draws (default {DRAWS})")
     ap.add_argument("--grids", default="dense,coarse", help="dense (13×9), coarse (9×5)")
     ap.add_argument("--held-out", type=int, help=f"held-out cases per ski (default {HELD_OUT})")

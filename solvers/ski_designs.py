@@ -31,7 +31,13 @@ from .beam import BeamSki, ClassicSkiDesign
 from .beam_fit import camber_on_flat
 from .errors import InputError
 
-__all__ = ["FAMILIES", "STUDY_DESIGNS", "FunctionalSkiDesign", "design_family"]
+__all__ = [
+    "FAMILIES",
+    "STUDY_DESIGNS",
+    "VALIDATION_DESIGNS",
+    "FunctionalSkiDesign",
+    "design_family",
+]
 
 
 def _smoothstep(s: np.ndarray) -> np.ndarray:
@@ -207,6 +213,32 @@ STUDY_DESIGNS: dict[str, ClassicSkiDesign | FunctionalSkiDesign] = {
     ),
 }
 
+#: designs no band factor was calibrated on (#26: the study's held-out check of its constants):
+#: one classic and one functional ski unlike the study's
+VALIDATION_DESIGNS: dict[str, ClassicSkiDesign | FunctionalSkiDesign] = {
+    # classic: a mid-stiff ski with a long, high pocket well behind the balance point
+    "mid-classic": ClassicSkiDesign(
+        camber_height_m=0.0014,
+        pocket_m=(-0.35, 0.30),
+        camber_peak_m=-0.10,
+        pocket_height_m=4e-4,
+        stiffness_nm2=1500.0,
+        end_stiffness_ratio=0.25,
+    ),
+    # functional: a short stiff plate ahead of the balance point on a front-stiff bell
+    "forward-plate": FunctionalSkiDesign(
+        camber_height_m=1.5e-3,
+        camber_peak_m=0.08,
+        stiffness_max_nm2=1300.0,
+        stiffness_end_nm2=260.0,
+        stiff_centre_m=0.10,
+        stiff_rear_width_m=0.35,
+        stiff_front_width_m=0.60,
+        plate_m=(-0.05, 0.18),
+        plate_gain=0.8,
+    ),
+}
+
 #: design name -> family: ``classic`` (ClassicSkiDesign), ``functional`` (classic skis written
 #: from EI/c functions), ``skate`` (one high arch, no wax pocket)
 FAMILIES = {
@@ -217,7 +249,7 @@ FAMILIES = {
         if isinstance(d, ClassicSkiDesign)
         else "functional"
     )
-    for name, d in STUDY_DESIGNS.items()
+    for name, d in {**STUDY_DESIGNS, **VALIDATION_DESIGNS}.items()
 }
 
 
