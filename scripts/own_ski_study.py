@@ -983,13 +983,25 @@ def _num(v, fmt=".2f") -> str:
     return "–" if v is None else format(v, fmt)
 
 
-def markdown(doc: dict) -> str:
+def _repo_path(path: Path | None, default: str) -> str:
+    """``path`` relative to the repository when it lies inside it, else as given."""
+    if path is None:
+        return default
+    try:
+        return str(Path(path).resolve().relative_to(REPO))
+    except ValueError:
+        return str(path)
+
+
+def markdown(doc: dict, json_path: Path | None = None) -> str:
     s = doc["settings"]
+    json_name = _repo_path(json_path, "docs/studies/own-ski-study.json")
     lines = [
         "# Own-ski study: is a technician's own ski served right? (issue #26 point 6)",
         "",
-        "Written by `scripts/own_ski_study.py` from `docs/studies/own-ski-study.json` (chart: "
-        "`docs/studies/own-ski-study.png`); do not edit by hand, rerun the script. Every ski is "
+        f"Written by `scripts/own_ski_study.py` from `{json_name}` (chart: "
+        f"`{Path(json_name).with_suffix('.png')}`); do not edit by hand, rerun the script. "
+        "Every ski is "
         "measured with the virtual device (`solvers.beam.measure_camber`, "
         f"{NOISE_M * 1e6:g} µm noise, seeded; the unloaded profile "
         f"{'included' if s['unloaded'] else 'NOT included (--no-unloaded)'}), uploaded through "
@@ -1264,7 +1276,7 @@ def run_study(
         plot(doc, out_json.with_suffix(".png"))
     if md_out is not None:
         with common.atomic_path(md_out) as tmp:
-            tmp.write_text(markdown(doc), encoding="utf-8")
+            tmp.write_text(markdown(doc, out_json), encoding="utf-8")
     return doc
 
 
