@@ -410,3 +410,18 @@ def test_network_band_covers_its_truth_at_every_snow_modulus():
     err = np.array([r["error"][q] for r in rows])
     width = np.array([r["width"][q] for r in rows])
     assert width.mean() <= 2.5 * np.sqrt(np.mean(err**2))
+
+
+def test_an_identified_beams_band_names_the_shape_error_the_data_cannot_show(shipped):
+    """Every answer from an identified beam (rigid and bending) lists the beam model's shape
+    error among what its band does not cover; an answer from the camber network does not."""
+    for model in ("rigid", "flexible"):
+        req = service.ContactInputs("ski-a", "grind-1", 40, -160, 200, 0.5, ski_model=model)
+        ans = service.contact(shipped, req)
+        assert ans["provenance"]["ski"]["profile_model"] == "identified_beam"
+        assert band.IDENTIFIED_STRUCTURE_NOT_COVERED in ans["band"]["not_covered"], model
+    net = _network_only(shipped, "ski-a")
+    req = service.ContactInputs("ski-a", "grind-1", 40, -160, 200, 0.5, ski_model="rigid")
+    ans = service.contact(net, req)
+    assert ans["provenance"]["ski"]["profile_model"] != "identified_beam"
+    assert band.IDENTIFIED_STRUCTURE_NOT_COVERED not in ans["band"]["not_covered"]
