@@ -309,9 +309,9 @@ FLEXIBLE_GRID_FACTOR: dict[str, float] = {
 #: the band's "not covered" entry of every answer from an identified beam: what the camber data
 #: cannot show (docs/limits.md, "Why the three band targets do not all hold at once")
 IDENTIFIED_STRUCTURE_NOT_COVERED = (
-    "the identified beam's shape error: a step in EI(X) or c(X) sharper than the beam model's "
-    "smooth splines (a binding plate, an asymmetric flex) fits the camber data as well as the "
-    "true shape does, so the data cannot show it; the band's factors were calibrated on six "
+    "the beam model's shape error: a step in EI(X) or c(X) sharper than the model's smooth "
+    "splines (a binding plate, an asymmetric flex) fits the camber data as well as the true "
+    "shape does, so the data cannot show it; the band's factors were calibrated on six "
     "designs with such skis among them, on which about 1 answer in 55 lies more than 3 % off "
     "and outside its band (docs/limits.md)"
 )
