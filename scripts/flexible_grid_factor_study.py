@@ -239,11 +239,11 @@ def node_populations(own: list[dict], demo: list[dict], e_snow_mpa: float, nodes
 
 
 def interpolated(nodes_mpa, values):
-    """The factor at a snow modulus [MPa], as the service interpolates it."""
-    x = np.log([_e_eff(e) for e in nodes_mpa])
+    """The factor at a snow modulus [MPa], as the service interpolates it
+    (:func:`app.service.band_calibration.at_snow_modulus`)."""
 
     def at(e_snow_mpa: float) -> float:
-        return float(np.interp(np.log(_e_eff(e_snow_mpa)), x, values))
+        return band_calibration.at_snow_modulus(_e_eff(e_snow_mpa), tuple(nodes_mpa), tuple(values))
 
     return at
 

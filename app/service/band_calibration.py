@@ -117,7 +117,9 @@ BEAM_SCALE_E_SNOW_MPA = (20.0, 200.0, 2000.0)
 BEAM_SCALE_NODES = (1.0, 4.0, 4.0)
 
 
-def _at_modulus(e_eff_pa: float, e_snow_mpa: tuple[float, ...], nodes: tuple[float, ...]) -> float:
+def at_snow_modulus(
+    e_eff_pa: float, e_snow_mpa: tuple[float, ...], nodes: tuple[float, ...]
+) -> float:
     """``nodes`` (values at the snow moduli ``e_snow_mpa`` [MPa], base 700 MPa, ν 0.3) at the
     effective modulus ``e_eff_pa`` [Pa]: linear in log E' between the nodes, held at the ends."""
     from skisnow.solvers.elastic import effective_modulus
@@ -129,7 +131,7 @@ def _at_modulus(e_eff_pa: float, e_snow_mpa: tuple[float, ...], nodes: tuple[flo
 def beam_scale_at(e_eff_pa: float) -> float:
     """:data:`BEAM_SCALE_NODES` at the answer's effective modulus [Pa]: linear in log E' between
     the nodes, held at the ends."""
-    return _at_modulus(e_eff_pa, BEAM_SCALE_E_SNOW_MPA, BEAM_SCALE_NODES)
+    return at_snow_modulus(e_eff_pa, BEAM_SCALE_E_SNOW_MPA, BEAM_SCALE_NODES)
 
 
 def identified_sigma_scale_at(e_eff_pa: float | None) -> float:
@@ -137,7 +139,7 @@ def identified_sigma_scale_at(e_eff_pa: float | None) -> float:
     between the nodes, held at the ends); the largest node when the modulus is not known."""
     if e_eff_pa is None:
         return float(max(IDENTIFIED_SIGMA_NODES))
-    return _at_modulus(e_eff_pa, IDENTIFIED_SIGMA_E_SNOW_MPA, IDENTIFIED_SIGMA_NODES)
+    return at_snow_modulus(e_eff_pa, IDENTIFIED_SIGMA_E_SNOW_MPA, IDENTIFIED_SIGMA_NODES)
 
 
 #: snow moduli of the nodes of the bending ski's apparent-area grid factor [MPa]
@@ -176,7 +178,7 @@ FLEXIBLE_AREA_GRID_NODES = (2.0, 1.95, 0.9, 1.25)
 def flexible_area_grid_factor_at(e_eff_pa: float) -> float:
     """:data:`FLEXIBLE_AREA_GRID_NODES` at the answer's effective modulus [Pa]: linear in
     log E' between the nodes, held at the ends."""
-    return _at_modulus(e_eff_pa, FLEXIBLE_AREA_GRID_E_SNOW_MPA, FLEXIBLE_AREA_GRID_NODES)
+    return at_snow_modulus(e_eff_pa, FLEXIBLE_AREA_GRID_E_SNOW_MPA, FLEXIBLE_AREA_GRID_NODES)
 
 
 # ----------------------------------------------------------------------------- flat base
