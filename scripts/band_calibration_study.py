@@ -32,6 +32,9 @@ Usage::
 
     python scripts/band_calibration_study.py --out /tmp/band_study.json
 
+It writes ``{"schema", "provenance", "rows"}`` (docs/studies/band-calibration-rows.json is a
+run with ``--reference-every 1``).
+
 About 10 min (45 min with the reference grid) on a loaded 2-core machine.
 """
 
@@ -55,6 +58,7 @@ from skisnow.app.service import (  # noqa: E402
     band,
     band_sampling,
 )
+from skisnow.app.storage import common  # noqa: E402
 from skisnow.app.storage.skis import read_ski  # noqa: E402
 from skisnow.app.storage.tables import read_table  # noqa: E402
 from skisnow.solvers.beam import OTHER_DESIGNS, solve_beam_contact  # noqa: E402
@@ -195,7 +199,22 @@ def main(argv=None):
             r["set"] = s
             rows.append(r)
             print(s, name, f"{f:.0f} N {xf * 1e3:.0f} mm {e:g} MPa", file=sys.stderr)
-    args.out.write_text(json.dumps(rows, default=float, indent=1))
+    doc = {
+        "schema": "skisnow.band-calibration-rows/1",
+        "provenance": common.provenance(
+            {"sets": args.sets, "reference_every": args.reference_every}
+        ),
+        "rows": rows,
+    }
+    with common.atomic_path(args.out) as tmp:
+        tmp.write_text(json.dumps(doc, default=float, separators=(",", ":")), encoding="utf-8")
+
+
+def read_rows(path: Path) -> list[dict]:
+    """The rows of a study file (a bare list, as the script wrote before it recorded
+    provenance, or ``{"provenance": ..., "rows": [...]}``)."""
+    doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    return doc if isinstance(doc, list) else doc["rows"]
 
 
 if __name__ == "__main__":

@@ -61,8 +61,6 @@ QUANTITY = "apparent_contact_area"
 GRID_FACTORS = tuple(float(k) for k in np.round(np.arange(0.2, 4.001, 0.05), 2))
 COVERAGE_TARGET = 0.90
 CALIB_DRAWS = (0, 1, 2)
-#: candidate factors on the rigid answers' identified-profile spread
-RIGID_SCALES = (1.0, 1.5, 2.0, 2.5, 3.0, 4.0)
 
 
 def _e_eff(e_snow_mpa: float) -> float:
@@ -100,53 +98,6 @@ def own_ski_cases(study: dict, draws=None) -> list[dict]:
                     / case["truth_cm2"]["flexible"],
                 }
             )
-    return out
-
-
-def rigid_cases(study: dict) -> list[dict]:
-    """The rigid answers of the own-ski study: the fields of :func:`own_ski_cases`, the part
-    the factor scales (``part_at_1``) being the camber part (the identified profile's spread)
-    at factor 1, undone from the factor it was served with (``camber_scale``)."""
-    out = []
-    for ski in study["skis"]:
-        for case in ski.get("answers", []):
-            a = case.get("rigid") or {}
-            ref = (case.get("truth_ref_cm2") or {}).get("rigid")
-            comps = a.get("area_components")
-            k = a.get("camber_scale")
-            if a.get("status") != 200 or ref is None or not comps or not k:
-                continue
-            out.append(
-                {
-                    "source": f"own-ski {ski['grid']}",
-                    "draw": ski["draw"],
-                    "e_snow_mpa": float(case["snow_modulus_mpa"]),
-                    "error": abs(a["area_cm2"] - ref) / a["area_cm2"],
-                    "other": math.sqrt(
-                        sum(
-                            v * v for p, v in comps.items() if p != "camber_model" and v is not None
-                        )
-                    ),
-                    "part_at_1": comps.get("camber_model", 0.0) / k,
-                }
-            )
-    return out
-
-
-def fit_rigid(cases: list[dict]) -> dict:
-    """Per snow modulus of ``cases``: the smallest of :data:`RIGID_SCALES` that puts ≥ 90 % of
-    each measurement grid's answers inside (the largest over the grids is the node)."""
-    out = {}
-    for e in sorted({c["e_snow_mpa"] for c in cases}):
-        per = {}
-        for src in sorted({c["source"] for c in cases}):
-            sel = [c for c in cases if c["e_snow_mpa"] == e and c["source"] == src]
-            k = next(
-                (s for s in RIGID_SCALES if band_stats(sel, s)["coverage"] >= COVERAGE_TARGET),
-                RIGID_SCALES[-1],
-            )
-            per[src] = {"factor": k, **{f"{s:g}": band_stats(sel, s) for s in RIGID_SCALES}}
-        out[f"{e:g} MPa"] = {"factor": max(p["factor"] for p in per.values()), "per_grid": per}
     return out
 
 
@@ -302,17 +253,6 @@ def study(own_all: list[dict], own_draws: dict, demo: list[dict]) -> dict:
     }
 
 
-def _print_rigid(res: dict) -> None:
-    r = res["rigid_identified_sigma"]
-    print("\nrigid answers, factor on the identified profile's spread; served:", r["served"])
-    for e, p in r["per_modulus"].items():
-        cells = ", ".join(
-            "{} {:g} ({:.1%})".format(src, g["factor"], g["{:g}".format(g["factor"])]["coverage"])
-            for src, g in p["per_grid"].items()
-        )
-        print(f"{e}: {p['factor']:g} ({cells})")
-
-
 def _print(res: dict) -> None:
     print(
         "nodes [MPa]:", res["nodes_e_snow_mpa"], "fitted:", res["fitted"], "served:", res["served"]
@@ -338,8 +278,6 @@ def _print(res: dict) -> None:
             s = r[key]
             cells.append(f"{s['coverage']:.1%} | {s['half_width_over_rms']:.2f}")
         print(f"| {label} ({r['fitted']['cases']}) | " + " | ".join(cells) + " |")
-    if "rigid_identified_sigma" in res:
-        _print_rigid(res)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -365,12 +303,6 @@ def main(argv: list[str] | None = None) -> int:
         "check": own_ski_cases(own_study, lambda d: d not in args.calib_draws),
     }
     res = study(own_all, draws, demo)
-    rigid = [c for c in rigid_cases(own_study) if c["draw"] in args.calib_draws]
-    res["rigid_identified_sigma"] = {
-        "nodes_e_snow_mpa": list(band_calibration.IDENTIFIED_SIGMA_E_SNOW_MPA),
-        "served": list(band_calibration.IDENTIFIED_SIGMA_NODES),
-        "per_modulus": fit_rigid(rigid),
-    }
     _print(res)
     if args.out:
         doc = {

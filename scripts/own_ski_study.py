@@ -302,7 +302,8 @@ def served_answer(client, body: dict) -> dict:
         # the factor on the camber part's deviations that answer's band used: the beam draws'
         # (bending ski) or the identified profile spread's (rigid; this process's constants)
         "camber_scale": _camber_scale(a, used),
-        # the factor on the grid part that answer's band used (bending ski), 1 for rigid
+        # the factor on the apparent area's grid part that answer's band used (per snow
+        # modulus, rigid and bending ski)
         "area_grid_factor": ((a.get("band") or {}).get("macro_grid_factor") or {}).get(
             "apparent_contact_area", 1.0
         ),

@@ -251,8 +251,9 @@ class Band(BaseModel):
     camber_model: dict[str, Any]
     macro_grid_factor: dict[str, float | None] | None = Field(
         None,
-        description="factors on the macro grid part per quantity of a bending-ski answer "
-        "(the apparent area's per snow modulus); null for rigid answers",
+        description="factors on the macro grid part per quantity, calibrated per snow "
+        "modulus (a bending-ski answer's, or a rigid answer's apparent area); a quantity not "
+        "named has factor 1",
     )
     not_covered: list[str]
     method: str

@@ -66,6 +66,7 @@ from skisnow.app.service.band_calibration import (
     beam_scale_at,
     bending_ignored_widths,
     flexible_area_grid_factor_at,
+    rigid_area_grid_factor_at,
 )
 from skisnow.app.service.band_sampling import (
     BAND_SEED,
@@ -106,6 +107,7 @@ __all__ = [
     "camber_sigma_m",
     "flexible_grid_factors",
     "grid_component",
+    "rigid_grid_factors",
 ]
 
 
@@ -129,8 +131,8 @@ class Band:
     flat_base: tuple[float, float, float] | None = None
     #: ``auto`` answered with the rigid shape without comparing it to the bending ski
     bending_ignored: str | None = None
-    #: factors on the grid part per quantity of a bending-ski answer
-    #: (:func:`flexible_grid_factors`), else None
+    #: factors on the grid part per quantity (:func:`flexible_grid_factors` of a bending-ski
+    #: answer, :func:`rigid_grid_factors` of a rigid one; a quantity not named: 1)
     grid_factors: dict[str, float] | None = None
 
 
@@ -327,6 +329,14 @@ def flexible_grid_factors(e_eff_pa: float) -> dict[str, float]:
     }
 
 
+def rigid_grid_factors(e_eff_pa: float) -> dict[str, float]:
+    """The factors on a rigid answer's grid part per quantity at the effective modulus [Pa]:
+    the apparent area's per snow modulus
+    (:func:`app.service.band_calibration.rigid_area_grid_factor_at`), 1 for the others (their
+    grid parts are calibrated as they are)."""
+    return {"apparent_contact_area": rigid_area_grid_factor_at(e_eff_pa)}
+
+
 def grid_component(preset: Preset, macro, sampled: _Sampled | None) -> dict[str, float]:
     """The macro grid's relative 90 % half-width per quantity for one answer.
 
@@ -471,11 +481,8 @@ def answer_band(
     else:
         flat = None
     grid = grid_component(preset, macro, sampled)
-    if not rigid:
-        grid_factors = flexible_grid_factors(e_eff)
-        grid = {q: w * grid_factors.get(q, 1.0) for q, w in grid.items()}
-    else:
-        grid_factors = None
+    grid_factors = flexible_grid_factors(e_eff) if not rigid else rigid_grid_factors(e_eff)
+    grid = {q: w * grid_factors.get(q, 1.0) for q, w in grid.items()}
     components["macro_grid"] = grid
     components["table_interpolation"] = _table_component(table, macro, porosity, e_eff)
     if rigid and rigid_minus_flexible:
@@ -630,7 +637,7 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
             "beam_deviation_scale": band.beam_scale,
             "seed": BAND_SEED,
         },
-        # the bending ski's factors on the macro grid part, per quantity (None: rigid answers)
+        # the factors on the macro grid part per quantity (one not named: 1)
         "macro_grid_factor": None
         if band.grid_factors is None
         else {q: _round(k) for q, k in band.grid_factors.items()},

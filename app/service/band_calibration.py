@@ -28,7 +28,12 @@ Things an answer used to leave out of its band:
     The factor on a bending-ski answer's apparent-area grid part, per snow modulus: never below
     the grid-only floor (the grid part alone covers the grid's own errors), raised where the
     whole band needs more (soft snow, where the beam draws miss the identified beam's error)
-    (``scripts/flexible_grid_factor_study.py``; it also fits ``IDENTIFIED_SIGMA_NODES``).
+    (``scripts/flexible_grid_factor_study.py``).
+``RIGID_AREA_GRID_NODES``
+    The factor on a rigid answer's apparent-area grid part, per snow modulus: at each
+    calibration modulus the largest grid-only need (the grid part alone covers the grid's own
+    errors) of its populations; then ``IDENTIFIED_SIGMA_NODES`` and ``NETWORK_SIGMA_SCALE``
+    are refitted with it in place (``scripts/rigid_grid_factor_study.py``).
 ``FLAT_*``
     The flat-base regime (docs/physics.md §4c): where the loaded base lies within
     :data:`FLAT_GAP_M` of the flat over a stretch of at least :data:`FLAT_STRETCH_M`, camber
@@ -59,8 +64,13 @@ import numpy as np
 #: (pooled mean half-width 1.57 × the RMS error), 95 / 90 / 100 % at × 1.5 (2.00 ×),
 #: 100 / 90 / 100 % at × 2 (2.44 ×), 100 % everywhere at × 3 (3.26 ×); ``test`` at × 1
 #: 95 / 100 / 80 % (1.32 ×), at × 1.5 100 / 100 / 95 % (1.73 ×). × 1.5 is the smallest
-#: candidate with ≥ 90 % of ``calib`` inside at every modulus
-NETWORK_SIGMA_SCALE = 1.5
+#: candidate with ≥ 90 % of ``calib`` inside at every modulus. With the rigid grid factor per
+#: snow modulus (:data:`RIGID_AREA_GRID_NODES`) in place the grid part no longer stands in for
+#: part of the network's error at 200 MPa, and the same rule picks × 2
+#: (``python scripts/rigid_grid_factor_study.py``, the study's rows recombined): ``calib``
+#: inside at 20 / 200 / 2000 MPa 95 / 85 / 100 % at × 1.5 (ratio 2.97 / 1.44 / 2.33), 100 / 90 /
+#: 100 % at × 2 (3.39 / 1.83 / 3.00); ``test`` at × 2 100 / 100 / 95 % (2.50 / 3.21 / 2.41)
+NETWORK_SIGMA_SCALE = 2.0
 
 #: factor on an identified beam's stored profile spread (``profile_sd_m``, the loaded profile
 #: over beams drawn from the fit's covariance): the rigid answer's camber part. The covariance
@@ -91,8 +101,11 @@ IDENTIFIED_SIGMA_E_SNOW_MPA = (20.0, 200.0, 2000.0)
 #: the recorded band parts recombined in quadrature with the camber part scaled from the factor
 #: it was served with; ``python scripts/flexible_grid_factor_study.py``,
 #: docs/studies/flexible-grid-factor.json). Per grid: 20 MPa dense 1, coarse 1.5; 200 MPa
-#: dense 1.5, coarse 2; 2000 MPa dense 1, coarse 2.5 (at 2: 86.8 %)
-IDENTIFIED_SIGMA_NODES = (1.5, 2.0, 2.5)
+#: dense 1.5, coarse 2; 2000 MPa dense 1, coarse 2.5 (at 2: 86.8 %). Refitted by the same
+#: rule with the rigid grid factor per snow modulus in place (:data:`RIGID_AREA_GRID_NODES`,
+#: ``python scripts/rigid_grid_factor_study.py``): 20 MPa dense 1.25, coarse 1.5; 200 MPa
+#: dense 1.75, coarse 2; 2000 MPa dense 1.25, coarse 3
+IDENTIFIED_SIGMA_NODES = (1.5, 2.0, 3.0)
 
 # ----------------------------------------------------------------------------- bending ski
 
@@ -179,6 +192,35 @@ def flexible_area_grid_factor_at(e_eff_pa: float) -> float:
     """:data:`FLEXIBLE_AREA_GRID_NODES` at the answer's effective modulus [Pa]: linear in
     log E' between the nodes, held at the ends."""
     return at_snow_modulus(e_eff_pa, FLEXIBLE_AREA_GRID_E_SNOW_MPA, FLEXIBLE_AREA_GRID_NODES)
+
+
+#: snow moduli of the nodes of a rigid answer's apparent-area grid factor [MPa]: one per
+#: modulus of the calibration populations
+RIGID_AREA_GRID_E_SNOW_MPA = (10.0, 20.0, 50.0, 200.0, 1000.0, 2000.0)
+#: factor on a rigid answer's apparent-area grid part (:data:`app.service.band.K_END_PIXELS`
+#: × the end-pixel share, :func:`app.service.band.grid_component`) per node [-]. One factor
+#: for every modulus (``K_END_PIXELS`` 0.45 alone, pooled on the demo skis' ``calib`` cases)
+#: made the grid part 2–5 × the grid's own error at 200–2000 MPa, and the held-out validation
+#: designs' bands 2.8–5.9 × their RMS error there. Each node is the largest over the
+#: populations at its modulus of (``python scripts/rigid_grid_factor_study.py``,
+#: docs/studies/rigid-grid-factor.json):
+#:
+#: - the grid-only need: the smallest factor (step 0.05) whose grid part alone covers 90 % of
+#:   the grid's own errors: the own-ski study's rigid answers per measurement grid (six designs
+#:   × 3 draws, 432 answers each; 20 MPa 0.9 / 0.85, 200 MPa 0.5 / 0.5, 2000 MPa 0.35 / 0.35),
+#:   the demo skis' ``calib`` cases (16 per modulus; 10 / 50 / 200 / 1000 MPa: 1.45 / 0.6 /
+#:   0.65 / 0.85) and the two design-beam skis' (24 per modulus: 1.15 / 0.6 / 0.7 / 0.7);
+#: - the whole-band need of the demo and design-beam ``calib`` cases (at most the grid-only
+#:   need but at 200 MPa, demo 0.7).
+#:
+#: The identified-profile factor (:data:`IDENTIFIED_SIGMA_NODES`) is fitted with these in place
+RIGID_AREA_GRID_NODES = (1.45, 0.9, 0.6, 0.7, 0.85, 0.35)
+
+
+def rigid_area_grid_factor_at(e_eff_pa: float) -> float:
+    """:data:`RIGID_AREA_GRID_NODES` at the answer's effective modulus [Pa]: linear in log E'
+    between the nodes, held at the ends."""
+    return at_snow_modulus(e_eff_pa, RIGID_AREA_GRID_E_SNOW_MPA, RIGID_AREA_GRID_NODES)
 
 
 # ----------------------------------------------------------------------------- flat base

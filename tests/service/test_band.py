@@ -168,7 +168,10 @@ def test_band_follows_the_preset_grid(shipped):
         )
         lengths = [z["length_mm"] * 1e-3 for z in a["apparent"]["zones"]]
         share = end_pixel_share(lengths, PRESETS[p].pixel_along_m)
-        assert grid["apparent_contact_area"] == pytest.approx(band.K_END_PIXELS * share, rel=1e-3)
+        k = a["band"]["macro_grid_factor"]["apparent_contact_area"]  # the rigid factor
+        assert grid["apparent_contact_area"] == pytest.approx(
+            k * band.K_END_PIXELS * share, rel=1e-3
+        )
 
 
 def test_end_pixel_share_counts_two_end_pixels_per_zone():

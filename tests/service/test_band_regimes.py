@@ -209,10 +209,11 @@ def test_flexible_area_grid_factor_follows_its_nodes_and_is_held_at_the_ends():
 
 
 @pytest.mark.parametrize("e_mpa", [5.0, 200.0])
-def test_flexible_answer_reports_its_grid_factors_and_uses_them(shipped, e_mpa):
+def test_answers_report_their_grid_factors_and_use_them(shipped, e_mpa):
     """A bending-ski answer's band names its factors on the grid part (the apparent area's at
     its snow modulus) and its apparent-area grid part is that factor × K_END_PIXELS × its
-    end-pixel share; a rigid answer names none and uses K_END_PIXELS alone."""
+    end-pixel share; a rigid answer's the same with the rigid factor at its snow modulus, its
+    other quantities' grid parts not scaled."""
     from skisnow.solvers.band import end_pixel_share
 
     out = {}
@@ -228,10 +229,15 @@ def test_flexible_answer_reports_its_grid_factors_and_uses_them(shipped, e_mpa):
     assert b["macro_grid_factor"]["apparent_contact_area"] == pytest.approx(k, rel=1e-3)
     grid = b["components"]["macro_grid"]["apparent_contact_area"]
     assert grid == pytest.approx(k * band.K_END_PIXELS * share, rel=1e-3)
-    b, share, _ = out["rigid"]
-    assert b["macro_grid_factor"] is None
+    b, share, e_eff = out["rigid"]
+    k = band_calibration.rigid_area_grid_factor_at(e_eff)
+    assert b["macro_grid_factor"] == {"apparent_contact_area": pytest.approx(k, rel=1e-3)}
     grid = b["components"]["macro_grid"]["apparent_contact_area"]
-    assert grid == pytest.approx(band.K_END_PIXELS * share, rel=1e-3)
+    assert grid == pytest.approx(k * band.K_END_PIXELS * share, rel=1e-3)
+    assert (
+        out["flexible"][0]["components"]["macro_grid"]["total_real_contact_area"]
+        != (b["components"]["macro_grid"]["total_real_contact_area"])
+    )  # the bending ski's real-area factor applies to it alone
 
 
 def test_flexible_band_widens_its_beam_draws_with_the_snow_modulus(shipped):
