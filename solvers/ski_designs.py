@@ -214,7 +214,8 @@ STUDY_DESIGNS: dict[str, ClassicSkiDesign | FunctionalSkiDesign] = {
 }
 
 #: designs no band factor was calibrated on (#26: the study's held-out check of its constants):
-#: one classic and one functional ski unlike the study's
+#: one classic, two functional and one skate ski unlike the study's (the last two added after
+#: the rigid grid factor was fitted, so no constant has seen them)
 VALIDATION_DESIGNS: dict[str, ClassicSkiDesign | FunctionalSkiDesign] = {
     # classic: a mid-stiff ski with a long, high pocket well behind the balance point
     "mid-classic": ClassicSkiDesign(
@@ -236,6 +237,35 @@ VALIDATION_DESIGNS: dict[str, ClassicSkiDesign | FunctionalSkiDesign] = {
         stiff_front_width_m=0.60,
         plate_m=(-0.05, 0.18),
         plate_gain=0.8,
+    ),
+    # skate: a softer, lower skate ski with its arch and stiffness behind the balance point
+    "skate-soft": FunctionalSkiDesign(
+        tail_m=-0.85,
+        tip_m=0.95,
+        tail_contact_m=-0.78,
+        tip_contact_m=0.74,
+        camber_height_m=1.6e-3,
+        camber_peak_m=-0.06,
+        camber_power=1.7,
+        tip_rise_m=0.028,
+        stiffness_max_nm2=1200.0,
+        stiffness_end_nm2=280.0,
+        stiff_centre_m=-0.10,
+        stiff_rear_width_m=0.45,
+        stiff_front_width_m=0.55,
+    ),
+    # functional: a soft touring ski, a mild plate behind the balance point and a shallow
+    # pocket ahead of it
+    "rear-plate-touring": FunctionalSkiDesign(
+        camber_height_m=0.9e-3,
+        camber_peak_m=-0.12,
+        bump_m=(-0.05, 0.30),
+        bump_height_m=2.0e-4,
+        stiffness_max_nm2=700.0,
+        stiffness_end_nm2=200.0,
+        stiff_centre_m=-0.10,
+        plate_m=(-0.30, -0.05),
+        plate_gain=0.6,
     ),
 }
 
