@@ -37,8 +37,8 @@ profile's spread misses. Each answer's recorded band parts are recombined in qua
 its grid part and camber part rescaled from the factors it was served with. Checks, with the
 factors interpolated as the service does: the calibration test's cases (the demo skis'
 ``test`` set, tests/service/test_band.py), the held-out validation designs
-(``own_ski_study.py --designs mid-classic forward-plate``), and the skis served by their
-camber networks (``scripts/network_band_study.py``, at ``NETWORK_SIGMA_SCALE``).
+(``own_ski_study.py --designs`` with ``solvers.ski_designs.VALIDATION_DESIGNS``), and the skis
+served by their camber networks (``scripts/network_band_study.py``, at ``NETWORK_SIGMA_SCALE``).
 
 Usage::
 

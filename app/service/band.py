@@ -314,7 +314,7 @@ IDENTIFIED_STRUCTURE_NOT_COVERED = (
     "the beam model's shape error: a step in EI(X) or c(X) sharper than the model's smooth "
     "splines (a binding plate, an asymmetric flex) fits the camber data as well as the true "
     "shape does, so the data cannot show it; the band's factors were calibrated on six "
-    "designs with such skis among them, on which about 1 answer in 55 lies more than 3 % off "
+    "designs with such skis among them, on which about 1 answer in 50 lies more than 3 % off "
     "and outside its band (docs/limits.md)"
 )
 
