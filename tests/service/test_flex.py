@@ -289,6 +289,34 @@ def test_identified_beam_has_a_band(cat):
     assert abs(true.closing.load_n / G_STANDARD - c["load_kg"]) <= 2 * c["band_kg"] + 0.05
 
 
+def test_a_jumping_quantity_is_bounded_by_its_farthest_draw_and_one_node():
+    """The wheelbase jumps between zone pairs: one draw of four at +0.55 m gives a Z90 · RMS
+    half-width below its distance, the band reaches it; draws that all agree still get one
+    draw node (their resolution); a NaN half-width stays NaN."""
+    from skisnow.app.service.flex import sheet
+
+    draws = [0.020, 0.022, 0.570, 0.021]
+    half = sheet._half_width(0.020, draws)
+    assert half < 0.55  # Z90 · RMS = 1.645 × 0.275 = 0.452
+    assert sheet._jump_half_width(0.020, draws, half) == pytest.approx(0.55)
+    same = [0.3, 0.3, 0.3, 0.3]
+    assert sheet._jump_half_width(0.3, same, sheet._half_width(0.3, same)) == (
+        sheet.BAND_NODE_SPACING_M
+    )
+    assert math.isnan(sheet._jump_half_width(0.3, [0.3], float("nan")))
+    assert "wheelbase_m" in sheet.JUMPING_QUANTITIES
+
+
+def test_identified_beams_wheelbase_band_is_at_least_its_farthest_draw(cat):
+    """In the sheet: the wheelbase band of an identified beam is the jump rule's (one draw node at
+    least), the other quantities keep Z90 · RMS."""
+    from skisnow.app.service.flex import sheet
+
+    out = sheet.compute_sheet(cat, flex.FlexRequest("ski-a", W_KG))
+    assert out["band_scale"] is not None
+    assert out["widths"]["wheelbase_m"] >= sheet.BAND_NODE_SPACING_M
+
+
 def test_out_of_range_body_weight_names_the_field(cat):
     with pytest.raises(OutOfRangeError) as exc:
         flex.flex_sheet_answer(cat, flex.FlexRequest("flex-a", 120.0))  # the ski covers 90 kg

@@ -223,6 +223,26 @@ def _draw_fns(ski: Ski) -> tuple[list, str, float | None]:
     )
 
 
+#: quantities that jump between draws rather than spread about the served value: the wheelbase
+#: switches between pairs of contact zones when a stretch of the base near the flat touches or
+#: not (docs/flex.md, "The band"). Their band is at least the farthest draw's distance from the
+#: served beam's value and one node of the draws (:data:`BAND_NODE_SPACING_M`), on which they
+#: are resolved: on the own-ski study's 36 skis (``scripts/flex_band_check.py --own-ski-work``)
+#: Z90 · RMS alone covered 82 % of the wheelbases' actual errors, this 90 %
+JUMPING_QUANTITIES = ("wheelbase_m",)
+
+
+def _jump_half_width(nominal: float, samples: list[float], half: float) -> float:
+    """The band of a :data:`JUMPING_QUANTITIES` quantity: the larger of the Z90 · RMS half-width
+    ``half``, the farthest finite sample's distance from ``nominal`` and one draw node."""
+    v = np.asarray(samples, dtype=float)
+    v = v[np.isfinite(v)]
+    if not math.isfinite(half) or not math.isfinite(nominal):
+        return half
+    far = float(np.max(np.abs(v - nominal))) if v.size else 0.0
+    return max(half, far, BAND_NODE_SPACING_M)
+
+
 def _half_width(nominal: float, samples: list[float]) -> float:
     """Absolute 90 % half-width ``Z90 · rms(sample − nominal)`` over the finite samples; NaN
     with fewer than two or a non-finite nominal (as :func:`solvers.band.sampled_half_width`)."""
@@ -456,7 +476,10 @@ def compute_sheet(cat: Catalogue, req: FlexRequest, *, band: bool = True) -> dic
             if exact:
                 widths[k] = 0.0 if math.isfinite(v) else float("nan")
             else:
-                widths[k] = _half_width(reference[k], [d.scalars()[k] for d in draw_sheets])
+                values = [d.scalars()[k] for d in draw_sheets]
+                widths[k] = _half_width(reference[k], values)
+                if k in JUMPING_QUANTITIES and scale is not None:
+                    widths[k] = _jump_half_width(reference[k], values, widths[k])
     t2 = time.perf_counter()
     snow = None
     if req.snow_modulus_mpa is not None:
