@@ -24,7 +24,8 @@ in quadrature (:func:`solvers.band.combine`):
     does not use (``scripts/band_calibration_study.py``; docs/limits.md, Error band); for an
     answer of the bending ski times :func:`flexible_grid_factors` (:data:`FLEXIBLE_GRID_FACTOR`,
     ``scripts/flexible_band_study.py``; the apparent area's per snow modulus,
-    ``scripts/flexible_grid_factor_study.py``).
+    ``scripts/flexible_grid_factor_study.py``), for a rigid one the apparent area's times
+    :func:`rigid_grid_factors` (per snow modulus, ``scripts/rigid_grid_factor_study.py``).
 ``table_interpolation``
     The texture table's interpolation error between its own nodes, estimated by leaving nodes
     out (:func:`solvers.band.table_interpolation_error`), weighted by where the answer loads the
