@@ -586,6 +586,16 @@ def study_ski(
     return out
 
 
+def latest_rescore(res: dict, work: Path) -> dict:
+    """``res`` (a cached ski) with the answers of its latest rescore (``work/rescored``, from
+    whichever commit; ``answers_git_commit`` names it), or as it was without one: what
+    ``--summary-only`` summarises."""
+    cache = work / "rescored" / f"{res['design']}-{res['grid']}-d{res['draw']}.json"
+    if not cache.is_file():
+        return res
+    return {**res, **json.loads(cache.read_text(encoding="utf-8"))["fields"]}
+
+
 def rescore_ski(catalogue: service.Catalogue, res: dict, settings: dict, work: Path) -> dict:
     """``res`` (a cached ski) with its held-out cases answered again by this checkout's service
     from the kept ski file (the job's served model, unchanged); the truths are the cached ones.
@@ -1187,9 +1197,11 @@ def run_study(
     t0 = time.perf_counter()
     work.mkdir(parents=True, exist_ok=True)
     fp = fingerprint(settings)
-    # a rescore also takes skis cached without their reference fit (it adds the fit)
+    # a rescore also takes skis cached without their reference fit (it adds the fit), and so
+    # does a summary (it reads the rescore, below)
     accepted = {fp}
-    if rescore:
+    summary_only = not (run_missing or rescore)
+    if rescore or summary_only:
         accepted |= {fingerprint({**settings, "reference_fit": r}) for r in (False, True)}
     skis = []
     plan = [
@@ -1207,6 +1219,8 @@ def run_study(
                 res = cached["result"]
                 if rescore:
                     res = rescore_ski(catalogue, res, settings, work)
+                elif summary_only:
+                    res = latest_rescore(res, work)
                 skis.append(res)
                 continue
         if not run_missing:

@@ -241,6 +241,28 @@ def test_rescore_asks_again_from_the_kept_ski_file(study, catalogue):
     assert stored.is_file() and len(json.loads(stored.read_text(encoding="utf-8"))) == HELD_OUT
 
 
+def test_summary_reads_the_latest_rescore(study, catalogue, tmp_path):
+    """``--summary-only`` summarises a cached ski with the answers of its latest rescore (any
+    commit, named in ``answers_git_commit``), and the ski as cached without one."""
+    import shutil
+
+    _, _, tmp = study
+    oss.run_study(catalogue, SETTINGS, tmp / "work", None, run_missing=False, rescore=True)
+    work = tmp_path / "work"
+    shutil.copytree(tmp / "work" / "skis", work / "skis")
+    plain = oss.run_study(catalogue, SETTINGS, work, None, run_missing=False)
+    assert "answers_git_commit" not in plain["skis"][0]
+    shutil.copytree(tmp / "work" / "rescored", work / "rescored")
+    (cache,) = (work / "rescored").glob("*.json")
+    doc = json.loads(cache.read_text(encoding="utf-8"))
+    doc["fields"]["answers_git_commit"] = "0" * 40  # an older commit's rescore
+    doc["fields"]["answers"][0]["rigid"]["area_cm2"] = -1.0
+    cache.write_text(json.dumps(doc), encoding="utf-8")
+    (ski,) = oss.run_study(catalogue, SETTINGS, work, None, run_missing=False)["skis"]
+    assert ski["answers_git_commit"] == "0" * 40
+    assert ski["answers"][0]["rigid"]["area_cm2"] == -1.0
+
+
 def test_unloaded_profile_rows(tmp_path):
     """With the unloaded profile the CSV's first case is load 0 at position 0: the true camber
     plus the device noise, on the same nodes as the loaded cases."""
