@@ -135,6 +135,8 @@ def case_row(name, rec, table, f, xf, e_mpa, truth_beam, reference=False):
         "e_snow_mpa": e_mpa,
         "values": vals,
         "components": b.components,
+        # the factors the grid part was served with (per quantity; one not named: 1)
+        "grid_factors": b.grid_factors,
         "widths": b.widths,
         "band_time_s": t_band,
         "zones": len(ms.zones),
@@ -142,7 +144,11 @@ def case_row(name, rec, table, f, xf, e_mpa, truth_beam, reference=False):
     }
 
 
-def demo_cases(set_name):
+#: snow moduli of the ``calib`` set's cases [MPa] (``--calib-moduli``)
+CALIB_MODULI_MPA = (10.0, 50.0, 200.0, 1000.0)
+
+
+def demo_cases(set_name, calib_moduli=CALIB_MODULI_MPA):
     out = []
     for name in ("ski-a", "ski-b"):
         rec = read_ski(TABLES / "skis" / f"{name}.h5")
@@ -159,12 +165,12 @@ def demo_cases(set_name):
         used = {(round(float(f_t[i]), 6), round(float(x_t[i]), 6)) for i in pick}
         keep = [k for k in range(idx.size) if (round(mf[k], 6), round(mx[k], 6)) not in used]
         for k in np.random.default_rng(1).choice(keep, 8, replace=False):
-            for e in (10.0, 50.0, 200.0, 1000.0):
+            for e in calib_moduli:
                 out.append((name, rec, float(mf[k]), float(mx[k]), e, rec.beam))
     return out
 
 
-def design_cases():
+def design_cases(calib_moduli=CALIB_MODULI_MPA):
     base = read_ski(TABLES / "skis" / "ski-a.h5")
     out = []
     rng = np.random.default_rng(2)
@@ -174,7 +180,7 @@ def design_cases():
         f = rng.uniform(15, 85, 12) * 9.82
         xf = rng.uniform(-0.28, 0.08, 12)
         for k in range(12):
-            for e in (10.0, 50.0, 200.0, 1000.0):
+            for e in calib_moduli:
                 out.append((name, rec, float(f[k]), float(xf[k]), e, beam))
     return out
 
@@ -184,11 +190,22 @@ def main(argv=None):
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--sets", nargs="+", default=["test", "calib"])
     ap.add_argument("--reference-every", type=int, default=3, help="calib cases per reference")
+    ap.add_argument(
+        "--calib-moduli",
+        type=float,
+        nargs="+",
+        default=list(CALIB_MODULI_MPA),
+        help="snow moduli of the calib set [MPa]",
+    )
     args = ap.parse_args(argv)
     table = read_table(TABLES / "grind-1.h5")
     rows = []
     for s in args.sets:
-        cases = demo_cases("test") if s == "test" else demo_cases("calib") + design_cases()
+        cases = (
+            demo_cases("test")
+            if s == "test"
+            else demo_cases("calib", args.calib_moduli) + design_cases(args.calib_moduli)
+        )
         for i, (name, rec, f, xf, e, truth) in enumerate(cases):
             reference = s == "test" or i % args.reference_every == 0
             try:
@@ -202,7 +219,11 @@ def main(argv=None):
     doc = {
         "schema": "skisnow.band-calibration-rows/1",
         "provenance": common.provenance(
-            {"sets": args.sets, "reference_every": args.reference_every}
+            {
+                "sets": args.sets,
+                "reference_every": args.reference_every,
+                "calib_moduli": args.calib_moduli,
+            }
         ),
         "rows": rows,
     }

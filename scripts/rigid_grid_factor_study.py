@@ -124,7 +124,10 @@ def calibration_cases(rows: list[dict]) -> list[dict]:
                     )
                 ),
                 "camber_at_1": 0.0,
-                "part_at_1": comps["macro_grid"][QUANTITY] / r.get("area_grid_factor", 1.0),
+                # undone from the factor it was served with (rows written before the factor
+                # was per snow modulus record none: 1)
+                "part_at_1": comps["macro_grid"][QUANTITY]
+                / ((r.get("grid_factors") or {}).get(QUANTITY) or 1.0),
                 "grid_error": grid_error,
                 "warned": None,
             }
