@@ -216,19 +216,14 @@ def main(argv=None):
             r["set"] = s
             rows.append(r)
             print(s, name, f"{f:.0f} N {xf * 1e3:.0f} mm {e:g} MPa", file=sys.stderr)
-    doc = {
-        "schema": "skisnow.band-calibration-rows/1",
-        "provenance": common.provenance(
-            {
-                "sets": args.sets,
-                "reference_every": args.reference_every,
-                "calib_moduli": args.calib_moduli,
-            }
-        ),
-        "rows": rows,
+    params = {
+        "sets": args.sets,
+        "reference_every": args.reference_every,
+        "calib_moduli": args.calib_moduli,
     }
-    with common.atomic_path(args.out) as tmp:
-        tmp.write_text(json.dumps(doc, default=float, separators=(",", ":")), encoding="utf-8")
+    common.write_study_json(
+        args.out, "skisnow.band-calibration-rows/1", params, {"rows": rows}, indent=None
+    )
 
 
 def read_rows(path: Path) -> list[dict]:

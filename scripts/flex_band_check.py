@@ -146,10 +146,8 @@ def main(argv: list[str] | None = None) -> dict:
     }
     print(json.dumps(doc, indent=1))
     if args.out:
-        doc["provenance"] = common.provenance(vars(args))
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        with common.atomic_path(args.out) as tmp:
-            tmp.write_text(json.dumps(doc, indent=1, default=str), encoding="utf-8")
+        body = {k: v for k, v in doc.items() if k != "schema"}
+        common.write_study_json(args.out, SCHEMA, vars(args), body)
     return report
 
 

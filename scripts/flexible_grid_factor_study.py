@@ -305,22 +305,14 @@ def main(argv: list[str] | None = None) -> int:
     res = study(own_all, draws, demo)
     _print(res)
     if args.out:
-        doc = {
-            "schema": SCHEMA,
-            "provenance": common.provenance(
-                {
-                    "own_ski": str(args.own_ski),
-                    "own_ski_commit": own_study.get("provenance", {}).get("git_commit"),
-                    "demo": str(args.demo),
-                    "calib_draws": list(args.calib_draws),
-                    "coverage_target": COVERAGE_TARGET,
-                }
-            ),
-            **res,
+        params = {
+            "own_ski": str(args.own_ski),
+            "own_ski_commit": own_study.get("provenance", {}).get("git_commit"),
+            "demo": str(args.demo),
+            "calib_draws": list(args.calib_draws),
+            "coverage_target": COVERAGE_TARGET,
         }
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        with common.atomic_path(args.out) as tmp:
-            tmp.write_text(json.dumps(doc, indent=1), encoding="utf-8")
+        common.write_study_json(args.out, SCHEMA, params, res)
         print("written", args.out)
     return 0
 

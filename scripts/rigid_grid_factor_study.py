@@ -93,6 +93,14 @@ def _q(values: dict) -> float:
     return float(values[QUANTITY])
 
 
+def _other_parts(components: dict) -> float:
+    """The apparent area's band parts other than the grid part, in quadrature (a study row's
+    recorded ``components``)."""
+    return math.sqrt(
+        sum((p.get(QUANTITY) or 0.0) ** 2 for name, p in components.items() if name != "macro_grid")
+    )
+
+
 def calibration_cases(rows: list[dict]) -> list[dict]:
     """The ``band_calibration_study.py`` rows with a reference truth: per case its modulus, its
     error against the truth (relative to the truth, as tests/service/test_band.py judges it),
@@ -116,13 +124,7 @@ def calibration_cases(rows: list[dict]) -> list[dict]:
                 "source": f"{'design' if design else 'demo'} {r['set']}",
                 "e_snow_mpa": float(r["e_snow_mpa"]),
                 "error": abs(ans / ref - 1),
-                "other": math.sqrt(
-                    sum(
-                        (p.get(QUANTITY) or 0.0) ** 2
-                        for name, p in comps.items()
-                        if name != "macro_grid"
-                    )
-                ),
+                "other": _other_parts(comps),
                 "camber_at_1": 0.0,
                 # undone from the factor it was served with (rows written before the factor
                 # was per snow modulus record none: 1)
@@ -184,13 +186,7 @@ def network_cases(doc: dict, scale: float) -> list[dict]:
                 "source": f"network {r['set']}",
                 "e_snow_mpa": float(r["e_snow_mpa"]),
                 "error": abs(r["error"][QUANTITY]),
-                "other": math.sqrt(
-                    sum(
-                        (p.get(QUANTITY) or 0.0) ** 2
-                        for name, p in comps.items()
-                        if name != "macro_grid"
-                    )
-                ),
+                "other": _other_parts(comps),
                 "camber_at_1": 0.0,
                 "part_at_1": comps["macro_grid"][QUANTITY],
                 "grid_error": None,
@@ -407,23 +403,15 @@ def main(argv: list[str] | None = None) -> int:
     res = study(calib, own, checks, network)
     _print(res)
     if args.out:
-        doc = {
-            "schema": SCHEMA,
-            "provenance": common.provenance(
-                {
-                    "calibration": str(args.calibration),
-                    "own_ski": str(args.own_ski),
-                    "own_ski_commit": own_study.get("provenance", {}).get("git_commit"),
-                    "validation": str(args.validation),
-                    "network": str(args.network),
-                    "coverage_target": COVERAGE_TARGET,
-                }
-            ),
-            **res,
+        params = {
+            "calibration": str(args.calibration),
+            "own_ski": str(args.own_ski),
+            "own_ski_commit": own_study.get("provenance", {}).get("git_commit"),
+            "validation": str(args.validation),
+            "network": str(args.network),
+            "coverage_target": COVERAGE_TARGET,
         }
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        with common.atomic_path(args.out) as tmp:
-            tmp.write_text(json.dumps(doc, indent=1), encoding="utf-8")
+        common.write_study_json(args.out, SCHEMA, params, res)
         print("written", args.out)
     return 0
 

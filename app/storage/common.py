@@ -191,6 +191,26 @@ def atomic_path(final: str | os.PathLike) -> Iterator[Path]:
         raise
 
 
+def _json_default(value):
+    """JSON for what ``json`` does not know: numpy scalars and arrays as numbers and lists,
+    anything else (a path) as its text."""
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    return str(value)
+
+
+def write_study_json(
+    path: str | os.PathLike, schema: str, parameters: dict, body: dict, *, indent: int | None = 1
+) -> None:
+    """Write a study's results ``{"schema", "provenance", **body}`` atomically to ``path``,
+    the provenance (:func:`provenance`) recording ``parameters``; ``indent`` None: compact."""
+    doc = {"schema": schema, "provenance": provenance(parameters), **body}
+    separators = (",", ":") if indent is None else None
+    text = json.dumps(doc, indent=indent, separators=separators, default=_json_default)
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
 def read_json_manifest(
     path: str | os.PathLike, schema: str, what: str = "manifest", hint: str = ""
 ) -> dict:

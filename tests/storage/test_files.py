@@ -419,3 +419,24 @@ def test_atomic_writes_get_normal_file_permissions(tmp_path):
     os.umask(mask)
     assert stat.S_IMODE(target.stat().st_mode) == 0o666 & ~mask
     assert not list(tmp_path.glob(".out.txt.*.part"))
+
+
+def test_study_json_is_written_whole_with_provenance_and_numpy_values(tmp_path):
+    """A study's results: schema, provenance (its parameters recorded), the body; numpy
+    scalars and arrays as numbers; compact on request; no temporary file left behind."""
+    import json
+
+    import numpy as np
+    from skisnow.app.storage import common
+
+    path = tmp_path / "sub" / "study.json"
+    body = {"rows": [{"x": np.float64(1.5), "v": np.arange(3)}], "where": tmp_path}
+    common.write_study_json(path, "skisnow.test/1", {"seed": 3}, body)
+    doc = json.loads(path.read_text(encoding="utf-8"))
+    assert doc["schema"] == "skisnow.test/1"
+    assert json.loads(doc["provenance"]["parameters_json"]) == {"seed": 3}
+    assert doc["rows"] == [{"x": 1.5, "v": [0, 1, 2]}] and doc["where"] == str(tmp_path)
+    assert "\n" in path.read_text(encoding="utf-8")
+    common.write_study_json(path, "skisnow.test/1", {}, {"rows": []}, indent=None)
+    assert "\n" not in path.read_text(encoding="utf-8")
+    assert sorted(p.name for p in path.parent.iterdir()) == ["study.json"]
