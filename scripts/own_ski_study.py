@@ -76,12 +76,15 @@ from skisnow.app.storage import common  # noqa: E402
 from skisnow.app.storage.skis import CamberData, mean_profiles, write_camber_csv  # noqa: E402
 from skisnow.solvers.beam import G_STANDARD, BeamSki, measure_camber, measure_unloaded  # noqa: E402
 from skisnow.solvers.ski_designs import (  # noqa: E402
-    FAMILIES,
+    RANDOM_PREFIX,
     STUDY_DESIGNS,
     VALIDATION_DESIGNS,
+    design_family,
+    get_design,
 )
 
-#: every design a run may ask for: the study's (the default) and the held-out validation ones
+#: every named design a run may ask for: the study's (the default) and the held-out validation
+#: ones; ``random-<seed>`` names a seeded random design besides (``solvers.ski_designs``)
 ALL_DESIGNS = {**STUDY_DESIGNS, **VALIDATION_DESIGNS}
 
 log = logging.getLogger("own_ski_study")
@@ -171,7 +174,10 @@ def held_out_cases(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def seeds_of(design: str, draw: int, grid: str) -> dict[str, int]:
-    d = list(ALL_DESIGNS).index(design)
+    if design.startswith(RANDOM_PREFIX):  # a random design: its own block of seeds
+        d = 1000 + int(design[len(RANDOM_PREFIX) :])
+    else:
+        d = list(ALL_DESIGNS).index(design)
     return {
         "measurement": MEASURE_SEED + 100 * d + 10 * draw + list(GRIDS).index(grid),
         "held_out": HELD_OUT_SEED + 100 * d + draw,
@@ -438,13 +444,13 @@ def study_ski(
     """Upload one measured ski, wait for its job, answer its held-out cases; the ski's record."""
     name = f"{design}-{grid}-d{draw}"
     seeds = seeds_of(design, draw, grid)
-    truth = ALL_DESIGNS[design].build(SPACING_M)
+    truth = get_design(design).build(SPACING_M)
     data = camber_data(
         name, truth, grid, seeds["measurement"], settings["unloaded"], settings["csv_spacing_mm"]
     )
     out: dict = {
         "design": design,
-        "family": FAMILIES[design],
+        "family": design_family(design),
         "draw": draw,
         "grid": grid,
         "grid_cases": list(GRIDS[grid]),
@@ -627,7 +633,7 @@ def rescore_ski(catalogue: service.Catalogue, res: dict, settings: dict, work: P
     )
     t1 = time.perf_counter()
     answers = []
-    truth = ALL_DESIGNS[res["design"]].build(SPACING_M)
+    truth = get_design(res["design"]).build(SPACING_M)
     tcat = service.Catalogue(
         tables_dir=catalogue.tables_dir,
         skis={"__truth__": truth_ski(cat.skis[name], truth, "__truth__")},
@@ -1345,13 +1351,23 @@ def settings_from_args(args, catalogue: service.Catalogue) -> dict:
     }
 
 
+def _design_name(name: str) -> str:
+    """``--designs`` entries: a named design or ``random-<seed>`` (argparse's error otherwise)."""
+    try:
+        get_design(name)
+    except Exception as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from exc
+    return name
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument(
         "--designs",
         nargs="+",
-        choices=list(ALL_DESIGNS),
-        help="default: the study's; solvers.ski_designs.VALIDATION_DESIGNS are held out",
+        type=_design_name,
+        help="default: the study's; solvers.ski_designs.VALIDATION_DESIGNS are held out; "
+        f"{RANDOM_PREFIX}<seed> is a seeded random design (solvers.ski_designs.random_design)",
     )
     ap.add_argument("--draws", type=int, default=DRAWS, help=f"noise draws (default {DRAWS})")
     ap.add_argument("--grids", default="dense,coarse", help="dense (13×9), coarse (9×5)")

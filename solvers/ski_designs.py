@@ -33,10 +33,13 @@ from .errors import InputError
 
 __all__ = [
     "FAMILIES",
+    "RANDOM_PREFIX",
     "STUDY_DESIGNS",
     "VALIDATION_DESIGNS",
     "FunctionalSkiDesign",
     "design_family",
+    "get_design",
+    "random_design",
 ]
 
 
@@ -283,8 +286,111 @@ FAMILIES = {
 }
 
 
+#: name prefix of the seeded random designs: ``random-<seed>`` (:func:`random_design`)
+RANDOM_PREFIX = "random-"
+
+
+def _random_seed(name: str) -> int | None:
+    """The seed of a ``random-<seed>`` name (None: not a random design's name)."""
+    tail = name[len(RANDOM_PREFIX) :] if name.startswith(RANDOM_PREFIX) else ""
+    return int(tail) if tail.isdigit() else None
+
+
+def random_design(seed: int) -> tuple[str, ClassicSkiDesign | FunctionalSkiDesign]:
+    """A design drawn at random (numpy ``default_rng(seed)``): its family and the design.
+
+    For checks on designs nobody wrote by hand: the study's and the validation designs are few,
+    and every band constant has seen some of them. The family is drawn first (classic 30 %,
+    functional 50 %, skate 20 %), then each parameter uniformly over the range of classic and
+    skate skis on the market, as the hand-written designs span it: camber heights 0.8–2.5 mm,
+    EI 180–2800 N·m², an off-centre camber peak, a wax pocket or second bump, an asymmetric
+    stiffness bell and a binding plate each drawn in or left out. The same seed always gives
+    the same design (the parameters are rounded, so a design prints as it is built).
+    """
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+        raise InputError(f"seed must be an integer >= 0, got {seed!r}")
+    rng = np.random.default_rng(int(seed))
+
+    def u(lo: float, hi: float, nd: int = 4) -> float:
+        return round(float(rng.uniform(lo, hi)), nd)
+
+    family = str(rng.choice(["classic", "functional", "skate"], p=[0.3, 0.5, 0.2]))
+    if family == "classic":
+        peak = u(-0.12, 0.12)
+        return family, ClassicSkiDesign(
+            tail_contact_m=u(-0.92, -0.84),
+            tip_contact_m=u(0.76, 0.82),
+            pocket_m=(round(peak - u(0.2, 0.45), 4), round(peak + u(0.2, 0.45), 4)),
+            camber_height_m=u(0.8e-3, 2.0e-3, 6),
+            camber_peak_m=peak,
+            pocket_height_m=u(1.5e-4, 6e-4, 6),
+            stiffness_nm2=u(500.0, 2800.0, 1),
+            end_stiffness_ratio=u(0.1, 0.45),
+        )
+    if family == "skate":
+        return family, FunctionalSkiDesign(
+            tail_m=u(-0.90, -0.84),
+            tip_m=u(0.94, 0.99),
+            tail_contact_m=u(-0.80, -0.76),
+            tip_contact_m=u(0.72, 0.76),
+            camber_height_m=u(1.4e-3, 2.5e-3, 6),
+            camber_peak_m=u(-0.10, 0.04),
+            camber_power=u(1.5, 2.2),
+            tip_rise_m=u(0.026, 0.032),
+            stiffness_max_nm2=u(1000.0, 2200.0, 1),
+            stiffness_end_nm2=u(250.0, 420.0, 1),
+            stiff_centre_m=u(-0.12, 0.05),
+            stiff_rear_width_m=u(0.38, 0.62),
+            stiff_front_width_m=u(0.38, 0.62),
+        )
+    bump, bump_h = (0.0, 0.0), 0.0
+    if rng.uniform() < 0.5:
+        b0 = u(-0.35, 0.0)
+        bump, bump_h = (b0, round(b0 + u(0.25, 0.5), 4)), u(1e-4, 3e-4, 6)
+    plate, gain = (0.0, 0.0), 0.0
+    if rng.uniform() < 0.5:
+        p0 = u(-0.32, 0.05)
+        plate, gain = (p0, round(p0 + u(0.15, 0.3), 4)), u(0.4, 1.3)
+    return family, FunctionalSkiDesign(
+        tail_contact_m=u(-0.90, -0.84),
+        tip_contact_m=u(0.76, 0.82),
+        camber_height_m=u(0.8e-3, 1.6e-3, 6),
+        camber_peak_m=u(-0.15, 0.25),
+        camber_power=u(1.1, 2.0),
+        bump_m=bump,
+        bump_height_m=bump_h,
+        stiffness_max_nm2=u(600.0, 2000.0, 1),
+        stiffness_end_nm2=u(180.0, 400.0, 1),
+        stiff_centre_m=u(-0.2, 0.15),
+        stiff_rear_width_m=u(0.3, 0.65),
+        stiff_front_width_m=u(0.3, 0.65),
+        plate_m=plate,
+        plate_gain=gain,
+    )
+
+
+def get_design(name: str) -> ClassicSkiDesign | FunctionalSkiDesign:
+    """A design by name: one of :data:`STUDY_DESIGNS`, :data:`VALIDATION_DESIGNS`, or
+    ``random-<seed>`` (:func:`random_design`)."""
+    seed = _random_seed(name)
+    if seed is not None:
+        return random_design(seed)[1]
+    designs = {**STUDY_DESIGNS, **VALIDATION_DESIGNS}
+    if name not in designs:
+        raise InputError(
+            f"unknown design {name!r}; known: {', '.join(designs)}, or {RANDOM_PREFIX}<seed>"
+        )
+    return designs[name]
+
+
 def design_family(name: str) -> str:
-    """The family of a study design (``classic`` or ``functional``)."""
+    """The family of a design (``classic``, ``functional`` or ``skate``; a random design's
+    drawn family)."""
+    seed = _random_seed(name)
+    if seed is not None:
+        return random_design(seed)[0]
     if name not in FAMILIES:
-        raise InputError(f"unknown design {name!r}; known: {', '.join(FAMILIES)}")
+        raise InputError(
+            f"unknown design {name!r}; known: {', '.join(FAMILIES)}, or {RANDOM_PREFIX}<seed>"
+        )
     return FAMILIES[name]
