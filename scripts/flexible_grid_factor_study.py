@@ -55,6 +55,7 @@ sys.path.insert(0, str(REPO / "scripts"))
 from skisnow.app.service import band_calibration  # noqa: E402
 from skisnow.app.storage import common  # noqa: E402
 from skisnow.solvers.elastic import effective_modulus  # noqa: E402
+from skisnow.solvers.ski_designs import RANDOM_PREFIX  # noqa: E402
 
 SCHEMA = "skisnow.flexible-grid-factor-study/1"
 QUANTITY = "apparent_contact_area"
@@ -65,6 +66,24 @@ CALIB_DRAWS = (0, 1, 2)
 
 def _e_eff(e_snow_mpa: float) -> float:
     return effective_modulus(e_snow_mpa * 1e6, 700e6, 0.3)
+
+
+def read_own_ski(paths: list[Path]) -> dict:
+    """One own-ski study document from several (``own_ski_study.py`` runs: the study's designs,
+    random designs, ...): their skis pooled, their commits listed."""
+    docs = [json.loads(Path(p).read_text(encoding="utf-8")) for p in paths]
+    return {
+        "skis": [ski for d in docs for ski in d["skis"]],
+        "provenance": {
+            "git_commit": [d.get("provenance", {}).get("git_commit") for d in docs],
+            "files": [str(p) for p in paths],
+        },
+    }
+
+
+def _random(ski: dict) -> str:
+    """ " random" for a ski of a seeded random design (``solvers.ski_designs.random_design``)."""
+    return " random" if str(ski.get("design", "")).startswith(RANDOM_PREFIX) else ""
 
 
 def own_ski_cases(study: dict, draws=None) -> list[dict]:
@@ -83,15 +102,29 @@ def own_ski_cases(study: dict, draws=None) -> list[dict]:
             if a.get("status") != 200 or ref is None or not comps or not a.get("area_cm2"):
                 continue
             k = a.get("area_grid_factor") or 1.0
+            camber = comps.get("camber_model") or 0.0
             out.append(
                 {
-                    "source": f"own-ski {ski['grid']}",
+                    # the random designs are a population of their own
+                    "source": f"own-ski{_random(ski)} {ski['grid']}",
                     "e_snow_mpa": float(case["snow_modulus_mpa"]),
                     "error": abs(a["area_cm2"] - ref) / a["area_cm2"],
                     "other": math.sqrt(
                         sum(v * v for p, v in comps.items() if p != "macro_grid" and v is not None)
                     ),
                     "part_at_1": comps.get("macro_grid", 0.0) / k,
+                    # the beam draws' part undone from the factor it was served with (linear
+                    # in the factor: the median of beam_scale_study's re-solves at × 2–8),
+                    # and the parts that are neither it nor the grid's
+                    "camber_at_1": camber / (a.get("camber_scale") or 1.0),
+                    "fixed": math.sqrt(
+                        sum(
+                            v * v
+                            for p, v in comps.items()
+                            if p not in ("macro_grid", "camber_model") and v is not None
+                        )
+                    ),
+                    "warned": bool(a.get("warnings")),
                     # the grid's own error: the true beam on the answer's grid against it on
                     # the reference grid
                     "grid_error": abs(case["truth_cm2"]["flexible"] - ref)
@@ -141,6 +174,68 @@ def band_stats(cases: list[dict], factor) -> dict:
         "mean_half_width": float(width.mean()),
         "rms_error": rms,
         "half_width_over_rms": float(width.mean() / rms) if rms > 0 else None,
+    }
+
+
+#: candidate beam-draw factors of :func:`fit_beam_scales`
+BEAM_SCALES = (3.0, 4.0, 5.0, 6.0, 8.0, 10.0)
+#: the width target of issue #26: mean half-width ≤ this × the RMS error
+WIDTH_TARGET = 2.5
+
+
+def beam_scale_stats(cases: list[dict], scale: float, k: float) -> dict:
+    """Coverage, mean half-width ÷ RMS error and unwarned misses (> 3 % off, outside, no
+    warning) of own-ski ``cases`` with the beam draws' part × ``scale`` and the grid part ×
+    ``k``."""
+    err = np.array([c["error"] for c in cases])
+    width = np.sqrt(
+        np.array([c["fixed"] for c in cases]) ** 2
+        + (scale * np.array([c["camber_at_1"] for c in cases])) ** 2
+        + (k * np.array([c["part_at_1"] for c in cases])) ** 2
+    )
+    rms = float(np.sqrt(np.mean(err**2)))
+    warned = np.array([c["warned"] for c in cases])
+    return {
+        "cases": len(cases),
+        "coverage": float(np.mean(err <= width)),
+        "half_width_over_rms": float(width.mean() / rms) if rms > 0 else None,
+        "unwarned_misses": int(np.sum((err > 0.03) & (err > width) & ~warned)),
+    }
+
+
+def fit_beam_scales(own: list[dict], k: float) -> dict:
+    """The beam-draw factor per node of :data:`band_calibration.BEAM_SCALE_E_SNOW_MPA` with the
+    grid part at ``k`` (the grid-only floor): the smallest of :data:`BEAM_SCALES` that puts
+    ≥ 90 % inside in every own-ski population at the node's modulus (per grid, hand-written and
+    random designs apart) with every population's mean half-width ≤ :data:`WIDTH_TARGET` × its
+    RMS error; when none does both, the largest that keeps the width target (``met`` False)."""
+    values, per_node = [], {}
+    for e in band_calibration.BEAM_SCALE_E_SNOW_MPA:
+        pops: dict[str, list[dict]] = {}
+        for c in own:
+            if c["e_snow_mpa"] == e:
+                pops.setdefault(c["source"], []).append(c)
+        table = {
+            f"{s:g}": {name: beam_scale_stats(sel, s, k) for name, sel in sorted(pops.items())}
+            for s in BEAM_SCALES
+        }
+
+        def meets(stats: dict, key: str) -> bool:
+            if key == "coverage":
+                return all(v["coverage"] >= COVERAGE_TARGET for v in stats.values())
+            return all((v["half_width_over_rms"] or 0.0) <= WIDTH_TARGET for v in stats.values())
+
+        both = [s for s in BEAM_SCALES if meets(table[f"{s:g}"], "coverage")]
+        both = [s for s in both if meets(table[f"{s:g}"], "width")]
+        narrow = [s for s in BEAM_SCALES if meets(table[f"{s:g}"], "width")]
+        pick = both[0] if both else (narrow[-1] if narrow else BEAM_SCALES[0])
+        values.append(pick)
+        per_node[f"{e:g} MPa"] = {"factor": pick, "met": bool(both), "per_scale": table}
+    return {
+        "nodes_e_snow_mpa": list(band_calibration.BEAM_SCALE_E_SNOW_MPA),
+        "grid_factor": k,
+        "fitted": values,
+        "per_node": per_node,
     }
 
 
@@ -226,9 +321,9 @@ def study(own_all: list[dict], own_draws: dict, demo: list[dict]) -> dict:
     checks = {}
     groups = [("demo calib", [c for c in demo if c["source"] == "demo calib"])]
     for key, label in (("calib", "calibration draws"), ("check", "other draws")):
-        for grid in ("dense", "coarse"):
-            sel = [c for c in own_draws[key] if c["source"] == f"own-ski {grid}"]
-            groups.append((f"own-ski {grid}, {label}", sel))
+        for source in sorted({c["source"] for c in own_draws[key]}):
+            sel = [c for c in own_draws[key] if c["source"] == source]
+            groups.append((f"{source}, {label}", sel))
     for label, sel in groups:
         for e in sorted({c["e_snow_mpa"] for c in sel}):
             sub = [c for c in sel if c["e_snow_mpa"] == e]
@@ -237,7 +332,13 @@ def study(own_all: list[dict], own_draws: dict, demo: list[dict]) -> dict:
                 "served": band_stats(sub, served),
                 "one factor 1.7": band_stats(sub, 1.7),
             }
+    # the beam draws carry the identification's error, the grid part is the grid's: the floor
+    # from the first own-ski node up (below it the demo skis' whole-band factor stays)
+    beams = fit_beam_scales(own_all, floor)
+    grid_nodes = [fitted[0]] + [floor] * (len(nodes) - 1)
     return {
+        "beam_scale": beams,
+        "grid_nodes_with_beam_scales": grid_nodes,
         "grid_only_floor": floor,
         "grid_only_per_population": {
             name: {"factor": floor_each[name], "at_floor": grid_only_stats(cases, floor)}
@@ -253,7 +354,24 @@ def study(own_all: list[dict], own_draws: dict, demo: list[dict]) -> dict:
     }
 
 
+def _print_beam_scales(res: dict) -> None:
+    b = res["beam_scale"]
+    print(
+        f"beam-draw factor nodes {b['nodes_e_snow_mpa']} MPa, grid part × {b['grid_factor']:g}: "
+        f"fitted {b['fitted']} (grid nodes {res['grid_nodes_with_beam_scales']})"
+    )
+    for node, r in b["per_node"].items():
+        print(f"  {node}: × {r['factor']:g} ({'both targets met' if r['met'] else 'NOT met'})")
+        for scale, stats in r["per_scale"].items():
+            cells = ", ".join(
+                f"{name} {v['coverage']:.1%} {v['half_width_over_rms']:.2f} m{v['unwarned_misses']}"
+                for name, v in stats.items()
+            )
+            print(f"    × {scale}: {cells}")
+
+
 def _print(res: dict) -> None:
+    _print_beam_scales(res)
     print(
         "nodes [MPa]:", res["nodes_e_snow_mpa"], "fitted:", res["fitted"], "served:", res["served"]
     )
@@ -283,7 +401,11 @@ def _print(res: dict) -> None:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument(
-        "--own-ski", type=Path, default=REPO / "docs" / "studies" / "own-ski-study.json"
+        "--own-ski",
+        type=Path,
+        nargs="+",
+        default=[REPO / "docs" / "studies" / "own-ski-study.json"],
+        help="own_ski_study.py results, pooled (the study's designs, random designs)",
     )
     ap.add_argument("--demo", type=Path, required=True, help="flexible_band_study.py rows")
     ap.add_argument(
@@ -295,7 +417,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--out", type=Path)
     args = ap.parse_args(argv)
-    own_study = json.loads(args.own_ski.read_text(encoding="utf-8"))
+    own_study = read_own_ski(args.own_ski)
     demo = demo_cases(json.loads(args.demo.read_text(encoding="utf-8")))
     own_all = own_ski_cases(own_study, None)
     draws = {
@@ -306,7 +428,7 @@ def main(argv: list[str] | None = None) -> int:
     _print(res)
     if args.out:
         params = {
-            "own_ski": str(args.own_ski),
+            "own_ski": [str(p) for p in args.own_ski],
             "own_ski_commit": own_study.get("provenance", {}).get("git_commit"),
             "demo": str(args.demo),
             "calib_draws": list(args.calib_draws),

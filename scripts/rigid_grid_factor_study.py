@@ -74,9 +74,11 @@ from flexible_grid_factor_study import (  # noqa: E402
     fit_grid_only,
     grid_only_stats,
     interpolated,
+    read_own_ski,
 )
 from skisnow.app.service import band_calibration  # noqa: E402
 from skisnow.app.storage import common  # noqa: E402
+from skisnow.solvers.ski_designs import RANDOM_PREFIX  # noqa: E402
 
 SCHEMA = "skisnow.rigid-grid-factor-study/1"
 QUANTITY = "apparent_contact_area"
@@ -86,7 +88,14 @@ SIGMA_SCALES = (1.0, 1.25, 1.5, 1.75, 2.0, 2.5, 3.0, 3.5, 4.0, 5.0, 6.0)
 #: column)
 BEFORE_SIGMA_NODES = (1.5, 2.0, 2.5)
 #: sources whose cases calibrate (the others are checks)
-CALIBRATION_SOURCES = ("demo calib", "design calib", "own-ski dense", "own-ski coarse")
+CALIBRATION_SOURCES = (
+    "demo calib",
+    "design calib",
+    "own-ski dense",
+    "own-ski coarse",
+    "own-ski random dense",
+    "own-ski random coarse",
+)
 
 
 def _q(values: dict) -> float:
@@ -137,6 +146,11 @@ def calibration_cases(rows: list[dict]) -> list[dict]:
     return out
 
 
+def _random(ski: dict) -> str:
+    """" random" for a ski of a seeded random design (``solvers.ski_designs.random_design``)."""
+    return " random" if str(ski.get("design", "")).startswith(RANDOM_PREFIX) else ""
+
+
 def own_ski_cases(study: dict, source: str = "own-ski") -> list[dict]:
     """The rigid answers of an own-ski study: the fields of :func:`calibration_cases` (the error
     relative to the answer, as its band), the camber part at factor 1 (``camber_at_1``, undone
@@ -152,7 +166,9 @@ def own_ski_cases(study: dict, source: str = "own-ski") -> list[dict]:
             truth = case["truth_cm2"]["rigid"]
             out.append(
                 {
-                    "source": f"{source} {ski['grid']}",
+                    # the random designs are a population of their own (the factors take
+                    # the largest need over the populations)
+                    "source": f"{source}{_random(ski)} {ski['grid']}",
                     "draw": ski["draw"],
                     "design": ski["design"],
                     "e_snow_mpa": float(case["snow_modulus_mpa"]),
@@ -381,10 +397,18 @@ def main(argv: list[str] | None = None) -> int:
         help="band_calibration_study.py --reference-every 1 rows",
     )
     ap.add_argument(
-        "--own-ski", type=Path, default=REPO / "docs" / "studies" / "own-ski-study.json"
+        "--own-ski",
+        type=Path,
+        nargs="+",
+        default=[REPO / "docs" / "studies" / "own-ski-study.json"],
+        help="own_ski_study.py results that calibrate, pooled (the study's designs, random ones)",
     )
     ap.add_argument(
-        "--validation", type=Path, default=REPO / "docs" / "studies" / "own-ski-validation.json"
+        "--validation",
+        type=Path,
+        nargs="+",
+        default=[REPO / "docs" / "studies" / "own-ski-validation.json"],
+        help="own_ski_study.py results held out (checks)",
     )
     ap.add_argument("--network", type=Path, default=REPO / "docs" / "studies" / "network-band.json")
     ap.add_argument("--out", type=Path)
@@ -393,11 +417,11 @@ def main(argv: list[str] | None = None) -> int:
     def load(path: Path):
         return json.loads(path.read_text(encoding="utf-8"))
 
-    own_study = load(args.own_ski)
+    own_study = read_own_ski(args.own_ski)
     calib = calibration_cases(read_rows(args.calibration))
     own = own_ski_cases(own_study)
     network = load(args.network)
-    checks = own_ski_cases(load(args.validation), "validation") + network_cases(
+    checks = own_ski_cases(read_own_ski(args.validation), "validation") + network_cases(
         network, band_calibration.NETWORK_SIGMA_SCALE
     )
     res = study(calib, own, checks, network)
@@ -405,9 +429,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.out:
         params = {
             "calibration": str(args.calibration),
-            "own_ski": str(args.own_ski),
+            "own_ski": [str(p) for p in args.own_ski],
             "own_ski_commit": own_study.get("provenance", {}).get("git_commit"),
-            "validation": str(args.validation),
+            "validation": [str(p) for p in args.validation],
             "network": str(args.network),
             "coverage_target": COVERAGE_TARGET,
         }
