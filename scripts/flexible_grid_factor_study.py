@@ -404,7 +404,10 @@ def main(argv: list[str] | None = None) -> int:
         "--own-ski",
         type=Path,
         nargs="+",
-        default=[REPO / "docs" / "studies" / "own-ski-study.json"],
+        default=[
+            REPO / "docs" / "studies" / "own-ski-study.json",
+            REPO / "docs" / "studies" / "own-ski-random.json",
+        ],
         help="own_ski_study.py results, pooled (the study's designs, random designs)",
     )
     ap.add_argument("--demo", type=Path, required=True, help="flexible_band_study.py rows")

@@ -1030,7 +1030,8 @@ def markdown(doc: dict, json_path: Path | None = None) -> str:
         f"{REFERENCE_GRID[0] * 1e3:g} mm × {REFERENCE_GRID[1]} across (the **reference "
         "truth**: a band covers the answer's whole error, its grid part included, so the band "
         "columns judge it against this one; the grid columns of the tables give both). "
-        "Designs: `solvers.ski_designs.STUDY_DESIGNS` (and `VALIDATION_DESIGNS` when asked).",
+        "Designs: `solvers.ski_designs.STUDY_DESIGNS` (and `VALIDATION_DESIGNS`, or seeded "
+        "random designs `random-<seed>` from `solvers.ski_designs.random_design`, when asked).",
         "",
         f"Run: {doc['provenance'].get('created_utc', '?')}, commit "
         f"`{str(doc['provenance'].get('git_commit', '?'))[:12]}`, command "

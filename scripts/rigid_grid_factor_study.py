@@ -147,7 +147,7 @@ def calibration_cases(rows: list[dict]) -> list[dict]:
 
 
 def _random(ski: dict) -> str:
-    """" random" for a ski of a seeded random design (``solvers.ski_designs.random_design``)."""
+    """ " random" for a ski of a seeded random design (``solvers.ski_designs.random_design``)."""
     return " random" if str(ski.get("design", "")).startswith(RANDOM_PREFIX) else ""
 
 
@@ -400,7 +400,10 @@ def main(argv: list[str] | None = None) -> int:
         "--own-ski",
         type=Path,
         nargs="+",
-        default=[REPO / "docs" / "studies" / "own-ski-study.json"],
+        default=[
+            REPO / "docs" / "studies" / "own-ski-study.json",
+            REPO / "docs" / "studies" / "own-ski-random.json",
+        ],
         help="own_ski_study.py results that calibrate, pooled (the study's designs, random ones)",
     )
     ap.add_argument(

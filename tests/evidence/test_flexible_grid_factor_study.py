@@ -102,3 +102,82 @@ def test_each_node_is_calibrated_by_the_populations_nearest_to_it():
     pops = fgs.node_populations(own, demo, 20.0, nodes)
     assert sorted(pops) == ["demo calib 10 MPa", "own-ski coarse 20 MPa", "own-ski dense 20 MPa"]
     assert list(fgs.node_populations(own, demo, 2.0, nodes)) == ["demo calib 2 MPa"]
+
+
+def _beam_case(err, camber, part, e=20.0, source="own-ski dense", warned=False):
+    return {
+        "source": source,
+        "e_snow_mpa": e,
+        "error": err,
+        "fixed": 0.0,
+        "camber_at_1": camber,
+        "part_at_1": part,
+        "warned": warned,
+    }
+
+
+def test_random_designs_are_a_population_of_their_own_and_the_draws_part_is_undone():
+    answer = {
+        "snow_modulus_mpa": 20.0,
+        "truth_ref_cm2": {"flexible": 95.0},
+        "truth_cm2": {"flexible": 98.0},
+        "flexible": {
+            "status": 200,
+            "area_cm2": 100.0,
+            "area_grid_factor": 2.0,
+            "camber_scale": 4.0,
+            "warnings": ["wide_error_band"],
+            "area_components": {"macro_grid": 0.04, "camber_model": 0.08, "table": 0.01},
+        },
+    }
+    study = {
+        "skis": [
+            {"design": "random-3", "draw": 0, "grid": "coarse", "answers": [answer]},
+            {"design": "skate", "draw": 0, "grid": "coarse", "answers": [answer]},
+        ]
+    }
+    rnd, hand = fgs.own_ski_cases(study)
+    assert rnd["source"] == "own-ski random coarse" and hand["source"] == "own-ski coarse"
+    assert rnd["camber_at_1"] == pytest.approx(0.02)  # 0.08 served at × 4
+    assert rnd["fixed"] == pytest.approx(0.01)  # neither the draws' part nor the grid's
+    assert rnd["warned"] is True
+
+
+def test_beam_scale_stats_recombine_the_scaled_draws_and_count_unwarned_misses():
+    cases = [_beam_case(0.05, 0.01, 0.0), _beam_case(0.05, 0.01, 0.0, warned=True)]
+    at4 = fgs.beam_scale_stats(cases, 4.0, 0.9)
+    assert at4["coverage"] == 0.0 and at4["unwarned_misses"] == 1  # 4 % wide, 5 % off
+    at6 = fgs.beam_scale_stats(cases, 6.0, 0.9)
+    assert at6["coverage"] == 1.0 and at6["half_width_over_rms"] == pytest.approx(0.06 / 0.05)
+
+
+def test_beam_scale_fit_takes_the_smallest_meeting_both_targets_else_keeps_the_width():
+    # 200 MPa: errors 2.5 % with draws 1 % per unit: × 3 covers, and keeps the width
+    ok = [_beam_case(0.025, 0.01, 0.0, e=200.0, source=s) for s in ("own-ski dense", "x")]
+    # 20 MPa: one population needs × 10 but another's width passes 2.5 × its RMS from × 6
+    hard = [_beam_case(0.09, 0.01, 0.0, source="own-ski random coarse")] * 4
+    easy = [_beam_case(0.02, 0.01, 0.0, source="own-ski dense")] * 4
+    e2000 = [_beam_case(0.035, 0.01, 0.0, e=2000.0)]
+    got = fgs.fit_beam_scales(ok + hard + easy + e2000, 0.9)
+    assert got["nodes_e_snow_mpa"] == [20.0, 200.0, 2000.0]
+    assert got["fitted"] == [5.0, 3.0, 4.0]
+    assert got["per_node"]["20 MPa"]["met"] is False
+    assert got["per_node"]["200 MPa"]["met"] is True
+    # × 5 is the largest whose width stays within 2.5 × on the easy population (0.05 / 0.02)
+    assert got["per_node"]["20 MPa"]["per_scale"]["5"]["own-ski dense"][
+        "half_width_over_rms"
+    ] == pytest.approx(2.5)
+
+
+def test_the_service_serves_what_the_committed_study_fitted():
+    import json
+
+    from skisnow.app.service import band_calibration
+
+    doc = json.loads((REPO / "docs/studies/flexible-grid-factor.json").read_text(encoding="utf-8"))
+    assert doc["beam_scale"]["fitted"] == list(band_calibration.BEAM_SCALE_NODES)
+    assert doc["grid_nodes_with_beam_scales"] == list(band_calibration.FLEXIBLE_AREA_GRID_NODES)
+    # random designs among the populations that set the beam scales
+    assert any(
+        "random" in name for name in doc["beam_scale"]["per_node"]["20 MPa"]["per_scale"]["4"]
+    )

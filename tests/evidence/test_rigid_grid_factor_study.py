@@ -187,3 +187,38 @@ def test_the_service_serves_what_the_committed_study_fitted():
         if r["calibrates"]:
             assert r["fitted"]["coverage"] >= 0.9, name
     assert np.all(np.diff(doc["grid_factor"]["nodes_e_snow_mpa"]) > 0)
+
+
+def test_random_designs_are_a_population_of_their_own_and_can_set_a_node():
+    answer = {
+        "snow_modulus_mpa": 20.0,
+        "truth_ref_cm2": {"rigid": 100.0},
+        "truth_cm2": {"rigid": 100.0},
+        "rigid": {
+            "status": 200,
+            "area_cm2": 100.0,
+            "camber_scale": 1.5,
+            "area_grid_factor": 0.9,
+            "warnings": [],
+            "area_components": {"camber_model": 0.015, "macro_grid": 0.009},
+        },
+    }
+    study = {
+        "skis": [
+            {"design": "random-7", "draw": 0, "grid": "dense", "answers": [answer]},
+            {"design": "race-classic", "draw": 0, "grid": "dense", "answers": [answer]},
+        ]
+    }
+    rnd, hand = rgs.own_ski_cases(study)
+    assert rnd["source"] == "own-ski random dense" and hand["source"] == "own-ski dense"
+    assert rnd["camber_at_1"] == pytest.approx(0.01) and rnd["part_at_1"] == pytest.approx(0.01)
+    assert "own-ski random dense" in rgs.CALIBRATION_SOURCES
+    # the hand-written designs are covered at × 1, the random ones need × 3: the node takes 3
+    own = [_case(0.005, 0.0, camber=0.01, e=e) for e in (20.0, 200.0, 2000.0)]
+    own += [
+        _case(0.029, 0.0, camber=0.01, e=e, source="own-ski random dense")
+        for e in (20.0, 200.0, 2000.0)
+    ]
+    got = rgs.fit_sigma_nodes(own, 1.0, (20.0, 200.0, 2000.0))
+    assert got["fitted"] == [3.0, 3.0, 3.0]
+    assert got["per_node"]["20 MPa"]["per_grid"]["own-ski dense"]["factor"] == 1.0
