@@ -410,7 +410,10 @@ def main(argv: list[str] | None = None) -> int:
         "--validation",
         type=Path,
         nargs="+",
-        default=[REPO / "docs" / "studies" / "own-ski-validation.json"],
+        default=[
+            REPO / "docs" / "studies" / "own-ski-validation.json",
+            REPO / "docs" / "studies" / "own-ski-random-check.json",
+        ],
         help="own_ski_study.py results held out (checks)",
     )
     ap.add_argument("--network", type=Path, default=REPO / "docs" / "studies" / "network-band.json")
