@@ -24,14 +24,25 @@ larger of two factors:
   (``scripts/flexible_band_study.py --service-only --sets calib``; truth their design beams on
   0.5 mm × 64) at each modulus whose nearest node it is.
 
+Since the random designs (``solvers.ski_designs.random_design``, a population of their own per
+grid) the service serves another split, fitted here too (``beam_scale``,
+:func:`fit_beam_scales`): the grid part at the grid-only floor from 20 MPa up
+(``grid_nodes_with_beam_scales``; the 2 MPa node keeps the demo skis' whole-band factor) and
+the beam draws' factor (:data:`app.service.band_calibration.BEAM_SCALE_NODES`) carrying the
+identification's error: per node the smallest of :data:`BEAM_SCALES` with ≥ 90 % inside in
+every own-ski population and every population's width ≤ 2.5 × its RMS error, else the largest
+that keeps the width. The whole-band grid factors above stay in the output for comparison.
+
 Each answer's recorded band parts (``area_components``) are recombined in quadrature with the
-grid part rescaled from the factor it was served with (``area_grid_factor``) to the candidate.
+grid part rescaled from the factor it was served with (``area_grid_factor``) to the candidate
+(and the beam draws' part from its ``camber_scale``, linearly).
 Checks, with the factors interpolated as the service does (linear in log E', held at the ends):
 every population, and with ``--calib-draws 0`` the own-ski study's draws 1 and 2.
 
 Usage::
 
-    python scripts/flexible_grid_factor_study.py --own-ski docs/studies/own-ski-study.json \\
+    python scripts/flexible_grid_factor_study.py \\
+        --own-ski docs/studies/own-ski-study.json docs/studies/own-ski-random.json \\
         --demo <flexible_band_study --service-only rows> \\
         --out docs/studies/flexible-grid-factor.json
 
@@ -81,8 +92,17 @@ def read_own_ski(paths: list[Path]) -> dict:
     }
 
 
-def _random(ski: dict) -> str:
-    """ " random" for a ski of a seeded random design (``solvers.ski_designs.random_design``)."""
+#: the own-ski study results that calibrate by default: the hand-written designs and the
+#: random ones (``own_ski_study.py --designs random-1 … random-8``)
+OWN_SKI_FILES = (
+    REPO / "docs" / "studies" / "own-ski-study.json",
+    REPO / "docs" / "studies" / "own-ski-random.json",
+)
+
+
+def random_suffix(ski: dict) -> str:
+    """The population suffix of a ski: " random" for a seeded random design
+    (``solvers.ski_designs.random_design``), a population of its own in the factor studies."""
     return " random" if str(ski.get("design", "")).startswith(RANDOM_PREFIX) else ""
 
 
@@ -105,8 +125,7 @@ def own_ski_cases(study: dict, draws=None) -> list[dict]:
             camber = comps.get("camber_model") or 0.0
             out.append(
                 {
-                    # the random designs are a population of their own
-                    "source": f"own-ski{_random(ski)} {ski['grid']}",
+                    "source": f"own-ski{random_suffix(ski)} {ski['grid']}",
                     "e_snow_mpa": float(case["snow_modulus_mpa"]),
                     "error": abs(a["area_cm2"] - ref) / a["area_cm2"],
                     "other": math.sqrt(
@@ -404,10 +423,7 @@ def main(argv: list[str] | None = None) -> int:
         "--own-ski",
         type=Path,
         nargs="+",
-        default=[
-            REPO / "docs" / "studies" / "own-ski-study.json",
-            REPO / "docs" / "studies" / "own-ski-random.json",
-        ],
+        default=list(OWN_SKI_FILES),
         help="own_ski_study.py results, pooled (the study's designs, random designs)",
     )
     ap.add_argument("--demo", type=Path, required=True, help="flexible_band_study.py rows")

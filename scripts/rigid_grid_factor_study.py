@@ -46,8 +46,8 @@ Usage::
         --out docs/studies/band-calibration-rows.json  # about 45 min
     python scripts/rigid_grid_factor_study.py \\
         --calibration docs/studies/band-calibration-rows.json \\
-        --own-ski docs/studies/own-ski-study.json \\
-        --validation docs/studies/own-ski-validation.json \\
+        --own-ski docs/studies/own-ski-study.json docs/studies/own-ski-random.json \\
+        --validation docs/studies/own-ski-validation.json docs/studies/own-ski-random-check.json \\
         --network docs/studies/network-band.json --out docs/studies/rigid-grid-factor.json
 
 Seconds: it reads the answers those studies recorded and solves nothing.
@@ -71,14 +71,15 @@ from band_calibration_study import read_rows  # noqa: E402
 from flexible_grid_factor_study import (  # noqa: E402
     COVERAGE_TARGET,
     GRID_FACTORS,
+    OWN_SKI_FILES,
     fit_grid_only,
     grid_only_stats,
     interpolated,
+    random_suffix,
     read_own_ski,
 )
 from skisnow.app.service import band_calibration  # noqa: E402
 from skisnow.app.storage import common  # noqa: E402
-from skisnow.solvers.ski_designs import RANDOM_PREFIX  # noqa: E402
 
 SCHEMA = "skisnow.rigid-grid-factor-study/1"
 QUANTITY = "apparent_contact_area"
@@ -146,11 +147,6 @@ def calibration_cases(rows: list[dict]) -> list[dict]:
     return out
 
 
-def _random(ski: dict) -> str:
-    """ " random" for a ski of a seeded random design (``solvers.ski_designs.random_design``)."""
-    return " random" if str(ski.get("design", "")).startswith(RANDOM_PREFIX) else ""
-
-
 def own_ski_cases(study: dict, source: str = "own-ski") -> list[dict]:
     """The rigid answers of an own-ski study: the fields of :func:`calibration_cases` (the error
     relative to the answer, as its band), the camber part at factor 1 (``camber_at_1``, undone
@@ -166,9 +162,8 @@ def own_ski_cases(study: dict, source: str = "own-ski") -> list[dict]:
             truth = case["truth_cm2"]["rigid"]
             out.append(
                 {
-                    # the random designs are a population of their own (the factors take
-                    # the largest need over the populations)
-                    "source": f"{source}{_random(ski)} {ski['grid']}",
+                    # random designs: a population of their own (a node takes the largest need)
+                    "source": f"{source}{random_suffix(ski)} {ski['grid']}",
                     "draw": ski["draw"],
                     "design": ski["design"],
                     "e_snow_mpa": float(case["snow_modulus_mpa"]),
@@ -400,10 +395,7 @@ def main(argv: list[str] | None = None) -> int:
         "--own-ski",
         type=Path,
         nargs="+",
-        default=[
-            REPO / "docs" / "studies" / "own-ski-study.json",
-            REPO / "docs" / "studies" / "own-ski-random.json",
-        ],
+        default=list(OWN_SKI_FILES),
         help="own_ski_study.py results that calibrate, pooled (the study's designs, random ones)",
     )
     ap.add_argument(
