@@ -66,7 +66,7 @@ sys.path.insert(0, str(REPO / "scripts"))
 from skisnow.app.service import band_calibration  # noqa: E402
 from skisnow.app.storage import common  # noqa: E402
 from skisnow.solvers.elastic import effective_modulus  # noqa: E402
-from skisnow.solvers.ski_designs import RANDOM_PREFIX  # noqa: E402
+from skisnow.solvers.ski_designs import random_seed  # noqa: E402
 
 SCHEMA = "skisnow.flexible-grid-factor-study/1"
 QUANTITY = "apparent_contact_area"
@@ -103,7 +103,7 @@ OWN_SKI_FILES = (
 def random_suffix(ski: dict) -> str:
     """The population suffix of a ski: " random" for a seeded random design
     (``solvers.ski_designs.random_design``), a population of its own in the factor studies."""
-    return " random" if str(ski.get("design", "")).startswith(RANDOM_PREFIX) else ""
+    return " random" if random_seed(str(ski.get("design", ""))) is not None else ""
 
 
 def own_ski_cases(study: dict, draws=None) -> list[dict]:

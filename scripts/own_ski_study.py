@@ -75,12 +75,14 @@ from skisnow.app.service.answer import auto_uses_flexible, loaded_profile  # noq
 from skisnow.app.storage import common  # noqa: E402
 from skisnow.app.storage.skis import CamberData, mean_profiles, write_camber_csv  # noqa: E402
 from skisnow.solvers.beam import G_STANDARD, BeamSki, measure_camber, measure_unloaded  # noqa: E402
+from skisnow.solvers.errors import InputError  # noqa: E402
 from skisnow.solvers.ski_designs import (  # noqa: E402
     RANDOM_PREFIX,
     STUDY_DESIGNS,
     VALIDATION_DESIGNS,
     design_family,
     get_design,
+    random_seed,
 )
 
 #: every named design a run may ask for: the study's (the default) and the held-out validation
@@ -174,10 +176,8 @@ def held_out_cases(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def seeds_of(design: str, draw: int, grid: str) -> dict[str, int]:
-    if design.startswith(RANDOM_PREFIX):  # a random design: its own block of seeds
-        d = 1000 + int(design[len(RANDOM_PREFIX) :])
-    else:
-        d = list(ALL_DESIGNS).index(design)
+    seed = random_seed(design)  # a random design: its own block of seeds
+    d = list(ALL_DESIGNS).index(design) if seed is None else 1000 + seed
     return {
         "measurement": MEASURE_SEED + 100 * d + 10 * draw + list(GRIDS).index(grid),
         "held_out": HELD_OUT_SEED + 100 * d + draw,
@@ -1356,7 +1356,7 @@ def _design_name(name: str) -> str:
     """``--designs`` entries: a named design or ``random-<seed>`` (argparse's error otherwise)."""
     try:
         get_design(name)
-    except Exception as exc:
+    except InputError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from exc
     return name
 

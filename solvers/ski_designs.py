@@ -40,6 +40,7 @@ __all__ = [
     "design_family",
     "get_design",
     "random_design",
+    "random_seed",
 ]
 
 
@@ -290,7 +291,7 @@ FAMILIES = {
 RANDOM_PREFIX = "random-"
 
 
-def _random_seed(name: str) -> int | None:
+def random_seed(name: str) -> int | None:
     """The seed of a ``random-<seed>`` name (None: not a random design's name)."""
     tail = name[len(RANDOM_PREFIX) :] if name.startswith(RANDOM_PREFIX) else ""
     return int(tail) if tail.isdigit() else None
@@ -372,7 +373,7 @@ def random_design(seed: int) -> tuple[str, ClassicSkiDesign | FunctionalSkiDesig
 def get_design(name: str) -> ClassicSkiDesign | FunctionalSkiDesign:
     """A design by name: one of :data:`STUDY_DESIGNS`, :data:`VALIDATION_DESIGNS`, or
     ``random-<seed>`` (:func:`random_design`)."""
-    seed = _random_seed(name)
+    seed = random_seed(name)
     if seed is not None:
         return random_design(seed)[1]
     designs = {**STUDY_DESIGNS, **VALIDATION_DESIGNS}
@@ -386,7 +387,7 @@ def get_design(name: str) -> ClassicSkiDesign | FunctionalSkiDesign:
 def design_family(name: str) -> str:
     """The family of a design (``classic``, ``functional`` or ``skate``; a random design's
     drawn family)."""
-    seed = _random_seed(name)
+    seed = random_seed(name)
     if seed is not None:
         return random_design(seed)[0]
     if name not in FAMILIES:
