@@ -81,6 +81,7 @@ from skisnow.app.service.band_sampling import (
     _sample,
     _sample_flexible,
     _Sampled,
+    alternative_models,
     beam_models,
     camber_sigma_m,
 )
@@ -135,6 +136,9 @@ class Band:
     #: factors on the grid part per quantity (:func:`flexible_grid_factors` of a bending-ski
     #: answer, :func:`rigid_grid_factors` of a rigid one; a quantity not named: 1)
     grid_factors: dict[str, float] | None = None
+    #: alternative beams of the identification the answer was solved again with (and those
+    #: that did not converge); their largest deviation is the component ``beam_alternatives``
+    alternative_beams: tuple[int, int] = (0, 0)
 
 
 def touches_profile_end(gap_map, macro) -> bool:
@@ -448,8 +452,11 @@ def answer_band(
         if beam_scale is None:
             beam_scale = beam_scale_at(e_eff)
         models = beam_models(record, preset, samples=beam_samples, seed=seed, scale=beam_scale)
+        alternatives = [] if beam_is_design else alternative_models(record, preset)
         if models is not None:
-            sampled = _sample_flexible(macro, ms, models, table, porosity, e_eff)
+            sampled = _sample_flexible(
+                macro, ms, models, table, porosity, e_eff, alternatives=alternatives
+            )
         perturbed = 0 if models is None else len(models[1])
         if beam_is_design:
             sigma, source = 0.0, "design beam stored with the ski, taken as exact"
@@ -461,6 +468,10 @@ def answer_band(
     has_sigma = sigma is not None and bool(np.any(np.asarray(sigma) > 0))
     if sampled is not None and has_sigma:
         components["camber_model"] = sampled.widths
+    if sampled is not None and sampled.alternatives:
+        # the data do not decide between these beams: the answer's spread over them is part of
+        # its error, however small the covariance draws of the chosen one
+        components["beam_alternatives"] = sampled.alternatives
     flat = None if sampled is None else sampled.flat
     flat_base = None
     if flat is not None and flat.widths.get("apparent_contact_area", 0.0) > FLAT_MIN_WIDTH:
@@ -525,6 +536,9 @@ def answer_band(
                 parts.append(sampled.zone_widths[i])
             if flat is not None and math.isfinite(flat.zone_widths[i]):
                 parts.append(flat.zone_widths[i])
+            alt_z = sampled.alternative_zone_widths
+            if alt_z is not None and math.isfinite(alt_z[i]):
+                parts.append(alt_z[i])
         parts.append(g)
         if rigid_minus_flexible and "ski_model" in components and z.load_share > 0:
             parts.append(abs(rigid_minus_flexible.get("rear_load_share", 0.0)) / z.load_share)
@@ -553,6 +567,9 @@ def answer_band(
         flat_base=flat_base,
         bending_ignored=bending_ignored if "ski_model" in components and bending_ignored else None,
         grid_factors=grid_factors,
+        alternative_beams=(0, 0)
+        if sampled is None
+        else (sampled.alternatives_solved, sampled.alternatives_failed),
     )
 
 
@@ -636,6 +653,10 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
             if band.beam_scale is None
             else None,
             "beam_deviation_scale": band.beam_scale,
+            # the identification's alternative beams the bending ski was solved again with
+            # (component beam_alternatives: their largest deviation) and those left out
+            "alternative_beams": band.alternative_beams[0],
+            "alternative_beams_not_converged": band.alternative_beams[1],
             "seed": BAND_SEED,
         },
         # the factors on the macro grid part per quantity (one not named: 1)
@@ -645,7 +666,9 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
         "not_covered": band.not_covered,
         "method": "relative 90 % half-widths per source combined in quadrature: camber model "
         "(the answer solved again with perturbed loaded profiles, or for the bending ski with "
-        "plausible beams drawn from the identification), macro grid (the answer's end-pixel "
+        "plausible beams drawn from the identification, and its largest deviation over the "
+        "identification's alternative beams: other fits that explain the measurements almost "
+        "as well), macro grid (the answer's end-pixel "
         "share and its difference to the grid twice as coarse, and the preset's width measured "
         "by skisnow bench accuracy), table interpolation (leave-one-out on the table's nodes), "
         "in the flat-base regime the answer solved again with the stretch near the flat "

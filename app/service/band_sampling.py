@@ -16,7 +16,7 @@ import numpy as np
 from skisnow.app.presets import Preset
 from skisnow.app.service import band_calibration
 from skisnow.app.service.profiles import served_beam
-from skisnow.app.storage.skis import identification_for_sampling
+from skisnow.app.storage.skis import identification_for_sampling, identified_alternatives
 from skisnow.solvers.band import (
     Z90,
     model_error_sigma,
@@ -204,6 +204,14 @@ class _Sampled:
     failed: int
     #: the spread under the flat-base regime's perturbations (:func:`_sample`), when asked
     flat: _Sampled | None = None
+    #: the bending ski's alternative beams (:func:`alternative_models`): per quantity the
+    #: largest relative deviation of their answers from the coarse nominal's [-]; None: none
+    alternatives: dict[str, float] | None = None
+    #: the same per zone load [-]
+    alternative_zone_widths: list[float] | None = None
+    #: alternatives solved (converged) and left out (not converged)
+    alternatives_solved: int = 0
+    alternatives_failed: int = 0
 
 
 @dataclass(frozen=True)
@@ -424,12 +432,47 @@ def _build_beam_models(record, ident, beam, drawable, store, key, dx, ny):
     return hit
 
 
+def alternative_models(record, preset: Preset) -> list[FlexibleModel]:
+    """The bending ski of each alternative beam stored with the ski's identification
+    (:func:`app.storage.skis.identified_alternatives`) on the grid twice as coarse as
+    ``preset``; empty when it stores none. Prepared once per record and grid and kept in
+    ``record.cache``."""
+    ident = record.identified
+    beams = identified_alternatives(ident)
+    if not beams:
+        return []
+    dx, ny = coarse_grid(preset)
+    key = (float(dx), int(ny))
+    store = record.cache.get("band_alternative_models")
+    if store is None or store[0] is not ident:
+        store = (ident, {})
+        record.cache["band_alternative_models"] = store
+    hit = store[1].get(key)
+    if hit is None:
+        with _BEAM_MODELS_LOCK:
+            hit = store[1].get(key)
+            if hit is None:
+                hit = [_prepare(b, record.outline, dx, ny) for b in beams]
+                if len(store[1]) >= _BEAM_MODELS_MAX:
+                    store[1].clear()
+                store[1][key] = hit
+    return hit
+
+
 def _sample_flexible(
-    macro, ms, models: tuple[FlexibleModel, list[FlexibleModel]], table, porosity, e_eff
+    macro,
+    ms,
+    models: tuple[FlexibleModel, list[FlexibleModel]],
+    table,
+    porosity,
+    e_eff,
+    alternatives: list[FlexibleModel] | tuple = (),
 ) -> _Sampled | None:
     """The bending-ski answer (``macro``, ``ms``) solved again on the coarse grid: the nominal
     beam (warm-started from the answer's line pressure) for the grid estimate, the plausible
-    beams (warm-started from that coarse nominal) for the spread. Tolerance
+    beams (warm-started from that coarse nominal) for the spread, and the ``alternatives``
+    (:func:`alternative_models`) for their largest deviation (``_Sampled.alternatives``; one
+    that does not converge is left out and counted in ``failed``). Tolerance
     :data:`SAMPLE_TOL`."""
     nominal, drawn = models
     f, xf = macro.load_n, macro.load_position_m
@@ -458,7 +501,31 @@ def _sample_flexible(
             failed += 1
             continue
         perturbed.append(r)
-    return _spread(macro, ms, base, perturbed, failed)
+    out = _spread(macro, ms, base, perturbed, failed)
+    alt = []
+    for model in alternatives:
+        try:
+            r = solve(model, base[0].pressure_pa)
+        except SkisnowError:
+            r = None
+        if r is None:
+            out.alternatives_failed += 1
+            continue
+        alt.append(r)
+    out.alternatives_solved = len(alt)
+    if alt:
+        q0 = _quantities(*base)
+        z0 = _zone_loads(base[0], ms.zones)
+        qa = [_quantities(*r) for r in alt]
+        za = [_zone_loads(r[0], ms.zones) for r in alt]
+        out.alternatives = {
+            k: max(abs(q[k] / q0[k] - 1) for q in qa) if q0[k] else float("nan") for k in q0
+        }
+        out.alternative_zone_widths = [
+            max(abs(z[i] / z0[i] - 1) for z in za) if z0[i] else float("nan")
+            for i in range(z0.size)
+        ]
+    return out
 
 
 #: unit perturbation fields per profile grid (:func:`_unit_fields`); a ski's profile model

@@ -657,7 +657,25 @@ def identified_to_dict(
         out["kinks_m"] = np.asarray(ident.extra.get("kinks_m", []), dtype=float)
     if profile_sd_m is not None:
         out["profile_sd_m"] = np.asarray(profile_sd_m, dtype=float)
+    alts = getattr(ident, "alternative_beams", ())
+    if alts:
+        out["alternatives"] = alternatives_to_dict(alts)
     return out
+
+
+def alternatives_to_dict(beams) -> dict:
+    """Alternative beams of an identification (:attr:`solvers.identify.IdentifiedBeam.
+    alternative_beams`, on the identified beam's nodes) as the ``identified/alternatives``
+    group: one row per beam."""
+    return {
+        "attrs": {
+            "description": "other converged forward fits that explain the cases almost as well "
+            "as the identified beam (solvers.identify.alternative_fits); the error band answers "
+            "with them too"
+        },
+        "bending_stiffness_nm2": np.array([b.bending_stiffness_nm2 for b in beams], dtype=float),
+        "unloaded_gap_m": np.array([b.unloaded_gap_m for b in beams], dtype=float),
+    }
 
 
 def identified_beam(identified: dict | None) -> BeamSki | None:
@@ -669,6 +687,23 @@ def identified_beam(identified: dict | None) -> BeamSki | None:
         np.asarray(identified["bending_stiffness_nm2"], dtype=float),
         np.asarray(identified["unloaded_gap_m"], dtype=float),
     )
+
+
+def identified_alternatives(identified: dict | None) -> list[BeamSki]:
+    """The alternative beams stored with a served identification (``identified/alternatives``,
+    on its nodes); empty when there are none, the file predates them, or it failed."""
+    beam = identified_beam(identified)
+    alts = (identified or {}).get("alternatives")
+    if beam is None or not isinstance(alts, dict):
+        return []
+    ei = np.atleast_2d(np.asarray(alts["bending_stiffness_nm2"], dtype=float))
+    c = np.atleast_2d(np.asarray(alts["unloaded_gap_m"], dtype=float))
+    if ei.shape != c.shape or ei.shape[1] != beam.positions_m.size:
+        raise DataFileError(
+            "identified/alternatives: arrays must be (k, nodes) like the identified beam, got "
+            f"{ei.shape} and {c.shape} for {beam.positions_m.size} nodes"
+        )
+    return [BeamSki(beam.positions_m, e, g) for e, g in zip(ei, c, strict=True)]
 
 
 def identification_for_sampling(identified: dict | None):

@@ -421,3 +421,64 @@ def test_intervals_of_non_negative_quantities_stop_at_zero():
     pressures, separations and zone loads are never negative; the upper end is unchanged."""
     assert band._interval(10.0, 0.25) == [7.5, 12.5]
     assert band._interval(0.19, 2.2) == [0.0, pytest.approx(0.608)]
+
+
+def _with_alternatives(ski, beams):
+    """``ski`` (an identified demo ski) with ``beams`` stored as its identification's
+    alternative beams, as a ski file written by the job holds them."""
+    from skisnow.app.storage.skis import alternatives_to_dict
+
+    ident = {**ski.record.identified, "alternatives": alternatives_to_dict(beams)}
+    return replace(ski, record=replace(ski.record, identified=ident, cache={}))
+
+
+def test_alternative_beams_enter_the_bending_skis_band(shipped):
+    """The identification's alternative beams (fits the data do not tell from the served one)
+    are solved on the band's coarse grid; their largest deviation from the coarse nominal is
+    the component ``beam_alternatives``. Checked against the same answers asked directly with
+    each beam as the served one on a preset of that coarse grid. Rigid answers and skis
+    without alternatives do not get the component."""
+    from skisnow.app.storage.skis import identified_beam
+
+    ski = shipped.skis["ski-a"]
+    served = identified_beam(ski.record.identified)
+    stiffer = replace(served, bending_stiffness_nm2=1.25 * served.bending_stiffness_nm2)
+    softer = replace(served, bending_stiffness_nm2=0.9 * served.bending_stiffness_nm2)
+    alt_ski = _with_alternatives(ski, [softer, stiffer])
+    cat = replace(shipped, skis={**shipped.skis, "ski-a": alt_ski})
+    req = replace(PAPER, ski_model="flexible", snow_modulus_mpa=20)
+    ans = service.contact(cat, req)
+    b = ans["band"]
+    assert b["camber_model"]["alternative_beams"] == 2
+    assert b["camber_model"]["alternative_beams_not_converged"] == 0
+    got = b["components"]["beam_alternatives"]["apparent_contact_area"]
+
+    # the same answers asked directly on the coarse grid, each beam served in turn
+    dx, ny = band_sampling.coarse_grid(PRESETS["default"])
+    coarse = replace(PRESETS["default"], name="coarse-check", pixel_along_m=dx, pixels_across=ny)
+    presets = {**PRESETS, "coarse-check": coarse}
+
+    def area(beam) -> float:
+        ident = {**ski.record.identified, "bending_stiffness_nm2": beam.bending_stiffness_nm2}
+        one = replace(ski, record=replace(ski.record, identified=ident, cache={}), _flexible={})
+        c = replace(shipped, skis={**shipped.skis, "ski-a": one})
+        a = service.contact(
+            c, replace(req, preset="coarse-check"), presets=presets, error_band=False
+        )
+        return a["apparent"]["contact_area_cm2"]
+
+    a0 = area(served)
+    want = max(abs(area(b_) / a0 - 1) for b_ in (softer, stiffer))
+    assert want > 0.02  # the stiffer beam moves the soft-snow footprint
+    assert got == pytest.approx(want, rel=0.02, abs=2e-3)
+    # it widens the apparent area's band in quadrature with the other parts
+    parts = [w.get("apparent_contact_area") for w in b["components"].values()]
+    assert b["relative_half_width"]["apparent_contact_area"] == pytest.approx(
+        math.sqrt(sum(p * p for p in parts if p is not None)), rel=1e-3
+    )
+    # without alternatives, or answered rigid: no such component
+    plain = service.contact(shipped, req)["band"]
+    assert "beam_alternatives" not in plain["components"]
+    assert plain["camber_model"]["alternative_beams"] == 0
+    rigid = service.contact(cat, replace(req, ski_model="rigid"))["band"]
+    assert "beam_alternatives" not in rigid["components"]

@@ -453,3 +453,59 @@ def _held_index(f, seed):
             np.linspace(0, 1, 50), f, np.zeros(f.size), np.zeros((f.size, 50)), seed=seed
         )
     return check["held_out_index"]
+
+
+# ----------------------------------------------------------------- #26: alternative beams
+
+
+def _fit(beam, misfit_m, objective, converged=True):
+    from types import SimpleNamespace
+
+    return SimpleNamespace(beam=beam, misfit_m=misfit_m, objective=objective, converged=converged)
+
+
+def test_alternative_fits_keeps_close_different_converged_fits():
+    """alternative_fits: converged fits within ALTERNATIVE_MISFIT_RANGE of the chosen misfit
+    that are other beams (middle of the ski), lowest objective first, no two alike, at most
+    ALTERNATIVES_MAX; not the chosen fit, a non-converged one, one too far off, or a copy."""
+    ski = DESIGNS["stiff"].build(4e-3)
+    x = ski.positions_m
+    r = identify.ALTERNATIVE_MISFIT_RANGE
+
+    def scaled(k):
+        return type(ski)(x, k * ski.bending_stiffness_nm2, ski.unloaded_gap_m)
+
+    def shifted(dc_m):
+        return type(ski)(x, ski.bending_stiffness_nm2, ski.unloaded_gap_m + dc_m)
+
+    chosen = _fit(ski, 3e-6, 100.0)
+    fits = [
+        chosen,
+        _fit(scaled(1.0 + 0.5 * identify.ALTERNATIVE_MIN_DLOG_EI), 3.01e-6, 100.5),  # too alike
+        _fit(scaled(1.3), 3e-6 * (1 + 0.5 * r), 102.0),  # kept, second
+        _fit(shifted(3 * identify.ALTERNATIVE_MIN_DC_M), 3e-6 * (1 + 0.2 * r), 101.0),  # first
+        _fit(scaled(1.3 * 1.001), 3e-6 * (1 + 0.6 * r), 102.5),  # a copy of the kept 1.3
+        _fit(scaled(0.7), 3e-6 * (1 + 2 * r), 103.0),  # too far off in misfit
+        _fit(scaled(0.6), 3e-6, 99.0, converged=False),  # not converged
+        _fit(scaled(0.8), float("nan"), float("nan")),
+    ]
+    assert identify.alternative_fits(x, chosen, fits) == [3, 2]
+    many = [chosen] + [_fit(scaled(1.1 + 0.1 * k), 3e-6, 100.0 + k) for k in range(6)]
+    kept = identify.alternative_fits(x, chosen, many)
+    assert kept == list(range(1, identify.ALTERNATIVES_MAX + 1))
+
+
+def test_identification_reports_its_alternative_beams():
+    """identify_beam keeps the alternative beams alternative_fits picks among its converged
+    forward candidates (extra['alternatives'] indexes forward_candidates), each a beam on the
+    same nodes whose candidate misfit is within the range of the chosen one. On 'soft' (seed
+    1) the second start ends 0.14 % above the chosen fit's misfit in another beam."""
+    _ski, ident = _identified("soft", 4e-3, 3e-6, 1)
+    idx = ident.extra["alternatives"]
+    assert 1 <= len(ident.alternative_beams) == len(idx) <= identify.ALTERNATIVES_MAX
+    cands = ident.extra["forward_candidates"]
+    for i, b in zip(idx, ident.alternative_beams, strict=True):
+        assert cands[i]["converged"]
+        assert cands[i]["misfit_m"] <= (1 + identify.ALTERNATIVE_MISFIT_RANGE) * ident.misfit_m
+        np.testing.assert_array_equal(b.positions_m, ident.beam.positions_m)
+        assert not np.array_equal(b.bending_stiffness_nm2, ident.beam.bending_stiffness_nm2)

@@ -87,3 +87,67 @@ def test_ski_roundtrip_with_network(tmp_path):
     np.testing.assert_allclose(again.profiles_m, data.profiles_m, atol=1e-7)
     with pytest.raises(DataFileError):
         read_ski(tmp_path / "missing.h5")
+
+
+def test_alternative_beams_round_trip_through_the_ski_file(tmp_path):
+    """An identification's alternative beams are stored as ``identified/alternatives`` (one
+    row per beam) and read back as beams on the identified beam's nodes; a file without them
+    reads as none, one with rows of the wrong length is refused."""
+    from dataclasses import replace
+
+    from skisnow.app.storage.skis import (
+        identified_alternatives,
+        identified_to_dict,
+        replace_ski_group,
+    )
+    from skisnow.solvers.identify import IdentifiedBeam
+
+    beam = ClassicSkiDesign().build(spacing_m=10e-3)
+    n = beam.positions_m.size
+    other = replace(beam, bending_stiffness_nm2=1.2 * beam.bending_stiffness_nm2)
+    third = replace(beam, unloaded_gap_m=beam.unloaded_gap_m + 2e-6)
+    ident = IdentifiedBeam(
+        beam=beam,
+        ok=True,
+        reason="",
+        noise_m=3e-6,
+        misfit_m=3e-6,
+        case_misfit_m=np.full(2, 3e-6),
+        stiffness_band_nm2=np.vstack([beam.bending_stiffness_nm2] * 2),
+        camber_band_m=np.zeros(n),
+        iterations=1,
+        contact_passes=1,
+        knots_m=np.linspace(beam.positions_m[0], beam.positions_m[-1], 5),
+        log_compliance=np.zeros(5),
+        log_compliance_covariance=np.eye(5),
+        camber_sensitivity=np.zeros((n, 5)),
+        camber_sd_m=np.zeros(n),
+        alternative_beams=(other, third),
+    )
+    data = CamberData(
+        "t",
+        beam.positions_m,
+        np.array([392.8]),
+        np.array([-0.16]),
+        ["mean"],
+        beam.unloaded_gap_m[None, :],
+    )
+    outline = SkiOutline(2.0, 0.97, np.array([-0.97, 1.03]), np.array([0.044, 0.044]))
+    path = tmp_path / "t.h5"
+    write_ski(path, SkiRecord(data, outline, identified=identified_to_dict(ident)))
+    back = identified_alternatives(read_ski(path).identified)
+    assert len(back) == 2
+    for got, want in zip(back, (other, third), strict=True):
+        np.testing.assert_array_equal(got.positions_m, beam.positions_m)
+        np.testing.assert_array_equal(got.bending_stiffness_nm2, want.bending_stiffness_nm2)
+        np.testing.assert_array_equal(got.unloaded_gap_m, want.unloaded_gap_m)
+    plain = identified_to_dict(replace(ident, alternative_beams=()))
+    assert "alternatives" not in plain
+    assert identified_alternatives(plain) == []
+    failed = identified_to_dict(replace(ident, ok=False))
+    assert identified_alternatives(failed) == []  # a failed identification serves nothing
+    bad = identified_to_dict(ident)
+    bad["alternatives"]["unloaded_gap_m"] = bad["alternatives"]["unloaded_gap_m"][:, :-1]
+    replace_ski_group(path, "identified", bad)
+    with pytest.raises(DataFileError, match="alternatives"):
+        identified_alternatives(read_ski(path).identified)
