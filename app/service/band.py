@@ -82,6 +82,7 @@ from skisnow.app.service.band_sampling import (
     _sample_flexible,
     _Sampled,
     alternative_models,
+    alternative_profiles,
     beam_models,
     camber_sigma_m,
 )
@@ -447,7 +448,19 @@ def answer_band(
 
         stretch, stretch_mid, weight = flat_stretch(positions_m, gap_m, FLAT_GAP_M, ell)
         flat_sigma = FLAT_SIGMA_M * weight if stretch >= FLAT_STRETCH_M else None
-        sampled = _sample(case, 0.0 if sigma is None else sigma, samples, seed, flat_sigma)
+        alt_gaps = (
+            []
+            if beam_is_design
+            else alternative_profiles(record, macro.load_n, macro.load_position_m, positions_m)
+        )
+        sampled = _sample(
+            case,
+            0.0 if sigma is None else sigma,
+            samples,
+            seed,
+            flat_sigma,
+            alternative_gaps_m=alt_gaps,
+        )
     else:
         if beam_scale is None:
             beam_scale = beam_scale_at(e_eff)

@@ -23,6 +23,7 @@ from skisnow.solvers.band import (
     position_error_sigma,
     unit_perturbations,
 )
+from skisnow.solvers.beam import BeamFlexibility, solve_beam_contact
 from skisnow.solvers.errors import InputError, SkisnowError
 from skisnow.solvers.flexible import FlexibleModel, prepare_flexible, solve_flexible
 from skisnow.solvers.identify import estimate_noise, sample_beams
@@ -235,11 +236,15 @@ def _sample(
     samples: int,
     seed: int,
     flat_sigma_m: np.ndarray | None = None,
+    alternative_gaps_m: list[np.ndarray] | tuple = (),
 ) -> _Sampled | None:
     """Solve on the coarse grid (:func:`coarse_grid`) the nominal profile and ``samples``
-    perturbed ones. The coarse nominal against the answer gives the grid estimate (first-order
-    convergence: the error of the answer's grid is the difference to a grid twice as coarse);
-    the perturbed ones against the coarse nominal give the camber model's spread.
+    perturbed ones, and the loaded profiles of the identification's alternative beams
+    (``alternative_gaps_m`` on ``case.positions_m``, :func:`alternative_profiles`). The coarse
+    nominal against the answer gives the grid estimate (first-order convergence: the error of
+    the answer's grid is the difference to a grid twice as coarse); the perturbed ones against
+    the coarse nominal give the camber model's spread, the alternatives their largest deviation
+    (``_Sampled.alternatives``).
 
     ``flat_sigma_m`` (per position; the flat-base regime, :mod:`app.service.band_calibration`):
     ``samples`` more solves with perturbations of that size (seed ``seed + 1``, independent of
@@ -320,6 +325,37 @@ def _sample(
                 continue
             flat.append(r)
         out.flat = _spread(macro, ms, base, flat, flat_failed)
+    alt, alt_failed = [], 0
+    for g in alternative_gaps_m:
+        g = g - min(float(np.nanmin(g)), 0.0)
+        try:
+            r = solve(g, m0, m0.pressure_pa)
+        except SkisnowError:
+            r = None
+        if r is None:
+            alt_failed += 1
+            continue
+        alt.append(r)
+    return _add_alternatives(out, ms, base, alt, alt_failed)
+
+
+def _add_alternatives(out: _Sampled, ms, base, alt: list, failed: int) -> _Sampled:
+    """Store on ``out`` the largest relative deviation of the ``alt`` solves (pairs of macro and
+    multiscale results of the alternative beams) from the coarse nominal ``base``, per quantity
+    and per zone load, and how many were solved and left out."""
+    out.alternatives_solved, out.alternatives_failed = len(alt), failed
+    if not alt:
+        return out
+    q0 = _quantities(*base)
+    z0 = _zone_loads(base[0], ms.zones)
+    qa = [_quantities(*r) for r in alt]
+    za = [_zone_loads(r[0], ms.zones) for r in alt]
+    out.alternatives = {
+        k: max(abs(q[k] / q0[k] - 1) for q in qa) if q0[k] else float("nan") for k in q0
+    }
+    out.alternative_zone_widths = [
+        max(abs(z[i] / z0[i] - 1) for z in za) if z0[i] else float("nan") for i in range(z0.size)
+    ]
     return out
 
 
@@ -438,7 +474,7 @@ def alternative_models(record, preset: Preset) -> list[FlexibleModel]:
     ``preset``; empty when it stores none. Prepared once per record and grid and kept in
     ``record.cache``."""
     ident = record.identified
-    beams = identified_alternatives(ident)
+    beams = identified_alternatives(ident) if served_beam(ident) is not None else []
     if not beams:
         return []
     dx, ny = coarse_grid(preset)
@@ -457,6 +493,33 @@ def alternative_models(record, preset: Preset) -> list[FlexibleModel]:
                     store[1].clear()
                 store[1][key] = hit
     return hit
+
+
+def alternative_profiles(
+    record, load_n: float, load_position_m: float, positions_m: np.ndarray
+) -> list[np.ndarray]:
+    """Loaded profiles H*(X) [m] on the rigid flat of the alternative beams stored with the
+    ski's served identification, under ``load_n`` [N] at ``load_position_m`` [m], on
+    ``positions_m``; empty when it stores none (or the beam is not served). A beam whose solve
+    does not converge is left out. Their flexibilities are built once per record."""
+    ident = record.identified
+    beams = identified_alternatives(ident) if served_beam(ident) is not None else []
+    if not beams:
+        return []
+    store = record.cache.get("band_alternative_flex")
+    if store is None or store[0] is not ident:
+        store = (ident, [None] * len(beams))
+        record.cache["band_alternative_flex"] = store
+    out = []
+    for i, b in enumerate(beams):
+        if store[1][i] is None:
+            with _BEAM_MODELS_LOCK:
+                if store[1][i] is None:
+                    store[1][i] = BeamFlexibility(b)
+        res = solve_beam_contact(b, load_n, load_position_m, flexibility=store[1][i])
+        if res.converged:
+            out.append(np.interp(positions_m, res.positions_m, res.gap_m))
+    return out
 
 
 def _sample_flexible(
@@ -502,30 +565,17 @@ def _sample_flexible(
             continue
         perturbed.append(r)
     out = _spread(macro, ms, base, perturbed, failed)
-    alt = []
+    alt, alt_failed = [], 0
     for model in alternatives:
         try:
             r = solve(model, base[0].pressure_pa)
         except SkisnowError:
             r = None
         if r is None:
-            out.alternatives_failed += 1
+            alt_failed += 1
             continue
         alt.append(r)
-    out.alternatives_solved = len(alt)
-    if alt:
-        q0 = _quantities(*base)
-        z0 = _zone_loads(base[0], ms.zones)
-        qa = [_quantities(*r) for r in alt]
-        za = [_zone_loads(r[0], ms.zones) for r in alt]
-        out.alternatives = {
-            k: max(abs(q[k] / q0[k] - 1) for q in qa) if q0[k] else float("nan") for k in q0
-        }
-        out.alternative_zone_widths = [
-            max(abs(z[i] / z0[i] - 1) for z in za) if z0[i] else float("nan")
-            for i in range(z0.size)
-        ]
-    return out
+    return _add_alternatives(out, ms, base, alt, alt_failed)
 
 
 #: unit perturbation fields per profile grid (:func:`_unit_fields`); a ski's profile model

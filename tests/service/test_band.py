@@ -436,8 +436,9 @@ def test_alternative_beams_enter_the_bending_skis_band(shipped):
     """The identification's alternative beams (fits the data do not tell from the served one)
     are solved on the band's coarse grid; their largest deviation from the coarse nominal is
     the component ``beam_alternatives``. Checked against the same answers asked directly with
-    each beam as the served one on a preset of that coarse grid. Rigid answers and skis
-    without alternatives do not get the component."""
+    each beam as the served one on a preset of that coarse grid, for the bending ski and for a
+    rigid answer (the alternatives' loaded profiles). Skis without alternatives, or answering
+    with their design beam, do not get the component."""
     from skisnow.app.storage.skis import identified_beam
 
     ski = shipped.skis["ski-a"]
@@ -476,9 +477,23 @@ def test_alternative_beams_enter_the_bending_skis_band(shipped):
     assert b["relative_half_width"]["apparent_contact_area"] == pytest.approx(
         math.sqrt(sum(p * p for p in parts if p is not None)), rel=1e-3
     )
-    # without alternatives, or answered rigid: no such component
-    plain = service.contact(shipped, req)["band"]
+    # a rigid answer: the alternatives' loaded profiles on the flat, solved rigid
+    rig = replace(req, ski_model="rigid", snow_modulus_mpa=200)
+    rb = service.contact(cat, rig)["band"]
+    got = rb["components"]["beam_alternatives"]["apparent_contact_area"]
+    req = rig
+    a0 = area(served)
+    want = max(abs(area(b_) / a0 - 1) for b_ in (softer, stiffer))
+    assert want > 0.005
+    assert got == pytest.approx(want, rel=0.05, abs=2e-3)
+    # without alternatives (or a design beam): no such component
+    plain = service.contact(shipped, replace(req, ski_model="flexible"))["band"]
     assert "beam_alternatives" not in plain["components"]
     assert plain["camber_model"]["alternative_beams"] == 0
-    rigid = service.contact(cat, replace(req, ski_model="rigid"))["band"]
-    assert "beam_alternatives" not in rigid["components"]
+    assert "beam_alternatives" not in service.contact(shipped, rig)["band"]["components"]
+    design = replace(
+        alt_ski,
+        record=replace(alt_ski.record, identified={**alt_ski.record.identified, "attrs": {}}),
+    )
+    cat = replace(shipped, skis={**shipped.skis, "ski-a": design})
+    assert "beam_alternatives" not in service.contact(cat, rig)["band"]["components"]
