@@ -84,7 +84,7 @@ from skisnow.app.storage import common  # noqa: E402
 SCHEMA = "skisnow.rigid-grid-factor-study/1"
 QUANTITY = "apparent_contact_area"
 #: candidate factors on the identified profile's spread
-SIGMA_SCALES = (1.0, 1.25, 1.5, 1.75, 2.0, 2.5, 3.0, 3.5, 4.0, 5.0, 6.0)
+SIGMA_SCALES = (0.5, 0.75, 1.0, 1.25, 1.5, 1.75, 2.0, 2.5, 3.0, 3.5, 4.0, 5.0, 6.0)
 #: the identified-profile factors served before this study (its grid factor was 1; a check
 #: column)
 BEFORE_SIGMA_NODES = (1.5, 2.0, 2.5)

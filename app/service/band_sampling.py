@@ -501,22 +501,25 @@ def alternative_profiles(
     """Loaded profiles H*(X) [m] on the rigid flat of the alternative beams stored with the
     ski's served identification, under ``load_n`` [N] at ``load_position_m`` [m], on
     ``positions_m``; empty when it stores none (or the beam is not served). A beam whose solve
-    does not converge is left out. Their flexibilities are built once per record."""
+    does not converge is left out.
+
+    Each beam's flexibility is kept in ``record.cache`` as an entry of its own (one beam solve
+    with it: ~1 ms, without it ~40 ms; at 1 mm nodes over 2 m it holds 61 MB, two copies of a
+    30.5 MB matrix), so the per-ski cache budget drops them one by one
+    (docs/deployment.md)."""
     ident = record.identified
     beams = identified_alternatives(ident) if served_beam(ident) is not None else []
-    if not beams:
-        return []
-    store = record.cache.get("band_alternative_flex")
-    if store is None or store[0] is not ident:
-        store = (ident, [None] * len(beams))
-        record.cache["band_alternative_flex"] = store
     out = []
     for i, b in enumerate(beams):
-        if store[1][i] is None:
+        key = f"band_alternative_flexibility_{i}"
+        hit = record.cache.get(key)
+        if hit is None or hit[0] is not ident:
             with _BEAM_MODELS_LOCK:
-                if store[1][i] is None:
-                    store[1][i] = BeamFlexibility(b)
-        res = solve_beam_contact(b, load_n, load_position_m, flexibility=store[1][i])
+                hit = record.cache.get(key)
+                if hit is None or hit[0] is not ident:
+                    hit = (ident, BeamFlexibility(b))
+                    record.cache[key] = hit
+        res = solve_beam_contact(b, load_n, load_position_m, flexibility=hit[1])
         if res.converged:
             out.append(np.interp(positions_m, res.positions_m, res.gap_m))
     return out
