@@ -30,8 +30,9 @@ grid) the service serves another split, fitted here too (``beam_scale``,
 (``grid_nodes_with_beam_scales``; the 2 MPa node keeps the demo skis' whole-band factor) and
 the beam draws' factor (:data:`app.service.band_calibration.BEAM_SCALE_NODES`) carrying the
 identification's error: per node the smallest of :data:`BEAM_SCALES` with ≥ 90 % inside in
-every own-ski population and every population's width ≤ 2.5 × its RMS error, else the largest
-that keeps the width. The whole-band grid factors above stay in the output for comparison.
+every own-ski population and every population's width ≤ 2.5 × its RMS error, else the smallest
+with ≥ 90 % inside everywhere (coverage first; the width target then not met). The
+whole-band grid factors above stay in the output for comparison.
 
 Each answer's recorded band parts (``area_components``) are recombined in quadrature with the
 grid part rescaled from the factor it was served with (``area_grid_factor``) to the candidate
@@ -227,7 +228,8 @@ def fit_beam_scales(own: list[dict], k: float) -> dict:
     grid part at ``k`` (the grid-only floor): the smallest of :data:`BEAM_SCALES` that puts
     ≥ 90 % inside in every own-ski population at the node's modulus (per grid, hand-written and
     random designs apart) with every population's mean half-width ≤ :data:`WIDTH_TARGET` × its
-    RMS error; when none does both, the largest that keeps the width target (``met`` False)."""
+    RMS error; when none does both, the smallest that puts ≥ 90 % inside everywhere (``met``
+    False: a band that holds less than it says is wrong, a wider one only less sharp)."""
     values, per_node = [], {}
     for e in band_calibration.BEAM_SCALE_E_SNOW_MPA:
         pops: dict[str, list[dict]] = {}
@@ -246,8 +248,10 @@ def fit_beam_scales(own: list[dict], k: float) -> dict:
 
         both = [s for s in BEAM_SCALES if meets(table[f"{s:g}"], "coverage")]
         both = [s for s in both if meets(table[f"{s:g}"], "width")]
-        narrow = [s for s in BEAM_SCALES if meets(table[f"{s:g}"], "width")]
-        pick = both[0] if both else (narrow[-1] if narrow else BEAM_SCALES[0])
+        covers = [s for s in BEAM_SCALES if meets(table[f"{s:g}"], "coverage")]
+        # coverage first: a "90 %" band that holds less is wrong, one wider than 2.5 × its
+        # error is only less sharp (the width target is then reported as not met)
+        pick = both[0] if both else (covers[0] if covers else BEAM_SCALES[-1])
         values.append(pick)
         per_node[f"{e:g} MPa"] = {"factor": pick, "met": bool(both), "per_scale": table}
     return {

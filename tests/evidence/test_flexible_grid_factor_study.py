@@ -151,7 +151,7 @@ def test_beam_scale_stats_recombine_the_scaled_draws_and_count_unwarned_misses()
     assert at6["coverage"] == 1.0 and at6["half_width_over_rms"] == pytest.approx(0.06 / 0.05)
 
 
-def test_beam_scale_fit_takes_the_smallest_meeting_both_targets_else_keeps_the_width():
+def test_beam_scale_fit_takes_the_smallest_meeting_both_targets_else_the_coverage():
     # 200 MPa: errors 2.5 % with draws 1 % per unit: × 3 covers, and keeps the width
     ok = [_beam_case(0.025, 0.01, 0.0, e=200.0, source=s) for s in ("own-ski dense", "x")]
     # 20 MPa: one population needs × 10 but another's width passes 2.5 × its RMS from × 6
@@ -160,13 +160,18 @@ def test_beam_scale_fit_takes_the_smallest_meeting_both_targets_else_keeps_the_w
     e2000 = [_beam_case(0.035, 0.01, 0.0, e=2000.0)]
     got = fgs.fit_beam_scales(ok + hard + easy + e2000, 0.9)
     assert got["nodes_e_snow_mpa"] == [20.0, 200.0, 2000.0]
-    assert got["fitted"] == [5.0, 3.0, 4.0]
+    # 20 MPa: no factor meets both; coverage first: × 10, the smallest that covers the hard one
+    assert got["fitted"] == [10.0, 3.0, 4.0]
     assert got["per_node"]["20 MPa"]["met"] is False
     assert got["per_node"]["200 MPa"]["met"] is True
-    # × 5 is the largest whose width stays within 2.5 × on the easy population (0.05 / 0.02)
-    assert got["per_node"]["20 MPa"]["per_scale"]["5"]["own-ski dense"][
-        "half_width_over_rms"
-    ] == pytest.approx(2.5)
+    at = got["per_node"]["20 MPa"]["per_scale"]
+    assert at["8"]["own-ski random coarse"]["coverage"] == 0.0  # 8 % wide, 9 % off
+    assert at["10"]["own-ski random coarse"]["coverage"] == 1.0
+    # the price: the easy population's width passes 2.5 × (0.1 / 0.02 = 5 ×)
+    assert at["10"]["own-ski dense"]["half_width_over_rms"] == pytest.approx(5.0)
+    # nothing covers: the largest candidate
+    worst = [_beam_case(0.5, 0.01, 0.0, source="own-ski random coarse")]
+    assert fgs.fit_beam_scales(worst + ok + e2000, 0.9)["fitted"][0] == fgs.BEAM_SCALES[-1]
 
 
 def test_the_service_serves_what_the_committed_study_fitted():
