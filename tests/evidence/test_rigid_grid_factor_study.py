@@ -147,7 +147,8 @@ def test_identified_factor_is_the_largest_any_measurement_grid_needs():
     dense = [_case(0.001 * k, 0.0, camber=0.003) for k in range(1, 11)]
     coarse = [_case(0.001, 0.0, camber=0.003, source="own-ski coarse") for _ in range(10)]
     got = rgs.fit_sigma_nodes(dense + coarse, 1.0, (200.0,))
-    assert got["per_node"]["200 MPa"]["per_grid"]["own-ski coarse"]["factor"] == 1.0
+    # the coarse errors (0.1 %) are inside from the smallest candidate on (0.5: 0.15 %)
+    assert got["per_node"]["200 MPa"]["per_grid"]["own-ski coarse"]["factor"] == 0.5
     assert got["fitted"] == [3.0]
     # a grid part takes some of it: with the grid part 0.6 %, 0.9 % needs hypot ≥ 0.9 %
     dense = [_case(0.001 * k, 0.006, camber=0.003) for k in range(1, 11)]
@@ -213,7 +214,7 @@ def test_random_designs_are_a_population_of_their_own_and_can_set_a_node():
     assert rnd["source"] == "own-ski random dense" and hand["source"] == "own-ski dense"
     assert rnd["camber_at_1"] == pytest.approx(0.01) and rnd["part_at_1"] == pytest.approx(0.01)
     assert "own-ski random dense" in rgs.CALIBRATION_SOURCES
-    # the hand-written designs are covered at × 1, the random ones need × 3: the node takes 3
+    # the hand-written designs are covered at × 0.5, the random ones need × 3: the node takes 3
     own = [_case(0.005, 0.0, camber=0.01, e=e) for e in (20.0, 200.0, 2000.0)]
     own += [
         _case(0.029, 0.0, camber=0.01, e=e, source="own-ski random dense")
@@ -221,4 +222,4 @@ def test_random_designs_are_a_population_of_their_own_and_can_set_a_node():
     ]
     got = rgs.fit_sigma_nodes(own, 1.0, (20.0, 200.0, 2000.0))
     assert got["fitted"] == [3.0, 3.0, 3.0]
-    assert got["per_node"]["20 MPa"]["per_grid"]["own-ski dense"]["factor"] == 1.0
+    assert got["per_node"]["20 MPa"]["per_grid"]["own-ski dense"]["factor"] == 0.5
