@@ -104,7 +104,8 @@ def _starts_and_fits(extra: dict) -> dict:
     :func:`solvers.identify.identify_beam`'s ``extra``): wall times [s] of the starts and of the
     forward fits, the starts run and the forward fits run, the converged candidates' objectives
     (lowest, range [-]) and misfits [µm], and their largest beam distance in the middle of the
-    ski (max |Δc| [µm], max |Δ ln EI| [-])."""
+    ski (max |Δc| [µm], max |Δ ln EI| [-]), and the misfits [µm] of those kept as alternative
+    beams."""
     spread = extra.get("candidate_spread") or {}
     cands = extra.get("forward_candidates") or []
     um = 1e6
@@ -129,4 +130,9 @@ def _starts_and_fits(extra: dict) -> dict:
             spread["max_dc_middle_m"] * um if "max_dc_middle_m" in spread else None
         ),
         "candidates_max_dlog_ei_middle": spread.get("max_dlog_ei_middle"),
+        # the candidates kept as alternative beams (solvers.identify.alternative_fits): their
+        # misfits [µm]; the error band answers with them too
+        "alternative_beams_misfit_um": [
+            cands[i]["misfit_m"] * um for i in extra.get("alternatives") or [] if i < len(cands)
+        ],
     }

@@ -123,7 +123,11 @@ def test_report_fields_of_the_starts_and_fits():
         "starts_run": 2,
         "starts": [{"start": "projection"}, {"start": "uniform"}],
         "forward_fits": 4,
-        "forward_candidates": [{"time_s": t} for t in (10.0, 20.0, 15.0, 25.0)],
+        "forward_candidates": [
+            {"time_s": t, "misfit_m": m}
+            for t, m in zip((10.0, 20.0, 15.0, 25.0), (3.0e-6, 3.1e-6, 3.2e-6, 9e-6), strict=True)
+        ],
+        "alternatives": [2, 1],
         "restarted": False,
         "tried_rejected_starts": False,
         "start": "uniform",
@@ -145,9 +149,12 @@ def test_report_fields_of_the_starts_and_fits():
     assert f["candidates_misfit_um"] == pytest.approx([3.0, 3.2], rel=1e-12)
     assert f["candidates_max_dc_middle_um"] == pytest.approx(2.0, rel=1e-12)
     assert f["candidates_objective_range"] == 20.0
+    # the alternative beams' misfits, in the identification's order
+    assert f["alternative_beams_misfit_um"] == pytest.approx([3.2, 3.1], rel=1e-12)
     # no converged candidate: the spread fields are empty, not an error
     none = _starts_and_fits({"candidate_spread": {"converged": 0}, "forward_candidates": []})
     assert none["candidates_converged"] == 0 and none["candidates_misfit_um"] == [None, None]
+    assert none["alternative_beams_misfit_um"] == []
 
 
 def test_design_data_are_the_own_ski_study_coarse_data():
