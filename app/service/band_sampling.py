@@ -291,52 +291,41 @@ def _sample(
     if base is None:
         return None
     m0 = base[0]
-    perturbed, failed = [], 0
     deltas = (
         _unit_fields(positions_m, samples, seed) * _nonnegative(sigma_m, positions_m)
         if np.any(np.asarray(sigma_m) > 0)
         else np.zeros((0, np.size(positions_m)))
     )
-    for d in deltas:
-        g = gap_m + d
-        g = g - min(float(np.nanmin(g)), 0.0)  # a rigid approach absorbs a constant
+
+    def near(g):  # a profile solved from the coarse nominal; a rigid approach absorbs a constant
+        return solve(g - min(float(np.nanmin(g)), 0.0), m0, m0.pressure_pa)
+
+    perturbed, failed = _solve_each(near, [gap_m + d for d in deltas])
+    out = _spread(macro, ms, base, perturbed, failed)
+    if flat_sigma_m is not None and np.any(np.asarray(flat_sigma_m) > 0):
+        fields = _unit_fields(positions_m, samples, seed + 1) * _nonnegative(
+            flat_sigma_m, positions_m
+        )
+        flat, flat_failed = _solve_each(near, [gap_m + d for d in fields])
+        out.flat = _spread(macro, ms, base, flat, flat_failed)
+    alt, alt_failed = _solve_each(near, alternative_gaps_m)
+    return _add_alternatives(out, ms, base, alt, alt_failed)
+
+
+def _solve_each(solve, items) -> tuple[list, int]:
+    """``solve(item)`` for each of ``items``: the results that converged (a solve that raises
+    :class:`SkisnowError` or returns None did not) and how many did not."""
+    done, failed = [], 0
+    for item in items:
         try:
-            r = solve(g, m0, m0.pressure_pa)
+            r = solve(item)
         except SkisnowError:
             r = None
         if r is None:
             failed += 1
-            continue
-        perturbed.append(r)
-    out = _spread(macro, ms, base, perturbed, failed)
-    if flat_sigma_m is not None and np.any(np.asarray(flat_sigma_m) > 0):
-        flat, flat_failed = [], 0
-        for d in _unit_fields(positions_m, samples, seed + 1) * _nonnegative(
-            flat_sigma_m, positions_m
-        ):
-            g = gap_m + d
-            g = g - min(float(np.nanmin(g)), 0.0)
-            try:
-                r = solve(g, m0, m0.pressure_pa)
-            except SkisnowError:
-                r = None
-            if r is None:
-                flat_failed += 1
-                continue
-            flat.append(r)
-        out.flat = _spread(macro, ms, base, flat, flat_failed)
-    alt, alt_failed = [], 0
-    for g in alternative_gaps_m:
-        g = g - min(float(np.nanmin(g)), 0.0)
-        try:
-            r = solve(g, m0, m0.pressure_pa)
-        except SkisnowError:
-            r = None
-        if r is None:
-            alt_failed += 1
-            continue
-        alt.append(r)
-    return _add_alternatives(out, ms, base, alt, alt_failed)
+        else:
+            done.append(r)
+    return done, failed
 
 
 def _add_alternatives(out: _Sampled, ms, base, alt: list, failed: int) -> _Sampled:
@@ -557,27 +546,13 @@ def _sample_flexible(
         base = None
     if base is None:
         return None
-    perturbed, failed = [], 0
-    for model in drawn:
-        try:
-            r = solve(model, base[0].pressure_pa)
-        except SkisnowError:
-            r = None
-        if r is None:
-            failed += 1
-            continue
-        perturbed.append(r)
+
+    def near(model):  # warm-started from the coarse nominal
+        return solve(model, base[0].pressure_pa)
+
+    perturbed, failed = _solve_each(near, drawn)
     out = _spread(macro, ms, base, perturbed, failed)
-    alt, alt_failed = [], 0
-    for model in alternatives:
-        try:
-            r = solve(model, base[0].pressure_pa)
-        except SkisnowError:
-            r = None
-        if r is None:
-            alt_failed += 1
-            continue
-        alt.append(r)
+    alt, alt_failed = _solve_each(near, alternatives)
     return _add_alternatives(out, ms, base, alt, alt_failed)
 
 

@@ -62,9 +62,8 @@ def test_csv_errors_are_precise(text, match):
         read_camber_csv(text)
 
 
-def test_ski_roundtrip_with_network(tmp_path):
-    design = ClassicSkiDesign()
-    beam = design.build(spacing_m=10e-3)
+def _one_case(beam):
+    """One loaded case of ``beam`` (its unloaded gap as the profile) and a 2 m outline."""
     data = CamberData(
         "t",
         beam.positions_m,
@@ -73,7 +72,13 @@ def test_ski_roundtrip_with_network(tmp_path):
         ["mean"],
         beam.unloaded_gap_m[None, :],
     )
-    outline = SkiOutline(2.0, 0.97, np.array([-0.97, 1.03]), np.array([0.044, 0.044]))
+    return data, SkiOutline(2.0, 0.97, np.array([-0.97, 1.03]), np.array([0.044, 0.044]))
+
+
+def test_ski_roundtrip_with_network(tmp_path):
+    design = ClassicSkiDesign()
+    beam = design.build(spacing_m=10e-3)
+    data, outline = _one_case(beam)
     net = {"w0": np.ones((3, 2)), "attrs": {"kind": "mlp"}, "norm": {"mean": np.zeros(2)}}
     write_ski(tmp_path / "t.h5", SkiRecord(data, outline, {"maker": "x"}, beam, {"a": 1}), net)
     back = read_ski(tmp_path / "t.h5")
@@ -124,15 +129,7 @@ def test_alternative_beams_round_trip_through_the_ski_file(tmp_path):
         camber_sd_m=np.zeros(n),
         alternative_beams=(other, third),
     )
-    data = CamberData(
-        "t",
-        beam.positions_m,
-        np.array([392.8]),
-        np.array([-0.16]),
-        ["mean"],
-        beam.unloaded_gap_m[None, :],
-    )
-    outline = SkiOutline(2.0, 0.97, np.array([-0.97, 1.03]), np.array([0.044, 0.044]))
+    data, outline = _one_case(beam)
     path = tmp_path / "t.h5"
     write_ski(path, SkiRecord(data, outline, identified=identified_to_dict(ident)))
     back = identified_alternatives(read_ski(path).identified)
