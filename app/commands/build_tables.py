@@ -1,6 +1,7 @@
 """``skisnow build-tables``: the micro-scale lookup tables of textures
 (:mod:`app.jobs.table_build`), optionally with the adaptive fourth pixel level
-(:mod:`app.jobs.table_fourth_level`)."""
+(:mod:`app.jobs.table_fourth_level`) and the light-load levels
+(:mod:`app.jobs.table_light_levels`)."""
 
 from __future__ import annotations
 
@@ -44,6 +45,8 @@ def _command(args: argparse.Namespace) -> int:
         gap_floor_m=args.gap_floor_nm * 1e-9,
         pixel_levels=args.pixel_levels,
     )
+    if args.light_load_levels:
+        return _light_load_command(args)
     if args.from_table is not None:
         return _fourth_level_command(args)
     textures = _load_textures(args.textures, args.detrend)
@@ -107,6 +110,33 @@ def _fourth_level_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def _light_load_command(args: argparse.Namespace) -> int:
+    """``build-tables TEXTURE --light-load-levels --from-table PATH``: the light-load pass."""
+    from skisnow.app.jobs.table_light_levels import light_load_pass
+    from skisnow.app.storage.textures import refined_texture
+
+    if args.from_table is None:
+        raise InputError(
+            "--light-load-levels runs on an existing table of several pixel levels: "
+            "give --from-table PATH"
+        )
+    if args.adaptive_level:
+        raise InputError("run --adaptive-level and --light-load-levels one after the other")
+    if len(args.textures) != 1:
+        raise InputError(f"--from-table takes one texture, got {args.textures}")
+    t0 = time.perf_counter()
+    path = light_load_pass(
+        args.from_table,
+        args.out,
+        functools.partial(refined_texture, args.textures[0]),
+        finest_grid=args.finest_grid,
+        keep_checkpoints=args.keep_checkpoints,
+        device=args.device,
+    )
+    print(f"{read_table(path).name}: {path} ({time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
 def register(subparsers) -> None:
     """Add the ``build-tables`` subcommand."""
     d = BuildSettings()
@@ -157,14 +187,31 @@ def register(subparsers) -> None:
         ),
     )
     p.add_argument(
+        "--light-load-levels",
+        action="store_true",
+        help=(
+            "with --from-table (a table of two or three levels): solve the nodes with a_r in "
+            "[1e-4, 1e-3) and the node below on every finer pixel level down to "
+            "--finest-grid, one at a time, and recombine them from their three finest levels "
+            "(16384²: ~35 GB, a GPU's job: --device cuda)"
+        ),
+    )
+    p.add_argument(
+        "--finest-grid",
+        type=int,
+        default=16384,
+        metavar="N",
+        help="grid of the finest light-load level [pixels per side] (16384)",
+    )
+    p.add_argument(
         "--from-table",
         type=Path,
         default=None,
         metavar="PATH",
         help=(
-            "with --adaptive-level: run only the fourth-level pass on this existing "
-            "three-level table of TEXTURE (its own grid and solver settings; the options "
-            "above are not used) and write OUT/<name>.h5"
+            "with --adaptive-level or --light-load-levels: run only that pass on this existing "
+            "table of TEXTURE (three levels for --adaptive-level; its own grid and solver "
+            "settings, the options above are not used) and write OUT/<name>.h5"
         ),
     )
     p.add_argument(

@@ -354,7 +354,8 @@ def pixel_error_estimate(
     real contact area (equal cells). Tables built on one pixel size: ``estimated`` false.
     Tables with the adaptive fourth level (docs/tables.md) also report its pixel size, its
     nodes' ``P_n / E'`` and how many loaded cells interpolate next to one of them (their
-    ratio between the node's neighbours).
+    ratio between the node's neighbours); tables with light-load levels report theirs
+    (``light_load_levels``: pixel sizes, nodes' ``P_n / E'``, cells near) the same way.
     """
     levels = json.loads(table.attrs.get("pixel_extrapolation_json", "null") or "null")
     if not table.has_error_estimates or levels is None:
@@ -377,14 +378,19 @@ def pixel_error_estimate(
         "mean_gap_m": "mean_gap",
         "mean_reciprocal_gap_per_m": "mean_reciprocal_gap",
     }
-    nodes = table.fourth_level_nodes
-    if nodes.size:
+    for name, nodes, pixel in (
+        ("fourth_level", table.fourth_level_nodes, "adaptive_pixel_size_m"),
+        ("light_load_levels", table.light_load_nodes, "light_pixel_size_m"),
+    ):
+        if not nodes.size:
+            continue
         r = np.asarray(table.pressure_ratio, dtype=float)
         lo, hi = r[np.maximum(nodes - 1, 0)], r[np.minimum(nodes + 1, r.size - 1)]
         ratio = p_n[:, None] / e_eff
         near = ((ratio > lo) & (ratio < hi)) | np.isclose(ratio, r[nodes], rtol=1e-9, atol=0)
-        out["fourth_level"] = {
-            "pixel_size_um": float(table.levels["adaptive_pixel_size_m"]) * 1e6,
+        sizes_um = np.asarray(table.levels[pixel], dtype=float) * 1e6
+        out[name] = {
+            "pixel_size_um": float(sizes_um) if sizes_um.ndim == 0 else sizes_um.tolist(),
             "pressure_ratio": [float(v) for v in r[nodes]],
             "cells_near": int(np.count_nonzero(np.any(near, axis=1))),
         }

@@ -33,7 +33,13 @@ from pathlib import Path
 import h5py
 import numpy as np
 from skisnow.solvers.errors import DataFileError
-from skisnow.solvers.lookup import ADAPTIVE_LEVEL_PREFIX, ERROR_FIELDS, TABLE_SCHEMA, MicroTable
+from skisnow.solvers.lookup import (
+    ADAPTIVE_LEVEL_PREFIX,
+    ERROR_FIELDS,
+    LIGHT_LOAD_PREFIX,
+    TABLE_SCHEMA,
+    MicroTable,
+)
 
 from .common import atomic_path, provenance, read_json_manifest, sha256_file
 
@@ -107,9 +113,11 @@ LEVEL_UNITS = {
 
 
 def _level_units(name: str) -> str:
-    """Units of a /levels dataset; ``adaptive_*`` (the fourth level) as its base name."""
-    if name.startswith(ADAPTIVE_LEVEL_PREFIX):
-        base = name[len(ADAPTIVE_LEVEL_PREFIX) :]
+    """Units of a /levels dataset; ``adaptive_*`` (the fourth level) and ``light_*`` (the
+    light-load levels) as their base name."""
+    prefix = _extra_level_prefix(name)
+    if prefix:
+        base = name[len(prefix) :]
         for prefix in ("previous_", "selected_by_"):
             base = base.removeprefix(prefix)
         errors = {err: units for err, units, _ in ERROR_DATASETS}
@@ -140,9 +148,18 @@ _SCALAR_FIELDS = [
 _TYPED_ATTRS = {"schema", "name", "grid_shape", "full_contact_reached", *_SCALAR_FIELDS}
 
 
+def _extra_level_prefix(name: str) -> str:
+    """The prefix of the extra levels' entries in /levels (fourth level, light loads) or ""."""
+    for prefix in (ADAPTIVE_LEVEL_PREFIX, LIGHT_LOAD_PREFIX):
+        if name.startswith(prefix):
+            return prefix
+    return ""
+
+
 def _dtype(name: str):
-    if name.startswith(ADAPTIVE_LEVEL_PREFIX):  # the fourth level's entries in /levels
-        name = name[len(ADAPTIVE_LEVEL_PREFIX) :]
+    prefix = _extra_level_prefix(name)
+    if prefix:  # the extra levels' entries in /levels
+        name = name[len(prefix) :]
         if name == "node":
             return np.int64
         if name.startswith("selected_by_"):
@@ -290,7 +307,10 @@ def write_table(
                 "/loaded values are their zero-pixel extrapolation. adaptive_*: the fourth "
                 "level at half the finest pixel, at the nodes adaptive_node only (one value "
                 "per node), which are recombined from their three finest levels "
-                "(solvers.lookup.with_fourth_level)"
+                "(solvers.lookup.with_fourth_level). light_*: the light-load levels, each "
+                "half the pixel of the one before (first axis: extra level, coarse first; "
+                "second: the nodes light_node), at which the table is recombined from the "
+                "three finest levels (solvers.lookup.with_light_load_levels)"
             )
             for name, value in table.levels.items():
                 ds = g.create_dataset(
