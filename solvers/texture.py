@@ -606,7 +606,10 @@ def _groove_profile(
 
     The profile is sampled at ``_PROFILE_OVERSAMPLING`` points per pixel of the ``n1`` grid; with
     ``refine > 1`` each of the ``refine`` finer pixels averages its share of the same sample
-    points, so the block average of the refined profile is the unrefined profile.
+    points, so the block average of the refined profile is the unrefined profile. Beyond
+    that (``refine`` 16) the profile is sampled ``refine`` times per pixel, one point per fine
+    pixel, at the fine pixels' centres: the same groove shapes, their block average the
+    unrefined profile up to the difference between 8- and 16-point pixel averages.
     """
     width = n1 * pixel_size_m
     n_grooves = max(1, round(width / p.pitch_m))
@@ -615,7 +618,7 @@ def _groove_profile(
     pitches *= width / pitches.sum()
     depths = p.depth_m * np.clip(1 + p.depth_jitter * z[1], 0.2, 1.8)
     starts = np.concatenate([[0.0], np.cumsum(pitches)[:-1]])
-    m = _PROFILE_OVERSAMPLING
+    m = max(_PROFILE_OVERSAMPLING, refine)
     y = (np.arange(n1 * m) + 0.5) * (pixel_size_m / m)
     prof = np.zeros_like(y)
     v0 = 0.5 * (1 + p.asymmetry)  # deepest point, fraction of the groove width
@@ -701,7 +704,7 @@ def linear_grind(
     rng : numpy.random.Generator or int
         Source of randomness, or a seed for ``numpy.random.default_rng``.
     refine : int, optional
-        1 (default), 2, 4 or 8: the **same** surface on a ``refine``× finer grid
+        1 (default), 2, 4, 8 or 16: the **same** surface on a ``refine``× finer grid
         (``shape · refine`` pixels of ``pixel_size_m / refine``, the same patch). The random
         draws are those of ``shape``; the groove profile is averaged over the finer pixels from
         the same sub-samples (its block average is the unrefined profile), the band-limited
@@ -712,15 +715,19 @@ def linear_grind(
         roughness half a coarse pixel before their centres), so the block average of a refined
         map is the unrefined map up to the second-order difference between a point value and
         a pixel average of the roughness. Used for pixel-refinement studies and the two-level
-        tables (docs/tables.md).
+        tables (docs/tables.md). With 16 the profile is sampled at the fine pixels' centres
+        (16 points per pixel instead of the 8 the other levels share; see
+        :func:`_groove_profile`): the block average of a 16× map is the unrefined map to
+        6e-4 of its RMS on the shipped grinds (1e-3 is what
+        :func:`app.storage.textures.refined_texture` accepts).
 
     Returns
     -------
     numpy.ndarray
         Heights [m], float64, zero mean; shape ``shape · refine``.
     """
-    if refine not in (1, 2, 4, 8):
-        raise InputError(f"refine must be 1, 2, 4 or 8, got {refine!r}")
+    if refine not in (1, 2, 4, 8, 16):
+        raise InputError(f"refine must be 1, 2, 4, 8 or 16, got {refine!r}")
     dx = _check_pixel_size(pixel_size_m)
     try:
         n0, n1 = (int(s) for s in shape)
