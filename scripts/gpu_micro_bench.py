@@ -711,6 +711,18 @@ def parse(argv=None) -> argparse.Namespace:
     ap.add_argument("--chart", default=None, help="PNG: median time against grid size")
     ap.add_argument("--git-commit", default=None, help="record this commit (no .git there)")
     ap.add_argument("--replot", default=None, help="only draw --chart from this JSON")
+    ap.add_argument(
+        "--import-stage",
+        default=None,
+        metavar="JSON",
+        help="only import this run's JSON (and the PNG beside it) into docs/bench as the "
+        "stage gpu-micro and regenerate docs/benchmarks.md",
+    )
+    ap.add_argument(
+        "--session-command",
+        default="OUT=… GIT_COMMIT=… bash scripts/gpu_session.sh",
+        help="with --import-stage: the command recorded for the stage",
+    )
     args = ap.parse_args(argv)
     if args.replot and not args.chart:
         ap.error("--replot needs --chart")
@@ -720,8 +732,33 @@ def parse(argv=None) -> argparse.Namespace:
     return args
 
 
+def import_stage(path: Path, command_line: str, docs_dir: Path | None = None) -> Path:
+    """Write ``docs/bench/gpu-micro.json`` (and ``.png`` from the PNG beside ``path``, if any)
+    from one run's JSON and regenerate docs/benchmarks.md."""
+    import shutil
+
+    _import_skisnow()
+    from skisnow.app.evidence.gpu_md import stage_from_bench
+    from skisnow.app.evidence.writer import DOCS, write_benchmarks_md
+    from skisnow.app.storage.common import atomic_path
+
+    docs_dir = DOCS if docs_dir is None else Path(docs_dir)
+    stage = stage_from_bench(json.loads(Path(path).read_text()), command_line)
+    out = docs_dir / "bench" / "gpu-micro.json"
+    with atomic_path(out) as tmp:
+        tmp.write_text(json.dumps(stage, indent=1))
+    png = Path(path).with_suffix(".png")
+    if png.exists():
+        shutil.copyfile(png, out.with_suffix(".png"))
+    write_benchmarks_md(docs_dir)
+    return out
+
+
 def main(argv=None) -> None:
     args = parse(argv)
+    if args.import_stage:
+        print(f"wrote {import_stage(Path(args.import_stage), args.session_command)}")
+        return
     if args.replot:
         chart(json.loads(Path(args.replot).read_text()), args.chart)
         print(f"wrote {args.chart}")

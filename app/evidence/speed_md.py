@@ -4,17 +4,6 @@ same time, the load test with 1 and 2 workers, and the GPU backend's status."""
 
 from __future__ import annotations
 
-#: the prototype's figures of issue #29 (a PyTorch port of ``solve_micro`` on one H200 against
-#: the project's solver on that machine's 16 cores, grind-2 at E' = 100 MPa): not this code's
-PROTOTYPE_H200 = [
-    ("1024²", "0.30–0.36 s", "0.05–0.06 s", "5–7×"),
-    ("2048²", "1.0–1.4 s", "0.06–0.08 s", "14–18×"),
-    ("4096²", "3.8–4.9 s", "0.11–0.18 s", "25–35×"),
-    ("8192²", "(not run)", "0.25–0.51 s (9 GB)", ""),
-    ("16384²", "(not run)", "1.0–2.1 s (35 GB)", ""),
-]
-
-
 #: issue #29's targets for the default settings on 2 cores
 TARGETS = {"single_p50_ms": 30.0, "throughput_rps": 60.0, "p99_ms": 400.0}
 
@@ -89,20 +78,7 @@ def render_md(d: dict) -> list[str]:
         lines += _targets(runs)
     lines += [
         "",
-        "### The micro solver on a GPU",
-        "",
-        "No GPU was available in this session: the torch backend (`solvers/micro_torch.py`, "
-        "`skisnow build-tables --device cuda`) ran on the CPU only, against the numpy/pyFFTW "
-        "solver (`tests/solvers/test_micro_torch.py`, 128²: contact sets and iterations "
-        "identical, metrics within 2e-8). The GPU figures below are the **prototype's** of "
-        "issue #29 (a PyTorch port of the same algorithm on one H200 against the project's "
-        "solver on that machine's 16 cores, grind-2 at E' = 100 MPa), not measurements of this "
-        "code; the issue's targets on a GPU (≥ 20× at 4096², shipped tables ≤ 3 % at every "
-        "node) are not shown here.",
-        "",
-        "| size | CPU, 16 cores | H200, eager PyTorch | speed-up |",
-        "|---|---|---|---|",
-        *[f"| {a} | {b} | {c} | {s} |" for a, b, c, s in PROTOTYPE_H200],
+        "The micro solver on a GPU (issue #29's other part) has its own stage, `gpu-micro`.",
         "",
     ]
     return lines

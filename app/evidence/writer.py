@@ -17,7 +17,15 @@ import platform
 from collections.abc import Callable
 from pathlib import Path
 
-from skisnow.app.evidence import accuracy_md, loadtest, macro, micro, peers_md, speed_md
+from skisnow.app.evidence import (
+    accuracy_md,
+    gpu_md,
+    loadtest,
+    macro,
+    micro,
+    peers_md,
+    speed_md,
+)
 from skisnow.app.storage.common import atomic_path, provenance
 from skisnow.app.storage.common import docs_dir as _docs_dir
 
@@ -60,6 +68,7 @@ STAGE_RENDERERS: dict[str, Callable[[dict], list[str]]] = {
     "memory-1-worker": loadtest.render_md,
     "speed": speed_md.render_md,
     "micro-peers": peers_md.render_md,
+    "gpu-micro": gpu_md.render_md,
 }
 
 

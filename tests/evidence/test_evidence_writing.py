@@ -175,3 +175,27 @@ def test_shipped_stage_reads_the_tables_own_estimates_in_the_range():
     assert ("met by every table" in text) == (expected <= 0.03)
     worse = {**st, "target_a_r_rel": expected / 2}
     assert "**not met**" in "\n".join(shipped_section({"shipped": worse}))
+
+
+def test_gpu_stage_states_the_target_from_its_numbers():
+    from skisnow.app.evidence import gpu_md
+
+    def bench(speedup):
+        phases = {"before_fine_cg_s": 0.4, "fine_cg_s": 0.07, "after_fine_cg_s": 0.5}
+        cpu = {**phases, "fine_cg_s": 1.6}
+        row = {
+            "pixels": 4096**2,
+            "torch": {"median_s": 1.0, "median_phases_s": phases, "repeats": [{}, {}]},
+            "cpu": {"median_s": speedup, "median_phases_s": cpu},
+            "speedup_cpu_over_torch": speedup,
+            "agreement": {"contact_pixels_differing": 0, "delta_iterations_torch_minus_cpu": 0},
+        }
+        env = {"date_utc": "2026-11-27", "git_commit": "abc", "os_cpu_count": 16}
+        return gpu_md.stage_from_bench({"results": [row], "environment": env}, "cmd")
+
+    slow = "\n".join(gpu_md.render_md(bench(3.7)))
+    assert "**3.7×, not met**" in slow and "| 4096² | 3.7 | 1 (2 runs) | 3.7× |" in slow
+    assert "23× faster on the GPU" in slow
+    assert "**25.0×, met**" in "\n".join(gpu_md.render_md(bench(25.0)))
+    stage = bench(3.7)
+    assert stage["stage"] == "gpu-micro" and stage["provenance"]["git_commit"] == "abc"
