@@ -33,8 +33,9 @@ def change_table(old: dict, new: dict) -> list[str]:
         raise SystemExit(f"the runs have different cases: {sorted(a)} vs {sorted(b)}")
     lines = ["| ski | grind | quantity | before | after | change |", "|---|---|---|---|---|---|"]
     for key in sorted(a):
-        ia = {k: v for k, v in a[key]["inputs"].items() if k != "preset"}
-        ib = {k: v for k, v in b[key]["inputs"].items() if k != "preset"}
+        # an input a run did not record (added later) and one recorded as None are the same
+        ia = {k: v for k, v in a[key]["inputs"].items() if k != "preset" and v is not None}
+        ib = {k: v for k, v in b[key]["inputs"].items() if k != "preset" and v is not None}
         if ia != ib:
             raise SystemExit(f"{key}: different inputs {ia} vs {ib}")
         rows = [
