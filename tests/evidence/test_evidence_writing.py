@@ -158,19 +158,25 @@ def test_shipped_stage_reads_the_tables_own_estimates_in_the_range():
     and says whether the 3 % target is met (from the numbers, not canned)."""
     import numpy as np
     from skisnow.app.evidence.accuracy_common import AccuracyConfig
-    from skisnow.app.evidence.accuracy_shipped import bench_shipped, shipped_section
+    from skisnow.app.evidence.accuracy_shipped import (
+        SHIPPED_RANGE_A_R,
+        bench_shipped,
+        shipped_section,
+    )
     from skisnow.app.storage.common import tables_dir
     from skisnow.app.storage.tables import read_table
-    from skisnow.solvers.lookup import ESTIMATE_RANGE_A_R
+    from skisnow.solvers.lookup import ESTIMATE_RANGE_A_R, LIGHT_LOAD_RANGE_A_R
 
     st = bench_shipped(AccuracyConfig(table_grinds=("grind-2",)))
     row = st["tables"][0]
     table = read_table(tables_dir() / "grind-2.h5")
     a = table.real_contact_area_fraction
-    keep = (a >= ESTIMATE_RANGE_A_R[0]) & (a <= ESTIMATE_RANGE_A_R[1])
+    assert SHIPPED_RANGE_A_R == (LIGHT_LOAD_RANGE_A_R[0], ESTIMATE_RANGE_A_R[1])
+    keep = (a >= SHIPPED_RANGE_A_R[0]) & (a <= SHIPPED_RANGE_A_R[1])
     expected = np.max(table.real_contact_area_fraction_error[keep] / a[keep])
     assert row["max_rel_estimate"]["real_contact_area_fraction"]["rel"] == expected
     assert row["nodes_in_range"] == int(keep.sum())
+    assert row["light_load_node_ratios"] == table.pressure_ratio[table.light_load_nodes].tolist()
     text = "\n".join(shipped_section({"shipped": st}))
     assert ("met by every table" in text) == (expected <= 0.03)
     worse = {**st, "target_a_r_rel": expected / 2}
