@@ -66,9 +66,10 @@ def check_device(device: str):
 
 class TorchHalfSpace:
     """:class:`solvers.elastic.PeriodicHalfSpace` on a torch device: the same compliance
-    ``4/(E'|q|)`` and stiffness ``E'|q|/4`` on the rfft2 layout (computed in float64 by
-    numpy, then moved), the transforms ``torch.fft.rfft2``/``irfft2``. A float32 field gets a
-    single-precision pair (the kernels cast once), a float64 field a double one."""
+    ``4/(E'|q|)`` and stiffness ``E'|q|/4`` on the rfft2 layout (computed in float64 on the
+    device from numpy's 1-D wavenumbers), the transforms ``torch.fft.rfft2``/``irfft2``. A
+    float32 field gets a single-precision pair (the kernels cast once), a float64 field a
+    double one."""
 
     def __init__(self, shape, pixel_size_m, effective_modulus_pa: float, device: str = "cpu"):
         import scipy.fft
@@ -85,15 +86,19 @@ class TorchHalfSpace:
         self.shape = (nx, ny)
         self.pixel_size_m = (float(dx), float(dy))
         self.effective_modulus_pa = e_eff
-        qx = 2 * np.pi * scipy.fft.fftfreq(nx, d=dx)[:, None]
-        qy = 2 * np.pi * scipy.fft.rfftfreq(ny, d=dy)[None, :]
-        q = np.sqrt(qx**2 + qy**2)
-        with np.errstate(divide="ignore"):
-            g = np.where(q > 0, 4.0 / (e_eff * q), 0.0)
-            k = np.where(q > 0, e_eff * q / 4.0, 0.0)
+        # the 1-D wavenumbers as numpy computes them (n values), the 2-D kernels on the device:
+        # the same correctly rounded operations, no (n, n/2) arrays built on the host and copied
+        f64 = torch.float64
+        dev = self.device
+        qx = torch.as_tensor(2 * np.pi * scipy.fft.fftfreq(nx, d=dx), dtype=f64, device=dev)
+        qy = torch.as_tensor(2 * np.pi * scipy.fft.rfftfreq(ny, d=dy), dtype=f64, device=dev)
+        q = torch.sqrt(qx[:, None] ** 2 + qy[None, :] ** 2)
+        positive = q > 0
+        g = torch.where(positive, 4.0 / (e_eff * torch.where(positive, q, 1.0)), 0.0)
+        k = torch.where(positive, e_eff * q / 4.0, 0.0)
+        del q, positive
         self._kernels = {}
-        for name, arr in (("compliance", g), ("stiffness", k)):
-            t64 = torch.as_tensor(arr, dtype=torch.float64, device=self.device)
+        for name, t64 in (("compliance", g), ("stiffness", k)):
             self._kernels[name, torch.float64] = t64
             self._kernels[name, torch.float32] = t64.to(torch.float32)
         self._coarse: TorchHalfSpace | None = None
@@ -140,6 +145,27 @@ class TorchHalfSpace:
                 (nx // 2, ny // 2), (2 * dx, 2 * dy), self.effective_modulus_pa, self.device.type
             )
         return self._coarse
+
+
+def _gap_statistics_torch(gap, contact, floor_m: float) -> tuple[float, float]:
+    """:func:`solvers.micro._gap_statistics` on the device: (floored, raw) mean reciprocal gap
+    over the gap set [1/m] (zero gaps of the gap set counted at the floor in the raw one)."""
+    torch = _torch()
+    free = ~contact
+    n_free = int(free.sum())
+    if n_free == 0:
+        return 1.0 / floor_m, 1.0 / floor_m
+    floored = float(torch.where(free, 1.0 / torch.clamp(gap, min=floor_m), 0.0).sum()) / n_free
+    pos = free & (gap > 0)
+    n_pos = int(pos.sum())
+    raw = (
+        float(torch.where(pos, 1.0 / torch.where(pos, gap, 1.0), 0.0).sum()) / n_free
+        if n_pos
+        else 1.0 / floor_m
+    )
+    if n_pos < n_free:  # as the numpy version: zero gaps of the gap set at the floor
+        raw += (n_free - n_pos) / n_free / floor_m
+    return floored, raw
 
 
 def _full_contact_pressure(h, hs: TorchHalfSpace):
@@ -340,18 +366,22 @@ def solve_micro_torch(
     h0 = h.max() - h
 
     def finish(p, gap, delta, full, conv, its, res, msg, levels):
-        p = p.cpu().numpy() if hasattr(p, "cpu") else p
-        gap = gap.cpu().numpy() if hasattr(gap, "cpu") else gap
-        contact = p > 0
-        rec, rec_raw = _gap_statistics(gap, contact, gap_floor_m)
+        if hasattr(p, "cpu"):  # statistics on the device, then the two fields to the host
+            contact_count, mean_gap = int((p > 0).sum()), float(gap.mean())
+            rec, rec_raw = _gap_statistics_torch(gap, p > 0, gap_floor_m)
+            p, gap = p.cpu().numpy(), gap.cpu().numpy()
+        else:
+            contact = p > 0
+            contact_count, mean_gap = int(np.count_nonzero(contact)), float(gap.mean())
+            rec, rec_raw = _gap_statistics(gap, contact, gap_floor_m)
         return MicroResult(
             pressure_pa=p,
             gap_m=gap,
             nominal_pressure_pa=p_nom,
             effective_modulus_pa=e_eff,
             pixel_size_m=hs.pixel_size_m,
-            real_contact_area_fraction=float(np.count_nonzero(contact) / p.size),
-            mean_gap_m=float(gap.mean()),
+            real_contact_area_fraction=float(contact_count / p.size),
+            mean_gap_m=mean_gap,
             mean_reciprocal_gap_per_m=rec,
             mean_reciprocal_gap_raw_per_m=rec_raw,
             gap_floor_m=float(gap_floor_m),

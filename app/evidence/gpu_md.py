@@ -98,8 +98,11 @@ def render_md(d: dict) -> list[str]:
             f"{t['before_fine_cg_s']:.2f} s (each level's half-space kernels computed in numpy "
             "and copied over, the heights' checks on the host, the nested coarse solves). "
             "Issue #29's prototype kept all of it on the device (0.11–0.18 s at 4096² on an "
-            "H200): moving the kernels, the statistics and the checks onto the device is the "
-            "next step, and it needs a GPU to measure.",
+            "H200). Since this run the half-space kernels and the gap statistics are computed "
+            "on the device (`solvers/micro_torch.py`; same results, tested on the CPU), which "
+            "removes the numpy work of both phases; the heights' checks and the copies of the "
+            "two fields to the host remain. Its effect on a GPU is not measured yet "
+            "(`scripts/gpu_session.sh` again, on a session with a GPU).",
         ]
     lines += [
         "",

@@ -132,3 +132,32 @@ def test_build_tables_and_the_grind_job_take_a_device():
     assert args.device == "cuda"
     assert Settings().table_device == "cpu"
     assert Settings(table_device="cuda").table_device == "cuda"
+
+
+def test_device_kernels_and_gap_statistics_equal_the_numpy_ones():
+    """The half-space kernels built on the device are the numpy solver's to the last bits (the
+    same operations; torch's vectorised square root on the CPU may round the last bit
+    otherwise), and the gap statistics computed on the device equal
+    :func:`solvers.micro._gap_statistics` (sums in another order: 1e-12)."""
+    import torch
+    from skisnow.solvers.elastic import PeriodicHalfSpace
+    from skisnow.solvers.micro import _gap_statistics
+    from skisnow.solvers.micro_torch import _gap_statistics_torch
+
+    shape, dx, e = (96, 70), (1.5e-6, 2.0e-6), 3.4e8
+    ours = TorchHalfSpace(shape, dx, e, "cpu")
+    ref = PeriodicHalfSpace(shape, dx, e)
+    for name, kernel in (("compliance", ref.compliance), ("stiffness", ref.stiffness)):
+        np.testing.assert_allclose(ours._kernels[name, torch.float64].numpy(), kernel, rtol=1e-15)
+    rng = np.random.default_rng(5)
+    gap = np.abs(rng.normal(size=shape)) * 1e-6
+    gap[rng.random(shape) < 0.05] = 0.0  # zero gaps in the gap set
+    contact = rng.random(shape) < 0.3
+    for floor in (1e-8, 5e-7):
+        expect = _gap_statistics(gap, contact, floor)
+        got = _gap_statistics_torch(torch.as_tensor(gap), torch.as_tensor(contact), floor)
+        np.testing.assert_allclose(got, expect, rtol=1e-12)
+    everything = np.ones(shape, bool)
+    assert _gap_statistics_torch(torch.as_tensor(gap), torch.as_tensor(everything), 1e-8) == (
+        _gap_statistics(gap, everything, 1e-8)
+    )
