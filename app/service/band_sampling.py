@@ -428,21 +428,41 @@ def beam_models(
         return None
     dx, ny = coarse_grid(preset)
     key = (float(dx), int(ny), int(samples), int(seed), float(scale))
-    store = record.cache.get("band_beam_models")
-    if store is None or store[0] is not ident or store[1] is not record.beam:
-        store = (ident, record.beam, {})
-        record.cache["band_beam_models"] = store
-    hit = store[2].get(key)
+    return _cached(
+        record,
+        "band_beam_models",
+        (ident, record.beam),
+        key,
+        lambda: _build_beam_models(record, ident, beam, drawable, key, dx, ny),
+    )
+
+
+def _cached(record, name: str, owners: tuple, key, build):
+    """``build()`` for ``key``, kept in ``record.cache[name]`` while the objects ``owners``
+    (the ski's identification, its beam) are the record's: built once under the lock, at most
+    ``_BEAM_MODELS_MAX`` keys per entry (then the entry starts afresh)."""
+    store = record.cache.get(name)
+    if (
+        store is None
+        or len(store[0]) != len(owners)
+        or any(a is not b for a, b in zip(store[0], owners, strict=True))
+    ):
+        store = (owners, {})
+        record.cache[name] = store
+    hit = store[1].get(key)
     if hit is None:
         with _BEAM_MODELS_LOCK:
-            hit = store[2].get(key)
+            hit = store[1].get(key)
             if hit is None:
-                hit = _build_beam_models(record, ident, beam, drawable, store, key, dx, ny)
+                hit = build()
+                if len(store[1]) >= _BEAM_MODELS_MAX:
+                    store[1].clear()
+                store[1][key] = hit
     return hit
 
 
-def _build_beam_models(record, ident, beam, drawable, store, key, dx, ny):
-    """The models of :func:`beam_models` for ``key`` (dx, ny, samples, seed, scale), stored."""
+def _build_beam_models(record, ident, beam, drawable, key, dx, ny):
+    """The models of :func:`beam_models` for ``key`` (dx, ny, samples, seed, scale)."""
     samples, seed, scale = key[2], key[3], key[4]
     nominal = _prepare(beam, record.outline, dx, ny)
     drawn = []
@@ -451,10 +471,7 @@ def _build_beam_models(record, ident, beam, drawable, store, key, dx, ny):
         if ib is not None:
             beams = sample_beams(ib, samples, seed, scale=scale, antithetic=True)
             drawn = [_prepare(b, record.outline, dx, ny) for b in beams]
-    if len(store[2]) >= _BEAM_MODELS_MAX:
-        store[2].clear()
-    hit = store[2][key] = (nominal, drawn)
-    return hit
+    return nominal, drawn
 
 
 def alternative_models(record, preset: Preset) -> list[FlexibleModel]:
@@ -467,21 +484,13 @@ def alternative_models(record, preset: Preset) -> list[FlexibleModel]:
     if not beams:
         return []
     dx, ny = coarse_grid(preset)
-    key = (float(dx), int(ny))
-    store = record.cache.get("band_alternative_models")
-    if store is None or store[0] is not ident:
-        store = (ident, {})
-        record.cache["band_alternative_models"] = store
-    hit = store[1].get(key)
-    if hit is None:
-        with _BEAM_MODELS_LOCK:
-            hit = store[1].get(key)
-            if hit is None:
-                hit = [_prepare(b, record.outline, dx, ny) for b in beams]
-                if len(store[1]) >= _BEAM_MODELS_MAX:
-                    store[1].clear()
-                store[1][key] = hit
-    return hit
+    return _cached(
+        record,
+        "band_alternative_models",
+        (ident,),
+        (float(dx), int(ny)),
+        lambda: [_prepare(b, record.outline, dx, ny) for b in beams],
+    )
 
 
 def alternative_profiles(
