@@ -14,12 +14,11 @@ cache and caching allocator. Hence, before anything is timed, one untimed solve 
 on the stored 1024² texture (numba compilation, CUDA context and cuFFT start-up). The first
 torch repeat at a size still includes that size's cuFFT plans and the allocator's growth (the
 plan cache and the allocator are emptied between sizes); ``first_s`` and ``median_rest_s``
-separate it. The torch wall time is the whole call: the kernels computed by numpy on the host,
-the heights moved to the device, the result moved back and its gap statistics (numpy).
+separate it. The torch wall time is the whole call: the input checks on the host, the heights
+moved to the device, the half-space kernels, the result moved back and its gap statistics.
 
-Sizes of 1024 and more are 1024 · 2^k (refine 2^k of the stored 1024² texture; refine 16 and
-up, beyond :func:`skisnow.solvers.texture.linear_grind`'s 8, by this script with the same
-draws, see :func:`refined_heights`); smaller sizes are the top-left crop of the 1024² texture,
+Sizes of 1024 and more are 1024 · 2^k up to 16384 (refine 2^k of the stored 1024² texture,
+:func:`refined_heights`); smaller sizes are the top-left crop of the 1024² texture,
 which is not the same periodic surface, marked "crop (test only)".
 
 The JSON is rewritten (atomically) after every solve, so a killed run leaves what it measured.
@@ -101,79 +100,12 @@ def log(msg: str) -> None:
 
 
 def refined_heights(refine: int):
-    """(heights [m], pixel size [m], note) of grind-2 refined ``refine``× (a power of 2).
-
-    1, 2, 4, 8: :func:`skisnow.app.storage.textures.refined_texture`. 16 and up: the body of
-    :func:`skisnow.solvers.texture.linear_grind` with the generator, parameters and seed read
-    from the texture file, as refined_texture does; the groove profile is sampled at
-    ``refine`` points per stored pixel instead of linear_grind's 8 (one point per fine pixel;
-    the draws and their order are unchanged), and the block average of the result is checked
-    against the stored heights (1e-3 of their RMS) as refined_texture checks its own.
-    """
+    """(heights [m], pixel size [m], note) of grind-2 refined ``refine``× (1, 2, 4, 8 or 16):
+    :func:`skisnow.app.storage.textures.refined_texture`, the same surface on a finer grid."""
     from skisnow.app.storage import textures
 
-    if refine in (1, 2, 4, 8, 16):
-        tx = textures.refined_texture(TEXTURE, refine)
-        return tx.heights_m, tx.pixel_size_m, f"refined_texture({TEXTURE!r}, {refine})"
-    return _refine_beyond_8(refine)
-
-
-def _refine_beyond_8(refine: int):
-    """:func:`refined_heights` for refine 16 and up (any power of 2: with 2, 4 or 8 it gives
-    refined_texture's heights, bit for bit)."""
-    import h5py
-    import numpy as np
-    from skisnow.app.storage import textures
-    from skisnow.solvers import texture as T
-
-    path = textures.SHIPPED_TEXTURES_DIR / f"{TEXTURE}.h5"
-    base = textures.read_texture(path)
-    with h5py.File(path, "r") as f:
-        generator = f.attrs["generator"]
-        generator = generator.decode() if isinstance(generator, bytes) else str(generator)
-        if generator.removeprefix("skisnow.") != "solvers.texture.linear_grind":
-            raise SystemExit(f"{TEXTURE}: unknown generator {generator!r}")
-        params = T.GrindParameters(**json.loads(f.attrs["generator_parameters_json"]))
-        seed = int(f.attrs["generator_seed"])
-    n0, n1 = base.heights_m.shape
-    dx = base.pixel_size_m
-    rng = np.random.default_rng(seed)
-    kept = T._PROFILE_OVERSAMPLING
-    T._PROFILE_OVERSAMPLING = max(kept, refine)
-    try:
-        prof = T._groove_profile(n1, dx, params, rng, refine)
-    finally:
-        T._PROFILE_OVERSAMPLING = kept
-    h = np.broadcast_to(prof[None, :], (n0 * refine, n1 * refine)).copy()
-    del prof
-    if params.roughness_rms_m > 0:
-        short = max(params.roughness_short_cutoff_m, 2 * dx)
-        long = max(params.roughness_long_cutoff_m, short)
-        rough = T.self_affine_surface(
-            (n0, n1),
-            dx,
-            hurst=params.roughness_hurst,
-            rms_height_m=params.roughness_rms_m,
-            rng=rng,
-            long_cutoff_m=long,
-            short_cutoff_m=short,
-        )
-        h += T.fourier_upsample(rough, refine, shift_px=(1 - refine) / 2)
-    h -= h.mean()
-    coarse = h.reshape(n0, refine, n1, refine).mean(axis=(1, 3))
-    rms = float(np.sqrt(np.mean(base.heights_m**2)))
-    deviation = float(np.max(np.abs(coarse - base.heights_m)))
-    if deviation > 1e-3 * rms:
-        raise SystemExit(
-            f"refine {refine}: block average off the stored heights by {deviation:.3g} m "
-            f"(RMS {rms:.3g} m)"
-        )
-    note = (
-        f"refine {refine}: linear_grind's body with its draws, the groove profile sampled "
-        f"{max(kept, refine)}x per stored pixel (linear_grind: {kept}x, refine <= 8); block "
-        f"average within {deviation / rms:.2e} RMS of the stored heights"
-    )
-    return h, dx / refine, note
+    tx = textures.refined_texture(TEXTURE, refine)
+    return tx.heights_m, tx.pixel_size_m, f"refined_texture({TEXTURE!r}, {refine})"
 
 
 def make_surface(size: int) -> dict:

@@ -846,6 +846,40 @@ def combine_with_fourth_level(
     )
 
 
+def _rising_nodes(table: MicroTable, nodes) -> np.ndarray:
+    """``nodes`` as rising int64 indices into ``table`` (InputError otherwise)."""
+    idx = np.asarray(nodes, dtype=np.int64)
+    n = table.pressure_ratio.size
+    if idx.size and (np.any(np.diff(idx) <= 0) or idx[0] < 0 or idx[-1] >= n):
+        raise InputError(f"nodes must be rising indices into the table, got {idx.tolist()}")
+    return idx
+
+
+def _recombined_fields(table: MicroTable, idx: np.ndarray, out: dict) -> tuple[dict, dict]:
+    """Copies of the table's point and error arrays with nodes ``idx`` replaced by ``out``
+    (a combination's values, estimates, and the finest level's raw reciprocal gap,
+    iterations and residual where it has them; ``converged`` of every level), and the values
+    and estimates the nodes had before (``previous_<name>``)."""
+    fields = {
+        name: np.array(getattr(table, name), copy=True)
+        for name in (*POINT_FIELDS[1:], *ERROR_FIELDS.values())
+    }
+    previous = {}
+    for quantity, err_name in ERROR_FIELDS.items():
+        previous[f"previous_{quantity}"] = fields[quantity][idx]
+        previous[f"previous_{err_name}"] = fields[err_name][idx]
+    if not idx.size:
+        return fields, previous
+    for quantity, err_name in ERROR_FIELDS.items():
+        fields[quantity][idx] = out[quantity]
+        fields[err_name][idx] = out[err_name]
+    for name in ("mean_reciprocal_gap_raw_per_m", "iterations", "residual"):
+        if name in out:  # residual: only levels solved by the pass carry it
+            fields[name][idx] = out[name]
+    fields["converged"][idx] = fields["converged"][idx] & out["converged"]
+    return fields, previous
+
+
 def with_fourth_level(
     table: MicroTable,
     nodes,
@@ -890,24 +924,9 @@ def with_fourth_level(
             "a fourth level is added once, to a three-level table without one"
             + ("" if table.levels is None else f" ({table.name!r} already has it)")
         )
-    idx = np.asarray(nodes, dtype=np.int64)
-    n = table.pressure_ratio.size
-    if idx.size and (np.any(np.diff(idx) <= 0) or idx[0] < 0 or idx[-1] >= n):
-        raise InputError(f"nodes must be rising indices into the table, got {idx.tolist()}")
+    idx = _rising_nodes(table, nodes)
     out, info = combine_with_fourth_level(table.levels, idx, fourth, refinement)
-    fields = {
-        name: np.array(getattr(table, name), copy=True)
-        for name in (*POINT_FIELDS[1:], *ERROR_FIELDS.values())
-    }
-    previous = {}
-    for quantity, err_name in ERROR_FIELDS.items():
-        previous[f"previous_{quantity}"] = fields[quantity][idx]
-        previous[f"previous_{err_name}"] = fields[err_name][idx]
-        fields[quantity][idx] = out[quantity]
-        fields[err_name][idx] = out[err_name]
-    for name in ("mean_reciprocal_gap_raw_per_m", "iterations", "residual"):
-        fields[name][idx] = out[name]
-    fields["converged"][idx] = fields["converged"][idx] & out["converged"]
+    fields, previous = _recombined_fields(table, idx, out)
     p = ADAPTIVE_LEVEL_PREFIX
     levels = dict(table.levels)
     levels[f"{p}node"] = idx
@@ -1076,10 +1095,7 @@ def with_light_load_levels(
         raise InputError(f"{table.name!r} has one pixel level: light-load levels need two or more")
     if f"{p}node" in table.levels:
         raise InputError(f"{table.name!r} already has light-load levels")
-    idx = np.asarray(nodes, dtype=np.int64)
-    n = table.pressure_ratio.size
-    if idx.size and (np.any(np.diff(idx) <= 0) or idx[0] < 0 or idx[-1] >= n):
-        raise InputError(f"nodes must be rising indices into the table, got {idx.tolist()}")
+    idx = _rising_nodes(table, nodes)
     overlap = np.intersect1d(idx, table.fourth_level_nodes)
     if overlap.size:
         raise InputError(f"nodes {overlap.tolist()} have the adaptive fourth level already")
@@ -1091,22 +1107,7 @@ def with_light_load_levels(
         out, info = combine_with_light_load_levels(table.levels, idx, extra, refinement)
     else:
         out, info = {}, {}
-    fields = {
-        name: np.array(getattr(table, name), copy=True)
-        for name in (*POINT_FIELDS[1:], *ERROR_FIELDS.values())
-    }
-    previous = {}
-    for quantity, err_name in ERROR_FIELDS.items():
-        previous[f"previous_{quantity}"] = fields[quantity][idx]
-        previous[f"previous_{err_name}"] = fields[err_name][idx]
-        if idx.size:
-            fields[quantity][idx] = out[quantity]
-            fields[err_name][idx] = out[err_name]
-    if idx.size:
-        for name in ("mean_reciprocal_gap_raw_per_m", "iterations", "residual"):
-            if name in out:  # the finest level's diagnostics (residual: extra levels only)
-                fields[name][idx] = out[name]
-        fields["converged"][idx] = fields["converged"][idx] & out["converged"]
+    fields, previous = _recombined_fields(table, idx, out)
     levels = dict(table.levels or {})
     levels[f"{p}node"] = idx
     levels[f"{p}pressure_ratio"] = np.asarray(table.pressure_ratio, dtype=float)[idx]

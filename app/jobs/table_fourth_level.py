@@ -74,6 +74,35 @@ def fourth_level_key(
     return h.hexdigest()
 
 
+def write_pass_table(
+    out_dir: Path,
+    table,
+    *,
+    heights_m,
+    texture_attrs,
+    diagnostics,
+    checkpoints: list[Path],
+    write_out_manifest: bool,
+) -> Path:
+    """The end of a pass over a table's nodes: write ``OUT/<name>.h5`` (atomically), remove
+    the pass's checkpoint folders (and their parents when empty), rewrite the manifest."""
+    path = write_table(
+        out_dir / f"{table.name}.h5",
+        table,
+        heights_m=heights_m,
+        texture_attrs=texture_attrs,
+        diagnostics=diagnostics,
+    )
+    for directory in checkpoints:
+        shutil.rmtree(directory, ignore_errors=True)
+        for parent in (directory.parent, directory.parent.parent):
+            with contextlib.suppress(OSError):
+                parent.rmdir()  # only if empty
+    if write_out_manifest:
+        write_manifest(out_dir)
+    return path
+
+
 def fourth_level_pass(
     table_path: str | Path,
     out_dir: str | Path,
@@ -243,23 +272,18 @@ def fourth_level_pass(
         sort_keys=True,
     )
     diagnostics["adaptive_solve_time_s"] = solve_time
-    path = write_table(
-        out_dir / f"{table.name}.h5",
+    path = write_pass_table(
+        out_dir,
         new,
         heights_m=heights_m,
         texture_attrs=texture_attrs,
         diagnostics=diagnostics,
+        checkpoints=[] if directory is None or keep_checkpoints else [directory],
+        write_out_manifest=write_out_manifest,
     )
     bad = int(np.count_nonzero(~np.asarray(fourth["converged"], bool)))
     if bad:
         log.warning("%s: %d fourth-level node(s) did not converge", table.name, bad)
-    if directory is not None and not keep_checkpoints:
-        shutil.rmtree(directory, ignore_errors=True)
-        for parent in (directory.parent, directory.parent.parent):
-            with contextlib.suppress(OSError):
-                parent.rmdir()  # only if empty
-    if write_out_manifest:
-        write_manifest(out_dir)
     log.info(
         "%s: fourth level at %d node(s) (%d resumed) in %.1f s",
         table.name,

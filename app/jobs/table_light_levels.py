@@ -7,17 +7,15 @@ Imports ``storage`` and ``solvers``.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import logging
 import os
-import shutil
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from skisnow.app.jobs.table_fourth_level import fourth_level_key
+from skisnow.app.jobs.table_fourth_level import fourth_level_key, write_pass_table
 from skisnow.app.jobs.table_settings import solver_source_sha256
 from skisnow.app.storage.common import code_version, provenance
 from skisnow.app.storage.tables import (
@@ -27,8 +25,6 @@ from skisnow.app.storage.tables import (
     read_table_extras,
     read_table_heights,
     write_checkpoint,
-    write_manifest,
-    write_table,
 )
 from skisnow.solvers.elastic import PeriodicHalfSpace
 from skisnow.solvers.errors import InputError
@@ -276,25 +272,18 @@ def light_load_pass(
         sort_keys=True,
     )
     diagnostics["light_solve_time_s"] = solve_time if nodes.size else np.zeros((0, 0))
-    path = write_table(
-        out_dir / f"{table.name}.h5",
+    path = write_pass_table(
+        out_dir,
         new,
         heights_m=heights_m,
         texture_attrs=texture_attrs,
         diagnostics=diagnostics,
+        checkpoints=[] if keep_checkpoints else directories,
+        write_out_manifest=write_out_manifest,
     )
     bad = sum(int(np.count_nonzero(~np.asarray(x["converged"], bool))) for x in extra)
     if bad:
         log.warning("%s: %d light-load solve(s) did not converge", table.name, bad)
-    if not keep_checkpoints:
-        for directory in directories:
-            shutil.rmtree(directory, ignore_errors=True)
-        for directory in directories[:1]:
-            for parent in (directory.parent, directory.parent.parent):
-                with contextlib.suppress(OSError):
-                    parent.rmdir()  # only if empty
-    if write_out_manifest:
-        write_manifest(out_dir)
     log.info(
         "%s: light-load levels at %d node(s) (%d solves resumed) in %.1f s, code %s",
         table.name,
