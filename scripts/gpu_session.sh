@@ -8,8 +8,13 @@
 #      (scripts/gpu_micro_bench.py), into OUT/gpu-micro.json and .png;
 #   one log, OUT/session.log.
 # Usage: OUT=dir GIT_COMMIT=sha bash scripts/gpu_session.sh [total budget s, default 540]
-# On the lent GPU machine (no network, no pyFFTW, no sqlalchemy): carry .whl (the wheels
-# named in docs/benchmarks.md) and this checkout; the script installs them into /tmp/site.
+# On the lent GPU machine (no network, no pyFFTW, no sqlalchemy): carry .whl and this checkout;
+# the script installs the wheels into /tmp/site. Made here (Python 3.12 wheels, ~8 MB):
+#   echo /.whl/ >> .git/info/exclude; for w in pyFFTW==0.15.1 SQLAlchemy==2.1.9 alembic==1.20.1 \
+#   Mako==1.4.3; do python3 -m pip download --no-deps --only-binary=:all: --python-version 3.12 \
+#   --implementation cp --platform manylinux_2_28_x86_64 --platform manylinux2014_x86_64 -d .whl $w; done
+# The working tree that travels is capped at 64 MiB: move docs/studies and tables/skis out for
+# the run (neither is needed here) and back afterwards.
 set -u -o pipefail
 OUT=${OUT:?set OUT to the output directory}
 BUDGET=${1:-540}
