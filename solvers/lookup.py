@@ -880,6 +880,16 @@ def _recombined_fields(table: MicroTable, idx: np.ndarray, out: dict) -> tuple[d
     return fields, previous
 
 
+def _with_fields(table: MicroTable, fields: dict, levels: dict) -> MicroTable:
+    """A copy of ``table`` with new point arrays and levels (and its non-converged count)."""
+    return replace(
+        table,
+        **fields,
+        levels=levels,
+        attrs={**table.attrs, "points_not_converged": int(np.count_nonzero(~fields["converged"]))},
+    )
+
+
 def with_fourth_level(
     table: MicroTable,
     nodes,
@@ -941,12 +951,7 @@ def with_fourth_level(
         levels[f"{p}selected_by_{quantity}"] = np.asarray(mask, dtype=bool)
     for key, value in previous.items():
         levels[f"{p}{key}"] = value
-    return replace(
-        table,
-        **fields,
-        levels=levels,
-        attrs={**table.attrs, "points_not_converged": int(np.count_nonzero(~fields["converged"]))},
-    )
+    return _with_fields(table, fields, levels)
 
 
 # ---------------------------------------------------------------------------- light loads
@@ -1123,12 +1128,7 @@ def with_light_load_levels(
         levels[f"{p}{key}"] = value
     for key, value in previous.items():
         levels[f"{p}{key}"] = value
-    return replace(
-        table,
-        **fields,
-        levels=levels,
-        attrs={**table.attrs, "points_not_converged": int(np.count_nonzero(~fields["converged"]))},
-    )
+    return _with_fields(table, fields, levels)
 
 
 # ---------------------------------------------------------------------------- building

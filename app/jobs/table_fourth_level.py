@@ -74,6 +74,53 @@ def fourth_level_key(
     return h.hexdigest()
 
 
+def refined_level(
+    refined_surface: Callable[[int], Texture],
+    table: MicroTable,
+    refine: int,
+    shape,
+    pixel_size_m: float,
+    *,
+    fft_workers: int = 1,
+) -> tuple[Texture, float]:
+    """The table's surface refined ``refine``× (checked: ``shape`` pixels of ``pixel_size_m``)
+    and its full-contact ratio ``p_fc / E'`` [-], for a pass over the table's nodes."""
+    fine = refined_surface(refine)
+    if np.shape(fine.heights_m) != tuple(shape) or not np.isclose(
+        fine.pixel_size_m, pixel_size_m, rtol=1e-12
+    ):
+        raise InputError(
+            f"refined surface of {table.name!r} is not {refine}x finer than its texture"
+        )
+    e_eff = table.effective_modulus_pa
+    hs = PeriodicHalfSpace(tuple(shape), fine.pixel_size_m, e_eff, workers=fft_workers)
+    p_fc, _ = full_contact_pressure(fine.heights_m, fine.pixel_size_m, e_eff, halfspace=hs)
+    return fine, p_fc / e_eff
+
+
+def solve_node(
+    fine: Texture,
+    table: MicroTable,
+    node: int,
+    full_contact_pressure_ratio: float,
+    max_iterations: int,
+    device: str,
+) -> dict[str, np.ndarray]:
+    """One table node solved cold on a refined surface (:func:`solve_table_chunk` of the one
+    node, the table's tolerance and gap floor)."""
+    return solve_table_chunk(
+        fine.heights_m,
+        float(fine.pixel_size_m),
+        table.pressure_ratio[node : node + 1],
+        effective_modulus_pa=table.effective_modulus_pa,
+        full_contact_pressure_ratio=full_contact_pressure_ratio,
+        tol=table.tol,
+        max_iterations=max_iterations,
+        gap_floor_m=table.gap_floor_m,
+        device=device,
+    )
+
+
 def write_pass_table(
     out_dir: Path,
     table,
@@ -180,21 +227,10 @@ def fourth_level_pass(
     p_fc_ratio = np.nan
     source = None
     if nodes.size:
-        fine = refined_surface(refine)
-        if np.shape(fine.heights_m) != tuple(fine_shape) or not np.isclose(
-            fine.pixel_size_m, fine_pixel_m, rtol=1e-12
-        ):
-            raise InputError(
-                f"refined surface of {table.name!r} is not {refine}x finer than its texture"
-            )
+        fine, p_fc_ratio = refined_level(refined_surface, table, refine, fine_shape, fine_pixel_m)
         source = fine.source
         key = fourth_level_key(input_sha, fine, table, max_iterations, refine)
         directory = out_dir / ".checkpoints" / f"{table.name}.level4" / key[:16]
-        e_eff = table.effective_modulus_pa
-        hs = PeriodicHalfSpace(np.shape(fine.heights_m), fine.pixel_size_m, e_eff, workers=1)
-        p_fc, _ = full_contact_pressure(fine.heights_m, fine.pixel_size_m, e_eff, halfspace=hs)
-        del hs
-        p_fc_ratio = p_fc / e_eff
         results = {}
         for node in nodes:
             done = read_checkpoint(directory / f"node-{node:03d}.h5", key)
@@ -212,17 +248,7 @@ def fourth_level_pass(
                 node = int(node)
                 if node in results:
                     continue
-                results[node] = solve_table_chunk(
-                    fine.heights_m,
-                    float(fine.pixel_size_m),
-                    table.pressure_ratio[node : node + 1],
-                    effective_modulus_pa=e_eff,
-                    full_contact_pressure_ratio=p_fc_ratio,
-                    tol=table.tol,
-                    max_iterations=max_iterations,
-                    gap_floor_m=table.gap_floor_m,
-                    device=device,
-                )
+                results[node] = solve_node(fine, table, node, p_fc_ratio, max_iterations, device)
                 write_checkpoint(directory / f"node-{node:03d}.h5", results[node], key)
                 bar.update(1)
                 if on_node_done is not None:

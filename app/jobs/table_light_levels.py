@@ -15,7 +15,12 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from skisnow.app.jobs.table_fourth_level import fourth_level_key, write_pass_table
+from skisnow.app.jobs.table_fourth_level import (
+    fourth_level_key,
+    refined_level,
+    solve_node,
+    write_pass_table,
+)
 from skisnow.app.jobs.table_settings import solver_source_sha256
 from skisnow.app.storage.common import code_version, provenance
 from skisnow.app.storage.tables import (
@@ -26,7 +31,6 @@ from skisnow.app.storage.tables import (
     read_table_heights,
     write_checkpoint,
 )
-from skisnow.solvers.elastic import PeriodicHalfSpace
 from skisnow.solvers.errors import InputError
 from skisnow.solvers.lookup import (
     ERROR_FIELDS,
@@ -34,10 +38,8 @@ from skisnow.solvers.lookup import (
     ORDER_TOLERANCE,
     PIXEL_EXTRAPOLATION_ORDERS,
     select_light_load_nodes,
-    solve_table_chunk,
     with_light_load_levels,
 )
-from skisnow.solvers.micro import full_contact_pressure
 from skisnow.solvers.texture import Texture
 
 log = logging.getLogger(__name__)
@@ -171,7 +173,6 @@ def light_load_pass(
     log.info("%s: light-load levels %s at node(s) %s", table.name, factors, nodes.tolist())
     input_sha = str(table.attrs["data_sha256"])
     max_iterations = int(table.attrs["max_iterations"])
-    e_eff = table.effective_modulus_pa
     extra: list[dict[str, np.ndarray]] = []
     pixel_sizes = [base_pixel_m / k for k in factors]
     fc_ratios = []
@@ -189,22 +190,20 @@ def light_load_pass(
             if not nodes.size:
                 fc_ratios.append(np.nan)
                 continue
-            fine = refined_surface(refine)
             shape = tuple(int(v) * refine for v in np.shape(heights_m))
-            if np.shape(fine.heights_m) != shape or not np.isclose(
-                fine.pixel_size_m, pixel_sizes[j], rtol=1e-12
-            ):
-                raise InputError(
-                    f"refined surface of {table.name!r} is not {refine}x finer than its texture"
-                )
+            fine, p_fc_ratio = refined_level(
+                refined_surface,
+                table,
+                refine,
+                shape,
+                pixel_sizes[j],
+                fft_workers=os.cpu_count() or 1,
+            )
             sources.append(fine.source)
             key = fourth_level_key(input_sha, fine, table, max_iterations, refine)
             directory = out_dir / ".checkpoints" / f"{table.name}.light" / key[:16]
             directories.append(directory)
-            hs = PeriodicHalfSpace(shape, fine.pixel_size_m, e_eff, workers=os.cpu_count() or 1)
-            p_fc, _ = full_contact_pressure(fine.heights_m, fine.pixel_size_m, e_eff, halfspace=hs)
-            del hs
-            fc_ratios.append(p_fc / e_eff)
+            fc_ratios.append(p_fc_ratio)
             results = {}
             for node in nodes:
                 node = int(node)
@@ -214,17 +213,7 @@ def light_load_pass(
                     resumed += 1
                     bar.update(1)
                     continue
-                results[node] = solve_table_chunk(
-                    fine.heights_m,
-                    float(fine.pixel_size_m),
-                    table.pressure_ratio[node : node + 1],
-                    effective_modulus_pa=e_eff,
-                    full_contact_pressure_ratio=fc_ratios[-1],
-                    tol=table.tol,
-                    max_iterations=max_iterations,
-                    gap_floor_m=table.gap_floor_m,
-                    device=device,
-                )
+                results[node] = solve_node(fine, table, node, p_fc_ratio, max_iterations, device)
                 write_checkpoint(directory / f"node-{node:03d}.h5", results[node], key)
                 bar.update(1)
                 if on_node_done is not None:
