@@ -313,6 +313,10 @@ class ForwardFit:
     objective : float
         The fitted objective at the end, χ²/σ² plus the prior on γ [-]: fits of one data set
         with the same bases compare by it (the lower is the better local minimum).
+    stiffness_resolution : ndarray (m,)
+        Diagonal of the model resolution matrix H⁻¹ (JᵀJ/σ²) at the γ knots [-]: the share of
+        each knot's estimate the data set (1: the cases alone, 0: the smoothing prior alone,
+        where no case bends the ski).
     """
 
     beam: BeamSki
@@ -330,6 +334,7 @@ class ForwardFit:
     solve_time_s: float = 0.0
     history_m: list = field(default_factory=list)
     objective: float = float("nan")
+    stiffness_resolution: np.ndarray | None = None
 
 
 class _Model:
@@ -460,6 +465,19 @@ class _Model:
         if jacobian:
             jtj[sl_q, sl_c] = jtj[sl_c, sl_q].T
         return float(per.sum()), per, jtj, jtr, all_converged
+
+
+def _scaled_inverse(h: np.ndarray) -> np.ndarray:
+    """Pseudo-inverse of the symmetric normal matrix ``h`` after Jacobi scaling.
+
+    The camber coefficients [m] and γ [-] differ by ~10¹⁵ in their data information: a plain
+    ``pinv`` cut at 1e-15 of the largest singular value dropped every direction only the
+    prior on γ holds (the ski's ends beyond the device's contact points), and gave them zero
+    variance instead of the prior's. Scaled to a unit diagonal the cut-off only drops true
+    null directions."""
+    d = np.sqrt(np.clip(np.diag(h), 0.0, None))
+    d[d == 0] = 1.0
+    return np.linalg.pinv(h / np.outer(d, d), hermitian=True) / np.outer(d, d)
 
 
 def fit_forward(
@@ -681,7 +699,10 @@ def fit_forward(
     h, _ = normal(jtj, jtr, theta)
     misfit = float(np.sqrt(ssr / y.size))
     sigma_ratio = misfit / noise_m
-    cov = np.linalg.pinv(h, hermitian=True) * sigma_ratio**2
+    h_inv = _scaled_inverse(h)
+    cov = h_inv * sigma_ratio**2
+    # the share of each γ knot's estimate set by the data, not by the prior (model resolution)
+    resolution = np.einsum("ij,ji->i", h_inv[nc:], jtj[:, nc:] / s2)
     # remove the line gauge from c's block (a line does not change any gap)
     proj = np.eye(theta.size)
     proj[:nc, :nc] -= model.line_c @ model.line_c.T
@@ -702,4 +723,5 @@ def fit_forward(
         solve_time_s=time.perf_counter() - t0,
         history_m=history,
         objective=float(model.objective(ssr, theta)),
+        stiffness_resolution=resolution,
     )
