@@ -198,7 +198,7 @@ def band_stats(cases: list[dict], factor) -> dict:
 
 
 #: candidate beam-draw factors of :func:`fit_beam_scales`
-BEAM_SCALES = (1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0)
+BEAM_SCALES = (0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0)
 #: the width target of issue #26: mean half-width ≤ this × the RMS error
 WIDTH_TARGET = 2.5
 

@@ -193,4 +193,30 @@ def beam_report(ski: Ski, points: int = 41) -> dict:
             finite_list(c - Z90 * sd, 1e6),
             finite_list(c + Z90 * sd, 1e6),
         ]
+        if "stiffness_data_share" in ident and "knots_m" in ident:
+            share = np.interp(
+                beam.positions_m[idx],
+                np.asarray(ident["knots_m"], dtype=float),
+                np.asarray(ident["stiffness_data_share"], dtype=float),
+            )
+            out["bending_stiffness_data_share"] = finite_list(np.clip(share, 0.0, 1.0))
+            out["bending_stiffness_measured_mm"] = measured_stretch_mm(
+                np.asarray(ident["knots_m"], dtype=float),
+                np.asarray(ident["stiffness_data_share"], dtype=float),
+            )
     return out
+
+
+#: a stiffness knot whose estimate the camber cases set to at least this share (the model
+#: resolution, :attr:`solvers.beam_fit.ForwardFit.stiffness_resolution`) counts as measured
+MEASURED_SHARE = 0.25
+
+
+def measured_stretch_mm(knots_m: np.ndarray, share: np.ndarray) -> list[float] | None:
+    """[first, last] knot [mm] whose EI the camber cases set to ≥ :data:`MEASURED_SHARE`, or
+    None when there is none. Outside it the identification's smoothing prior sets EI (the
+    device's loads did not bend the ski there) and its band is the prior's."""
+    on = np.flatnonzero(np.asarray(share) >= MEASURED_SHARE)
+    if on.size == 0:
+        return None
+    return [float(knots_m[on[0]] * 1e3), float(knots_m[on[-1]] * 1e3)]

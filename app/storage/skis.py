@@ -655,6 +655,9 @@ def identified_to_dict(
         out["camber_coefficients_m"] = ident.camber_coefficients
         out["parameter_covariance"] = ident.parameter_covariance
         out["kinks_m"] = np.asarray(ident.extra.get("kinks_m", []), dtype=float)
+        share = ident.extra.get("stiffness_data_share")
+        if share:
+            out["stiffness_data_share"] = np.asarray(share, dtype=float)
     if profile_sd_m is not None:
         out["profile_sd_m"] = np.asarray(profile_sd_m, dtype=float)
     alts = getattr(ident, "alternative_beams", ())

@@ -127,16 +127,19 @@ def _beam_table(beam: dict) -> dict:
     """EI(X) and c(X) at the points of ``GET /v1/skis/{name}``, with their bands."""
     band = beam.get("bending_stiffness_band_90_nm2")
     cband = beam.get("camber_band_90_um")
+    share = beam.get("bending_stiffness_data_share")
     rows = []
     for i, x in enumerate(beam["position_mm"]):
         cells = [fmt(x, "{:g}"), fmt(beam["bending_stiffness_nm2"][i], "{:g}")]
         if band:
             cells.append(f"{fmt(band[0][i], '{:g}')} … {fmt(band[1][i], '{:g}')}")
+        if share:
+            cells.append(fmt(None if share[i] is None else 100 * share[i], "{:.0f}"))
         cells.append(fmt(beam["camber_um"][i], "{:g}"))
         if cband:
             cells.append(f"{fmt(cband[0][i], '{:g}')} … {fmt(cband[1][i], '{:g}')}")
         rows.append(cells)
-    return {"ei_band": bool(band), "c_band": bool(cband), "rows": rows}
+    return {"ei_band": bool(band), "ei_share": bool(share), "c_band": bool(cband), "rows": rows}
 
 
 def _misfit_rows(ident: dict) -> list[tuple]:
@@ -167,6 +170,14 @@ def _figures(ski: service.Ski, beam: dict, cache_file=None) -> list[tuple]:
     svgs = ski_figures(ski, cache_file)
     if beam.get("bending_stiffness_band_90_nm2"):
         ei_note = "with its 90 % band from the identification's covariance"
+        stretch = beam.get("bending_stiffness_measured_mm")
+        if stretch:
+            ei_note += (
+                f". The camber cases set EI between {stretch[0]:g} and {stretch[1]:g} mm (at "
+                "least a quarter of each estimate from the data); outside that stretch the device's "
+                "loads did not bend the ski, the fit's smoothing prior sets EI and the band is "
+                "the prior's"
+            )
         c_note = f"with its 90 % band (± {Z90:.3f} σ of the identification)"
     else:
         ei_note = c_note = "of the design beam stored with the ski: not identified, no band"

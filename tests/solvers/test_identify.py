@@ -509,3 +509,20 @@ def test_identification_reports_its_alternative_beams():
         assert cands[i]["misfit_m"] <= (1 + identify.ALTERNATIVE_MISFIT_RANGE) * ident.misfit_m
         np.testing.assert_array_equal(b.positions_m, ident.beam.positions_m)
         assert not np.array_equal(b.bending_stiffness_nm2, ident.beam.bending_stiffness_nm2)
+
+
+def test_covariance_root_holds_parameters_of_very_different_scales():
+    """A joint covariance of camber coefficients [m] (variances ~1e-13 m²) and log-compliances
+    (~1): the root reproduces every covariance to rounding relative to its own scale; the
+    eigen-decomposition of the covariance itself misses the small block's by percent."""
+    rng = np.random.default_rng(5)
+    a = rng.standard_normal((8, 8))
+    corr = a @ a.T + 0.5 * np.eye(8)
+    scale = np.array([3e-7] * 5 + [1.0, 0.5, 2.0])
+    cov = corr * np.outer(scale, scale)
+    root = identify._covariance_root(cov)
+    rel = np.abs(root @ root.T - cov) / np.outer(scale, scale)
+    assert rel.max() < 1e-10
+    vals, vecs = np.linalg.eigh(cov)
+    plain = vecs * np.sqrt(np.maximum(vals, 0.0))
+    assert (np.abs(plain @ plain.T - cov) / np.outer(scale, scale)).max() > 1e-6
