@@ -1453,6 +1453,25 @@ def _stiffness_band(phi: np.ndarray, gamma: np.ndarray, cov_g: np.ndarray) -> np
     return np.stack([ei * np.exp(-z90 * sd), ei * np.exp(z90 * sd)])
 
 
+#: a stiffness knot whose estimate the camber cases set to at least this share (the model
+#: resolution, :attr:`solvers.beam_fit.ForwardFit.stiffness_resolution`) counts as measured
+MEASURED_SHARE = 0.25
+
+
+def measured_stretch(
+    knots_m: np.ndarray, data_share: np.ndarray, min_share: float = MEASURED_SHARE
+) -> tuple[float, float] | None:
+    """(first, last) stiffness knot [m] whose EI the camber cases set to at least
+    ``min_share`` [-] (``IdentifiedBeam.extra["stiffness_data_share"]``), or None when none
+    does. Outside that stretch the device's loads did not bend the ski: the identification's
+    smoothing prior sets EI there, and its covariance is the prior's."""
+    on = np.flatnonzero(np.asarray(data_share, dtype=float) >= min_share)
+    if on.size == 0:
+        return None
+    knots = np.asarray(knots_m, dtype=float)
+    return float(knots[on[0]]), float(knots[on[-1]])
+
+
 def _covariance_root(cov: np.ndarray) -> np.ndarray:
     """A square root ``L`` (``L Lᵀ = cov``) of a covariance whose parameters differ in scale
     by many orders (camber coefficients [m], log-compliances [-]): the eigen-decomposition of

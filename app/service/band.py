@@ -93,6 +93,7 @@ from skisnow.solvers.band import (
     flat_stretch,
     table_interpolation_error,
 )
+from skisnow.solvers.identify import measured_stretch
 from skisnow.solvers.lookup import MicroTable
 
 __all__ = [
@@ -134,6 +135,10 @@ class Band:
     flat_base: tuple[float, float, float] | None = None
     #: ``auto`` answered with the rigid shape without comparing it to the bending ski
     bending_ignored: str | None = None
+    #: a bending-ski answer of an identified beam whose contact reaches beyond the stretch
+    #: where the camber cases set EI (:func:`unmeasured_contact`): the footprint's rear and
+    #: front end and the measured stretch's [m]; None otherwise
+    unmeasured_stiffness: tuple[float, float, float, float] | None = None
     #: factors on the grid part per quantity (:func:`flexible_grid_factors` of a bending-ski
     #: answer, :func:`rigid_grid_factors` of a rigid one; a quantity not named: 1)
     grid_factors: dict[str, float] | None = None
@@ -436,6 +441,7 @@ def answer_band(
     if not beam_is_design and served_beam(record.identified) is not None:
         not_covered.insert(0, IDENTIFIED_STRUCTURE_NOT_COVERED)
     rigid = ski_model_used == "rigid"
+    unmeasured = None
     sigma, source = None, ""
     sampled = None
     perturbed = samples
@@ -466,6 +472,8 @@ def answer_band(
             beam_scale = beam_scale_at(e_eff)
         models = beam_models(record, preset, samples=beam_samples, seed=seed, scale=beam_scale)
         alternatives = [] if beam_is_design else alternative_models(record, preset)
+        if not beam_is_design:
+            unmeasured = unmeasured_contact(record.identified, macro)
         if models is not None:
             sampled = _sample_flexible(
                 macro, ms, models, table, porosity, e_eff, alternatives=alternatives
@@ -578,6 +586,7 @@ def answer_band(
         not_covered=not_covered,
         beam_scale=beam_scale if (not rigid and has_sigma) else None,
         flat_base=flat_base,
+        unmeasured_stiffness=unmeasured,
         bending_ignored=bending_ignored if "ski_model" in components and bending_ignored else None,
         grid_factors=grid_factors,
         alternative_beams=(0, 0)
@@ -605,6 +614,28 @@ def _interval(value: float, width: float) -> list[float]:
     relative half-width ``width``: value × (1 ± width), the lower end at 0 when the band is
     wider than the value itself (a zone load cannot be negative)."""
     return [_round(max(value * (1 - width), 0.0), 6), _round(value * (1 + width), 6)]
+
+
+#: how far [m] a footprint may reach beyond the measured stretch's last knot before the answer
+#: warns: half the stiffness knots' spacing (the knot's hat function still reaches there)
+UNMEASURED_REACH_M = 0.025
+
+
+def unmeasured_contact(identified: dict | None, macro) -> tuple[float, float, float, float] | None:
+    """(footprint rear end, front end, measured stretch's first, last knot) [m] when the
+    bending ski's contact zones reach more than :data:`UNMEASURED_REACH_M` beyond the stretch
+    where the camber cases set EI (:func:`solvers.identify.measured_stretch`); else None (also
+    for an identification that stores no data share)."""
+    if not identified or "stiffness_data_share" not in identified or not macro.zones:
+        return None
+    stretch = measured_stretch(identified["knots_m"], identified["stiffness_data_share"])
+    rear = min(z.start_m for z in macro.zones)
+    front = max(z.end_m for z in macro.zones)
+    if stretch is None:
+        return rear, front, float("nan"), float("nan")
+    if rear < stretch[0] - UNMEASURED_REACH_M or front > stretch[1] + UNMEASURED_REACH_M:
+        return rear, front, stretch[0], stretch[1]
+    return None
 
 
 def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
@@ -645,6 +676,23 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
                 f"and a {FLAT_SIGMA_M * 1e6:g} µm change there moves the apparent contact area "
                 f"by ±{w_flat:.0%} (90 %); the band includes it (band.components.flat_base). "
                 "A heavier load makes the answer less sensitive to that stretch",
+            }
+        )
+    if band.unmeasured_stiffness is not None:
+        rear, front, lo, hi = band.unmeasured_stiffness
+        where = (
+            "the camber cases bent it nowhere enough to set EI"
+            if not math.isfinite(lo)
+            else f"the camber cases set EI only between {lo * 1e3:.0f} and {hi * 1e3:.0f} mm"
+        )
+        warnings.append(
+            {
+                "code": "stiffness_not_measured",
+                "detail": f"the bending ski touches the snow from {rear * 1e3:.0f} to "
+                f"{front * 1e3:.0f} mm, but {where} (the device's loads did not bend the ski "
+                "beyond): there the identification's smoothing prior sets EI. The band's beam "
+                "draws carry the prior's uncertainty (band.components.camber_model); camber "
+                "cases with loads nearer the tip and tail would measure it",
             }
         )
     out = {

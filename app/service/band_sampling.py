@@ -387,13 +387,14 @@ def _spread(macro, ms, base, perturbed, failed: int) -> _Sampled:
 #: (``scripts/flexible_band_study.py``; docs/limits.md, Error band)
 BEAM_SAMPLES = 4
 #: factor on the covariance's parameter deviations of those draws [-] for the flex sheet (its
-#: profile draws and snow shares). Contact answers use a factor per snow modulus instead
-#: (:func:`app.service.band_calibration.beam_scale_at`). This one is the smallest of
-#: ``scripts/flexible_band_study.py``'s candidates whose camber part alone covers 90 % of the
-#: identification's own error in the demo skis' ``calib`` cases (93.3 %, test cases 95.8 %);
-#: on the own-ski study's six designs it is 2–8× wider than their errors need
-#: (docs/limits.md, "Answers of the bending ski")
-BEAM_SCALE = 16.0
+#: profile draws and snow shares), which has no snow modulus: the largest of the contact
+#: answers' factors per snow modulus (:data:`app.service.band_calibration.BEAM_SCALE_NODES`).
+#: It was 16, the smallest of ``scripts/flexible_band_study.py``'s candidates whose camber part
+#: alone covered 90 % of the demo skis' identification error, fitted on the covariance before
+#: its cut-off was fixed (docs/limits.md, "The covariance's cut-off"): that covariance held
+#: zero variance wherever only the smoothing prior set EI, and × 16 on the fixed one would
+#: move the tips' EI by e^14
+BEAM_SCALE = float(max(band_calibration.BEAM_SCALE_NODES))
 #: models of plausible beams kept per ski record (one entry per coarse grid and draw setting)
 _BEAM_MODELS_MAX = 8
 #: one build of plausible beam models at a time (concurrent first requests built one set each)

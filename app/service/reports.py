@@ -25,6 +25,7 @@ from skisnow.app.storage.skis import (
 )
 from skisnow.solvers.band import Z90
 from skisnow.solvers.errors import SkisnowError
+from skisnow.solvers.identify import measured_stretch
 
 log = logging.getLogger(__name__)
 
@@ -200,23 +201,8 @@ def beam_report(ski: Ski, points: int = 41) -> dict:
                 np.asarray(ident["stiffness_data_share"], dtype=float),
             )
             out["bending_stiffness_data_share"] = finite_list(np.clip(share, 0.0, 1.0))
-            out["bending_stiffness_measured_mm"] = measured_stretch_mm(
-                np.asarray(ident["knots_m"], dtype=float),
-                np.asarray(ident["stiffness_data_share"], dtype=float),
+            stretch = measured_stretch(ident["knots_m"], ident["stiffness_data_share"])
+            out["bending_stiffness_measured_mm"] = (
+                None if stretch is None else [stretch[0] * 1e3, stretch[1] * 1e3]
             )
     return out
-
-
-#: a stiffness knot whose estimate the camber cases set to at least this share (the model
-#: resolution, :attr:`solvers.beam_fit.ForwardFit.stiffness_resolution`) counts as measured
-MEASURED_SHARE = 0.25
-
-
-def measured_stretch_mm(knots_m: np.ndarray, share: np.ndarray) -> list[float] | None:
-    """[first, last] knot [mm] whose EI the camber cases set to ≥ :data:`MEASURED_SHARE`, or
-    None when there is none. Outside it the identification's smoothing prior sets EI (the
-    device's loads did not bend the ski there) and its band is the prior's."""
-    on = np.flatnonzero(np.asarray(share) >= MEASURED_SHARE)
-    if on.size == 0:
-        return None
-    return [float(knots_m[on[0]] * 1e3), float(knots_m[on[-1]] * 1e3)]

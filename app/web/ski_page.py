@@ -174,9 +174,9 @@ def _figures(ski: service.Ski, beam: dict, cache_file=None) -> list[tuple]:
         if stretch:
             ei_note += (
                 f". The camber cases set EI between {stretch[0]:g} and {stretch[1]:g} mm (at "
-                "least a quarter of each estimate from the data); outside that stretch the device's "
-                "loads did not bend the ski, the fit's smoothing prior sets EI and the band is "
-                "the prior's"
+                "least a quarter of each estimate from the data); outside that stretch the "
+                "device's loads did not bend the ski, the fit's smoothing prior sets EI and the "
+                "band is the prior's"
             )
         c_note = f"with its 90 % band (± {Z90:.3f} σ of the identification)"
     else:

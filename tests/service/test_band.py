@@ -487,10 +487,13 @@ def test_alternative_beams_enter_the_bending_skis_band(shipped):
     assert want > 0.005
     assert got == pytest.approx(want, rel=0.05, abs=2e-3)
     # without alternatives (or a design beam): no such component
-    plain = service.contact(shipped, replace(req, ski_model="flexible"))["band"]
+    bare = {k: v for k, v in ski.record.identified.items() if k != "alternatives"}
+    bare_ski = replace(ski, record=replace(ski.record, identified=bare, cache={}))
+    none = replace(shipped, skis={**shipped.skis, "ski-a": bare_ski})
+    plain = service.contact(none, replace(req, ski_model="flexible"))["band"]
     assert "beam_alternatives" not in plain["components"]
     assert plain["camber_model"]["alternative_beams"] == 0
-    assert "beam_alternatives" not in service.contact(shipped, rig)["band"]["components"]
+    assert "beam_alternatives" not in service.contact(none, rig)["band"]["components"]
     design = replace(
         alt_ski,
         record=replace(alt_ski.record, identified={**alt_ski.record.identified, "attrs": {}}),

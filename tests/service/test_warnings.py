@@ -76,7 +76,7 @@ def test_api_answer_carries_warnings(catalogue):
     assert all(w["detail"] for w in loose["warnings"])
 
 
-def _band(flat_base=None):
+def _band(flat_base=None, **kw):
     from skisnow.app.service.band import Band
 
     return Band(
@@ -89,6 +89,7 @@ def _band(flat_base=None):
         camber_source="",
         not_covered=[],
         flat_base=flat_base,
+        **kw,
     )
 
 
@@ -125,3 +126,57 @@ def test_bending_ignored_only_when_auto_answers_rigid_without_comparing():
     assert bending_ignored(compared) is None
     assert bending_ignored({"requested": "rigid", "used": "rigid", "reason": "requested"}) is None
     assert bending_ignored({"requested": "auto", "used": "flexible", "reason": ""}) is None
+
+
+def test_contact_beyond_the_measured_stiffness_warns_in_plain_words():
+    """A bending-ski answer whose footprint reaches more than half a knot spacing beyond the
+    stretch where the camber cases set EI (data share ≥ 0.25) is flagged, with the footprint
+    and the measured stretch in mm; inside it, or without a stored data share, it is not."""
+    from skisnow.app.service.band import UNMEASURED_REACH_M, band_json, unmeasured_contact
+
+    knots = np.linspace(-1.0, 1.0, 41)
+    share = np.where(np.abs(knots) <= 0.6 + 1e-9, 0.9, 0.0)  # measured from −600 to +600 mm
+    ident = {"knots_m": knots, "stiffness_data_share": share}
+    inside = SimpleNamespace(zones=[_zone(-0.5, -0.2), _zone(0.1, 0.6 + UNMEASURED_REACH_M)])
+    assert unmeasured_contact(ident, inside) is None
+    beyond = SimpleNamespace(zones=[_zone(-0.5, -0.2), _zone(0.1, 0.7)])
+    got = unmeasured_contact(ident, beyond)
+    assert got == pytest.approx((-0.5, 0.7, -0.6, 0.6))
+    assert unmeasured_contact({"knots_m": knots}, beyond) is None  # older files: no share
+    nowhere = unmeasured_contact({**ident, "stiffness_data_share": 0 * share}, inside)
+    assert nowhere[:2] == (-0.5, 0.625) and np.isnan(nowhere[2])
+    _, warned = band_json(_band(unmeasured_stiffness=got), _answer())
+    detail = {w["code"]: w["detail"] for w in warned}["stiffness_not_measured"]
+    assert "touches the snow from -500 to 700 mm" in detail
+    assert "set EI only between -600 and 600 mm" in detail
+    _, none = band_json(_band(), _answer())
+    assert "stiffness_not_measured" not in [w["code"] for w in none]
+
+
+def test_demo_ski_on_soft_snow_reaching_its_tail_is_flagged(catalogue):
+    """Demo ski-a, bending on 2 MPa snow at 30 kg, touches the snow near its tail contact
+    (−800 mm), beyond the stretch its camber cases measured: the answer says so; at 90 kg the
+    footprint stays inside and it does not."""
+    light = service.contact(
+        catalogue,
+        _case(
+            grind="tiny-grind",
+            load_kg=30.0,
+            load_position_mm=0.0,
+            snow_modulus_mpa=2.0,
+            ski_model="flexible",
+        ),
+    )
+    codes = [w["code"] for w in light["warnings"]]
+    assert "stiffness_not_measured" in codes
+    heavy = service.contact(
+        catalogue,
+        _case(
+            grind="tiny-grind",
+            load_kg=90.0,
+            load_position_mm=0.0,
+            snow_modulus_mpa=2.0,
+            ski_model="flexible",
+        ),
+    )
+    assert "stiffness_not_measured" not in [w["code"] for w in heavy["warnings"]]

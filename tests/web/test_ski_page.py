@@ -150,10 +150,12 @@ def test_beam_table_equals_the_api(demo):
     assert len(rows) == len(beam["position_mm"]) == 41
     ei_lo, ei_hi = beam["bending_stiffness_band_90_nm2"]
     c_lo, c_hi = beam["camber_band_90_um"]
-    for i, (x, ei, ei_band, c, c_band) in enumerate(rows):
+    share = beam["bending_stiffness_data_share"]
+    for i, (x, ei, ei_band, ei_share, c, c_band) in enumerate(rows):
         assert float(x) == beam["position_mm"][i]
         assert float(ei) == beam["bending_stiffness_nm2"][i]
         assert _pair(ei_band) == (ei_lo[i], ei_hi[i])
+        assert float(ei_share) == round(100 * share[i])
         assert float(c) == beam["camber_um"][i]
         assert _pair(c_band) == (c_lo[i], c_hi[i])
         # the bands hold the value; c's band is ± Z90 σ (6 significant digits in the API)
@@ -165,6 +167,26 @@ def test_beam_table_equals_the_api(demo):
         digit = 10.0 ** (math.floor(math.log10(max(abs(c_lo[i]), abs(c_hi[i])))) - 5)
         assert abs(half - Z90 * beam["camber_sd_um"][i]) <= 0.5 * digit + 1e-9
     assert "[N·m²]" in html and "c [µm]" in html and "X [mm]" in html
+    assert "EI set by the data [%]" in html
+
+
+def test_stiffness_data_share_marks_where_the_camber_cases_bend_the_ski(demo):
+    """The device's loads bend the demo ski between its contact points: the data set EI there
+    (share near 1 under the binding), not at the tip and tail, whose EI and band the prior
+    sets; the page says where the measured stretch ends, and the EI band is wider outside."""
+    _, html, api = demo
+    beam = api["beam"]
+    x = np.array(beam["position_mm"])
+    share = np.array(beam["bending_stiffness_data_share"])
+    lo, hi = (np.array(b) for b in beam["bending_stiffness_band_90_nm2"])
+    ei = np.array(beam["bending_stiffness_nm2"])
+    assert share[np.abs(x) < 150].min() > 0.6
+    assert share[(x < -900) | (x > 900)].max() < 0.1
+    first, last = beam["bending_stiffness_measured_mm"]
+    assert -900 < first < -200 and 200 < last < 900
+    rel = (hi - lo) / ei
+    assert rel[x > last].min() > 5 * rel[np.abs(x) < 150].max()
+    assert f"The camber cases set EI between {first:g} and {last:g} mm" in html
 
 
 def test_misfit_per_case_equals_the_api_and_is_consistent(demo, catalogue):
