@@ -82,26 +82,49 @@ def rigid_checks(cases: list[dict], sigma_nodes) -> dict:
     }
 
 
-def study(own: dict, validation: dict | None) -> dict:
-    flex = fgs.own_ski_cases(own, None)
-    beam = fgs.fit_beam_scales(flex, FLEXIBLE_GRID_FLOOR)
-    rigid = rgs.own_ski_cases(own)
+def fit(own: dict) -> tuple[dict, dict]:
+    """Both rules on the own-ski study ``own``: (beam-draw fit, identified-profile fit)."""
+    beam = fgs.fit_beam_scales(fgs.own_ski_cases(own, None), FLEXIBLE_GRID_FLOOR)
     grid = rgs.interpolated(
         band_calibration.RIGID_AREA_GRID_E_SNOW_MPA, band_calibration.RIGID_AREA_GRID_NODES
     )
-    sigma = rgs.fit_sigma_nodes(rigid, grid, band_calibration.IDENTIFIED_SIGMA_E_SNOW_MPA)
-    out = {
-        "beam_scale": beam,
-        "identified_sigma": sigma,
-        "calibration": {
-            "flexible": flexible_checks(flex, beam["fitted"]),
-            "rigid": rigid_checks(rigid, sigma["fitted"]),
-        },
+    sigma = rgs.fit_sigma_nodes(
+        rgs.own_ski_cases(own), grid, band_calibration.IDENTIFIED_SIGMA_E_SNOW_MPA
+    )
+    return beam, sigma
+
+
+def study(own: dict, validation: dict | None, pool: bool = False) -> dict:
+    """The fits on ``own`` and their checks. ``pool``: also fit on ``own`` and ``validation``
+    together, and serve per node the larger of the two fits (coverage first); the validation
+    is then no longer held out, and its checks say so (``validation_pooled``)."""
+    beam, sigma = fit(own)
+    served = {"beam_scale": list(beam["fitted"]), "identified_sigma": list(sigma["fitted"])}
+    out = {"beam_scale": beam, "identified_sigma": sigma}
+    if pool and validation is not None:
+        both = {"skis": own["skis"] + validation["skis"]}
+        p_beam, p_sigma = fit(both)
+        out["pooled"] = {"beam_scale": p_beam, "identified_sigma": p_sigma}
+        served = {
+            "beam_scale": [
+                max(a, b) for a, b in zip(beam["fitted"], p_beam["fitted"], strict=True)
+            ],
+            "identified_sigma": [
+                max(a, b) for a, b in zip(sigma["fitted"], p_sigma["fitted"], strict=True)
+            ],
+        }
+    out["served"] = served
+    out["validation_pooled"] = bool(pool and validation is not None)
+    out["calibration"] = {
+        "flexible": flexible_checks(fgs.own_ski_cases(own, None), served["beam_scale"]),
+        "rigid": rigid_checks(rgs.own_ski_cases(own), served["identified_sigma"]),
     }
     if validation is not None:
         out["validation"] = {
-            "flexible": flexible_checks(fgs.own_ski_cases(validation, None), beam["fitted"]),
-            "rigid": rigid_checks(rgs.own_ski_cases(validation, "validation"), sigma["fitted"]),
+            "flexible": flexible_checks(fgs.own_ski_cases(validation, None), served["beam_scale"]),
+            "rigid": rigid_checks(
+                rgs.own_ski_cases(validation, "validation"), served["identified_sigma"]
+            ),
         }
     return out
 
@@ -111,6 +134,14 @@ def _print(res: dict) -> None:
     for node, v in res["beam_scale"]["per_node"].items():
         print(f"  {node}: × {v['factor']:g} (both targets met: {v['met']})")
     print("identified-profile factor per node:", res["identified_sigma"]["fitted"])
+    if "pooled" in res:
+        print(
+            "pooled with the validation:",
+            res["pooled"]["beam_scale"]["fitted"],
+            "and",
+            res["pooled"]["identified_sigma"]["fitted"],
+        )
+    print("served (beam draws, identified profile):", res["served"])
     for part in ("calibration", "validation"):
         if part not in res:
             continue
@@ -131,11 +162,16 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--own-ski", type=Path, nargs="+", required=True, help="calibration studies")
     ap.add_argument("--validation", type=Path, nargs="*", default=[], help="held-out studies")
+    ap.add_argument(
+        "--pool",
+        action="store_true",
+        help="also fit with the validation pooled in; serve the larger of the two per node",
+    )
     ap.add_argument("--out", type=Path)
     args = ap.parse_args(argv)
     own = fgs.read_own_ski(args.own_ski)
     validation = fgs.read_own_ski(args.validation) if args.validation else None
-    res = study(own, validation)
+    res = study(own, validation, pool=args.pool)
     _print(res)
     if args.out:
         params = {
@@ -145,6 +181,7 @@ def main(argv: list[str] | None = None) -> int:
             "flexible_grid_floor": FLEXIBLE_GRID_FLOOR,
             "rigid_grid_nodes": list(band_calibration.RIGID_AREA_GRID_NODES),
             "coverage_target": fgs.COVERAGE_TARGET,
+            "pool": bool(args.pool),
         }
         common.write_study_json(args.out, SCHEMA, params, res)
         print("written", args.out)
