@@ -203,6 +203,6 @@ def beam_report(ski: Ski, points: int = 41) -> dict:
             out["bending_stiffness_data_share"] = finite_list(np.clip(share, 0.0, 1.0))
             stretch = measured_stretch(ident["knots_m"], ident["stiffness_data_share"])
             out["bending_stiffness_measured_mm"] = (
-                None if stretch is None else [round(stretch[0] * 1e3, 3), round(stretch[1] * 1e3, 3)]
+                None if stretch is None else [round(v * 1e3, 3) for v in stretch]
             )
     return out
