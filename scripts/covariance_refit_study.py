@@ -29,8 +29,11 @@ Usage::
 
     python scripts/covariance_refit_study.py \\
         --own-ski docs/studies/own-ski-cov.json docs/studies/own-ski-cov-random.json \\
-        --validation docs/studies/own-ski-validation.json \\
+        --validation docs/studies/own-ski-cov-validation.json --pool \\
         --out docs/studies/covariance-refit.json
+
+``--pool`` also fits on calibration and validation together and serves the larger factor per
+node (what the service serves; the validation is then no longer held out).
 
 Seconds: it reads the answers those studies recorded and solves nothing.
 """
@@ -69,12 +72,17 @@ def flexible_checks(cases: list[dict], scales) -> dict:
     return out
 
 
+def _rigid_grid():
+    """The rigid grid factor as served (a callable of the snow modulus [MPa])."""
+    return rgs.interpolated(
+        band_calibration.RIGID_AREA_GRID_E_SNOW_MPA, band_calibration.RIGID_AREA_GRID_NODES
+    )
+
+
 def rigid_checks(cases: list[dict], sigma_nodes) -> dict:
     """Per population and modulus: :func:`rigid_grid_factor_study.band_stats` with the served
     grid factors and the identified-profile factor ``sigma_nodes``."""
-    grid = rgs.interpolated(
-        band_calibration.RIGID_AREA_GRID_E_SNOW_MPA, band_calibration.RIGID_AREA_GRID_NODES
-    )
+    grid = _rigid_grid()
     sigma = rgs.interpolated(band_calibration.IDENTIFIED_SIGMA_E_SNOW_MPA, sigma_nodes)
     return {
         f"{src} | {e:g} MPa": rgs.band_stats(sel, grid, sigma)
@@ -85,9 +93,7 @@ def rigid_checks(cases: list[dict], sigma_nodes) -> dict:
 def fit(own: dict) -> tuple[dict, dict]:
     """Both rules on the own-ski study ``own``: (beam-draw fit, identified-profile fit)."""
     beam = fgs.fit_beam_scales(fgs.own_ski_cases(own, None), FLEXIBLE_GRID_FLOOR)
-    grid = rgs.interpolated(
-        band_calibration.RIGID_AREA_GRID_E_SNOW_MPA, band_calibration.RIGID_AREA_GRID_NODES
-    )
+    grid = _rigid_grid()
     sigma = rgs.fit_sigma_nodes(
         rgs.own_ski_cases(own), grid, band_calibration.IDENTIFIED_SIGMA_E_SNOW_MPA
     )
