@@ -9,7 +9,8 @@ again through :func:`app.service.contact`:
 - ``flexible`` with the beam draws' deviations × each of :data:`FLEX_SCALES` (the band's
   ``beam_scale``);
 - ``rigid`` with the identified profile's spread × each of :data:`RIGID_SCALES`
-  (:data:`app.service.band_calibration.IDENTIFIED_SIGMA_NODES`, the same at every modulus), for
+  (:data:`app.service.band_calibration.IDENTIFIED_SIGMA_GRID_NODES`, the same at every
+  modulus and grid), for
   comparison.
 
 Per case it records the answer, its same-grid and reference truths (the true beam on the answer's
@@ -61,9 +62,18 @@ POROSITY = 0.5
 AREA_OFF = 0.03
 
 
-def ski_rows(work: Path, name: str, grind: str) -> list[dict]:
-    """Every held-out case of ski ``name`` answered at every candidate factor (cached)."""
-    cache = work / "beam-scale" / f"{name}.json"
+def ski_rows(
+    work: Path,
+    name: str,
+    grind: str,
+    flex_scales: tuple[float, ...] = FLEX_SCALES,
+    rigid_scales: tuple[float, ...] = RIGID_SCALES,
+) -> list[dict]:
+    """Every held-out case of ski ``name`` answered at every candidate factor (cached per
+    ski, factor list and commit)."""
+    key = json.dumps([list(flex_scales), list(rigid_scales), common.git_commit()])
+    tag = hashlib.sha256(key.encode()).hexdigest()[:10]
+    cache = work / "beam-scale" / f"{name}-{tag}.json"
     if cache.is_file():
         return json.loads(cache.read_text(encoding="utf-8"))
     fields = json.loads((work / "rescored" / f"{name}.json").read_text(encoding="utf-8"))["fields"]
@@ -71,10 +81,10 @@ def ski_rows(work: Path, name: str, grind: str) -> list[dict]:
     sha = hashlib.sha256(path.read_bytes()).hexdigest()
     base = service.load_catalogue(REPO / "tables")
     original = answer_mod.answer_band
-    rigid_nodes = band_calibration.IDENTIFIED_SIGMA_NODES
+    rigid_nodes = band_calibration.IDENTIFIED_SIGMA_GRID_NODES
     rows: list[dict] = []
     try:
-        for model, scales in (("flexible", FLEX_SCALES), ("rigid", RIGID_SCALES)):
+        for model, scales in (("flexible", flex_scales), ("rigid", rigid_scales)):
             for s in scales:
                 # a fresh record per factor: the band's beam models are cached per record
                 cat = service.Catalogue(
@@ -86,7 +96,10 @@ def ski_rows(work: Path, name: str, grind: str) -> list[dict]:
                     answer_mod.answer_band = functools.partial(original, beam_scale=s)
                 else:
                     answer_mod.answer_band = original
-                    band_calibration.IDENTIFIED_SIGMA_NODES = (s,) * len(rigid_nodes)
+                    # the same factor on every grid and node
+                    band_calibration.IDENTIFIED_SIGMA_GRID_NODES = tuple(
+                        (s,) * len(row) for row in rigid_nodes
+                    )
                 for c in fields["answers"]:
                     if "truth_ref_cm2" not in c:
                         continue
@@ -128,7 +141,7 @@ def ski_rows(work: Path, name: str, grind: str) -> list[dict]:
                     )
     finally:
         answer_mod.answer_band = original
-        band_calibration.IDENTIFIED_SIGMA_NODES = rigid_nodes
+        band_calibration.IDENTIFIED_SIGMA_GRID_NODES = rigid_nodes
     cache.parent.mkdir(parents=True, exist_ok=True)
     with common.atomic_path(cache) as tmp:
         tmp.write_text(json.dumps(rows), encoding="utf-8")
@@ -167,9 +180,14 @@ def stats(rows: list[dict]) -> dict:
     }
 
 
-def summarise(rows: list[dict], calib_draws: set[int]) -> dict:
+def summarise(
+    rows: list[dict],
+    calib_draws: set[int],
+    flex_scales: tuple[float, ...] = FLEX_SCALES,
+    rigid_scales: tuple[float, ...] = RIGID_SCALES,
+) -> dict:
     out: dict = {}
-    for model, scales in (("flexible", FLEX_SCALES), ("rigid", RIGID_SCALES)):
+    for model, scales in (("flexible", flex_scales), ("rigid", rigid_scales)):
         out[model] = {}
         for e in sorted({r["e_snow_mpa"] for r in rows}):
             per = {}
@@ -203,6 +221,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--calib-draws", type=int, nargs="+", default=[0])
     ap.add_argument("--grind", default="grind-1")
     ap.add_argument("--skis", nargs="+", help="ski names (default: every rescored ski)")
+    ap.add_argument("--flex-scales", type=float, nargs="+", default=list(FLEX_SCALES))
+    ap.add_argument("--rigid-scales", type=float, nargs="+", default=list(RIGID_SCALES))
     ap.add_argument(
         "--rows",
         action="store_true",
@@ -211,6 +231,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
     t0 = time.perf_counter()
+    flex, rigid = tuple(args.flex_scales), tuple(args.rigid_scales)
     names = args.skis or sorted(p.stem for p in (args.work / "rescored").glob("*.json"))
     rows: list[dict] = []
     for i, name in enumerate(names, 1):
@@ -219,7 +240,7 @@ def main(argv: list[str] | None = None) -> int:
             log.info("[%d/%d] %s: no identified beam served, skipped", i, len(names), name)
             continue
         t = time.perf_counter()
-        got = ski_rows(args.work, name, args.grind)
+        got = ski_rows(args.work, name, args.grind, flex, rigid)
         design, grid, draw = name.rsplit("-", 2)
         for r in got:
             r.update(ski=name, design=design, grid=grid, draw=int(draw[1:]))
@@ -232,14 +253,14 @@ def main(argv: list[str] | None = None) -> int:
             len(got),
             time.perf_counter() - t,
         )
-    summary = summarise(rows, set(args.calib_draws))
+    summary = summarise(rows, set(args.calib_draws), flex, rigid)
     doc = {
         "schema": SCHEMA,
         "provenance": common.provenance(
             {"work": str(args.work), "calib_draws": args.calib_draws, "skis": names}
         ),
-        "flex_scales": FLEX_SCALES,
-        "rigid_scales": RIGID_SCALES,
+        "flex_scales": flex,
+        "rigid_scales": rigid,
         "coverage_target": COVERAGE_TARGET,
         "summary": summary,
         **({"rows": rows} if args.rows else {}),

@@ -125,7 +125,7 @@ def main(argv: list[str] | None = None) -> dict:
             cat.skis[ski.name] = ski
             skis.append((pop, ski, beam))
     served = sheet_module.BEAM_SCALE
-    scales = args.scales or [served]
+    scales = args.scales or [None]  # None: each ski's own (band_sampling.sheet_beam_scale)
     report: dict = {}
     try:
         for scale in scales:
@@ -134,14 +134,17 @@ def main(argv: list[str] | None = None) -> dict:
             for pop, ski, beam in skis:
                 ski.record.cache.pop("flex_draws", None)  # drawn again at this scale
                 rows.setdefault(pop, []).extend(case_errors(cat, ski, beam, args.weights))
-            report[f"{scale:g}"] = {pop: summarise(r) for pop, r in rows.items()}
+            key = "served" if scale is None else f"{scale:g}"
+            report[key] = {pop: summarise(r) for pop, r in rows.items()}
     finally:
         sheet_module.BEAM_SCALE = served
     doc = {
         "schema": SCHEMA,
         "weights_kg": args.weights,
         "skis": [s.name for _, s, _ in skis],
-        "served_scale": served,
+        "served_scale": "each ski's own (band_sampling.sheet_beam_scale)"
+        if served is None
+        else served,
         "per_scale": report,
     }
     print(json.dumps(doc, indent=1))

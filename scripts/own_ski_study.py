@@ -266,13 +266,12 @@ def _area_band(answer: dict) -> tuple[list | None, float | None]:
 
 def _camber_scale(a: dict, used: str | None) -> float | None:
     """The factor on the camber part of answer ``a``'s band (None: not an identified beam)."""
-    from skisnow.app.service.band_calibration import identified_sigma_scale_at
-
     if a["provenance"]["ski"]["profile_model"] != "identified_beam":
         return None
+    camber = (a.get("band") or {}).get("camber_model") or {}
     if used == "flexible":
-        return ((a.get("band") or {}).get("camber_model") or {}).get("beam_deviation_scale")
-    return identified_sigma_scale_at(a["inputs"]["effective_modulus_mpa"] * 1e6)
+        return camber.get("beam_deviation_scale")
+    return camber.get("profile_sd_scale")
 
 
 def served_answer(client, body: dict) -> dict:

@@ -67,6 +67,8 @@ from skisnow.app.service.band_calibration import (
     beam_scale_at,
     bending_ignored_widths,
     flexible_area_grid_factor_at,
+    identified_sigma_scale_at,
+    loaded_cases,
     rigid_area_grid_factor_at,
 )
 from skisnow.app.service.band_sampling import (
@@ -145,6 +147,9 @@ class Band:
     #: alternative beams of the identification the answer was solved again with (and those
     #: that did not converge); their largest deviation is the component ``beam_alternatives``
     alternative_beams: tuple[int, int] = (0, 0)
+    #: factor on the identified profile's spread of a rigid answer
+    #: (:func:`app.service.band_calibration.identified_sigma_scale_at`), else None
+    profile_scale: float | None = None
 
 
 def touches_profile_end(gap_map, macro) -> bool:
@@ -469,7 +474,7 @@ def answer_band(
         )
     else:
         if beam_scale is None:
-            beam_scale = beam_scale_at(e_eff)
+            beam_scale = beam_scale_at(e_eff, loaded_cases(record))
         models = beam_models(record, preset, samples=beam_samples, seed=seed, scale=beam_scale)
         alternatives = [] if beam_is_design else alternative_models(record, preset)
         if not beam_is_design:
@@ -592,6 +597,9 @@ def answer_band(
         alternative_beams=(0, 0)
         if sampled is None
         else (sampled.alternatives_solved, sampled.alternatives_failed),
+        profile_scale=identified_sigma_scale_at(e_eff, loaded_cases(record))
+        if rigid and has_sigma and not beam_is_design and served_beam(record.identified)
+        else None,
     )
 
 
@@ -714,6 +722,9 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
             if band.beam_scale is None
             else None,
             "beam_deviation_scale": band.beam_scale,
+            # the factor on the identified profile's spread (rigid answers of an identified
+            # beam; per snow modulus and measurement grid)
+            "profile_sd_scale": band.profile_scale,
             # the identification's alternative beams the bending ski was solved again with
             # (component beam_alternatives: their largest deviation) and those left out
             "alternative_beams": band.alternative_beams[0],

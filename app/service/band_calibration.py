@@ -24,6 +24,15 @@ Things an answer used to leave out of its band:
     µm of its profile. The factor is calibrated per snow modulus on the own-ski study's designs
     against their true beams (``scripts/own_ski_study.py``, then
     ``scripts/beam_scale_study.py``).
+``BEAM_SCALE_GRID_NODES``, ``IDENTIFIED_SIGMA_GRID_NODES``
+    The two factors above per measurement grid as well (since 2026-11-27): a ski measured with
+    fewer camber cases has a covariance that understates its error more, so one factor for
+    every grid made the dense grid's bands needlessly wide to cover the coarse grid's errors.
+    Fitted on re-solves at each candidate factor (``scripts/beam_scale_study.py --rows``, then
+    ``scripts/per_grid_band_study.py``); the ski's grid is its number of loaded cases
+    (:func:`loaded_cases`; :data:`GRID_CASES`). ``BEAM_SCALE_NODES`` and
+    ``IDENTIFIED_SIGMA_NODES`` are now their envelopes (a ski whose cases are not known, the flex
+    sheet's draws).
 ``FLEXIBLE_AREA_GRID_NODES``
     The factor on a bending-ski answer's apparent-area grid part, per snow modulus: never below
     the grid-only floor (the grid part alone covers the grid's own errors), raised where the
@@ -123,8 +132,9 @@ IDENTIFIED_SIGMA_E_SNOW_MPA = (20.0, 200.0, 2000.0)
 #: docs/studies/covariance-refit.json; the own-ski study's draw 0 of the six study designs and
 #: random designs 1–4, both grids, run with the fixed covariance): 3 / 1.5 / 2.5 (20 MPa: the
 #: random designs' 9 × 5 skis need 3); pooled with the validation designs (``--pool``) 3 / 1.5 /
-#: 1.75, and the service takes the larger per node. Was 2 / 1.5 / 2.5
-IDENTIFIED_SIGMA_NODES = (3.0, 1.5, 2.5)
+#: 1.75, and the service takes the larger per node. Was 2 / 1.5 / 2.5. Served for both
+#: measurement grids until 2026-11-27; since then per grid (:data:`IDENTIFIED_SIGMA_GRID_NODES`)
+#: and :data:`IDENTIFIED_SIGMA_NODES` is their envelope.
 
 # ----------------------------------------------------------------------------- bending ski
 
@@ -181,8 +191,9 @@ BEAM_SCALE_E_SNOW_MPA = (20.0, 200.0, 2000.0)
 #: rear-plate-touring``, docs/studies/own-ski-cov-validation.md) held 81 % of their 9 × 5
 #: answers at 20 MPa; the same rules on calibration and validation pooled give 1.25 / 5 / 8
 #: (``--pool``), and the service takes the larger per node: 1.25 / 6 / 8 (the validation is
-#: then no longer held out at 20 MPa). Was 2 / 4 / 8
-BEAM_SCALE_NODES = (1.25, 6.0, 8.0)
+#: then no longer held out at 20 MPa). Was 2 / 4 / 8. Served for both measurement grids until
+#: 2026-11-27; since then per grid (:data:`BEAM_SCALE_GRID_NODES`) and :data:`BEAM_SCALE_NODES`
+#: is their envelope.
 
 
 def at_snow_modulus(
@@ -196,18 +207,73 @@ def at_snow_modulus(
     return float(np.interp(np.log(e_eff_pa), e_nodes, nodes))
 
 
-def beam_scale_at(e_eff_pa: float) -> float:
-    """:data:`BEAM_SCALE_NODES` at the answer's effective modulus [Pa]: linear in log E' between
-    the nodes, held at the ends."""
-    return at_snow_modulus(e_eff_pa, BEAM_SCALE_E_SNOW_MPA, BEAM_SCALE_NODES)
+# ------------------------------------------------------------- per measurement grid
+
+#: loaded camber cases of the two measurement grids the per-grid factors below are fitted on:
+#: 9 loads × 5 positions and 13 × 9 (the own-ski study's grids). A ski measured with another
+#: number of cases gets factors linear in log(cases) between them, held at the ends
+GRID_CASES = (45, 117)
+#: the beam-draw factor per measurement grid (rows: :data:`GRID_CASES`) and snow-modulus node
+#: (:data:`BEAM_SCALE_E_SNOW_MPA`) [-]. One factor for both grids (:data:`BEAM_SCALE_NODES`'s
+#: history) had to serve the 9 × 5 skis, whose covariance understates their error more (fewer
+#: cases: the fit is less linear over its spread and the prior holds more of the beam), and so
+#: made the 13 × 9 skis' bands wider than 2.5 × their error. Fitted per grid on re-solves at
+#: each candidate factor (0.5 … 12; ``python scripts/beam_scale_study.py --rows`` on the
+#: own-ski studies' work folders, then ``python scripts/per_grid_band_study.py``,
+#: docs/studies/per-grid-band.json; docs/limits.md "Factors per measurement grid"): on the six
+#: study designs and random designs 1–4 (draw 0) 3 / 6 / 6 (9 × 5) and 0.5 / 4 / 4 (13 × 9).
+#: At those the held-out validation designs held 87.5 and 89.6 % of their answers at 2000 MPa;
+#: fitted with them as a third population (``--pool``), 3 / 6 / 12 and 0.5 / 4 / 6, and the
+#: service takes the larger per node (the validation is then no longer held out at 2000 MPa).
+#: Was 1.25 / 6 / 8 for both grids
+BEAM_SCALE_GRID_NODES = ((3.0, 6.0, 12.0), (0.5, 4.0, 6.0))
+#: the identified-profile factor of rigid answers per measurement grid and node
+#: (:data:`IDENTIFIED_SIGMA_E_SNOW_MPA`) [-], fitted as :data:`BEAM_SCALE_GRID_NODES` (1 … 4;
+#: calibration and pooled fits agree). Was 3 / 1.5 / 2.5 for both grids
+IDENTIFIED_SIGMA_GRID_NODES = ((3.0, 2.0, 3.0), (3.0, 1.0, 2.5))
+#: the beam-draw factor per node over both grids (the larger): the flex sheet's draws
+#: (:data:`app.service.band_sampling.BEAM_SCALE`) and a ski whose cases are not known
+BEAM_SCALE_NODES = tuple(max(col) for col in zip(*BEAM_SCALE_GRID_NODES, strict=True))
+#: the identified-profile factor per node over both grids (the larger)
+IDENTIFIED_SIGMA_NODES = tuple(max(col) for col in zip(*IDENTIFIED_SIGMA_GRID_NODES, strict=True))
 
 
-def identified_sigma_scale_at(e_eff_pa: float | None) -> float:
-    """:data:`IDENTIFIED_SIGMA_NODES` at the answer's effective modulus [Pa] (linear in log E'
-    between the nodes, held at the ends); the largest node when the modulus is not known."""
+def loaded_cases(record) -> int | None:
+    """How many loaded camber cases the ski ``record`` was measured with (the unloaded profile
+    not counted); None without measurements."""
+    meas = getattr(record, "measurements", None)
+    if meas is None:
+        return None
+    return int(np.count_nonzero(np.asarray(meas.loads_n, dtype=float) > 0))
+
+
+def per_grid_at(
+    e_eff_pa: float, cases: int | None, e_snow_mpa: tuple[float, ...], grid_nodes
+) -> float:
+    """A per-grid factor table (rows: :data:`GRID_CASES`, columns: nodes at ``e_snow_mpa``
+    [MPa]) at the effective modulus ``e_eff_pa`` [Pa] and a ski of ``cases`` loaded cases:
+    linear in log E' between the nodes and in log(cases) between the grids, held at the ends;
+    the largest over the grids when ``cases`` is not known."""
+    values = [at_snow_modulus(e_eff_pa, e_snow_mpa, tuple(row)) for row in grid_nodes]
+    if cases is None or cases <= 0:
+        return float(max(values))
+    return float(np.interp(np.log(cases), np.log(GRID_CASES), values))
+
+
+def beam_scale_at(e_eff_pa: float, cases: int | None = None) -> float:
+    """The beam draws' factor at the answer's effective modulus [Pa] for a ski measured with
+    ``cases`` loaded cases (:data:`BEAM_SCALE_GRID_NODES`, :func:`per_grid_at`; not known: the
+    larger grid's, :data:`BEAM_SCALE_NODES`)."""
+    return per_grid_at(e_eff_pa, cases, BEAM_SCALE_E_SNOW_MPA, BEAM_SCALE_GRID_NODES)
+
+
+def identified_sigma_scale_at(e_eff_pa: float | None, cases: int | None = None) -> float:
+    """The identified profile's factor at the answer's effective modulus [Pa] for a ski
+    measured with ``cases`` loaded cases (:data:`IDENTIFIED_SIGMA_GRID_NODES`,
+    :func:`per_grid_at`); the largest of the table when the modulus is not known."""
     if e_eff_pa is None:
-        return float(max(IDENTIFIED_SIGMA_NODES))
-    return at_snow_modulus(e_eff_pa, IDENTIFIED_SIGMA_E_SNOW_MPA, IDENTIFIED_SIGMA_NODES)
+        return float(np.max(IDENTIFIED_SIGMA_GRID_NODES))
+    return per_grid_at(e_eff_pa, cases, IDENTIFIED_SIGMA_E_SNOW_MPA, IDENTIFIED_SIGMA_GRID_NODES)
 
 
 #: snow moduli of the nodes of the bending ski's apparent-area grid factor [MPa]

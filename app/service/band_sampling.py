@@ -88,7 +88,10 @@ def camber_sigma_m(
             return None, "the identified beam stores no profile spread"
         x = np.asarray(ident["positions_m"], dtype=float)
         sd = np.asarray(sd, dtype=float)
-        scale = band_calibration.identified_sigma_scale_at(e_eff_pa)  # a study varies its nodes
+        # read at call time: a study varies the nodes
+        scale = band_calibration.identified_sigma_scale_at(
+            e_eff_pa, band_calibration.loaded_cases(record)
+        )
         return scale * np.interp(np.asarray(positions_m, dtype=float), x, sd), (
             "identified beam: spread of the loaded profile over plausible beams drawn from the "
             f"fit's covariance where H < {CONTACT_BAND_M * 1e3:.1f} mm "
@@ -387,14 +390,34 @@ def _spread(macro, ms, base, perturbed, failed: int) -> _Sampled:
 #: (``scripts/flexible_band_study.py``; docs/limits.md, Error band)
 BEAM_SAMPLES = 4
 #: factor on the covariance's parameter deviations of those draws [-] for the flex sheet (its
-#: profile draws and snow shares), which has no snow modulus: the largest of the contact
-#: answers' factors per snow modulus (:data:`app.service.band_calibration.BEAM_SCALE_NODES`).
+#: profile draws and snow shares), which has no snow modulus, when the ski's measurement grid is
+#: not known: the largest of the contact answers' factors per snow modulus and grid
+#: (:data:`app.service.band_calibration.BEAM_SCALE_NODES`; a ski with measurements gets its
+#: grid's, :func:`sheet_beam_scale`).
 #: It was 16, the smallest of ``scripts/flexible_band_study.py``'s candidates whose camber part
 #: alone covered 90 % of the demo skis' identification error, fitted on the covariance before
 #: its cut-off was fixed (docs/limits.md, "The covariance's cut-off"): that covariance held
 #: zero variance wherever only the smoothing prior set EI, and × 16 on the fixed one would
 #: move the tips' EI by e^14
 BEAM_SCALE = float(max(band_calibration.BEAM_SCALE_NODES))
+
+
+def sheet_beam_scale(record) -> float:
+    """The flex sheet's factor for the ski ``record`` [-]: the largest of the contact answers'
+    factors at the ski's measurement grid (:func:`app.service.band_calibration.beam_scale_at`
+    at each node modulus with its loaded cases); :data:`BEAM_SCALE` (every grid's largest)
+    when its cases are not known."""
+    from skisnow.solvers.elastic import effective_modulus
+
+    cases = band_calibration.loaded_cases(record)
+    if cases is None:
+        return BEAM_SCALE
+    return max(
+        band_calibration.beam_scale_at(effective_modulus(e * 1e6, 700e6, 0.3), cases)
+        for e in band_calibration.BEAM_SCALE_E_SNOW_MPA
+    )
+
+
 #: models of plausible beams kept per ski record (one entry per coarse grid and draw setting)
 _BEAM_MODELS_MAX = 8
 #: one build of plausible beam models at a time (concurrent first requests built one set each)

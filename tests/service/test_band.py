@@ -13,7 +13,7 @@ import pytest
 from skisnow.app import service
 from skisnow.app.presets import PRESETS
 from skisnow.app.service import band, band_sampling
-from skisnow.app.service.band_calibration import beam_scale_at
+from skisnow.app.service.band_calibration import beam_scale_at, loaded_cases
 from skisnow.app.storage.skis import read_ski
 from skisnow.app.storage.tables import read_table
 from skisnow.solvers.band import (
@@ -202,7 +202,8 @@ def test_flexible_answers_carry_the_identified_beams_uncertainty(shipped):
     assert b["camber_model"]["perturbed_solves"] == band.BEAM_SAMPLES
     # the draws' factor is the calibrated one at this answer's snow modulus
     e_eff = ans["inputs"]["effective_modulus_mpa"] * 1e6
-    assert b["camber_model"]["beam_deviation_scale"] == pytest.approx(beam_scale_at(e_eff))
+    cases = loaded_cases(shipped.skis["ski-a"].record)
+    assert b["camber_model"]["beam_deviation_scale"] == pytest.approx(beam_scale_at(e_eff, cases))
     assert not any("identified beam" in n for n in b["not_covered"])
     for q in band.QUANTITIES:
         w = b["components"]["camber_model"][q]

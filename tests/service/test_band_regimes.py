@@ -192,6 +192,52 @@ def test_beam_scale_follows_its_nodes_and_is_held_at_the_ends():
     assert mid == pytest.approx(0.5 * (nodes[0] + nodes[1]))
 
 
+@pytest.mark.parametrize("table", ["BEAM_SCALE_GRID_NODES", "IDENTIFIED_SIGMA_GRID_NODES"])
+def test_per_grid_factors_follow_the_measurement_grid(table):
+    """The identified beam's band factors per measurement grid: each grid's row at its number
+    of loaded cases, between the grids linear in log(cases), beyond them held, and the larger
+    row when the ski's cases are not known."""
+    from skisnow.solvers.elastic import effective_modulus
+
+    rows = getattr(band_calibration, table)
+    e_nodes = (
+        band_calibration.BEAM_SCALE_E_SNOW_MPA
+        if table.startswith("BEAM")
+        else band_calibration.IDENTIFIED_SIGMA_E_SNOW_MPA
+    )
+    at = (
+        band_calibration.beam_scale_at
+        if table.startswith("BEAM")
+        else band_calibration.identified_sigma_scale_at
+    )
+    n_coarse, n_dense = band_calibration.GRID_CASES
+    for j, e_mpa in enumerate(e_nodes):
+        e = effective_modulus(e_mpa * 1e6, 700e6, 0.3)
+        coarse, dense = rows[0][j], rows[1][j]
+        assert at(e, n_coarse) == pytest.approx(coarse)
+        assert at(e, n_dense) == pytest.approx(dense)
+        assert at(e, 20) == pytest.approx(coarse) and at(e, 425) == pytest.approx(dense)
+        mid = at(e, round(float(np.sqrt(n_coarse * n_dense))))
+        assert min(coarse, dense) - 0.05 <= mid <= max(coarse, dense) + 0.05
+        assert at(e) == pytest.approx(max(coarse, dense))
+    # the envelope the flex sheet and skis of unknown grid take
+    envelope = (
+        band_calibration.BEAM_SCALE_NODES
+        if table.startswith("BEAM")
+        else band_calibration.IDENTIFIED_SIGMA_NODES
+    )
+    assert list(envelope) == [max(a, b) for a, b in zip(*rows, strict=True)]
+
+
+def test_loaded_cases_counts_the_loaded_profiles_only():
+    """The grid's size is the loaded cases: the unloaded profile is not a case of the grid."""
+    from types import SimpleNamespace
+
+    meas = SimpleNamespace(loads_n=np.array([0.0, 98.1, 98.1, 196.2]))
+    assert band_calibration.loaded_cases(SimpleNamespace(measurements=meas)) == 3
+    assert band_calibration.loaded_cases(SimpleNamespace(measurements=None)) is None
+
+
 def test_flexible_area_grid_factor_follows_its_nodes_and_is_held_at_the_ends():
     """The bending-ski answer's apparent-area grid factor: the calibrated node values at their
     snow moduli, between them linear in log E', beyond them the end values."""
@@ -251,7 +297,8 @@ def test_flexible_band_widens_its_beam_draws_with_the_snow_modulus(shipped):
     ans = service.contact(shipped, req)
     e_eff = ans["inputs"]["effective_modulus_mpa"] * 1e6
     got = ans["band"]["camber_model"]["beam_deviation_scale"]
-    assert got == pytest.approx(band_calibration.beam_scale_at(e_eff))
+    cases = band_calibration.loaded_cases(shipped.skis["ski-a"].record)
+    assert got == pytest.approx(band_calibration.beam_scale_at(e_eff, cases))
     original = answer_mod.answer_band
     try:
         answer_mod.answer_band = partial(original, beam_scale=2 * got)

@@ -19,7 +19,7 @@ from fastapi.testclient import TestClient
 from skisnow.app import service
 from skisnow.app.main import create_app
 from skisnow.app.presets import get_preset
-from skisnow.app.service import band_calibration, flex
+from skisnow.app.service import band_calibration, band_sampling, flex
 from skisnow.app.service.profiles import profile_model
 from skisnow.app.settings import Settings
 from skisnow.solvers.beam import (
@@ -281,7 +281,14 @@ def test_identified_beam_has_a_band(cat):
     within twice its width (a weak check of the band's size; docs/flex.md)."""
     ans = flex.flex_sheet_answer(cat, flex.FlexRequest("ski-a", W_KG))
     assert ans["band"]["draws"] == 4
-    assert ans["band"]["beam_deviation_scale"] == max(band_calibration.BEAM_SCALE_NODES)
+    # the largest of the contact answers' factors at the ski's measurement grid
+    rec = cat.ski("ski-a").record
+    scale = ans["band"]["beam_deviation_scale"]
+    assert scale == pytest.approx(band_sampling.sheet_beam_scale(rec))
+    e_nodes = band_calibration.BEAM_SCALE_E_SNOW_MPA
+    row = band_calibration.BEAM_SCALE_GRID_NODES[-1]  # 425 cases: the dense grid's, held
+    assert band_calibration.loaded_cases(rec) > band_calibration.GRID_CASES[-1]
+    assert scale == pytest.approx(max(row)) and len(row) == len(e_nodes)
     c = ans["closing_load"]
     assert c["band_kg"] > 0 and ans["wheelbase"]["band_mm"] > 0
     true = flex_sheet(

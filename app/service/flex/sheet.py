@@ -12,8 +12,9 @@ Band (90 % half-width, absolute, in the quantity's unit)
     (:mod:`app.service.band`):
 
     - identified beam: :data:`app.service.band.BEAM_SAMPLES` beams drawn from the identification's
-      covariance in antithetic pairs, deviations ×
-      :data:`app.service.band_sampling.BEAM_SCALE`, seed
+      covariance in antithetic pairs, deviations × the largest factor of the ski's measurement
+      grid (:func:`app.service.band_sampling.sheet_beam_scale`; :data:`BEAM_SCALE` overrides
+      it when set, as ``scripts/flex_band_check.py`` does), seed
       :data:`app.service.band.BAND_SEED` (:func:`app.service.band.beam_models` on snow, the same
       draws on the flat);
     - camber network: :data:`app.service.band.PROFILE_SAMPLES` smooth profile perturbations of the
@@ -41,7 +42,7 @@ from skisnow.app.service.band import (
     beam_models,
     camber_sigma_m,
 )
-from skisnow.app.service.band_sampling import BEAM_SCALE
+from skisnow.app.service.band_sampling import sheet_beam_scale
 from skisnow.app.service.catalogue import Catalogue, Ski
 from skisnow.app.service.gate import gated
 from skisnow.app.service.profiles import profile_model
@@ -179,6 +180,15 @@ def _profile_fn(ski: Ski):
     return fn if fn is not None else _network_fn(ski.record)
 
 
+#: the beam draws' factor for every ski [-]; None: each ski's own
+#: (:func:`app.service.band_sampling.sheet_beam_scale`). A study varies it
+BEAM_SCALE: float | None = None
+
+
+def _beam_scale(record) -> float:
+    return BEAM_SCALE if BEAM_SCALE is not None else sheet_beam_scale(record)
+
+
 def _draw_fns(ski: Ski) -> tuple[list, str, float | None]:
     """Profile callables of the plausible camber models (module docstring), the band's words and
     the deviation scale (None for profile perturbations)."""
@@ -187,13 +197,14 @@ def _draw_fns(ski: Ski) -> tuple[list, str, float | None]:
     if pm.source == "design_beam":
         return [], "design beam stored with the ski, taken as exact", None
     if pm.source == "identified_beam":
+        scale = _beam_scale(rec)
         store = rec.cache.get("flex_draws")
         if store is None or store[0] is not rec.identified:
             ib = identification_for_sampling(rec.identified)
             beams = (
                 []
                 if ib is None
-                else sample_beams(ib, BEAM_SAMPLES, BAND_SEED, scale=BEAM_SCALE, antithetic=True)
+                else sample_beams(ib, BEAM_SAMPLES, BAND_SEED, scale=scale, antithetic=True)
             )
             coarse = [_coarse(b) for b in ([pm.beam, *beams] if beams else [])]
             store = (rec.identified, [(b, BeamFlexibility(b)) for b in coarse])
@@ -204,10 +215,10 @@ def _draw_fns(ski: Ski) -> tuple[list, str, float | None]:
         return (
             fns,
             f"identified beam: {len(fns) - 1} plausible beams (EI(X), c(X)) drawn from the "
-            f"fit's covariance in antithetic pairs, deviations × {BEAM_SCALE:g}, seed "
+            f"fit's covariance in antithetic pairs, deviations × {scale:g}, seed "
             f"{BAND_SEED}; their spread about the served beam, both on "
             f"{BAND_NODE_SPACING_M * 1e3:g} mm nodes",
-            BEAM_SCALE,
+            scale,
         )
     probe = _network_fn(rec)(float(np.mean(ski.load_range_n)), float(np.mean(ski.position_range_m)))
     x_net = probe.positions_m
@@ -526,7 +537,7 @@ def _snow_part(ski: Ski, req: FlexRequest, sheet: FlexSheet, band: bool) -> dict
     widths = [float("nan"), float("nan")]
     if band:
         models = beam_models(
-            ski.record, preset, samples=BEAM_SAMPLES, seed=BAND_SEED, scale=BEAM_SCALE
+            ski.record, preset, samples=BEAM_SAMPLES, seed=BAND_SEED, scale=_beam_scale(ski.record)
         )
         coarse, drawn = models
         tol = 1e-6
