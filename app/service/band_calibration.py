@@ -231,8 +231,9 @@ BEAM_SCALE_GRID_NODES = ((3.0, 6.0, 12.0), (0.5, 4.0, 6.0))
 #: (:data:`IDENTIFIED_SIGMA_E_SNOW_MPA`) [-], fitted as :data:`BEAM_SCALE_GRID_NODES` (1 … 4;
 #: calibration and pooled fits agree). Was 3 / 1.5 / 2.5 for both grids
 IDENTIFIED_SIGMA_GRID_NODES = ((3.0, 2.0, 3.0), (3.0, 1.0, 2.5))
-#: the beam-draw factor per node over both grids (the larger): the flex sheet's draws
-#: (:data:`app.service.band_sampling.BEAM_SCALE`) and a ski whose cases are not known
+#: the beam-draw factor per node over both grids (the larger), for a ski whose cases are not
+#: known (its largest is the flex sheet's fallback, :data:`app.service.band_sampling.BEAM_SCALE`;
+#: a ski with measurements gets its grid's, :func:`app.service.band_sampling.sheet_beam_scale`)
 BEAM_SCALE_NODES = tuple(max(col) for col in zip(*BEAM_SCALE_GRID_NODES, strict=True))
 #: the identified-profile factor per node over both grids (the larger)
 IDENTIFIED_SIGMA_NODES = tuple(max(col) for col in zip(*IDENTIFIED_SIGMA_GRID_NODES, strict=True))
