@@ -11,7 +11,8 @@ Two populations:
 - the demo skis (``--skis``): their true (design) beam is stored with them;
 - with ``--own-ski-work``: the skis of ``scripts/own_ski_study.py`` (its work folder's kept ski
   files ``skis/<design>-<grid>-d<draw>.h5``), their true beam the design's
-  (:data:`solvers.ski_designs.STUDY_DESIGNS` and ``VALIDATION_DESIGNS``, built on 1 mm).
+  (:func:`solvers.ski_designs.get_design`: the study and validation designs and the seeded
+  random designs ``random-<seed>``, built on 1 mm).
 
 ``--scales`` recomputes every band with the beam draws' deviations × each factor
 (:data:`app.service.band_sampling.BEAM_SCALE`, the sheet's; default: the served one only).
@@ -41,7 +42,7 @@ from skisnow.app.storage.skis import read_ski
 from skisnow.solvers.beam import G_STANDARD
 from skisnow.solvers.errors import SkisnowError
 from skisnow.solvers.flex import beam_profile, flex_sheet
-from skisnow.solvers.ski_designs import STUDY_DESIGNS, VALIDATION_DESIGNS
+from skisnow.solvers.ski_designs import get_design
 
 SCHEMA = "skisnow.flex-band-check/1"
 OWN_SKI_FILE = re.compile(r"^(?P<design>.+)-(?P<grid>dense|coarse)-d(?P<draw>\d+)$")
@@ -49,17 +50,20 @@ OWN_SKI_FILE = re.compile(r"^(?P<design>.+)-(?P<grid>dense|coarse)-d(?P<draw>\d+
 
 def own_skis(work: Path) -> list[tuple[str, Ski, object]]:
     """The own-ski study's kept ski files: (population, ski, true beam)."""
-    designs = {**STUDY_DESIGNS, **VALIDATION_DESIGNS}
     out = []
     for path in sorted((work / "skis").glob("*.h5")):
         m = OWN_SKI_FILE.match(path.stem)
-        if m is None or m["design"] not in designs:
+        if m is None:
+            continue
+        try:  # study, validation or seeded random designs
+            design = get_design(m["design"])
+        except SkisnowError:
             continue
         rec = read_ski(path)
         if rec.identified is None:
             continue
         ski = Ski(path.stem, path, "", rec)
-        out.append((f"own-ski {m['grid']}", ski, designs[m["design"]].build(1e-3)))
+        out.append((f"own-ski {m['grid']}", ski, design.build(1e-3)))
     return out
 
 
