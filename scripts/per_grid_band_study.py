@@ -43,45 +43,38 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
-
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "scripts"))
 
+import beam_scale_study  # noqa: E402
 from skisnow.app.service import band_calibration  # noqa: E402
 from skisnow.app.storage import common  # noqa: E402
 
 SCHEMA = "skisnow.per-grid-band-study/1"
 COVERAGE_TARGET = 0.90
 WIDTH_TARGET = 2.5
-AREA_OFF = 0.03
+#: answers this far off (relative) and outside the band must carry a warning
+AREA_OFF = beam_scale_study.AREA_OFF
 #: the own-ski study's grids, in the order of :data:`band_calibration.GRID_CASES`
 GRIDS = ("coarse", "dense")
 MODELS = ("flexible", "rigid")
 
 
 def stats(rows: list[dict]) -> dict:
-    """Share of reference truths inside the band, mean half-width ÷ RMS error against them,
-    and the answers more than 3 % off, outside the band and without a warning."""
-    ok = [r for r in rows if "area_cm2" in r]
-    if not ok:
-        return {"answers": 0, "refused": len(rows)}
-    err = np.array([r["area_cm2"] / r["truth_ref_cm2"] - 1 for r in ok])
-    hw = np.array([r["half_width"] for r in ok])
-    # the band is the answer ± its half-width (relative): the truth is inside when its error
-    # relative to the answer is within it
-    rel = np.array([r["truth_ref_cm2"] / r["area_cm2"] - 1 for r in ok])
-    inside = np.abs(rel) <= hw
-    warned = np.array([bool(r["warnings"]) for r in ok])
-    rms = float(np.sqrt(np.mean(err**2)))
+    """:func:`beam_scale_study.stats` of re-solved answers (share of reference truths inside
+    the band, mean half-width ÷ RMS error, answers more than 3 % off, outside the band and
+    unwarned: ``unwarned_misses``), with the refused ones counted."""
+    st = beam_scale_study.stats(rows)
+    refused = len(rows) - st["answers"]
+    if not st["answers"]:
+        return {"answers": 0, "refused": refused}
+    keys = ("coverage", "mean_half_width", "rms_error", "half_width_over_rms")
     return {
-        "answers": len(ok),
-        "refused": len(rows) - len(ok),
-        "coverage": float(inside.mean()),
-        "mean_half_width": float(hw.mean()),
-        "rms_error": rms,
-        "half_width_over_rms": float(hw.mean() / rms) if rms > 0 else None,
-        "unwarned_misses": int(np.sum((np.abs(err) > AREA_OFF) & ~inside & ~warned)),
+        "answers": st["answers"],
+        "refused": refused,
+        **{k: st[k] for k in keys},
+        "unwarned_misses": st["off_3pct_outside_unwarned"],
     }
 
 

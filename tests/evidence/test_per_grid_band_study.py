@@ -27,6 +27,7 @@ def _row(model, grid, e, scale, error, half_width, warned=False):
         "area_cm2": 100.0 * (1 + error),
         "truth_ref_cm2": 100.0,
         "half_width": half_width,
+        "components": {},
         "warnings": ["x"] if warned else [],
     }
 
