@@ -6,8 +6,9 @@ The input is own-ski studies (``scripts/own_ski_study.py`` output JSON with thei
 ski files). For every rigid answer of an identified beam it takes the answer's case (load,
 position) and measures, on the served beam, its true beam and the identification:
 
-- ``true_error_m``: the served loaded profile minus the true beam's, RMS where the served one is
-  below :data:`CONTACT_BAND_M` (what the band's camber part stands for);
+- ``true_error_m``: the served loaded profile minus the true beam's (built as the own-ski study
+  builds it), RMS where the served one is below ``CONTACT_BAND_M`` (what the band's camber part
+  stands for);
 - ``stored_sd_m``: the band's σ(X) (the stored ``profile_sd_m``, × 1) RMS on the same nodes;
 - ``draw_sd_m``: the spread of :data:`DRAWS` beams drawn from the fit's covariance (antithetic,
   × 1) at this very case, RMS on the same nodes (a per-case σ);
@@ -44,18 +45,18 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "scripts"))
 
+from own_ski_study import SPACING_M  # noqa: E402
+from skisnow.app.service.band_sampling import CONTACT_BAND_M  # noqa: E402
 from skisnow.app.service.profiles import served_beam  # noqa: E402
 from skisnow.app.storage import common  # noqa: E402
 from skisnow.app.storage.skis import identification_for_sampling, read_ski  # noqa: E402
-from skisnow.solvers.beam import solve_beam_contact  # noqa: E402
+from skisnow.solvers.beam import G_STANDARD, solve_beam_contact  # noqa: E402
 from skisnow.solvers.identify import sample_beams  # noqa: E402
 from skisnow.solvers.ski_designs import get_design  # noqa: E402
 
 SCHEMA = "skisnow.rigid-miss-study/1"
-G_STANDARD = 9.80665
-#: the contact band of the stored σ(X) (solvers.identify.profile_sigma) [m]
-CONTACT_BAND_M = 2e-4
 #: beams drawn per case (as the band's) and their seed
 DRAWS = 8
 DRAW_SEED = 0
@@ -68,8 +69,6 @@ FLAT_QUANTILES = (0.5, 0.75, 0.9)
 #: multipliers of the per-case σ in the re-scale screen [-]
 MULTIPLIERS = (0.5, 0.75, 1.0, 1.5, 2.0)
 AREA_OFF = 0.03
-#: the design beams' node spacing of the own-ski study [m]
-SPACING_M = 1e-3
 
 
 def case_features(record, truth, load_n: float, load_position_m: float, draws) -> dict:
