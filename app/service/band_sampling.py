@@ -632,6 +632,7 @@ def _beam_sigma(identified: dict, scale: float, draws: int) -> tuple[float | Non
     return rms, (
         f"identified beam: the bending ski solved again with {draws} plausible beams (EI(X) and "
         f"c(X)) drawn from the fit's covariance in antithetic pairs, deviations × {scale:g} (the "
-        "covariance understates the identified profile's actual error; factor calibrated "
-        f"against the demo skis' true beams, docs/limits.md){spread}"
+        "covariance understates the identified profile's actual error; factor per snow modulus "
+        "and measurement grid, calibrated against the true beams of the own-ski study's designs, "
+        f"docs/limits.md){spread}"
     )
