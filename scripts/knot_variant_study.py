@@ -58,8 +58,9 @@ def shift(served, variant, load_n: float, load_position_m: float) -> tuple[float
     return float(np.sqrt(np.mean(d**2))), d
 
 
-def ski_rows(ski_file: str, cases: list[dict], knot_spacing_m: float) -> dict:
-    """The variant of one ski and its shift at each of ``cases`` (rows of rigid-miss.json)."""
+def ski_rows(ski_file: str, cases: list[dict], misses: list[dict], knot_spacing_m: float) -> dict:
+    """The variant of one ski and its shift at each of ``cases`` (rows of rigid-miss.json);
+    ``misses``: the ski's unwarned misses (rigid-miss.json's summary), flagged per case."""
     record = read_ski(ski_file)
     served = served_beam(record.identified)
     f, xf, y, _ = mean_profiles(record.measurements)
@@ -86,6 +87,7 @@ def ski_rows(ski_file: str, cases: list[dict], knot_spacing_m: float) -> dict:
     }
     if not ident.ok:
         return out
+    missed = {(m["load_kg"], m["load_position_mm"]) for m in misses}
     seen = set()
     for c in cases:
         key = (c["load_kg"], c["load_position_mm"])
@@ -100,9 +102,7 @@ def ski_rows(ski_file: str, cases: list[dict], knot_spacing_m: float) -> dict:
                 "variant_shift_m": s,
                 "true_error_m": c["true_error_m"],
                 "stored_sd_m": c["stored_sd_m"],
-                "miss": any(
-                    (m["load_kg"], m["load_position_mm"]) == key for m in c.get("_misses", [])
-                ),
+                "miss": key in missed,
             }
         )
     return out
@@ -151,9 +151,7 @@ def main(argv: list[str] | None = None) -> int:
         mine = [m for m in misses if (m["design"], m["grid"]) == key]
         if args.only_misses and not mine:
             continue
-        for r in rows:
-            r["_misses"] = mine
-        got = ski_rows(files[key], rows, args.knot_spacing_m)
+        got = ski_rows(files[key], rows, mine, args.knot_spacing_m)
         skis.append({"design": key[0], "grid": key[1], **got})
         print(
             f"{key[0]} {key[1]}: misfit {got['misfit_m'] * 1e6:.3f} µm (served "
