@@ -47,6 +47,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "scripts"))
 
+import beam_scale_study  # noqa: E402
 from own_ski_study import SPACING_M  # noqa: E402
 from skisnow.app.service.band_sampling import CONTACT_BAND_M  # noqa: E402
 from skisnow.app.service.profiles import served_beam  # noqa: E402
@@ -68,7 +69,8 @@ RATIO_THRESHOLDS = (1.25, 1.5, 2.0, 2.5)
 FLAT_QUANTILES = (0.5, 0.75, 0.9)
 #: multipliers of the per-case σ in the re-scale screen [-]
 MULTIPLIERS = (0.5, 0.75, 1.0, 1.5, 2.0)
-AREA_OFF = 0.03
+#: answers this far off (relative) and outside the band must carry a warning
+AREA_OFF = beam_scale_study.AREA_OFF
 
 
 def case_features(record, truth, load_n: float, load_position_m: float, draws) -> dict:
@@ -181,21 +183,28 @@ def rescaled_band(row: dict, mode: str, multiplier: float) -> float:
 
 def cell_stats(rows: list[dict], widths: list[float]) -> dict:
     """Coverage, mean half-width over the RMS error and unwarned misses of ``rows`` with the
-    half-widths ``widths``."""
-    err = np.array([r["error"] for r in rows])
-    w = np.asarray(widths, dtype=float)
-    inside = np.abs(err) <= w
-    rms = float(np.sqrt(np.mean(err**2))) if err.size else math.nan
-    misses = sum(
-        1
-        for r, i in zip(rows, inside, strict=True)
-        if abs(r["error"]) > AREA_OFF and not i and not r["warned"]
+    half-widths ``widths``: :func:`beam_scale_study.stats` (the band is the answer ± its
+    relative half-width) of each row's answer relative to its reference truth."""
+    st = beam_scale_study.stats(
+        [
+            {
+                "area_cm2": 1.0 + r["error"],
+                "truth_ref_cm2": 1.0,
+                "half_width": float(w),
+                "warnings": ["warned"] if r["warned"] else [],
+                "components": {},
+            }
+            for r, w in zip(rows, widths, strict=True)
+        ]
     )
+    if not st["answers"]:
+        return {"answers": 0, "coverage": math.nan, "width_over_rms": math.nan, "misses": 0}
+    ratio = st["half_width_over_rms"]
     return {
-        "answers": int(err.size),
-        "coverage": float(inside.mean()) if err.size else math.nan,
-        "width_over_rms": float(w.mean() / rms) if err.size and rms > 0 else math.nan,
-        "misses": int(misses),
+        "answers": st["answers"],
+        "coverage": st["coverage"],
+        "width_over_rms": math.nan if ratio is None else ratio,
+        "misses": st["off_3pct_outside_unwarned"],
     }
 
 
