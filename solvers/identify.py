@@ -851,9 +851,55 @@ RESTART_SMOOTHING_FACTORS = (RESTART_SMOOTHING_FACTOR, 100.0)
 #: takes its camber when no unloaded profile was measured) and "uniform" (c from the unloaded
 #: profile, or from the projection start, with one EI from a line search on the device model)
 DEFAULT_STARTS = ("projection", "uniform")
+#: the variant starts' stiffness knot spacings [m] (``variant_knot_spacings_m``): with knots every
+#: 33 mm instead of 50 mm the same data and start fit as well (within 1 % of the served misfit on
+#: all 12 own-ski study skis with an unwarned rigid miss) but may land in another basin: race-
+#: classic 13 × 9 moved the 88.8 kg miss 1.13 µm towards the truth (1.77 µm off, the covariance's
+#: σ 0.10 µm), binding-plate 9 × 5 at 83.1 kg 1.78 µm (1.80 off); a start warmed from the chosen
+#: beam stays in its basin (docs/studies/knot-variant.json, docs/limits.md)
+VARIANT_KNOT_SPACINGS_M = (0.033,)
 #: a start whose device model misses its cases by more than this × the noise is not used
 #: (a uniform-EI start, which has no better alternative, only beyond this) [-]
 START_DROP_RATIO = 100.0
+
+
+def _start_job(job: tuple) -> IdentifiedBeam:
+    """The variable-projection start of :func:`identify_beam` (module level, so a process pool
+    can run it): ``job`` is (nodes [m], loads [N], load positions [m], profiles [m] of the
+    start's cases, node stride, ``min_cases``, keyword arguments of :func:`identify_start`).
+    On every ``stride``-th node first; redone on every node when that start's device model
+    misses its cases by more than START_RETRY_RATIO × the noise (the lower device misfit
+    kept). ``extra`` gains ``device_misfit_m``, ``start_stride`` and ``start_smoothing``."""
+    x, loads, xfs, y, stride, min_cases, kwargs = job
+    starts = []
+    start = None
+    for level in dict.fromkeys((stride, 1)):
+        start = identify_start(
+            x[::level],
+            loads,
+            xfs,
+            y[:, ::level],
+            min_cases=min_cases,
+            max_contact_passes=START_PASSES,
+            **kwargs,
+        )
+        if not np.isfinite(start.log_compliance).all():
+            break  # the start could not run (one load only, ...): its reason stands
+        if level > 1:
+            xs = x[::level]
+            start.beam = BeamSki(
+                x,
+                np.interp(x, xs, start.beam.bending_stiffness_nm2),
+                np.interp(x, xs, start.beam.unloaded_gap_m),
+            )
+        miss = _device_misfit(start.beam, loads, xfs, y)
+        start.extra["device_misfit_m"] = miss
+        start.extra["start_stride"] = level
+        start.extra["start_smoothing"] = float(kwargs["smoothing"])
+        starts.append(start)
+        if miss <= START_RETRY_RATIO * start.noise_m:
+            break
+    return min(starts, key=lambda s: s.extra["device_misfit_m"]) if starts else start
 
 
 def _forward_path(job: tuple) -> ForwardFit:
@@ -879,6 +925,7 @@ def identify_beam(
     start_spacing_m: float = DEFAULT_START_SPACING_M,
     forward_coarse_spacings_m: tuple[float, ...] = DEFAULT_FORWARD_PATHS,
     starts: tuple[str, ...] = DEFAULT_STARTS,
+    variant_knot_spacings_m: tuple[float, ...] = VARIANT_KNOT_SPACINGS_M,
     min_cases: int = 6,
     max_steps: int = 80,
     callback=None,
@@ -930,6 +977,12 @@ def identify_beam(
         else the projection start's; one EI from a line search of the device model). Each is
         checked on the device model first and not used when it misses by far
         (``extra["starts"]`` says why); every (start, path) fit runs through ``path_map``.
+    variant_knot_spacings_m : tuple of float
+        Stiffness knot spacings [m] of the variant starts (VARIANT_KNOT_SPACINGS_M): the
+        projection start again with those knots (beside the start, through ``path_map``), its
+        forward fits on every path with those knots. They are never the chosen beam; a
+        converged one that fits as well and differs is an alternative beam
+        (:func:`alternative_fits`, ``extra["variant_candidates"]``). ``()``: none.
     min_cases : int
         Fewer loaded cases than this cannot identify a beam (``ok=False``).
     max_steps : int
@@ -974,37 +1027,23 @@ def identify_beam(
     if start_spacing_m > 0 and x.ndim == 1 and x.size > 1 and x[1] > x[0]:
         stride = max(1, min(round(start_spacing_m / float(x[1] - x[0])), (x.size - 1) // 20))
 
-    def make_start(start_sm: float) -> IdentifiedBeam:
-        starts = []
-        for level in dict.fromkeys((stride, 1)):
-            start = identify_start(
-                x[::level],
-                loads[sub],
-                xfs[sub],
-                y[sub][:, ::level],
-                min_cases=min(min_cases, int((~unloaded[sub]).sum())),
-                max_contact_passes=START_PASSES,
-                **{**kwargs, "smoothing": start_sm},
-            )
-            if not np.isfinite(start.log_compliance).all():
-                break  # the start could not run (one load only, ...): its reason stands
-            if level > 1:
-                xs = x[::level]
-                start.beam = BeamSki(
-                    x,
-                    np.interp(x, xs, start.beam.bending_stiffness_nm2),
-                    np.interp(x, xs, start.beam.unloaded_gap_m),
-                )
-            miss = _device_misfit(start.beam, loads[sub], xfs[sub], y[sub])
-            start.extra["device_misfit_m"] = miss
-            start.extra["start_stride"] = level
-            start.extra["start_smoothing"] = float(start_sm)
-            starts.append(start)
-            if miss <= START_RETRY_RATIO * start.noise_m:
-                break
-        return min(starts, key=lambda s: s.extra["device_misfit_m"]) if starts else start
+    def start_job(start_sm: float, knots_m: float = knot_spacing_m) -> tuple:
+        n_loaded = min(min_cases, int((~unloaded[sub]).sum()))
+        kw = {**kwargs, "smoothing": start_sm, "knot_spacing_m": knots_m}
+        return (x, loads[sub], xfs[sub], y[sub], stride, n_loaded, kw)
 
-    start = make_start(sm0)
+    def make_start(start_sm: float) -> IdentifiedBeam:
+        return _start_job(start_job(start_sm))
+
+    # the variant starts (other stiffness knots, VARIANT_KNOT_SPACINGS_M) run beside the start
+    # when a pool is given (two cores: about the start's own wall time)
+    variant_spacings = tuple(float(v) for v in variant_knot_spacings_m if v != knot_spacing_m)
+    variant_starts: list[IdentifiedBeam] = []
+    if path_map is not None and variant_spacings and loaded_idx.size >= min_cases:
+        all_jobs = [start_job(sm0)] + [start_job(sm0, v) for v in variant_spacings]
+        start, *variant_starts = list(path_map(_start_job, all_jobs))
+    else:
+        start = make_start(sm0)
     if loaded_idx.size < min_cases:
         start.reason = (
             f"too few cases: {loaded_idx.size} loaded cases; at least {min_cases} are needed "
@@ -1117,22 +1156,61 @@ def identify_beam(
         """Every (start, path) forward fit, side by side through ``path_map`` when given;
         ``at``: the progress fraction announced (rising: a progress bar never goes back)."""
         t_run = time.perf_counter()
-        work = [(label, sm, beam, sp) for label, sm, beam in todo for sp in paths]
+        work = [(t[0], t[1], t[2], sp, t[3] if len(t) > 3 else None) for t in todo for sp in paths]
         if callback is not None:
             callback(at, f"{len(work)} forward fits ({len(todo)} starts × {len(paths)} paths)")
-        args = [(functools.partial(forward, start=beam), sp) for _, _, beam, sp in work]
+        args = [
+            (
+                functools.partial(forward, start=beam)
+                if knots is None
+                else functools.partial(forward, start=beam, stiffness_knots_m=knots),
+                sp,
+            )
+            for _, _, beam, sp, knots in work
+        ]
         if path_map is not None and len(work) > 1:
             fits = list(path_map(_forward_path, args))
         else:
             fits = [_forward_path(a) for a in args]
         wall["forward_s"] += time.perf_counter() - t_run
-        return [(sp, sm, label, fit) for (label, sm, _, sp), fit in zip(work, fits, strict=True)]
+        return [(sp, sm, label, fit) for (label, sm, _, sp, _), fit in zip(work, fits, strict=True)]
 
     def best(cands: list[tuple]) -> tuple:
         finite = [c for c in cands if np.isfinite(c[3].objective)] or cands
         return min(finite, key=lambda c: (not c[3].converged, c[3].objective))
 
-    candidates = run_all(jobs)
+    # the variant starts: the same variable projection with other stiffness knots, checked on
+    # the device model like the start; their forward fits run with the main ones but are never
+    # chosen (their priors differ, so objectives do not compare): a converged one that fits as
+    # well is an alternative beam (alternative_fits), the basin the chosen fit may have missed
+    if variant_spacings and not variant_starts and np.isfinite(start.log_compliance).all():
+        variant_starts = [_start_job(start_job(sm0, v)) for v in variant_spacings]
+    variant_jobs: list[tuple] = []
+    for v, vs in zip(variant_spacings, variant_starts, strict=False):
+        entry = {
+            "start": f"projection, knots {v * 1e3:g} mm",
+            "smoothing": float(sm0),
+            "own_model_misfit_m": float(vs.misfit_m),
+            "device_misfit_m": float(vs.extra.get("device_misfit_m", np.nan)),
+            "time_s": float(vs.solve_time_s),
+            "used": True,
+            "note": "variant: its fits are alternatives only, never the chosen beam",
+        }
+        miss = entry["device_misfit_m"]
+        if not (np.isfinite(vs.log_compliance).all() and np.isfinite(miss)):
+            entry["used"] = False
+            entry["note"] = f"variant not used: the start did not run ({vs.reason})"
+        elif miss > START_RETRY_RATIO * noise and miss > u_miss:
+            entry["used"] = False
+            entry["note"] = (
+                f"variant not used: its device model misses the cases by {miss * 1e6:.1f} µm"
+            )
+        else:
+            variant_jobs.append((entry["start"], float(sm0), vs.beam, vs.knots_m))
+        starts_report.append(entry)
+    both = run_all(jobs + variant_jobs)
+    n_main = len(jobs) * len(paths)
+    candidates, variant_candidates = both[:n_main], both[n_main:]
     restarted = False
     # a global step on demand: every path from these starts may end in one wrong basin
     # (measured on the 'soft' test design from 94 cases: 1.007-1.03 x the noise, held-out
@@ -1183,7 +1261,9 @@ def identify_beam(
     cov_c = fwd.covariance[:nc, :nc]
     camber_sd = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", bc, cov_c, bc), 0.0))
     spread, per_candidate = _candidate_spread(x, fwd, [c[3] for c in candidates])
-    alternatives = alternative_fits(x, fwd, [c[3] for c in candidates]) if fwd.converged else []
+    _, per_variant = _candidate_spread(x, fwd, [c[3] for c in variant_candidates])
+    pool = [c[3] for c in candidates + variant_candidates]
+    alternatives = alternative_fits(x, fwd, pool) if fwd.converged else []
     ok, reason = True, ""
     converged = [c for c in candidates if c[3].converged and np.isfinite(c[3].misfit_m)]
     n_starts = len({(c[2], c[1]) for c in candidates})
@@ -1234,7 +1314,7 @@ def identify_beam(
         camber_sensitivity=np.zeros((x.size, start.knots_m.size)),
         camber_sd_m=camber_sd,
         solve_time_s=total_s,
-        alternative_beams=tuple(candidates[i][3].beam for i in alternatives),
+        alternative_beams=tuple(pool[i].beam for i in alternatives),
         extra={
             "wall_forward_s": wall["forward_s"],
             "wall_starts_s": total_s - wall["forward_s"],
@@ -1252,8 +1332,26 @@ def identify_beam(
             "start_smoothing": chosen_sm,
             "restarted": restarted,
             "tried_rejected_starts": tried_rejected,
-            # indices into forward_candidates of the alternative beams (alternative_fits)
-            "alternatives": [int(i) for i in alternatives],
+            # the alternative beams (alternative_fits): indices into forward_candidates, and
+            # into variant_candidates (the fits from the variant starts)
+            "alternatives": [int(i) for i in alternatives if i < len(candidates)],
+            "variant_alternatives": [
+                int(i) - len(candidates) for i in alternatives if i >= len(candidates)
+            ],
+            "variant_candidates": [
+                {
+                    "start": label,
+                    "coarse_spacing_m": sp,
+                    "start_smoothing": sm,
+                    "objective": float(f.objective),
+                    "misfit_m": float(f.misfit_m),
+                    "converged": bool(f.converged),
+                    "steps": int(f.iterations),
+                    "time_s": float(f.solve_time_s),
+                    **d,
+                }
+                for (sp, sm, label, f), d in zip(variant_candidates, per_variant, strict=True)
+            ],
             "forward_candidates": [
                 {
                     "start": label,
