@@ -82,9 +82,8 @@ def reidentify(path: Path, backup_dir: Path, commit: str) -> dict:
         return {**row, "outcome": "no served beam stored: left as it was"}
     f, xf, y, _ = mean_profiles(record.measurements)
     held = np.asarray(record.identified["held_out_index"], dtype=int)
-    before = len(
-        np.atleast_2d((record.identified.get("alternatives") or {}).get("unloaded_gap_m", []))
-    )
+    stored_alts = (record.identified.get("alternatives") or {}).get("unloaded_gap_m")
+    before = 0 if stored_alts is None else np.atleast_2d(stored_alts).shape[0]
     t0 = time.perf_counter()
     ident, _ = identify_with_pool(
         identify_beam_checked,

@@ -261,15 +261,17 @@ def render_md(d: dict) -> list[str]:
     lines = [
         "### Beam identification (issue #26: several starts included)",
         "",
-        "Each ski's beam identified as the ski job identifies it (`identify_beam_checked` through "
-        "`app.path_pool.identify_with_pool`): the variable-projection start and the uniform-EI "
+        "Each ski's beam identified as the ski job identifies it (`identify_beam_checked` through"
+        " `app.path_pool.identify_with_pool`): the variable-projection start and the uniform-EI "
         "start, each checked as a device model, then the forward fit of the exact device model "
-        "from every start used on every path, side by side in 2 processes at one BLAS thread "
-        "each, a stiffer-prior restart when the best fit stays above the noise, and the starts "
-        "set aside when no fit reaches it (docs/camber-identification.md). Demo skis: their "
-        "shipped cases (3 µm noise), the held-out cases stored with them. Study designs: the "
-        "virtual device on the coarse 9 × 5 grid with the unloaded profile, 3 µm noise, "
-        "seeded as draw 0 of the own-ski study, the ski job's held-out cases. One run each. "
+        "from every start used on every path, side by side in 2 processes at one BLAS thread each"
+        " (with them the variant start, the projection start with 33 mm stiffness knots, whose "
+        "fits are alternative beams only), a stiffer-prior restart when the best fit stays above "
+        "the noise, and the starts set aside when no fit reaches it "
+        "(docs/camber-identification.md). Demo skis: their shipped cases (3 µm noise), the "
+        "held-out cases stored with them. Study designs: the virtual device on the coarse "
+        "9 × 5 grid with the unloaded profile, 3 µm noise, seeded as draw 0 of the own-ski "
+        "study, the ski job's held-out cases. One run each. "
         f"Target: ≤ {target / 60:.0f} min per ski on 2 cores, several starts included; "
         f"{verdict}.",
         "",

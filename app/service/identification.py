@@ -104,10 +104,11 @@ def _starts_and_fits(extra: dict) -> dict:
     :func:`solvers.identify.identify_beam`'s ``extra``): wall times [s] of the starts and of the
     forward fits, the starts run and the forward fits run, the converged candidates' objectives
     (lowest, range [-]) and misfits [µm], and their largest beam distance in the middle of the
-    ski (max |Δc| [µm], max |Δ ln EI| [-]), and the misfits [µm] of those kept as alternative
-    beams."""
+    ski (max |Δc| [µm], max |Δ ln EI| [-]), the misfits [µm] of those kept as alternative
+    beams (from the main and the variant starts), and the variant starts' fits."""
     spread = extra.get("candidate_spread") or {}
     cands = extra.get("forward_candidates") or []
+    variants = extra.get("variant_candidates") or []
     um = 1e6
     return {
         "starts_wall_s": extra.get("wall_starts_s"),
@@ -134,5 +135,14 @@ def _starts_and_fits(extra: dict) -> dict:
         # misfits [µm]; the error band answers with them too
         "alternative_beams_misfit_um": [
             cands[i]["misfit_m"] * um for i in extra.get("alternatives") or [] if i < len(cands)
+        ]
+        + [
+            variants[i]["misfit_m"] * um
+            for i in extra.get("variant_alternatives") or []
+            if i < len(variants)
         ],
+        # the variant starts (other stiffness knots): their forward fits are alternatives only
+        "variant_fits": len(variants),
+        "variant_fits_time_s": float(sum(c["time_s"] for c in variants)),
+        "variant_misfit_um": [c["misfit_m"] * um for c in variants],
     }

@@ -128,6 +128,8 @@ def test_report_fields_of_the_starts_and_fits():
             for t, m in zip((10.0, 20.0, 15.0, 25.0), (3.0e-6, 3.1e-6, 3.2e-6, 9e-6), strict=True)
         ],
         "alternatives": [2, 1],
+        "variant_candidates": [{"time_s": 8.0, "misfit_m": 3.05e-6}],
+        "variant_alternatives": [0],
         "restarted": False,
         "tried_rejected_starts": False,
         "start": "uniform",
@@ -149,12 +151,15 @@ def test_report_fields_of_the_starts_and_fits():
     assert f["candidates_misfit_um"] == pytest.approx([3.0, 3.2], rel=1e-12)
     assert f["candidates_max_dc_middle_um"] == pytest.approx(2.0, rel=1e-12)
     assert f["candidates_objective_range"] == 20.0
-    # the alternative beams' misfits, in the identification's order
-    assert f["alternative_beams_misfit_um"] == pytest.approx([3.2, 3.1], rel=1e-12)
+    # the alternative beams' misfits: the main fits' in the identification's order, then the
+    # variant starts' fits
+    assert f["alternative_beams_misfit_um"] == pytest.approx([3.2, 3.1, 3.05], rel=1e-12)
+    assert f["variant_fits"] == 1 and f["variant_fits_time_s"] == 8.0
+    assert f["variant_misfit_um"] == pytest.approx([3.05], rel=1e-12)
     # no converged candidate: the spread fields are empty, not an error
     none = _starts_and_fits({"candidate_spread": {"converged": 0}, "forward_candidates": []})
     assert none["candidates_converged"] == 0 and none["candidates_misfit_um"] == [None, None]
-    assert none["alternative_beams_misfit_um"] == []
+    assert none["alternative_beams_misfit_um"] == [] and none["variant_fits"] == 0
 
 
 def test_design_data_are_the_own_ski_study_coarse_data():

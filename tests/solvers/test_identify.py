@@ -493,6 +493,17 @@ def test_alternative_fits_keeps_close_different_converged_fits():
     many = [chosen] + [_fit(scaled(1.1 + 0.1 * k), 3e-6, 100.0 + k) for k in range(6)]
     kept = identify.alternative_fits(x, chosen, many)
     assert kept == list(range(1, identify.ALTERNATIVES_MAX + 1))
+    # the variant starts' slot: its own count, and distinct from the beams already kept (the
+    # main alternatives), which it does not displace
+    kept_beams = tuple(fits[i].beam for i in (3, 2))
+    variants = [
+        _fit(scaled(1.3 * 1.001), 3e-6, 90.0),  # like a kept main alternative: not again
+        _fit(scaled(1.6), 3e-6 * (1 + 0.5 * r), 95.0),
+        _fit(scaled(1.9), 3e-6 * (1 + 0.5 * r), 96.0),
+        _fit(scaled(2.2), 3e-6 * (1 + 0.5 * r), 97.0),
+    ]
+    got = identify.alternative_fits(x, chosen, variants, kept=kept_beams, max_count=2)
+    assert got == [1, 2]
 
 
 def test_identification_reports_its_alternative_beams():
@@ -502,13 +513,98 @@ def test_identification_reports_its_alternative_beams():
     1) the second start ends 0.14 % above the chosen fit's misfit in another beam."""
     _ski, ident = _identified("soft", 4e-3, 3e-6, 1)
     idx = ident.extra["alternatives"]
-    assert 1 <= len(ident.alternative_beams) == len(idx) <= identify.ALTERNATIVES_MAX
-    cands = ident.extra["forward_candidates"]
-    for i, b in zip(idx, ident.alternative_beams, strict=True):
-        assert cands[i]["converged"]
-        assert cands[i]["misfit_m"] <= (1 + identify.ALTERNATIVE_MISFIT_RANGE) * ident.misfit_m
+    v_idx = ident.extra["variant_alternatives"]
+    assert len(idx) >= 1
+    assert len(idx) <= identify.ALTERNATIVES_MAX
+    assert len(v_idx) <= identify.VARIANT_ALTERNATIVES_MAX
+    assert len(ident.alternative_beams) == len(idx) + len(v_idx)
+    cands = [ident.extra["forward_candidates"][i] for i in idx]
+    cands += [ident.extra["variant_candidates"][i] for i in v_idx]
+    for c in cands:
+        assert c["converged"]
+        assert c["misfit_m"] <= (1 + identify.ALTERNATIVE_MISFIT_RANGE) * ident.misfit_m
+    for b in ident.alternative_beams:
         np.testing.assert_array_equal(b.positions_m, ident.beam.positions_m)
         assert not np.array_equal(b.bending_stiffness_nm2, ident.beam.bending_stiffness_nm2)
+
+
+def test_variant_starts_are_alternatives_only():
+    """The variant starts (the projection start with other stiffness knots) run their own
+    forward fits, reported apart (variant_starts, variant_candidates); they never change the
+    chosen beam or the main candidates (the same identification without them is bitwise the
+    same), and a variant fit within the misfit range that differs from the chosen beam is
+    among the alternatives (on 'soft', seed 1, 4 mm: one)."""
+    ski, f, xf, y = _data(DESIGNS["soft"], 4e-3, 3e-6, 1)
+    _ski, with_v = _identified("soft", 4e-3, 3e-6, 1)
+    without = identify.identify_beam(ski.positions_m, f, xf, y, variant_knot_spacings_m=())
+    np.testing.assert_array_equal(
+        with_v.beam.bending_stiffness_nm2, without.beam.bending_stiffness_nm2
+    )
+    np.testing.assert_array_equal(with_v.beam.unloaded_gap_m, without.beam.unloaded_gap_m)
+
+    def timeless(cands):
+        return [{k: v for k, v in c.items() if k != "time_s"} for c in cands]
+
+    assert timeless(with_v.extra["forward_candidates"]) == timeless(
+        without.extra["forward_candidates"]
+    )
+    assert without.extra["variant_candidates"] == [] and without.extra["variant_starts"] == []
+    starts = with_v.extra["variant_starts"]
+    assert [s["start"] for s in starts] == [
+        f"projection, knots {v * 1e3:g} mm" for v in identify.VARIANT_KNOT_SPACINGS_M
+    ]
+    assert all(s["used"] for s in starts)
+    # every used variant start runs on every path, with its knots (another parameter count)
+    vc = with_v.extra["variant_candidates"]
+    paths = {c["coarse_spacing_m"] for c in with_v.extra["forward_candidates"]}
+    assert len(vc) == len(starts) * len(paths)
+    assert {c["coarse_spacing_m"] for c in vc} == paths
+    assert all(c["converged"] for c in vc)
+    # measured: the variant's best fit 1.7 % above the chosen misfit, in another beam
+    assert with_v.extra["variant_alternatives"]
+    # the variants' alternatives: within the range and distinct from the chosen beam; the
+    # variant-free run has only the main alternatives
+    for i in with_v.extra["variant_alternatives"]:
+        assert vc[i]["misfit_m"] <= (1 + identify.ALTERNATIVE_MISFIT_RANGE) * with_v.misfit_m
+        assert (
+            vc[i]["max_dc_middle_m"] > identify.ALTERNATIVE_MIN_DC_M
+            or vc[i]["max_dlog_ei_middle"] > identify.ALTERNATIVE_MIN_DLOG_EI
+        )
+    assert len(without.alternative_beams) == len(without.extra["alternatives"])
+
+
+def test_variant_starts_run_beside_the_start_in_the_pool():
+    """With a pool, the start and the variant starts run side by side in the workers (one
+    BLAS thread each): the same starts and fits as in this process at one BLAS thread, to
+    rounding (at another thread count a start moves by ~1e-5 relative: rounding)."""
+    from skisnow.app.path_pool import fixed_blas_threads, path_pool
+
+    ski = DESIGNS["stiff"].build(4e-3)
+    f, xf, y = measure_camber(ski, LOADS_N[::2], POSITIONS_M[::2], noise_m=3e-6, rng=5)
+    run = functools.partial(
+        identify.identify_beam,
+        ski.positions_m,
+        f,
+        xf,
+        y,
+        max_steps=3,
+        forward_coarse_spacings_m=(0.0,),
+    )
+    with fixed_blas_threads():
+        here = run()
+    with path_pool(2) as pmap:
+        pooled = run(path_map=pmap)
+    assert len(here.extra["starts"]) >= 2
+    assert len(here.extra["variant_starts"]) == len(identify.VARIANT_KNOT_SPACINGS_M)
+    for key in ("starts", "variant_starts"):
+        a, b = here.extra[key], pooled.extra[key]
+        assert [s["start"] for s in a] == [s["start"] for s in b]
+        for sa, sb in zip(a, b, strict=True):
+            assert sa["device_misfit_m"] == pytest.approx(sb["device_misfit_m"], rel=1e-6)
+    for a, b in zip(
+        here.extra["variant_candidates"], pooled.extra["variant_candidates"], strict=True
+    ):
+        assert a["objective"] == pytest.approx(b["objective"], rel=1e-6)
 
 
 def test_covariance_root_holds_parameters_of_very_different_scales():
