@@ -103,6 +103,10 @@ def reidentify(path: Path, backup_dir: Path, commit: str) -> dict:
         alternatives_after=len(ident.alternative_beams),
         main_alternatives=len(e.get("alternatives", [])),
         variant_alternatives=len(e.get("variant_alternatives", [])),
+        variant_starts=[
+            {k: v.get(k) for k in ("start", "device_misfit_m", "time_s", "used", "note")}
+            for v in e.get("variant_starts", [])
+        ],
         variant_candidates=[
             {
                 k: c[k]
