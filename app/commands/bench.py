@@ -63,6 +63,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_false",
         help="leave out the beam identification (demo skis and study designs; minutes per ski)",
     )
+    mac.add_argument(
+        "--only-identification",
+        action="store_true",
+        help="run only the beam identification; the other parts are kept from the last run "
+        "(docs/bench/macro.json), with that run's provenance",
+    )
     mac.set_defaults(func=_run_macro)
     _register_accuracy(bsub)
 
@@ -117,7 +123,10 @@ def _run_micro(args: argparse.Namespace) -> int:
 
 
 def _run_macro(args: argparse.Namespace) -> int:
-    data = macro.bench_macro_stage(args.repeats, identification=args.identification)
+    if args.only_identification:
+        data = macro.identification_only(writer.DOCS / "bench" / "macro.json")
+    else:
+        data = macro.bench_macro_stage(args.repeats, identification=args.identification)
     path = writer.write_stage("macro", data, None)
     print(f"wrote {path} and {writer.DOCS / 'benchmarks.md'}")
     return 0

@@ -7,9 +7,11 @@ Written by :func:`app.evidence.writer.write_stage` to ``docs/bench/macro.json``;
 
 from __future__ import annotations
 
+import json
 import logging
 import statistics
 import time
+from pathlib import Path
 
 import numpy as np
 from skisnow.app.evidence import identification as identification_bench
@@ -26,6 +28,7 @@ from skisnow.app.service.profiles import profile_model
 from skisnow.app.storage.skis import SHIPPED_SKI_DIR, read_ski
 from skisnow.solvers.beam import G_STANDARD
 from skisnow.solvers.elastic import effective_modulus
+from skisnow.solvers.errors import DataFileError
 from skisnow.solvers.macro import (
     DEFAULT_PIXEL_ACROSS,
     DEFAULT_PIXEL_ALONG_M,
@@ -62,6 +65,29 @@ def bench_macro_stage(
             camber.predict_profile(net, PAPER_LOAD_KG * G_STANDARD, PAPER_POSITION_MM / 1e3)
             times.append(time.perf_counter() - t0)
         out["inference"][name] = {"calls": inference_calls, "median_s": statistics.median(times)}
+    return out
+
+
+#: the parts of the macro stage that ``--only-identification`` keeps from the last run
+KEPT_PARTS = ("skis", "inference", "flexible")
+
+
+def identification_only(previous: Path) -> dict:
+    """The macro stage with only the beam identification run again: ``skis``, ``inference``
+    and ``flexible`` copied from the ``previous`` run's JSON, named under
+    ``kept_from_previous_run`` with that run's provenance (DataFileError without one)."""
+    if not Path(previous).is_file():
+        raise DataFileError(
+            f"{previous}: no previous macro run to keep the other parts from; run "
+            "`skisnow bench macro` once in full"
+        )
+    old = json.loads(Path(previous).read_text(encoding="utf-8"))
+    out = {k: old[k] for k in KEPT_PARTS if k in old}
+    out["kept_from_previous_run"] = {
+        "parts": [k for k in KEPT_PARTS if k in old],
+        "provenance": old.get("provenance", {}),
+    }
+    out["identification"] = identification_bench.bench_identification()
     return out
 
 
@@ -231,6 +257,16 @@ def render_md(d: dict) -> list[str]:
         )
     lines.append("")
     lines += _flexible_md(d.get("flexible", {}))
+    kept = d.get("kept_from_previous_run")
+    if kept:
+        prov = kept.get("provenance", {})
+        lines += [
+            "",
+            f"The {', '.join(kept.get('parts', []))} parts above are kept from the run of "
+            f"{prov.get('created_utc', '?')} (commit {str(prov.get('git_commit', '?'))[:12]}); "
+            "only the beam identification below was run again (`skisnow bench macro "
+            "--only-identification`).",
+        ]
     lines += identification_bench.render_md(d.get("identification", {}))
     return lines
 

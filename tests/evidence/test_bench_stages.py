@@ -40,6 +40,46 @@ def test_bench_macro_stage_renders():
     assert all(0 < r["median_s"] < 1 for r in data["inference"].values())
 
 
+def test_macro_identification_only_keeps_the_other_parts(tmp_path, monkeypatch):
+    """``bench macro --only-identification``: the identification is run again (here a stand-in:
+    the real one takes minutes per ski), the other parts are the previous run's, and the page
+    says which and from when; without a previous run it says what to run."""
+    import json
+
+    from skisnow.solvers.errors import DataFileError
+
+    prev = tmp_path / "macro.json"
+    old = {
+        "stage": "macro",
+        "provenance": {"created_utc": "2026-11-26T15:29:16+00:00", "git_commit": "bd0184f0c140b2"},
+        "skis": {"ski-a": {"x": 1}},
+        "inference": {"ski-a": {"median_s": 1e-4}},
+        "flexible": {"ski-a": {"y": 2}},
+        "identification": {"skis": {"old": {}}},
+    }
+    prev.write_text(json.dumps(old))
+    fresh = {"target_s": 120.0, "skis": {"new": {}}, "job": {}}
+    monkeypatch.setattr(macro.identification_bench, "bench_identification", lambda: fresh)
+    data = macro.identification_only(prev)
+    assert data["identification"] == fresh
+    assert {k: data[k] for k in macro.KEPT_PARTS} == {k: old[k] for k in macro.KEPT_PARTS}
+    assert data["kept_from_previous_run"]["parts"] == list(macro.KEPT_PARTS)
+    assert data["kept_from_previous_run"]["provenance"] == old["provenance"]
+    monkeypatch.setattr(macro.identification_bench, "render_md", lambda d: ["IDENT"])
+    monkeypatch.setattr(macro, "_case_words", lambda: "case")
+    monkeypatch.setattr(macro, "_profile_words", lambda d: "profile")
+    text = "\n".join(_kept_lines(macro.render_md, data))
+    assert "kept from the run of 2026-11-26T15:29:16+00:00 (commit bd0184f0c140)" in text
+    with pytest.raises(DataFileError, match="bench macro"):
+        macro.identification_only(tmp_path / "missing.json")
+
+
+def _kept_lines(render, data):
+    """The rendered lines from the kept-parts note on (the tables above it need full rows)."""
+    trimmed = {**data, "skis": {}, "inference": {}, "flexible": {}}
+    return render(trimmed)
+
+
 def test_benchmarks_md_renders_stages_and_skips_other_json(tmp_path):
     """docs/bench may hold files that are not stages; the page is still written (no KeyError)."""
     import json
