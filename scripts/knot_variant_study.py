@@ -35,14 +35,14 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "scripts"))
 
-from skisnow.app.path_pool import identify_with_pool  # noqa: E402
+from reidentify_study import identify_as_its_job  # noqa: E402
 from skisnow.app.service.band_sampling import CONTACT_BAND_M  # noqa: E402
 from skisnow.app.service.profiles import served_beam  # noqa: E402
 from skisnow.app.storage import common  # noqa: E402
-from skisnow.app.storage.skis import mean_profiles, read_ski  # noqa: E402
+from skisnow.app.storage.skis import read_ski  # noqa: E402
 from skisnow.solvers.beam import G_STANDARD, solve_beam_contact  # noqa: E402
-from skisnow.solvers.identify import identify_beam_checked  # noqa: E402
 
 SCHEMA = "skisnow.knot-variant-study/1"
 KNOT_SPACING_M = 0.033
@@ -63,18 +63,8 @@ def ski_rows(ski_file: str, cases: list[dict], misses: list[dict], knot_spacing_
     ``misses``: the ski's unwarned misses (rigid-miss.json's summary), flagged per case."""
     record = read_ski(ski_file)
     served = served_beam(record.identified)
-    f, xf, y, _ = mean_profiles(record.measurements)
-    held = np.asarray(record.identified["held_out_index"], dtype=int)
     t0 = time.perf_counter()
-    ident, check = identify_with_pool(
-        identify_beam_checked,
-        record.measurements.positions_m,
-        f,
-        xf,
-        y,
-        held_out_index=held,
-        knot_spacing_m=knot_spacing_m,
-    )
+    ident, check = identify_as_its_job(record, knot_spacing_m=knot_spacing_m)
     out = {
         "ski_file": ski_file,
         "knot_spacing_m": knot_spacing_m,

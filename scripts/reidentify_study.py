@@ -53,6 +53,24 @@ def same_beam(a, b) -> bool:
     )
 
 
+def identify_as_its_job(record, **kwargs):
+    """Identify a stored ski's beam again as its job did
+    (:func:`app.path_pool.identify_with_pool` of :func:`solvers.identify.identify_beam_checked`
+    on its mean profiles, the held-out cases stored with it); ``kwargs`` go to the
+    identification. Returns (identification, held-out check)."""
+    f, xf, y, _ = mean_profiles(record.measurements)
+    held = np.asarray(record.identified["held_out_index"], dtype=int)
+    return identify_with_pool(
+        identify_beam_checked,
+        record.measurements.positions_m,
+        f,
+        xf,
+        y,
+        held_out_index=held,
+        **kwargs,
+    )
+
+
 def write_alternatives(path: Path, beams, commit: str) -> None:
     """Replace ``identified/alternatives`` of the ski file ``path`` (atomically: a copy is edited
     and renamed onto it); none left when ``beams`` is empty."""
@@ -80,19 +98,10 @@ def reidentify(path: Path, backup_dir: Path, commit: str) -> dict:
     row = {"ski_file": str(path), "name": path.stem}
     if stored is None:
         return {**row, "outcome": "no served beam stored: left as it was"}
-    f, xf, y, _ = mean_profiles(record.measurements)
-    held = np.asarray(record.identified["held_out_index"], dtype=int)
     stored_alts = (record.identified.get("alternatives") or {}).get("unloaded_gap_m")
     before = 0 if stored_alts is None else np.atleast_2d(stored_alts).shape[0]
     t0 = time.perf_counter()
-    ident, _ = identify_with_pool(
-        identify_beam_checked,
-        record.measurements.positions_m,
-        f,
-        xf,
-        y,
-        held_out_index=held,
-    )
+    ident, _ = identify_as_its_job(record)
     e = ident.extra
     row.update(
         time_s=round(time.perf_counter() - t0, 1),

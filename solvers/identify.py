@@ -1350,34 +1350,8 @@ def identify_beam(
                 int(i) - len(candidates) for i in alternatives if i >= len(candidates)
             ],
             "variant_starts": variant_report,
-            "variant_candidates": [
-                {
-                    "start": label,
-                    "coarse_spacing_m": sp,
-                    "start_smoothing": sm,
-                    "objective": float(f.objective),
-                    "misfit_m": float(f.misfit_m),
-                    "converged": bool(f.converged),
-                    "steps": int(f.iterations),
-                    "time_s": float(f.solve_time_s),
-                    **d,
-                }
-                for (sp, sm, label, f), d in zip(variant_candidates, per_variant, strict=True)
-            ],
-            "forward_candidates": [
-                {
-                    "start": label,
-                    "coarse_spacing_m": sp,
-                    "start_smoothing": sm,
-                    "objective": float(f.objective),
-                    "misfit_m": float(f.misfit_m),
-                    "converged": bool(f.converged),
-                    "steps": int(f.iterations),
-                    "time_s": float(f.solve_time_s),
-                    **d,
-                }
-                for (sp, sm, label, f), d in zip(candidates, per_candidate, strict=True)
-            ],
+            "variant_candidates": _candidate_rows(variant_candidates, per_variant),
+            "forward_candidates": _candidate_rows(candidates, per_candidate),
             "candidate_spread": spread,
             "forward_steps": int(fwd.iterations),
             "forward_message": fwd.message,
@@ -1395,6 +1369,25 @@ def identify_beam(
         camber_coefficients=fwd.camber_coefficients,
         parameter_covariance=fwd.covariance,
     )
+
+
+def _candidate_rows(cands: list[tuple], distances: list[dict]) -> list[dict]:
+    """One JSON-ready row per forward fit (coarse spacing, start smoothing, start, fit) of
+    :func:`identify_beam`, with its distances to the chosen beam (:func:`_candidate_spread`)."""
+    return [
+        {
+            "start": label,
+            "coarse_spacing_m": sp,
+            "start_smoothing": sm,
+            "objective": float(f.objective),
+            "misfit_m": float(f.misfit_m),
+            "converged": bool(f.converged),
+            "steps": int(f.iterations),
+            "time_s": float(f.solve_time_s),
+            **d,
+        }
+        for (sp, sm, label, f), d in zip(cands, distances, strict=True)
+    ]
 
 
 def _starts_summary(report: list[dict]) -> str:
