@@ -1027,9 +1027,9 @@ def identify_beam(
     if start_spacing_m > 0 and x.ndim == 1 and x.size > 1 and x[1] > x[0]:
         stride = max(1, min(round(start_spacing_m / float(x[1] - x[0])), (x.size - 1) // 20))
 
-    def start_job(start_sm: float, knots_m: float = knot_spacing_m) -> tuple:
+    def start_job(start_sm: float, spacing_m: float = knot_spacing_m) -> tuple:
         n_loaded = min(min_cases, int((~unloaded[sub]).sum()))
-        kw = {**kwargs, "smoothing": start_sm, "knot_spacing_m": knots_m}
+        kw = {**kwargs, "smoothing": start_sm, "knot_spacing_m": spacing_m}
         return (x, loads[sub], xfs[sub], y[sub], stride, n_loaded, kw)
 
     def make_start(start_sm: float) -> IdentifiedBeam:
