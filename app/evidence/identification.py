@@ -135,6 +135,9 @@ def _one(data: CamberData, truth: BeamSki, held_out_index, shipped: BeamSki | No
             "starts_checked",
             "forward_fits",
             "forward_fits_time_s",
+            "variant_fits",
+            "variant_misfit_um",
+            "alternative_beams_misfit_um",
             "restarted",
             "tried_rejected_starts",
             "chosen_start",
@@ -231,6 +234,12 @@ def _cases(r: dict) -> str:
     return f"{r['cases']}" + (f" ({held} held out)" if held else "")
 
 
+def _variant_fits(r: dict) -> str:
+    """The suffix for a row whose identification ran K variant fits (none: empty)."""
+    k = r.get("variant_fits")
+    return f" + {k} variant" if k else ""
+
+
 def _f(v, fmt: str) -> str:
     return "—" if v is None else format(v, fmt)
 
@@ -282,7 +291,7 @@ def render_md(d: dict) -> list[str]:
         "misfit over the estimated noise; held-out RMS against the measurements and against "
         "the truth where H* < 0.2 mm (target ≤ 0.3 µm).",
         "",
-        "| ski | cases | time [s] (starts + forward) | CPU [s] | starts / fits "
+        "| ski | cases | time [s] (starts + forward) | CPU [s] | starts / fits (+ variant fits) "
         "| objective range / min | candidates' misfit [µm] | max Δc [µm] / Δ ln EI, middle "
         "| misfit / noise [µm] | held-out vs measured [µm] | held-out vs truth near contact [µm] |",
         "|---|---|---|---|---|---|---|---|---|---|---|",
@@ -295,7 +304,7 @@ def render_md(d: dict) -> list[str]:
             f"| {name} | {_cases(r)} | {r['time_s']:.0f} ({_f(r.get('starts_wall_s'), '.0f')} "
             f"+ {_f(r.get('forward_wall_s'), '.0f')}) | {_f(r.get('cpu_s'), '.0f')} | "
             f"{_f(r.get('starts_run'), 'd')} / "
-            f"{_f(r.get('forward_fits'), 'd')} | {_f(rel, '.1e')} | "
+            f"{_f(r.get('forward_fits'), 'd')}{_variant_fits(r)} | {_f(rel, '.1e')} | "
             f"{_f(mis[0], '.3f')}–{_f(mis[1], '.3f')} | "
             f"{_f(r.get('candidates_max_dc_middle_um'), '.2f')} / "
             f"{_f(r.get('candidates_max_dlog_ei_middle'), '.3f')} | "

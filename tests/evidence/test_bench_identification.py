@@ -70,6 +70,12 @@ def test_section_renders_each_ski_and_says_whether_the_target_is_met():
         "| 3.00 / 3.01 | 3.00 | 0.096 |"
     )
     assert rows[1].startswith("| skate-coarse-d0 | 46 (9 held out) | 131 (20 + 75) |")
+    # the variant start's fits, when the row has them
+    with_v = ib.render_md({"skis": {"ski-a": _row(95.2, variant_fits=2)}})
+    assert any(
+        line.startswith("| ski-a | 46 | 95 (20 + 75) | 170 | 2 / 4 + 2 variant |")
+        for line in with_v
+    )
     text = "\n".join(lines)
     assert "Target: ≤ 2 min per ski on 2 cores, several starts included; not met: 1 of 2" in text
     assert "(skate-coarse-d0; the slowest 131 s)." in text  # load 2.4: not a loaded machine
