@@ -605,13 +605,15 @@ def rescore_ski(catalogue: service.Catalogue, res: dict, settings: dict, work: P
     """``res`` (a cached ski) with its held-out cases answered again by this checkout's service
     from the kept ski file (the job's served model, unchanged); the truths are the cached ones.
     A band or warning change is measured this way in minutes instead of re-running every job.
-    The new answers are cached in ``work/rescored`` per commit; ``res`` gains
-    ``answers_git_commit``. A ski without a kept file is returned as it was."""
+    The new answers are cached in ``work/rescored`` per commit and ski file (its SHA-256: a
+    ski re-identified at the same commit, by ``reidentify_study.py``, is asked again); ``res``
+    gains ``answers_git_commit``. A ski without a kept file is returned as it was."""
     name = f"{res['design']}-{res['grid']}-d{res['draw']}"
     path = Path(res.get("ski_file") or "")
     if res.get("outcome") != "done" or not path.is_file():
         return res
     commit = common.git_commit()
+    sha = hashlib.sha256(path.read_bytes()).hexdigest()
     cache = work / "rescored" / f"{name}.json"
     if cache.is_file():
         cached = json.loads(cache.read_text(encoding="utf-8"))
@@ -619,10 +621,10 @@ def rescore_ski(catalogue: service.Catalogue, res: dict, settings: dict, work: P
         ref_ok = (
             not settings["reference_fit"] or res.get("reference_fit") or fields.get("reference_fit")
         )
-        if cached.get("git_commit") == commit and commit and ref_ok:
+        same_ski = cached.get("ski_sha256") == sha
+        if cached.get("git_commit") == commit and commit and ref_ok and same_ski:
             log.info("  %s: rescored at %s, cached", name, commit[:12])
             return {**res, **fields}
-    sha = hashlib.sha256(path.read_bytes()).hexdigest()
     from skisnow.app.storage.skis import read_ski
 
     cat = service.Catalogue(
@@ -663,7 +665,8 @@ def rescore_ski(catalogue: service.Catalogue, res: dict, settings: dict, work: P
     cache.parent.mkdir(parents=True, exist_ok=True)
     with common.atomic_path(cache) as tmp:
         tmp.write_text(
-            json.dumps({"git_commit": commit, "fields": fields}, default=_json), encoding="utf-8"
+            json.dumps({"git_commit": commit, "ski_sha256": sha, "fields": fields}, default=_json),
+            encoding="utf-8",
         )
     log.info("  %s: rescored %d cases in %.0f s", name, len(answers), fields["answers_time_s"])
     return {**res, **fields}

@@ -241,6 +241,28 @@ def test_rescore_asks_again_from_the_kept_ski_file(study, catalogue):
     assert stored.is_file() and len(json.loads(stored.read_text(encoding="utf-8"))) == HELD_OUT
 
 
+def test_rescore_cache_is_keyed_by_commit_and_ski_file(study, catalogue, tmp_path):
+    """A rescore at the same commit is read from its cache only while the kept ski file is the
+    one it was asked from: a ski re-identified since (another SHA-256) is asked again."""
+    import shutil
+
+    _, _, tmp = study
+    work = tmp_path / "work"
+    shutil.copytree(tmp / "work", work)
+    oss.run_study(catalogue, SETTINGS, work, None, run_missing=False, rescore=True)
+    (cache,) = (work / "rescored").glob("*.json")
+    doc = json.loads(cache.read_text(encoding="utf-8"))
+    assert len(doc["ski_sha256"]) == 64
+    doc["fields"]["answers"][0]["rigid"]["area_cm2"] = -1.0  # marks the cached answers
+    cache.write_text(json.dumps(doc), encoding="utf-8")
+    (ski,) = oss.run_study(catalogue, SETTINGS, work, None, run_missing=False, rescore=True)["skis"]
+    assert ski["answers"][0]["rigid"]["area_cm2"] == -1.0
+    doc["ski_sha256"] = "0" * 64  # as if the ski file had changed since
+    cache.write_text(json.dumps(doc), encoding="utf-8")
+    (ski,) = oss.run_study(catalogue, SETTINGS, work, None, run_missing=False, rescore=True)["skis"]
+    assert ski["answers"][0]["rigid"]["area_cm2"] > 0
+
+
 def test_summary_reads_the_latest_rescore(study, catalogue, tmp_path):
     """``--summary-only`` summarises a cached ski with the answers of its latest rescore (any
     commit, named in ``answers_git_commit``), and the ski as cached without one."""
