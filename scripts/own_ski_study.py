@@ -601,6 +601,14 @@ def latest_rescore(res: dict, work: Path) -> dict:
     return {**res, **json.loads(cache.read_text(encoding="utf-8"))["fields"]}
 
 
+def kept_ski_file(res: dict, work: Path) -> Path:
+    """The ski file kept for ``res`` (a cached ski): ``work/skis/<name>.h5`` when there (a work
+    folder copied elsewhere, e.g. to try another identification on it, reads its own copy), else
+    the path the study recorded."""
+    own = work / "skis" / Path(res.get("ski_file") or "").name
+    return own if own.name and own.is_file() else Path(res.get("ski_file") or "")
+
+
 def rescore_ski(catalogue: service.Catalogue, res: dict, settings: dict, work: Path) -> dict:
     """``res`` (a cached ski) with its held-out cases answered again by this checkout's service
     from the kept ski file (the job's served model, unchanged); the truths are the cached ones.
@@ -609,7 +617,7 @@ def rescore_ski(catalogue: service.Catalogue, res: dict, settings: dict, work: P
     ski re-identified at the same commit, by ``reidentify_study.py``, is asked again); ``res``
     gains ``answers_git_commit``. A ski without a kept file is returned as it was."""
     name = f"{res['design']}-{res['grid']}-d{res['draw']}"
-    path = Path(res.get("ski_file") or "")
+    path = kept_ski_file(res, work)
     if res.get("outcome") != "done" or not path.is_file():
         return res
     commit = common.git_commit()

@@ -90,9 +90,10 @@ def write_alternatives(path: Path, beams, commit: str) -> None:
             grp.attrs["alternatives_reidentified_git_commit"] = commit
 
 
-def reidentify(path: Path, backup_dir: Path, commit: str) -> dict:
+def reidentify(path: Path, backup_dir: Path, commit: str, **kwargs) -> dict:
     """One ski file: identified again, its alternatives replaced when the chosen beam is the
-    stored one; a JSON-ready row."""
+    stored one; a JSON-ready row. ``kwargs`` go to the identification (e.g.
+    ``variant_knot_spacings_m``, to measure other variant starts)."""
     record = read_ski(path)
     stored = served_beam(record.identified)
     row = {"ski_file": str(path), "name": path.stem}
@@ -101,7 +102,7 @@ def reidentify(path: Path, backup_dir: Path, commit: str) -> dict:
     stored_alts = (record.identified.get("alternatives") or {}).get("unloaded_gap_m")
     before = 0 if stored_alts is None else np.atleast_2d(stored_alts).shape[0]
     t0 = time.perf_counter()
-    ident, _ = identify_as_its_job(record)
+    ident, _ = identify_as_its_job(record, **kwargs)
     e = ident.extra
     row.update(
         time_s=round(time.perf_counter() - t0, 1),
@@ -147,14 +148,24 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--work", type=Path, required=True, help="own_ski_study.py --work folder")
     ap.add_argument("--out", type=Path, required=True, help="JSON report")
     ap.add_argument("--only", nargs="*", help="ski file stems (default: every ski)")
+    ap.add_argument(
+        "--variant-knot-spacings-m",
+        type=float,
+        nargs="+",
+        help="variant starts' stiffness knot spacings [m] (default: the identification's, "
+        "solvers.identify.VARIANT_KNOT_SPACINGS_M); to measure other variants",
+    )
     args = ap.parse_args(argv)
+    kwargs = {}
+    if args.variant_knot_spacings_m:
+        kwargs["variant_knot_spacings_m"] = tuple(args.variant_knot_spacings_m)
     commit = common.git_commit()
     files = sorted((args.work / "skis").glob("*.h5"))
     if args.only:
         files = [p for p in files if p.stem in set(args.only)]
     rows = []
     for i, path in enumerate(files, 1):
-        row = reidentify(path, args.work / BACKUP, commit)
+        row = reidentify(path, args.work / BACKUP, commit, **kwargs)
         rows.append(row)
         print(
             f"[{i}/{len(files)}] {row['name']}: {row['outcome']} "
@@ -164,7 +175,7 @@ def main(argv: list[str] | None = None) -> int:
         )
         doc = {
             "schema": SCHEMA,
-            "provenance": common.provenance({"work": str(args.work)}),
+            "provenance": common.provenance({"work": str(args.work), **kwargs}),
             "skis": rows,
         }
         with common.atomic_path(args.out) as tmp:

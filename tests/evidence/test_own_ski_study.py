@@ -263,6 +263,20 @@ def test_rescore_cache_is_keyed_by_commit_and_ski_file(study, catalogue, tmp_pat
     assert ski["answers"][0]["rigid"]["area_cm2"] > 0
 
 
+def test_kept_ski_file_is_read_from_its_own_work_folder(tmp_path):
+    """A work folder copied elsewhere rescores from its own copy of the kept ski file, not from
+    the path the study recorded; without a copy, the recorded path."""
+    recorded = tmp_path / "a" / "skis" / "x-dense-d0.h5"
+    copy = tmp_path / "b" / "skis" / "x-dense-d0.h5"
+    for p in (recorded, copy):
+        p.parent.mkdir(parents=True)
+        p.write_bytes(b"")
+    res = {"ski_file": str(recorded)}
+    assert oss.kept_ski_file(res, tmp_path / "b") == copy
+    assert oss.kept_ski_file(res, tmp_path / "c") == recorded
+    assert not oss.kept_ski_file({}, tmp_path / "b").is_file()
+
+
 def test_summary_reads_the_latest_rescore(study, catalogue, tmp_path):
     """``--summary-only`` summarises a cached ski with the answers of its latest rescore (any
     commit, named in ``answers_git_commit``), and the ski as cached without one."""
