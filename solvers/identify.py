@@ -68,7 +68,9 @@ from .beam_fit import double_integral as _double_integral
 from .errors import InputError
 
 __all__ = [
+    "BeamDraws",
     "IdentifiedBeam",
+    "draw_beam_deviations",
     "estimate_noise",
     "identify_beam",
     "predict_gaps",
@@ -1611,6 +1613,85 @@ def _covariance_root(cov: np.ndarray) -> np.ndarray:
     return d[:, None] * vecs * np.sqrt(np.maximum(vals, 0.0))
 
 
+@dataclass(frozen=True)
+class BeamDraws:
+    """Unit parameter deviations of plausible beams drawn from an identification's covariance
+    (:func:`draw_beam_deviations`): everything a draw costs but its scale, so that beams at
+    another scale (:meth:`beams`) need no new eigen-decomposition or random numbers."""
+
+    #: the identification drawn from
+    ident: IdentifiedBeam
+    #: per draw, the parameter deviation at scale 1: (camber coefficients [m], γ [-]) with the
+    #: joint covariance, else (Δγ [-], the camber's own standard normals [-])
+    deviations: tuple[np.ndarray, ...]
+    #: hat functions of the stiffness knots on the beam's nodes (N, K)
+    phi: np.ndarray
+    #: camber B-spline design matrix on the nodes (with the joint covariance), else None
+    basis: np.ndarray | None
+
+    def beams(self, scale: float = 1.0) -> list[BeamSki]:
+        """The drawn beams with every parameter deviation × ``scale`` [-] (as
+        :func:`sample_beams`, bit for bit)."""
+        if not (math.isfinite(scale) and scale >= 0):
+            raise InputError(f"scale must be finite and >= 0, got {scale!r}")
+        ident = self.ident
+        x = ident.beam.positions_m
+        out = []
+        if self.basis is not None:
+            nc = ident.camber_coefficients.size
+            for u in self.deviations:
+                d = scale * u
+                c = self.basis @ (ident.camber_coefficients + d[:nc])
+                gamma = ident.log_compliance + d[nc:]
+                out.append(BeamSki(x, 1.0 / (self.phi @ np.exp(gamma)), camber_on_flat(x, c)))
+            return out
+        m = ident.knots_m.size
+        c_hat = ident.beam.unloaded_gap_m
+        for u in self.deviations:
+            dg = scale * u[:m]
+            c = c_hat - ident.camber_sensitivity @ dg + scale * ident.camber_sd_m * u[m:]
+            gamma = ident.log_compliance + dg
+            out.append(BeamSki(x, 1.0 / (self.phi @ np.exp(gamma)), camber_on_flat(x, c)))
+        return out
+
+
+def draw_beam_deviations(
+    ident: IdentifiedBeam,
+    count: int,
+    rng: np.random.Generator | int,
+    *,
+    antithetic: bool = False,
+) -> BeamDraws:
+    """The unit deviations of ``count`` plausible beams (:func:`sample_beams`, whose
+    parameters these are); :meth:`BeamDraws.beams` scales them into beams. A service that
+    answers at many scales (the band's factor varies with the snow modulus) keeps these."""
+    if not ident.ok:
+        raise InputError(f"no identified beam to sample: {ident.reason}")
+    count = int(count)
+    if antithetic and count % 2:
+        raise InputError(f"count must be even for antithetic draws, got {count}")
+    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+
+    def normals(n: int) -> list[np.ndarray]:
+        if not antithetic:
+            return [gen.standard_normal(n) for _ in range(count)]
+        half = [gen.standard_normal(n) for _ in range(count // 2)]
+        return half + [-z for z in half]
+
+    x = ident.beam.positions_m
+    phi = hats(x, ident.knots_m)
+    if ident.parameter_covariance is not None:
+        # the forward fit's joint covariance of (camber B-spline coefficients, γ)
+        basis = BSpline.design_matrix(x, ident.camber_knots_m, 3).toarray()
+        root = _covariance_root(ident.parameter_covariance)
+        devs = tuple(root @ z for z in normals(root.shape[1]))
+        return BeamDraws(ident, devs, phi, basis)
+    m = ident.knots_m.size
+    chol = np.linalg.cholesky(ident.log_compliance_covariance + 1e-15 * np.eye(m))
+    devs = tuple(np.concatenate([chol @ z[:m], z[m:]]) for z in normals(m + x.size))
+    return BeamDraws(ident, devs, phi, None)
+
+
 def sample_beams(
     ident: IdentifiedBeam,
     count: int,
@@ -1623,6 +1704,8 @@ def sample_beams(
 
     Each draw perturbs log(1/EI) by the covariance of γ and c(X) consistently with it
     (``ĉ − D Δγ`` plus its per-node scatter). Draws feed the error bands of downstream solves.
+    (:func:`draw_beam_deviations` then :meth:`BeamDraws.beams`: kept, the draws serve other
+    scales without being drawn again.)
 
     Parameters
     ----------
@@ -1642,43 +1725,9 @@ def sample_beams(
     """
     if not ident.ok:
         raise InputError(f"no identified beam to sample: {ident.reason}")
-    count = int(count)
     if not (math.isfinite(scale) and scale >= 0):
         raise InputError(f"scale must be finite and >= 0, got {scale!r}")
-    if antithetic and count % 2:
-        raise InputError(f"count must be even for antithetic draws, got {count}")
-    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
-
-    def normals(n: int) -> list[np.ndarray]:
-        if not antithetic:
-            return [gen.standard_normal(n) for _ in range(count)]
-        half = [gen.standard_normal(n) for _ in range(count // 2)]
-        return half + [-z for z in half]
-
-    x = ident.beam.positions_m
-    phi = hats(x, ident.knots_m)
-    if ident.parameter_covariance is not None:
-        # the forward fit's joint covariance of (camber B-spline coefficients, γ)
-        basis = BSpline.design_matrix(x, ident.camber_knots_m, 3).toarray()
-        nc = ident.camber_coefficients.size
-        root = _covariance_root(ident.parameter_covariance)
-        out = []
-        for z in normals(root.shape[1]):
-            d = scale * (root @ z)
-            c = basis @ (ident.camber_coefficients + d[:nc])
-            gamma = ident.log_compliance + d[nc:]
-            out.append(BeamSki(x, 1.0 / (phi @ np.exp(gamma)), camber_on_flat(x, c)))
-        return out
-    chol = np.linalg.cholesky(ident.log_compliance_covariance + 1e-15 * np.eye(ident.knots_m.size))
-    c_hat = ident.beam.unloaded_gap_m
-    out = []
-    m = ident.knots_m.size
-    for z in normals(m + x.size):
-        dg = scale * (chol @ z[:m])
-        c = c_hat - ident.camber_sensitivity @ dg + scale * ident.camber_sd_m * z[m:]
-        gamma = ident.log_compliance + dg
-        out.append(BeamSki(x, 1.0 / (phi @ np.exp(gamma)), camber_on_flat(x, c)))
-    return out
+    return draw_beam_deviations(ident, count, rng, antithetic=antithetic).beams(scale)
 
 
 def profile_sigma(

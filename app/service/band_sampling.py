@@ -26,7 +26,7 @@ from skisnow.solvers.band import (
 from skisnow.solvers.beam import BeamFlexibility, solve_beam_contact
 from skisnow.solvers.errors import InputError, SkisnowError
 from skisnow.solvers.flexible import FlexibleModel, prepare_flexible, solve_flexible
-from skisnow.solvers.identify import estimate_noise, sample_beams
+from skisnow.solvers.identify import draw_beam_deviations, estimate_noise
 from skisnow.solvers.lookup import MicroTable
 from skisnow.solvers.macro import ProfileExtruder, solve_macro
 from skisnow.solvers.multiscale import multiscale
@@ -420,8 +420,9 @@ def sheet_beam_scale(record) -> float:
 
 #: models of plausible beams kept per ski record (one entry per coarse grid and draw setting)
 _BEAM_MODELS_MAX = 8
-#: one build of plausible beam models at a time (concurrent first requests built one set each)
-_BEAM_MODELS_LOCK = threading.Lock()
+#: one build of plausible beam models at a time (concurrent first requests built one set each);
+#: re-entrant, since a build reads the nominal model and the unit draws through ``_cached``
+_BEAM_MODELS_LOCK = threading.RLock()
 
 
 def _prepare(beam, outline, dx: float, ny: int) -> FlexibleModel:
@@ -464,7 +465,8 @@ def beam_models(
 def _cached(record, name: str, owners: tuple, key, build):
     """``build()`` for ``key``, kept in ``record.cache[name]`` while the objects ``owners``
     (the ski's identification, its beam) are the record's: built once under the lock, at most
-    ``_BEAM_MODELS_MAX`` keys per entry (then the entry starts afresh)."""
+    ``_BEAM_MODELS_MAX`` keys per entry (then the entry starts afresh). The lock is re-entrant:
+    a build may read other entries through here."""
     store = record.cache.get(name)
     if (
         store is None
@@ -486,15 +488,32 @@ def _cached(record, name: str, owners: tuple, key, build):
 
 
 def _build_beam_models(record, ident, beam, drawable, key, dx, ny):
-    """The models of :func:`beam_models` for ``key`` (dx, ny, samples, seed, scale)."""
+    """The models of :func:`beam_models` for ``key`` (dx, ny, samples, seed, scale). The
+    nominal model (per grid) and the unit draws (per draw count and seed:
+    :func:`solvers.identify.draw_beam_deviations`, the covariance's eigen-decomposition) are
+    kept apart in ``record.cache``, since the scale changes with the snow modulus from one
+    request to the next: only the drawn beams are prepared again (the same models, bit for
+    bit, as drawing afresh)."""
     samples, seed, scale = key[2], key[3], key[4]
-    nominal = _prepare(beam, record.outline, dx, ny)
+    nominal = _cached(
+        record,
+        "band_nominal_model",
+        (ident, record.beam),
+        (float(dx), int(ny)),
+        lambda: _prepare(beam, record.outline, dx, ny),
+    )
     drawn = []
     if drawable and samples > 0 and scale > 0:
         ib = identification_for_sampling(ident)
         if ib is not None:
-            beams = sample_beams(ib, samples, seed, scale=scale, antithetic=True)
-            drawn = [_prepare(b, record.outline, dx, ny) for b in beams]
+            draws = _cached(
+                record,
+                "band_beam_draws",
+                (ident,),
+                (int(samples), int(seed)),
+                lambda: draw_beam_deviations(ib, samples, seed, antithetic=True),
+            )
+            drawn = [_prepare(b, record.outline, dx, ny) for b in draws.beams(scale)]
     return nominal, drawn
 
 

@@ -233,7 +233,7 @@ def test_beam_draws_are_antithetic_scaled_and_kept_per_ski():
     """The beams of a bending-ski band: pairs (d, −d) of parameter deviations, × the scale
     (× 0 is the identified beam itself), seeded; their models prepared once per record."""
     from skisnow.app.storage.skis import identification_for_sampling
-    from skisnow.solvers.identify import sample_beams
+    from skisnow.solvers.identify import draw_beam_deviations, sample_beams
 
     rec = read_ski(TABLES / "skis" / "ski-b.h5")
     ident = identification_for_sampling(rec.identified)
@@ -262,6 +262,22 @@ def test_beam_draws_are_antithetic_scaled_and_kept_per_ski():
         other[1][0].unloaded_map.gap_m, first[1][0].unloaded_map.gap_m, equal_nan=True
     )
     assert first[0].unloaded_map.pixel_size_m[0] == pytest.approx(band_sampling.coarse_grid(pre)[0])
+    # another scale (the factor moves with the snow modulus): the nominal model and the unit
+    # draws are the cached ones, only the drawn beams are prepared again, and they are the
+    # models a record without any cache builds, bit for bit
+    third = band.beam_models(rec, pre, samples=4, seed=3, scale=3.1)
+    assert third[0] is first[0]
+    assert rec.cache["band_beam_draws"][1][(4, 3)].deviations is not None
+    fresh = band.beam_models(replace(rec, cache={}), pre, samples=4, seed=3, scale=3.1)
+    assert fresh[0] is not third[0]
+    for a, b in zip(third[1], fresh[1], strict=True):
+        np.testing.assert_array_equal(a.ski.bending_stiffness_nm2, b.ski.bending_stiffness_nm2)
+        np.testing.assert_array_equal(a.compliance_m_per_n, b.compliance_m_per_n)
+    # the unit draws scaled are sample_beams' beams at that scale, bit for bit
+    draws = draw_beam_deviations(ident, 4, 7, antithetic=True)
+    for a, b in zip(draws.beams(2.0), two, strict=True):
+        np.testing.assert_array_equal(a.bending_stiffness_nm2, b.bending_stiffness_nm2)
+        np.testing.assert_array_equal(a.unloaded_gap_m, b.unloaded_gap_m)
 
 
 def test_wide_band_warns_and_a_short_zone_has_no_min_separation_band(shipped):
