@@ -126,7 +126,7 @@ class Settings(BaseSettings):
         "the system (gc and malloc_trim, app/api/idle.py); 0: never",
     )
     ski_cache_mb: float = Field(
-        256,
+        512,
         gt=0,
         le=65536,
         description="memory budget [MB] of the per-ski caches of one worker (profile models, the "

@@ -27,8 +27,12 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
-#: default budget of all per-ski caches of one process [bytes] (settings: ski_cache_mb)
-DEFAULT_MAX_BYTES = 256 * 2**20
+#: default budget of all per-ski caches of one process [bytes] (settings: ski_cache_mb): the
+#: two demo skis, once their answers and bands are asked, hold 280-360 MB (ski-b's two variant
+#: alternatives add 2 × 61 MB); at 256 MB 400 load-test answers dropped and rebuilt 41-48
+#: entries (CPU mean 41-45 ms, p99 101-103 ms; at 512 MB none: 33 ms, 64-66 ms;
+#: scripts/cache_budget_check.py, docs/deployment.md)
+DEFAULT_MAX_BYTES = 512 * 2**20
 
 #: an entry read after this long [s] since its last measurement is measured again
 REMEASURE_S = 1.0
