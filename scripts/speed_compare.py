@@ -112,9 +112,25 @@ def _loadtest(checkout: str, workers: int, env: dict, requests: int) -> dict:
     }
 
 
+def _set_note(note: str, docs_dir: Path | None = None) -> int:
+    """The stored run's note replaced (atomically; the measurement and its provenance kept),
+    and docs/benchmarks.md rewritten."""
+    from skisnow.app.evidence.writer import write_benchmarks_md
+    from skisnow.app.storage.common import atomic_path
+
+    docs_dir = REPO / "docs" if docs_dir is None else docs_dir
+    path = docs_dir / "bench" / "speed.json"
+    d = json.loads(path.read_text(encoding="utf-8"))
+    d["note"] = note
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(d, indent=1, default=float), encoding="utf-8")
+    write_benchmarks_md(docs_dir)
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--baseline", type=Path, required=True, help="checkout of the baseline")
+    ap.add_argument("--baseline", type=Path, help="checkout of the baseline (to measure)")
     ap.add_argument("--baseline-name", default=None, help="its commit, for the record")
     ap.add_argument("--pairs", type=int, default=3)
     ap.add_argument(
@@ -125,7 +141,18 @@ def main(argv=None) -> int:
         help="server workers of the load tests, each run on both checkouts (0: default settings)",
     )
     ap.add_argument("--loadtest-requests", type=int, default=500)
+    ap.add_argument("--note", default=None, help="what the run shows, printed under its tables")
+    ap.add_argument(
+        "--set-note",
+        default=None,
+        help="do not measure: set the note of the stored run (docs/bench/speed.json, its "
+        "measurement and provenance kept) and rewrite docs/benchmarks.md",
+    )
     args = ap.parse_args(argv)
+    if args.set_note is not None:
+        return _set_note(args.set_note)
+    if args.baseline is None:
+        ap.error("--baseline is required to measure")
     pairs = []
     with tempfile.TemporaryDirectory() as shim_tmp:
         shim = _shim(args.baseline.resolve(), Path(shim_tmp) / "base")
@@ -160,6 +187,7 @@ def main(argv=None) -> int:
             "pairs": pairs,
             "loadtest": runs,
             "measured_at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+            **({"note": args.note} if args.note else {}),
         },
         None,
     )

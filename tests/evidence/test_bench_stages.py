@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 from skisnow.app.evidence import macro, micro, writer
 
@@ -127,6 +129,36 @@ def test_speed_stage_judges_the_default_settings_run_of_this_commit():
     text = "\n".join(speed_md.render_md({"baseline": "abc1234", "pairs": [], "loadtest": runs}))
     assert "| `abc1234` | 2 (default) | 18.0 | 24.0 |" in text
     assert "8 clients 73.1 req/s against ≥ 60 (met) at p99 153 ms against ≤ 400 ms (met)" in text
+    assert "The gain is" not in text  # no canned reading: the run's own note, when it has one
+    noted = {"baseline": "abc1234", "pairs": [], "loadtest": runs, "note": "Slower: the band."}
+    assert "\nSlower: the band.\n" in "\n".join(speed_md.render_md(noted))
     slow = [_speed_run("this", True, 59.9, 401.0, p50=30.5)]
     text = "\n".join(speed_md.render_md({"baseline": "abc1234", "pairs": [], "loadtest": slow}))
     assert text.count("**not met**") == 3
+
+
+def test_speed_note_is_set_on_the_stored_run(tmp_path):
+    """``speed_compare.py --set-note`` adds the reading to the stored run without measuring
+    again: the measurement and its provenance stay, docs/benchmarks.md shows the note."""
+    import importlib.util
+    import json
+
+    spec = importlib.util.spec_from_file_location(
+        "speed_compare", Path(__file__).resolve().parents[2] / "scripts" / "speed_compare.py"
+    )
+    sc = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(sc)
+    (tmp_path / "bench").mkdir()
+    run = {
+        "stage": "speed",
+        "machine": {"cpus": 2},
+        "provenance": {"git_commit": "abc1234"},
+        "baseline": "def5678",
+        "pairs": [],
+        "loadtest": [_speed_run("this", True, 73.1, 153.0)],
+    }
+    (tmp_path / "bench" / "speed.json").write_text(json.dumps(run), encoding="utf-8")
+    assert sc._set_note("Read me.", tmp_path) == 0
+    stored = json.loads((tmp_path / "bench" / "speed.json").read_text(encoding="utf-8"))
+    assert stored == {**run, "note": "Read me."}
+    assert "\nRead me.\n" in (tmp_path / "benchmarks.md").read_text(encoding="utf-8")
