@@ -280,6 +280,58 @@ def test_beam_draws_are_antithetic_scaled_and_kept_per_ski():
         np.testing.assert_array_equal(a.unloaded_gap_m, b.unloaded_gap_m)
 
 
+def test_unit_draws_scaled_are_the_draws_at_that_scale():
+    """draw_beam_deviations(...).beams(scale): per draw, the parameter deviation of one set of
+    standard normals (antithetic: the first half mirrored) times the scale, written out here
+    from sample_beams' definition for both covariances it draws from (the forward fit's joint
+    one, and log-compliance with the camber's sensitivity and scatter), bit for bit."""
+    from scipy.interpolate import BSpline
+    from skisnow.app.storage.skis import identification_for_sampling
+    from skisnow.solvers.beam_fit import camber_on_flat, hats
+    from skisnow.solvers.identify import _covariance_root, draw_beam_deviations
+
+    ident = identification_for_sampling(read_ski(TABLES / "skis" / "ski-b.h5").identified)
+    x = ident.beam.positions_m
+    phi = hats(x, ident.knots_m)
+
+    def normals(n, seed):
+        gen = np.random.default_rng(seed)
+        half = [gen.standard_normal(n) for _ in range(2)]
+        return half + [-z for z in half]
+
+    joint = draw_beam_deviations(ident, 4, 9, antithetic=True).beams(2.5)
+    basis = BSpline.design_matrix(x, ident.camber_knots_m, 3).toarray()
+    root = _covariance_root(ident.parameter_covariance)
+    nc = ident.camber_coefficients.size
+    for b, z in zip(joint, normals(root.shape[1], 9), strict=True):
+        d = 2.5 * (root @ z)
+        gamma = ident.log_compliance + d[nc:]
+        np.testing.assert_array_equal(b.bending_stiffness_nm2, 1.0 / (phi @ np.exp(gamma)))
+        c = camber_on_flat(x, basis @ (ident.camber_coefficients + d[:nc]))
+        np.testing.assert_array_equal(b.unloaded_gap_m, c)
+    # an identification without the forward fit's covariance (its camber sensitivity and
+    # scatter, not stored with the demo file, set to plausible values)
+    rng = np.random.default_rng(3)
+    older = replace(
+        ident,
+        parameter_covariance=None,
+        camber_sensitivity=1e-5 * rng.standard_normal(ident.camber_sensitivity.shape),
+        camber_sd_m=np.full(x.size, 0.5e-6),
+    )
+    split = draw_beam_deviations(older, 4, 9, antithetic=True).beams(2.5)
+    m = ident.knots_m.size
+    chol = np.linalg.cholesky(ident.log_compliance_covariance + 1e-15 * np.eye(m))
+    for b, z in zip(split, normals(m + x.size, 9), strict=True):
+        dg = 2.5 * (chol @ z[:m])
+        c = ident.beam.unloaded_gap_m - older.camber_sensitivity @ dg
+        c = c + 2.5 * older.camber_sd_m * z[m:]
+        gamma = ident.log_compliance + dg
+        np.testing.assert_array_equal(b.bending_stiffness_nm2, 1.0 / (phi @ np.exp(gamma)))
+        np.testing.assert_array_equal(b.unloaded_gap_m, camber_on_flat(x, c))
+    with pytest.raises(InputError):
+        draw_beam_deviations(ident, 4, 9).beams(-1.0)
+
+
 def test_wide_band_warns_and_a_short_zone_has_no_min_separation_band(shipped):
     ans = service.contact(
         shipped,
