@@ -338,14 +338,19 @@ def _along_with_band(
     width_label: str,
     half_width,
     ylim: tuple[float, float | None],
+    others: tuple | list = (),
 ) -> str:
     """A quantity along the ski with its 90 % band shaded and, when there is a band, a lower
     panel with the band's half-width (``half_width(lo, hi, y)``): the bands of an identified
-    beam are often too narrow to see on the upper axis."""
+    beam are often too narrow to see on the upper axis. ``others``: the same quantity of the
+    identification's alternative beams, drawn thin and dashed."""
     if band is None:
         fig, (ax,) = _panels(title)
     else:
         fig, (ax, ax_w) = _panels(title, 2, 1, sharex=True, height_ratios=(3, 1.3))
+    for i, o in enumerate(others):
+        label = f"other beams that fit ({len(others)})" if i == 0 else None
+        ax.plot(x, o, color="0.35", lw=0.8, ls="--", label=label)
     ax.plot(x, y, color=colour, lw=1.4, label=ylabel.split(" [")[0])
     if band is not None:
         ax.fill_between(x, *band, color=colour, alpha=0.3, lw=0, label="90 % band")
@@ -361,9 +366,15 @@ def _along_with_band(
     return _svg(fig)
 
 
+def _alternatives(beam: dict, key: str) -> list:
+    """The alternative beams' ``key`` in a beam report (:func:`app.service.beam_report`)."""
+    return (beam.get("alternatives") or {}).get(key, [])
+
+
 def stiffness_svg(beam: dict) -> str:
-    """Bending stiffness EI(X) [N·m²] with its 90 % band, and below it the band's half-width
-    relative to EI [%]; a beam without a band (a design beam) is drawn alone."""
+    """Bending stiffness EI(X) [N·m²] with its 90 % band and the identification's alternative
+    beams, and below it the band's half-width relative to EI [%]; a beam without a band (a
+    design beam) is drawn alone."""
     band = _band(beam, "bending_stiffness_band_90_nm2")
     return _along_with_band(
         "Bending stiffness EI(X) of the beam",
@@ -375,6 +386,7 @@ def stiffness_svg(beam: dict) -> str:
         width_label="90 % half-\nwidth [%]",
         half_width=lambda lo, hi, y: 50.0 * (hi - lo) / y,
         ylim=(0, None),
+        others=[_array(v) for v in _alternatives(beam, "bending_stiffness_nm2")],
     )
 
 
@@ -389,8 +401,9 @@ def camber_top_mm(beam: dict) -> float:
 
 
 def camber_svg(beam: dict) -> str:
-    """Unloaded camber c(X) [mm] with its 90 % band (axis cut at :func:`camber_top_mm`), and
-    below it the band's half-width [µm]; a beam without a band is drawn alone."""
+    """Unloaded camber c(X) [mm] with its 90 % band and the identification's alternative beams
+    (axis cut at :func:`camber_top_mm`), and below it the band's half-width [µm]; a beam
+    without a band is drawn alone."""
     top = camber_top_mm(beam)
     band = _band(beam, "camber_band_90_um")
     return _along_with_band(
@@ -403,6 +416,7 @@ def camber_svg(beam: dict) -> str:
         width_label="90 % half-\nwidth [µm]",
         half_width=lambda lo, hi, y: 500.0 * (hi - lo),
         ylim=(0, top),
+        others=[_array(v) * 1e-3 for v in _alternatives(beam, "camber_um")],
     )
 
 

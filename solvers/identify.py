@@ -73,6 +73,7 @@ __all__ = [
     "draw_beam_deviations",
     "estimate_noise",
     "identify_beam",
+    "middle_distance",
     "predict_gaps",
     "profile_sigma",
     "sample_beams",
@@ -1430,6 +1431,23 @@ ALTERNATIVE_MIN_DC_M = 0.5e-6
 ALTERNATIVE_MIN_DLOG_EI = 0.02
 
 
+def _middle(x: np.ndarray) -> np.ndarray:
+    """The nodes in the middle :data:`SPREAD_MIDDLE_FRACTION` of the ski's length (bool)."""
+    span = x[-1] - x[0]
+    return np.abs(x - 0.5 * (x[0] + x[-1])) <= 0.5 * SPREAD_MIDDLE_FRACTION * span
+
+
+def middle_distance(a: BeamSki, b: BeamSki) -> tuple[float, float]:
+    """How far apart two beams on the same nodes are over the middle of the ski (the middle
+    :data:`SPREAD_MIDDLE_FRACTION` of its length): max |Δc| [m] and max |Δ ln EI| [-]."""
+    mid = _middle(a.positions_m)
+    dc = float(np.max(np.abs(a.unloaded_gap_m[mid] - b.unloaded_gap_m[mid])))
+    dl = float(
+        np.max(np.abs(np.log(a.bending_stiffness_nm2[mid]) - np.log(b.bending_stiffness_nm2[mid])))
+    )
+    return dc, dl
+
+
 def alternative_fits(
     x: np.ndarray,
     chosen: ForwardFit,
@@ -1447,14 +1465,9 @@ def alternative_fits(
     range instead of :data:`ALTERNATIVE_MISFIT_RANGE`."""
     max_count = ALTERNATIVES_MAX if max_count is None else int(max_count)
     rng = ALTERNATIVE_MISFIT_RANGE if misfit_range is None else float(misfit_range)
-    span = x[-1] - x[0]
-    mid = np.abs(x - 0.5 * (x[0] + x[-1])) <= 0.5 * SPREAD_MIDDLE_FRACTION * span
 
     def distinct(a: BeamSki, b: BeamSki) -> bool:
-        dc = np.max(np.abs(a.unloaded_gap_m[mid] - b.unloaded_gap_m[mid]))
-        dl = np.max(
-            np.abs(np.log(a.bending_stiffness_nm2[mid]) - np.log(b.bending_stiffness_nm2[mid]))
-        )
+        dc, dl = middle_distance(a, b)
         return bool(dc > ALTERNATIVE_MIN_DC_M or dl > ALTERNATIVE_MIN_DLOG_EI)
 
     limit = (1.0 + rng) * chosen.misfit_m
@@ -1485,14 +1498,10 @@ def _candidate_spread(x: np.ndarray, chosen: ForwardFit, fits: list[ForwardFit])
     """How far apart the converged forward fits are: per fit, max |Δc| [m] and max |Δ log EI|
     [-] against the chosen fit over the middle half of the ski; overall, the range of misfits
     [m] and objectives [-] and the largest beam distances among converged fits."""
-    span = x[-1] - x[0]
-    mid = np.abs(x - 0.5 * (x[0] + x[-1])) <= 0.5 * SPREAD_MIDDLE_FRACTION * span
-    c0 = chosen.beam.unloaded_gap_m[mid]
-    le0 = np.log(chosen.beam.bending_stiffness_nm2[mid])
+    mid = _middle(x)
     per = []
     for f in fits:
-        dc = float(np.max(np.abs(f.beam.unloaded_gap_m[mid] - c0)))
-        dl = float(np.max(np.abs(np.log(f.beam.bending_stiffness_nm2[mid]) - le0)))
+        dc, dl = middle_distance(f.beam, chosen.beam)
         per.append({"max_dc_middle_m": dc, "max_dlog_ei_middle": dl})
     conv = [(f, d) for f, d in zip(fits, per, strict=True) if f.converged]
     if not conv:

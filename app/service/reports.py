@@ -20,12 +20,10 @@ from skisnow.app.service.profiles import (
     stored_held_out_errors,
 )
 from skisnow.app.service.rounding import finite_list
-from skisnow.app.storage.skis import (
-    mean_profiles,
-)
+from skisnow.app.storage.skis import identified_alternatives, mean_profiles
 from skisnow.solvers.band import Z90
 from skisnow.solvers.errors import SkisnowError
-from skisnow.solvers.identify import measured_stretch
+from skisnow.solvers.identify import measured_stretch, middle_distance
 
 log = logging.getLogger(__name__)
 
@@ -205,4 +203,21 @@ def beam_report(ski: Ski, points: int = 41) -> dict:
             out["bending_stiffness_measured_mm"] = (
                 None if stretch is None else [round(v * 1e3, 3) for v in stretch]
             )
+        alts = identified_alternatives(ident)
+        if alts and all(a.positions_m.size == beam.positions_m.size for a in alts):
+            out["alternatives"] = _alternatives_report(beam, alts, idx)
     return out
+
+
+def _alternatives_report(beam, alts: list, idx: np.ndarray) -> dict:
+    """The identification's alternative beams (other fits that explain the camber cases almost
+    as well; the band answers with each) at the report's points, and how far each lies from the
+    served beam over the middle half of the ski: max |Δc| [µm], and EI's largest ratio [-]."""
+    far = [middle_distance(a, beam) for a in alts]
+    return {
+        "count": len(alts),
+        "bending_stiffness_nm2": [finite_list(a.bending_stiffness_nm2[idx]) for a in alts],
+        "camber_um": [finite_list(a.unloaded_gap_m[idx], 1e6) for a in alts],
+        "max_camber_difference_middle_um": [round(dc * 1e6, 3) for dc, _ in far],
+        "max_stiffness_ratio_middle": [round(math.exp(dl), 4) for _, dl in far],
+    }

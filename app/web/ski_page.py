@@ -1,9 +1,10 @@
 """A ski's page ``/skis/{name}`` and the 404 page of an unknown ski.
 
 The page shows the ski's served profile model and why, the beam identified from its camber
-measurements (provenance, held-out check), EI(X) and c(X) with their bands and the misfit per
-camber case, the same figures as ``GET /v1/skis/{name}``; why there is no beam when there is
-none. An uploaded ski's page has a delete button (``static/delete.js``).
+measurements (provenance, held-out check), EI(X) and c(X) with their bands and the
+identification's alternative beams, and the misfit per camber case, the same figures as
+``GET /v1/skis/{name}``; why there is no beam when there is none. An uploaded ski's page has
+a delete button (``static/delete.js``).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from skisnow.app.service.ski_figures import ski_figures
 from skisnow.app.web.form import DEFAULTS, NUMERIC, metadata_label, ski_url
 from skisnow.app.web.templating import DELETE_JS, JS, fmt, page, svg
 from skisnow.solvers.band import Z90
-from skisnow.solvers.identify import HELD_OUT_LIMIT
+from skisnow.solvers.identify import ALTERNATIVE_MISFIT_RANGE, HELD_OUT_LIMIT
 
 #: the served profile models (``GET /v1/skis``'s ``profile_model``) as a technician reads them
 PROFILE_MODEL_LABELS = {
@@ -224,6 +225,7 @@ def render_ski(
         choice=_choice(ski.record.identified),
         choice_rule=CHOICE_RULE,
         held_out_limit=HELD_OUT_LIMIT,
+        alternative_range_pct=100 * ALTERNATIVE_MISFIT_RANGE,
         figures=_figures(ski, beam, figure_cache),
         beam_table=_beam_table(beam) if beam["available"] else None,
         misfit_rows=_misfit_rows(ident) if ident and "case_load_kg" in ident else [],

@@ -73,6 +73,8 @@ def client(catalogue, tmp_path_factory):
     skis[NASTY] = _variant(a, NASTY, identified=FAILED)
     skis["older-file"] = _variant(a, "older-file", identified=_older(a))
     skis["other-cases"] = _variant(a, "other-cases", identified=_other_cases(a))
+    no_alts = {k: v for k, v in a.record.identified.items() if k != "alternatives"}
+    skis["no-alternatives"] = _variant(a, "no-alternatives", identified=no_alts)
     cat = service.Catalogue(tables_dir=catalogue.tables_dir, skis=skis, grinds=catalogue.grinds)
     settings = Settings(data_dir=tmp_path_factory.mktemp("ski-page"), warm_up=False)
     with TestClient(create_app(settings, catalogue=cat), raise_server_exceptions=False) as c:
@@ -235,6 +237,50 @@ def test_plots_and_units(demo):
     ):
         assert text in html
     assert not re.search(r'(src|href)="(https?:)?//', html)
+
+
+def test_alternative_beams_in_the_api_the_text_and_the_plots(demo, catalogue):
+    """The identification's alternative beams: the API gives each at the report's points and
+    how far it lies from the served beam over the middle half of the ski (recomputed here from
+    the stored beams); the page names how many and the largest distances, and draws them
+    dashed in both plots."""
+    from skisnow.app.storage.skis import identified_alternatives
+    from skisnow.solvers.identify import middle_distance
+
+    name, html, api = demo
+    rec = catalogue.skis[name].record
+    stored = identified_alternatives(rec.identified)
+    alt = api["beam"]["alternatives"]
+    assert alt["count"] == len(stored) >= 1
+    served, _ = catalogue.skis[name].beam()
+    idx = [int(np.argmin(np.abs(served.positions_m * 1e3 - x))) for x in api["beam"]["position_mm"]]
+    for i, b in enumerate(stored):
+        dc, dl = middle_distance(b, served)
+        assert alt["max_camber_difference_middle_um"][i] == pytest.approx(dc * 1e6, abs=1e-3)
+        assert alt["max_stiffness_ratio_middle"][i] == pytest.approx(math.exp(dl), abs=1e-4)
+        np.testing.assert_allclose(
+            alt["bending_stiffness_nm2"][i], b.bending_stiffness_nm2[idx], rtol=1e-4
+        )
+    text = unescape(
+        re.sub(r"<[^>]+>", "", re.search(r'id="alternative-beams">(.*?)</p>', html, re.S)[1])
+    )
+    text = " ".join(text.split())
+    many = "s fit" if len(stored) > 1 else " fits"
+    assert text.startswith(f"{len(stored)} other beam{many} the camber cases almost as well")
+    assert f"{max(alt['max_camber_difference_middle_um']):.2f} µm in camber" in text
+    assert f"a factor {max(alt['max_stiffness_ratio_middle']):.2f} in EI" in text
+    for key in ("stiffness", "camber"):
+        fig = re.search(rf'<figure class="plot" id="plot-{key}">(.*?)</figure>', html, re.S)[1]
+        assert f"other beams that fit ({len(stored)})" in fig
+
+
+def test_a_beam_without_alternatives_shows_none(client):
+    """A ski whose identification stores no alternative beams (a file from before them): no
+    alternatives in the API, no sentence on the page, none drawn."""
+    api = client.get("/v1/skis/no-alternatives").json()
+    assert api["beam"]["available"] and "alternatives" not in api["beam"]
+    html = _page(client, "no-alternatives")
+    assert 'id="alternative-beams"' not in html and "other beams that fit" not in html
 
 
 @pytest.mark.parametrize("name", DEMO)
