@@ -62,6 +62,21 @@ POROSITY = 0.5
 AREA_OFF = 0.03
 
 
+def cache_file(
+    work: Path, name: str, flex_scales: tuple[float, ...], rigid_scales: tuple[float, ...]
+) -> Path:
+    """Where :func:`ski_rows` keeps ski ``name``'s answers: keyed by the factor lists, the
+    commit, and the SHA-256 of the kept ski file and of its rescored truths, so that a ski
+    re-identified (or rescored) at the same commit is answered again, not read back stale."""
+    digests = [
+        hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file() else None
+        for p in (work / "skis" / f"{name}.h5", work / "rescored" / f"{name}.json")
+    ]
+    key = json.dumps([list(flex_scales), list(rigid_scales), common.git_commit(), *digests])
+    tag = hashlib.sha256(key.encode()).hexdigest()[:10]
+    return work / "beam-scale" / f"{name}-{tag}.json"
+
+
 def ski_rows(
     work: Path,
     name: str,
@@ -70,10 +85,8 @@ def ski_rows(
     rigid_scales: tuple[float, ...] = RIGID_SCALES,
 ) -> list[dict]:
     """Every held-out case of ski ``name`` answered at every candidate factor (cached per
-    ski, factor list and commit)."""
-    key = json.dumps([list(flex_scales), list(rigid_scales), common.git_commit()])
-    tag = hashlib.sha256(key.encode()).hexdigest()[:10]
-    cache = work / "beam-scale" / f"{name}-{tag}.json"
+    ski, factor list and commit: :func:`cache_file`)."""
+    cache = cache_file(work, name, flex_scales, rigid_scales)
     if cache.is_file():
         return json.loads(cache.read_text(encoding="utf-8"))
     fields = json.loads((work / "rescored" / f"{name}.json").read_text(encoding="utf-8"))["fields"]

@@ -63,3 +63,23 @@ def test_the_chosen_factor_is_the_smallest_with_90_percent_of_the_calibration_dr
     assert per["4"]["other"]["coverage"] == 0.0
     assert per["4"]["all"]["answers"] == 20
     assert out["rigid"]["200 MPa"]["chosen"] == bss.RIGID_SCALES[0]
+
+
+def test_the_per_ski_cache_is_keyed_by_the_ski_file_and_its_truths(tmp_path):
+    """A ski re-identified (or rescored) at the same commit is answered again: the cache's
+    name changes with the kept ski file's bytes and with its rescored truths, not only with the
+    factor lists and the commit."""
+    (tmp_path / "skis").mkdir()
+    (tmp_path / "rescored").mkdir()
+    ski, truths = tmp_path / "skis" / "s.h5", tmp_path / "rescored" / "s.json"
+    ski.write_bytes(b"beam 1")
+    truths.write_text("{}", encoding="utf-8")
+    first = bss.cache_file(tmp_path, "s", (1.0, 2.0), (1.0,))
+    assert first.parent == tmp_path / "beam-scale" and first.name.startswith("s-")
+    assert bss.cache_file(tmp_path, "s", (1.0, 2.0), (1.0,)) == first
+    assert bss.cache_file(tmp_path, "s", (1.0, 4.0), (1.0,)) != first
+    ski.write_bytes(b"beam 2")
+    second = bss.cache_file(tmp_path, "s", (1.0, 2.0), (1.0,))
+    assert second != first
+    truths.write_text('{"fields": 1}', encoding="utf-8")
+    assert bss.cache_file(tmp_path, "s", (1.0, 2.0), (1.0,)) not in (first, second)
