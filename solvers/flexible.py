@@ -424,6 +424,7 @@ def prepare_flexible(
     pixel_along_m: float = macro.DEFAULT_PIXEL_ALONG_M,
     pixels_across: int = macro.DEFAULT_PIXEL_ACROSS,
     width_positions_m: np.ndarray | None = None,
+    like: FlexibleModel | None = None,
 ) -> FlexibleModel:
     """Footprint grid and beam compliance of a ski for :func:`solve_flexible` (keep per ski).
 
@@ -439,6 +440,13 @@ def prepare_flexible(
         Number of pixels across the maximum width [-].
     width_positions_m : ndarray, optional
         Positions [m] of a width profile given in ``width_m``.
+    like : FlexibleModel, optional
+        A model of another beam of the same ski outline (plausible beams drawn about an
+        identified one): where its footprint is this one's, pixel for pixel, its snow parts,
+        which depend on the footprint alone (``snow_kernel_rows``, ``row_snow_unit``,
+        ``block_snow_unit`` and the ``window_couplings`` cache, shared), are taken instead of
+        computed again (the same arrays: the results are bit for bit those without it); any
+        other footprint is computed afresh.
 
     Returns
     -------
@@ -471,19 +479,52 @@ def prepare_flexible(
     flex, b = _equilibrated_flexibility(row_beam)
     dx, dy = unloaded.pixel_size_m
     nx, ny = unloaded.gap_m.shape
-    kern = (2.0 / np.pi) * love_rectangle_influence(
-        np.arange(nx)[:, None] * dx, np.arange(ny)[None, :] * dy, dx / 2, dy / 2
-    )
     inside = np.isfinite(unloaded.gap_m)
     row_in = np.flatnonzero(inside.any(axis=1))
     pat = inside[row_in]
-    row_snow = _row_coupling(kern, row_in, pat)
     n = pat.sum(axis=1).astype(float)
     row_nn = n[:, None] * n[None, :] * b[np.ix_(row_in, row_in)]
     kb = max(_ROW_BLOCK, -(-row_in.size // _MAX_DENSE))
-    blocks = (_block_sum(row_snow, kb), _block_sum(row_nn, kb))
+    if _same_footprint(like, unloaded, inside):
+        kern, row_snow, block_snow = like.snow_kernel_rows, like.row_snow_unit, like.block_snow_unit
+        windows = like.window_couplings
+    else:
+        kern = (2.0 / np.pi) * love_rectangle_influence(
+            np.arange(nx)[:, None] * dx, np.arange(ny)[None, :] * dy, dx / 2, dy / 2
+        )
+        row_snow = _row_coupling(kern, row_in, pat)
+        block_snow, windows = _block_sum(row_snow, kb), {}
     return FlexibleModel(
-        ski, unloaded, row_beam, flex, b, kern, row_in, n, row_snow, row_nn, *blocks, kb
+        ski,
+        unloaded,
+        row_beam,
+        flex,
+        b,
+        kern,
+        row_in,
+        n,
+        row_snow,
+        row_nn,
+        block_snow,
+        _block_sum(row_nn, kb),
+        kb,
+        window_couplings=windows,
+    )
+
+
+def _same_footprint(like: FlexibleModel | None, unloaded: macro.GapMap, inside) -> bool:
+    """Whether ``like`` was prepared on this footprint: the same pixel rows and size and the
+    same pixels inside (then its snow parts are this model's)."""
+    if like is None:
+        return False
+    if not isinstance(like, FlexibleModel):
+        raise InputError(f"like must be a FlexibleModel, got {type(like).__name__}")
+    m = like.unloaded_map
+    return bool(
+        m.gap_m.shape == unloaded.gap_m.shape
+        and m.pixel_size_m == unloaded.pixel_size_m
+        and np.array_equal(m.positions_m, unloaded.positions_m)
+        and np.array_equal(np.isfinite(m.gap_m), inside)
     )
 
 

@@ -425,13 +425,16 @@ _BEAM_MODELS_MAX = 8
 _BEAM_MODELS_LOCK = threading.RLock()
 
 
-def _prepare(beam, outline, dx: float, ny: int) -> FlexibleModel:
+def _prepare(beam, outline, dx: float, ny: int, like: FlexibleModel | None = None) -> FlexibleModel:
+    """The bending ski of ``beam`` on the grid (dx, ny); ``like``: a model of the same outline
+    and grid whose snow parts it shares (:func:`solvers.flexible.prepare_flexible`)."""
     return prepare_flexible(
         beam,
         outline.width_m,
         pixel_along_m=dx,
         pixels_across=ny,
         width_positions_m=outline.positions_m,
+        like=like,
     )
 
 
@@ -493,7 +496,7 @@ def _build_beam_models(record, ident, beam, drawable, key, dx, ny):
     :func:`solvers.identify.draw_beam_deviations`, the covariance's eigen-decomposition) are
     kept apart in ``record.cache``, since the scale changes with the snow modulus from one
     request to the next: only the drawn beams are prepared again (the same models, bit for
-    bit, as drawing afresh)."""
+    bit, as drawing afresh), sharing the nominal's snow parts (the same footprint)."""
     samples, seed, scale = key[2], key[3], key[4]
     nominal = _cached(
         record,
@@ -513,7 +516,7 @@ def _build_beam_models(record, ident, beam, drawable, key, dx, ny):
                 (int(samples), int(seed)),
                 lambda: draw_beam_deviations(ib, samples, seed, antithetic=True),
             )
-            drawn = [_prepare(b, record.outline, dx, ny) for b in draws.beams(scale)]
+            drawn = [_prepare(b, record.outline, dx, ny, like=nominal) for b in draws.beams(scale)]
     return nominal, drawn
 
 

@@ -569,6 +569,39 @@ def test_model_caches_give_the_answers_of_a_fresh_model(demo_models):
         assert a.apparent_contact_area_m2 == b.apparent_contact_area_m2
 
 
+def test_a_model_like_another_shares_its_snow_parts_and_answers_the_same(demo_models):
+    """``prepare_flexible(..., like=)``: a beam of the same outline and grid (a stiffer, less
+    cambered ski-b) takes the other model's snow parts (the same objects) and answers bit for
+    bit as the model prepared on its own; a model of another footprint is not used."""
+    rec, nominal = demo_models["ski-b"]
+    beam = BeamSki(
+        rec.beam.positions_m, 1.3 * rec.beam.bending_stiffness_nm2, 0.8 * rec.beam.unloaded_gap_m
+    )
+    kw = {"width_positions_m": rec.outline.positions_m}
+    alone = prepare_flexible(beam, rec.outline.width_m, **kw)
+    solve_flexible(nominal, 40 * G_STANDARD, -0.16, PAPER_E_EFF)  # fill the shared cache
+    shared = prepare_flexible(beam, rec.outline.width_m, like=nominal, **kw)
+    assert shared.snow_kernel_rows is nominal.snow_kernel_rows
+    assert shared.row_snow_unit is nominal.row_snow_unit
+    assert shared.window_couplings is nominal.window_couplings
+    for name in ("snow_kernel_rows", "row_snow_unit", "block_snow_unit", "block_beam_nn"):
+        np.testing.assert_array_equal(getattr(shared, name), getattr(alone, name))
+    for mpa, kg, mm in ((20.0, 60.0, -200.0), (200.0, 40.0, -160.0), (2000.0, 80.0, 50.0)):
+        e_eff = effective_modulus(mpa * 1e6, 0.7e9, 0.3)
+        a = solve_flexible(shared, kg * G_STANDARD, mm / 1e3, e_eff)
+        b = solve_flexible(alone, kg * G_STANDARD, mm / 1e3, e_eff)
+        np.testing.assert_array_equal(a.pressure_pa, b.pressure_pa)
+        assert a.apparent_contact_area_m2 == b.apparent_contact_area_m2
+    # another footprint (a narrower ski; another grid): computed afresh, not taken
+    narrow = prepare_flexible(beam, 0.9 * rec.outline.width_m, like=nominal, **kw)
+    assert narrow.snow_kernel_rows is not nominal.snow_kernel_rows
+    assert narrow.window_couplings is not nominal.window_couplings
+    fine = prepare_flexible(beam, rec.outline.width_m, pixel_along_m=2e-3, like=nominal, **kw)
+    assert fine.snow_kernel_rows.shape != nominal.snow_kernel_rows.shape
+    with pytest.raises(InputError, match="like must be a FlexibleModel"):
+        prepare_flexible(beam, rec.outline.width_m, like="ski-b", **kw)
+
+
 def test_window_cache_is_bounded():
     model = prepare_flexible(_small_ski(), 0.03, pixel_along_m=2e-3, pixels_across=2)
     for n in range(2, 2 + flexible._WINDOW_CACHE + 5):
