@@ -548,8 +548,9 @@ def alternative_profiles(
     does not converge is left out.
 
     Each beam's flexibility is kept in ``record.cache`` as an entry of its own (one beam solve
-    with it: ~1 ms, without it ~40 ms; at 1 mm nodes over 2 m it holds 61 MB, two copies of a
-    30.5 MB matrix), so the per-ski cache budget drops them one by one
+    with it: ~1 ms, without it ~40 ms; at 1 mm nodes over 2 m it holds 30.5 MB, its columns
+    only: :meth:`solvers.beam.BeamFlexibility.compact`; 61 MB before), so the per-ski cache
+    budget drops them one by one
     (docs/deployment.md)."""
     ident = record.identified
     beams = identified_alternatives(ident) if served_beam(ident) is not None else []
@@ -561,7 +562,7 @@ def alternative_profiles(
             with _BEAM_MODELS_LOCK:
                 hit = record.cache.get(key)
                 if hit is None or hit[0] is not ident:
-                    hit = (ident, BeamFlexibility(b))
+                    hit = (ident, BeamFlexibility(b).compact())
                     record.cache[key] = hit
         res = solve_beam_contact(b, load_n, load_position_m, flexibility=hit[1])
         if res.converged:

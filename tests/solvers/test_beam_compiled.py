@@ -99,6 +99,48 @@ def test_flexibility_columns_are_the_transpose():
     assert flex.columns is cols
 
 
+@pytest.mark.parametrize("name", ["ski-a", "ski-b"])
+def test_a_compact_flexibility_answers_bit_for_bit_in_half_the_memory(name):
+    """BeamFlexibility.compact() keeps the columns only: half the bytes, ``matrix`` a read-only
+    transposed view of the same values, and every contact solve (both compliances, a warm
+    start, an unconverged one, the reference loop on the view) the same answer, bit for bit."""
+    for label, beam in _beams(name):
+        full = BeamFlexibility(beam)
+        compact = BeamFlexibility(beam).compact()
+        assert compact.compact() is compact  # idempotent
+        assert compact._matrix is None
+        n = beam.positions_m.size
+        assert compact.columns.nbytes == n * n * 8
+        np.testing.assert_array_equal(compact.matrix, full.matrix)
+        assert not compact.matrix.flags.writeable
+        np.testing.assert_array_equal(compact.load_column(-0.123), full.load_column(-0.123))
+        for kg, mm, comp, it in (
+            (40.0, -100.0, 0.0, 200),
+            (150.0, 100.0, 1e-7, 200),
+            (75, 0, 0, 2),
+        ):
+            kw = dict(contact_compliance_m_per_n=comp, max_iterations=it)
+            a = solve_beam_contact(beam, kg * G_STANDARD, mm / 1e3, flexibility=full, **kw)
+            b = solve_beam_contact(beam, kg * G_STANDARD, mm / 1e3, flexibility=compact, **kw)
+            warm = solve_beam_contact(
+                beam,
+                kg * G_STANDARD,
+                mm / 1e3,
+                flexibility=compact,
+                initial_contacts=np.flatnonzero(a.contact),
+                **kw,
+            )
+            for res in (b,):
+                assert res.iterations == a.iterations and res.converged == a.converged
+                for field in ("reaction_n", "gap_m", "displacement_m"):
+                    np.testing.assert_array_equal(getattr(res, field), getattr(a, field))
+            np.testing.assert_array_equal(warm.contact, a.contact)
+        ref_full = _solve_beam_contact_reference(beam, 40 * G_STANDARD, -0.1, flexibility=full)
+        ref_view = _solve_beam_contact_reference(beam, 40 * G_STANDARD, -0.1, flexibility=compact)
+        np.testing.assert_array_equal(ref_view.contact, ref_full.contact)
+        _assert_same(ref_full, ref_view, f"{name} {label} reference loop on the view")
+
+
 @pytest.mark.parametrize("name", ["ski-a", "ski-c"])
 @pytest.mark.parametrize("stride", [1, 2, 3])
 def test_compiled_flexibility_is_the_reference_bit_for_bit(name, stride):
