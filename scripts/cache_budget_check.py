@@ -1,8 +1,9 @@
 """How the per-ski cache budget (``SKISNOW_SKI_CACHE_MB``, :mod:`app.storage.memory`) serves
 the load test's answers: the shipped demo skis asked the load test's seeded inputs
 (``scripts/loadtest.py``'s draw) in this process, one after the other, with the given budget;
-prints the answers' CPU time (median, mean, 99th percentile) and the entries the budget
-dropped (each rebuilt on its next use: a beam flexibility costs ~40-60 ms).
+prints the answers' CPU time (median, mean, 99th percentile), the entries the budget
+dropped (each rebuilt on its next use: a beam flexibility costs ~40-60 ms), what the caches
+hold at the end and the process's peak resident memory.
 
     python scripts/cache_budget_check.py --budget-mb 256
     python scripts/cache_budget_check.py --budget-mb 1024   # nothing dropped: the working set
@@ -12,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import resource
 import sys
 import time
 from pathlib import Path
@@ -53,6 +55,8 @@ def main(argv: list[str] | None = None) -> int:
                 "cpu_p99_ms": round(float(np.percentile(ms, 99)), 1),
                 "cached_mb": round(memory.BUDGET.total_bytes / 2**20, 1),
                 "evictions": memory.BUDGET.evictions,
+                # ru_maxrss: KiB on Linux
+                "max_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024),
             }
         )
     )

@@ -8,7 +8,7 @@ process-wide :class:`CacheBudget`: when their estimated size (:func:`deep_nbytes
 ski, are dropped and rebuilt on their next use. An entry larger than the whole budget is not
 kept (it is used once and rebuilt each time; logged once per key).
 
-Cached objects grow after they are stored (a profile model builds its beam flexibility, 61 MB
+Cached objects grow after they are stored (a profile model builds its beam flexibility, 30.5 MB
 for a demo ski, on first use), so an entry's size is measured again when it is read, at most
 every :data:`REMEASURE_S` (a walk of its objects: ~0.04 ms for a profile model).
 """
@@ -28,10 +28,11 @@ import numpy as np
 log = logging.getLogger(__name__)
 
 #: default budget of all per-ski caches of one process [bytes] (settings: ski_cache_mb): the
-#: two demo skis, once their answers and bands are asked, hold 280-360 MB (ski-b's two variant
-#: alternatives add 2 × 61 MB); at 256 MB 400 load-test answers dropped and rebuilt 41-48
-#: entries (CPU mean 41-45 ms, p99 101-103 ms; at 512 MB none: 33 ms, 64-66 ms;
-#: scripts/cache_budget_check.py, docs/deployment.md)
+#: two demo skis, once their answers and bands are asked, held 280-360 MB (ski-b's two variant
+#: alternatives add 2 × 61 MB; 30.5 MB each since the kept flexibilities are compact); at
+#: 256 MB 400 load-test answers dropped and rebuilt 41-48 entries (CPU mean 41-45 ms, p99
+#: 101-103 ms; at 512 MB none: 33 ms, 64-66 ms; scripts/cache_budget_check.py,
+#: docs/deployment.md)
 DEFAULT_MAX_BYTES = 512 * 2**20
 
 #: an entry read after this long [s] since its last measurement is measured again
