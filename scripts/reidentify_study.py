@@ -155,10 +155,19 @@ def main(argv: list[str] | None = None) -> int:
         help="variant starts' stiffness knot spacings [m] (default: the identification's, "
         "solvers.identify.VARIANT_KNOT_SPACINGS_M); to measure other variants",
     )
+    ap.add_argument(
+        "--variant-refit-knot-spacings-m",
+        type=float,
+        nargs="+",
+        help="stiffness knot spacings [m] of forward fits warm-started from each variant "
+        "start (solvers.identify.VARIANT_REFIT_KNOT_SPACINGS_M, default none); to measure them",
+    )
     args = ap.parse_args(argv)
     kwargs = {}
     if args.variant_knot_spacings_m:
         kwargs["variant_knot_spacings_m"] = tuple(args.variant_knot_spacings_m)
+    if args.variant_refit_knot_spacings_m:
+        kwargs["variant_refit_knot_spacings_m"] = tuple(args.variant_refit_knot_spacings_m)
     commit = common.git_commit()
     files = sorted((args.work / "skis").glob("*.h5"))
     if args.only:

@@ -861,9 +861,39 @@ DEFAULT_STARTS = ("projection", "uniform")
 #: σ 0.10 µm), binding-plate 9 × 5 at 83.1 kg 1.78 µm (1.80 off); a start warmed from the chosen
 #: beam stays in its basin (docs/studies/knot-variant.json, docs/limits.md)
 VARIANT_KNOT_SPACINGS_M = (0.033,)
+#: stiffness knot spacings [m] of forward fits warm-started from each used variant start's beam
+#: (``variant_refit_knot_spacings_m``: no start of their own; their fits are variant candidates,
+#: alternatives only). Off: measured, not served (2026-11-28, docs/limits.md "A 25 mm refit from
+#: the variant start"): (25 mm,) took 3 of the 18 unwarned rigid misses on the 13 skis that had
+#: them and ski-b's identification from 86 to 110 s on a quiet 2-core machine
+VARIANT_REFIT_KNOT_SPACINGS_M: tuple[float, ...] = ()
 #: a start whose device model misses its cases by more than this × the noise is not used
 #: (a uniform-EI start, which has no better alternative, only beyond this) [-]
 START_DROP_RATIO = 100.0
+
+
+def variant_refit_jobs(
+    x: np.ndarray,
+    variant_spacing_m: float,
+    smoothing: float,
+    beam: BeamSki,
+    spacings_m: tuple[float, ...],
+) -> list[tuple[str, float, BeamSki, np.ndarray]]:
+    """The forward-fit jobs (label, smoothing, start beam, stiffness knots [m]) of
+    :func:`identify_beam`'s ``variant_refit_knot_spacings_m``: the variant start's ``beam`` (its
+    knots every ``variant_spacing_m``) fitted again with knots every ``spacings_m`` over the
+    nodes ``x`` [m] (as :func:`identify_start` places them: evenly, at least 3)."""
+    jobs = []
+    span = float(x[-1] - x[0])
+    for s_m in spacings_m:
+        if not (math.isfinite(s_m) and s_m > 0):
+            raise InputError(f"variant refit knot spacings must be finite and > 0, got {s_m!r}")
+        nk = max(3, round(span / s_m) + 1)
+        label = (
+            f"forward from the {variant_spacing_m * 1e3:g} mm variant start, knots {s_m * 1e3:g} mm"
+        )
+        jobs.append((label, smoothing, beam, np.linspace(x[0], x[-1], nk)))
+    return jobs
 
 
 def _start_job(job: tuple) -> IdentifiedBeam:
@@ -929,6 +959,7 @@ def identify_beam(
     forward_coarse_spacings_m: tuple[float, ...] = DEFAULT_FORWARD_PATHS,
     starts: tuple[str, ...] = DEFAULT_STARTS,
     variant_knot_spacings_m: tuple[float, ...] = VARIANT_KNOT_SPACINGS_M,
+    variant_refit_knot_spacings_m: tuple[float, ...] = VARIANT_REFIT_KNOT_SPACINGS_M,
     min_cases: int = 6,
     max_steps: int = 80,
     callback=None,
@@ -986,6 +1017,11 @@ def identify_beam(
         forward fits on every path with those knots. They are never the chosen beam; a
         converged one that fits as well and differs is an alternative beam
         (:func:`alternative_fits`, ``extra["variant_candidates"]``). ``()``: none.
+    variant_refit_knot_spacings_m : tuple of float
+        Stiffness knot spacings [m] of more variant fits: each used variant start's beam, fitted
+        forward on every path with these knots (:func:`variant_refit_jobs`; no start of their
+        own, so cheaper than another variant start). Variant candidates like the others.
+        Default VARIANT_REFIT_KNOT_SPACINGS_M (none).
     min_cases : int
         Fewer loaded cases than this cannot identify a beam (``ok=False``).
     max_steps : int
@@ -1211,6 +1247,9 @@ def identify_beam(
             )
         else:
             variant_jobs.append((entry["start"], float(sm0), vs.beam, vs.knots_m))
+            variant_jobs += variant_refit_jobs(
+                x, v, float(sm0), vs.beam, variant_refit_knot_spacings_m
+            )
         variant_report.append(entry)
     both = run_all(jobs + variant_jobs)
     n_main = len(jobs) * len(paths)

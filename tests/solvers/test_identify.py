@@ -642,3 +642,58 @@ def test_covariance_root_holds_parameters_of_very_different_scales():
     vals, vecs = np.linalg.eigh(cov)
     plain = vecs * np.sqrt(np.maximum(vals, 0.0))
     assert (np.abs(plain @ plain.T - cov) / np.outer(scale, scale)).max() > 1e-6
+
+
+def test_variant_refit_jobs_place_their_knots():
+    """identify_beam's ``variant_refit_knot_spacings_m`` jobs: the variant start's beam, new
+    stiffness knots evenly over the nodes (as identify_start places them), a label naming both
+    spacings; a spacing that is not finite and > 0 is refused."""
+    x = np.linspace(-1.0, 1.0, 501)
+    beam = DESIGNS["stiff"].build(4e-3)
+    jobs = identify.variant_refit_jobs(x, 0.033, 7.0, beam, (0.025, 0.5, 5.0))
+    assert [j[0] for j in jobs] == [
+        f"forward from the 33 mm variant start, knots {s:g} mm" for s in (25, 500, 5000)
+    ]
+    for (_, sm, b, knots), n in zip(jobs, (81, 5, 3), strict=True):
+        assert sm == 7.0 and b is beam
+        np.testing.assert_allclose(knots, np.linspace(-1.0, 1.0, n))
+    assert identify.variant_refit_jobs(x, 0.033, 7.0, beam, ()) == []
+    for bad in (0.0, -0.01, float("nan")):
+        with pytest.raises(InputError, match="refit knot spacings"):
+            identify.variant_refit_jobs(x, 0.033, 7.0, beam, (bad,))
+
+
+def test_variant_refits_run_as_variant_candidates_only():
+    """With ``variant_refit_knot_spacings_m`` each used variant start is also fitted forward on
+    the new knots, on every path; those fits are variant candidates (never the chosen beam: it
+    and the main candidates are bitwise those of the run without them). 'soft', 12 cases, seed
+    1: its variant start is used."""
+    ski = DESIGNS["soft"].build(4e-3)
+    f, xf, y = measure_camber(ski, LOADS_N[::2], POSITIONS_M[::2], noise_m=3e-6, rng=1)
+    run = functools.partial(
+        identify.identify_beam,
+        ski.positions_m,
+        f,
+        xf,
+        y,
+        max_steps=3,
+        forward_coarse_spacings_m=(0.0,),
+    )
+    plain = run()
+    refit = run(variant_refit_knot_spacings_m=(0.025,))
+    np.testing.assert_array_equal(
+        refit.beam.bending_stiffness_nm2, plain.beam.bending_stiffness_nm2
+    )
+    np.testing.assert_array_equal(refit.beam.unloaded_gap_m, plain.beam.unloaded_gap_m)
+    assert [c["objective"] for c in refit.extra["forward_candidates"]] == [
+        c["objective"] for c in plain.extra["forward_candidates"]
+    ]
+    used = [s for s in refit.extra["variant_starts"] if s["used"]]
+    assert used
+    labels = [c["start"] for c in refit.extra["variant_candidates"]]
+    want = [
+        f"forward from the {v * 1e3:g} mm variant start, knots 25 mm"
+        for v in identify.VARIANT_KNOT_SPACINGS_M
+    ]
+    assert [x for x in labels if x.startswith("forward from")] == want[: len(used)]
+    assert len(labels) == 2 * len(plain.extra["variant_candidates"])
