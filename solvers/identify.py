@@ -1771,10 +1771,7 @@ def sample_beams(
         Draw in pairs (d, −d) of parameter deviations: the first ``count/2`` beams, then their
         mirrors in the same order (a linear response then has no sampling bias).
     """
-    if not ident.ok:
-        raise InputError(f"no identified beam to sample: {ident.reason}")
-    if not (math.isfinite(scale) and scale >= 0):
-        raise InputError(f"scale must be finite and >= 0, got {scale!r}")
+    # draw_beam_deviations refuses a failed identification, BeamDraws.beams a bad scale
     return draw_beam_deviations(ident, count, rng, antithetic=antithetic).beams(scale)
 
 

@@ -1,6 +1,7 @@
 """Beam identification (solvers.identify): recovery of EI(X) and c(X) from virtual-device data,
 misfit at the noise, honest failure, the Woodbury solve against a dense least-squares oracle."""
 
+import dataclasses
 import functools
 
 import numpy as np
@@ -147,6 +148,12 @@ def test_sample_beams_seeded_and_positive():
         np.testing.assert_array_equal(a.bending_stiffness_nm2, b.bending_stiffness_nm2)
         assert np.all(a.bending_stiffness_nm2 > 0) and a.unloaded_gap_m.min() == 0
     assert not np.array_equal(one[0].unloaded_gap_m, one[1].unloaded_gap_m)
+    for bad in (-1.0, float("nan")):
+        with pytest.raises(InputError, match="scale must be finite"):
+            identify.sample_beams(ident, 2, 42, scale=bad)
+    failed = dataclasses.replace(ident, ok=False, reason="misfit too large")
+    with pytest.raises(InputError, match="no identified beam to sample: misfit too large"):
+        identify.sample_beams(failed, 2, 42)
 
 
 @pytest.mark.parametrize("smoothing_m", [0.0, 0.03])
@@ -593,15 +600,12 @@ def test_variant_starts_are_alternatives_only(monkeypatch):
         np.testing.assert_array_equal(a.bending_stiffness_nm2, b.bending_stiffness_nm2)
 
 
-def test_variant_starts_run_beside_the_start_in_the_pool():
-    """With a pool, the start and the variant starts run side by side in the workers (one
-    BLAS thread each): the same starts and fits as in this process at one BLAS thread, to
-    rounding (at another thread count a start moves by ~1e-5 relative: rounding)."""
-    from skisnow.app.path_pool import fixed_blas_threads, path_pool
-
-    ski = DESIGNS["stiff"].build(4e-3)
-    f, xf, y = measure_camber(ski, LOADS_N[::2], POSITIONS_M[::2], noise_m=3e-6, rng=5)
-    run = functools.partial(
+def _quick_identification(name: str, seed: int):
+    """identify_beam on a design's 12 cases (every other load and position, 4 mm, 3 µm noise,
+    ``seed``), 3 forward steps on one path: a quick run; keyword arguments go on to it."""
+    ski = DESIGNS[name].build(4e-3)
+    f, xf, y = measure_camber(ski, LOADS_N[::2], POSITIONS_M[::2], noise_m=3e-6, rng=seed)
+    return functools.partial(
         identify.identify_beam,
         ski.positions_m,
         f,
@@ -610,6 +614,15 @@ def test_variant_starts_run_beside_the_start_in_the_pool():
         max_steps=3,
         forward_coarse_spacings_m=(0.0,),
     )
+
+
+def test_variant_starts_run_beside_the_start_in_the_pool():
+    """With a pool, the start and the variant starts run side by side in the workers (one
+    BLAS thread each): the same starts and fits as in this process at one BLAS thread, to
+    rounding (at another thread count a start moves by ~1e-5 relative: rounding)."""
+    from skisnow.app.path_pool import fixed_blas_threads, path_pool
+
+    run = _quick_identification("stiff", 5)
     with fixed_blas_threads():
         here = run()
     with path_pool(2) as pmap:
@@ -668,17 +681,7 @@ def test_variant_refits_run_as_variant_candidates_only():
     the new knots, on every path; those fits are variant candidates (never the chosen beam: it
     and the main candidates are bitwise those of the run without them). 'soft', 12 cases, seed
     1: its variant start is used."""
-    ski = DESIGNS["soft"].build(4e-3)
-    f, xf, y = measure_camber(ski, LOADS_N[::2], POSITIONS_M[::2], noise_m=3e-6, rng=1)
-    run = functools.partial(
-        identify.identify_beam,
-        ski.positions_m,
-        f,
-        xf,
-        y,
-        max_steps=3,
-        forward_coarse_spacings_m=(0.0,),
-    )
+    run = _quick_identification("soft", 1)
     plain = run()
     refit = run(variant_refit_knot_spacings_m=(0.025,))
     np.testing.assert_array_equal(
