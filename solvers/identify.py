@@ -671,9 +671,8 @@ def identify_start(
         raise InputError(f"{int((~inside).sum())} load positions lie outside the measured nodes")
     noise = float(noise_m) if noise_m is not None else estimate_noise(y)
     noise = max(noise, 1e-9)  # noise-free data: 1 nm, far below any device
-    span = float(x[-1] - x[0])
-    nk = max(3, round(span / knot_spacing_m) + 1)
-    knots = np.linspace(x[0], x[-1], nk)
+    knots = stiffness_knots(x, knot_spacing_m)
+    nk = knots.size
     if not (np.isfinite(camber_smoothing_m) and camber_smoothing_m >= 0):
         raise InputError(f"camber_smoothing_m must be finite and >= 0, got {camber_smoothing_m!r}")
     prob = _Problem(x, loads, xfs, y, knots, noise, smoothing, camber_smoothing_m)
@@ -882,18 +881,23 @@ def variant_refit_jobs(
     """The forward-fit jobs (label, smoothing, start beam, stiffness knots [m]) of
     :func:`identify_beam`'s ``variant_refit_knot_spacings_m``: the variant start's ``beam`` (its
     knots every ``variant_spacing_m``) fitted again with knots every ``spacings_m`` over the
-    nodes ``x`` [m] (as :func:`identify_start` places them: evenly, at least 3)."""
+    nodes ``x`` [m] (:func:`stiffness_knots`, as :func:`identify_start` places them)."""
     jobs = []
-    span = float(x[-1] - x[0])
     for s_m in spacings_m:
         if not (math.isfinite(s_m) and s_m > 0):
             raise InputError(f"variant refit knot spacings must be finite and > 0, got {s_m!r}")
-        nk = max(3, round(span / s_m) + 1)
         label = (
             f"forward from the {variant_spacing_m * 1e3:g} mm variant start, knots {s_m * 1e3:g} mm"
         )
-        jobs.append((label, smoothing, beam, np.linspace(x[0], x[-1], nk)))
+        jobs.append((label, smoothing, beam, stiffness_knots(x, s_m)))
     return jobs
+
+
+def stiffness_knots(x: np.ndarray, spacing_m: float) -> np.ndarray:
+    """Stiffness knots [m] about every ``spacing_m`` over the nodes ``x`` [m]: evenly from the
+    first node to the last, at least 3."""
+    span = float(x[-1] - x[0])
+    return np.linspace(x[0], x[-1], max(3, round(span / spacing_m) + 1))
 
 
 def _start_job(job: tuple) -> IdentifiedBeam:
