@@ -1310,10 +1310,9 @@ def identify_beam(
     spread, per_candidate = _candidate_spread(x, fwd, [c[3] for c in candidates])
     _, per_variant = _candidate_spread(x, fwd, [c[3] for c in variant_candidates])
     pool = [c[3] for c in candidates + variant_candidates]
-    alternatives = alternative_fits(x, fwd, pool[: len(candidates)]) if fwd.converged else []
+    alternatives = alternative_fits(fwd, pool[: len(candidates)]) if fwd.converged else []
     if fwd.converged and variant_candidates:
         picked = alternative_fits(
-            x,
             fwd,
             pool[len(candidates) :],
             kept=tuple(pool[i].beam for i in alternatives),
@@ -1492,7 +1491,6 @@ def middle_distance(a: BeamSki, b: BeamSki) -> tuple[float, float]:
 
 
 def alternative_fits(
-    x: np.ndarray,
     chosen: ForwardFit,
     fits: list[ForwardFit],
     *,

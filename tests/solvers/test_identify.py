@@ -502,9 +502,9 @@ def test_alternative_fits_keeps_close_different_converged_fits():
         _fit(scaled(0.6), 3e-6, 99.0, converged=False),  # not converged
         _fit(scaled(0.8), float("nan"), float("nan")),
     ]
-    assert identify.alternative_fits(x, chosen, fits) == [3, 2]
+    assert identify.alternative_fits(chosen, fits) == [3, 2]
     many = [chosen] + [_fit(scaled(1.1 + 0.1 * k), 3e-6, 100.0 + k) for k in range(6)]
-    kept = identify.alternative_fits(x, chosen, many)
+    kept = identify.alternative_fits(chosen, many)
     assert kept == list(range(1, identify.ALTERNATIVES_MAX + 1))
     # the variant starts' slot: its own count, and distinct from the beams already kept (the
     # main alternatives), which it does not displace
@@ -515,11 +515,11 @@ def test_alternative_fits_keeps_close_different_converged_fits():
         _fit(scaled(1.9), 3e-6 * (1 + 0.5 * r), 96.0),
         _fit(scaled(2.2), 3e-6 * (1 + 0.5 * r), 97.0),
     ]
-    got = identify.alternative_fits(x, chosen, variants, kept=kept_beams, max_count=2)
+    got = identify.alternative_fits(chosen, variants, kept=kept_beams, max_count=2)
     assert got == [1, 2]
     # a tighter misfit range of their own (VARIANT_MISFIT_RANGE): the fits 1 % above are out
     tight = identify.alternative_fits(
-        x, chosen, variants, kept=kept_beams, max_count=2, misfit_range=0.2 * r
+        chosen, variants, kept=kept_beams, max_count=2, misfit_range=0.2 * r
     )
     assert tight == []
 
