@@ -15,6 +15,10 @@ LOADS_N = np.linspace(10, 90, 7) * 9.82
 POSITIONS_M = np.linspace(-0.30, 0.10, 6)
 
 DESIGNS = OTHER_DESIGNS
+#: the variant starts never change the chosen beam or the main candidates (bit for bit,
+#: test_variant_starts_are_alternatives_only) and cost a start and two fits: tests of anything
+#: else run without them
+NO_VARIANTS = {"variant_knot_spacings_m": ()}
 
 
 def _data(design, spacing_m, noise_m, seed):
@@ -104,7 +108,7 @@ def test_not_a_beam_is_reported():
     a, f, xf, ya = _data(DESIGNS["stiff"], 4e-3, 3e-6, 3)
     _b, _, _, yb = _data(DESIGNS["soft"], 4e-3, 3e-6, 4)
     y = np.where((np.arange(f.size) % 2 == 0)[:, None], ya, yb)
-    ident = identify.identify_beam(a.positions_m, f, xf, y)
+    ident = identify.identify_beam(a.positions_m, f, xf, y, **NO_VARIANTS)
     assert not ident.ok
     assert "misfit" in ident.reason
 
@@ -141,7 +145,7 @@ def test_estimate_noise():
 
 def test_sample_beams_seeded_and_positive():
     ski, f, xf, y = _data(DESIGNS["stiff"], 4e-3, 3e-6, 5)
-    ident = identify.identify_beam(ski.positions_m, f, xf, y)
+    ident = identify.identify_beam(ski.positions_m, f, xf, y, **NO_VARIANTS)
     one = identify.sample_beams(ident, 3, 42)
     two = identify.sample_beams(ident, 3, 42)
     for a, b in zip(one, two, strict=True):
@@ -208,11 +212,15 @@ def test_held_out_check_rejects_a_beam_that_does_not_predict():
     held = np.zeros(f.size, dtype=bool)
     held[np.random.default_rng(3).choice(f.size, count, replace=False)] = True
     bump = 30e-6 * np.exp(-(((ski.positions_m - 0.2) / 0.1) ** 2))
-    clean, check = identify.identify_beam_checked(ski.positions_m, f, xf, y, seed=3, noise_m=3e-6)
+    clean, check = identify.identify_beam_checked(
+        ski.positions_m, f, xf, y, seed=3, noise_m=3e-6, **NO_VARIANTS
+    )
     assert clean.ok, clean.reason
     assert check["held_out_cases"] == count and check["held_out_rms_m"] < 2e-6
     y_bad = np.where(held[:, None], y + bump, y)
-    bad, check = identify.identify_beam_checked(ski.positions_m, f, xf, y_bad, seed=3, noise_m=3e-6)
+    bad, check = identify.identify_beam_checked(
+        ski.positions_m, f, xf, y_bad, seed=3, noise_m=3e-6, **NO_VARIANTS
+    )
     assert not bad.ok and "held-out" in bad.reason
     assert check["held_out_rms_m"] > 6e-6
 
@@ -265,7 +273,7 @@ def _restart_run(monkeypatch, sigmas):
     ski = DESIGNS["stiff"].build(4e-3)
     f, xf, y = measure_camber(ski, LOADS_N[::2], POSITIONS_M[::2], noise_m=3e-6, rng=5)
     return identify.identify_beam(
-        ski.positions_m, f, xf, y, max_steps=3, forward_coarse_spacings_m=(0.0,)
+        ski.positions_m, f, xf, y, max_steps=3, forward_coarse_spacings_m=(0.0,), **NO_VARIANTS
     )
 
 
@@ -353,7 +361,7 @@ def test_uniform_start_takes_c_from_the_unloaded_profile_and_finds_ei():
 def _with_unloaded_identified(seed=5):
     ski, f, xf, y = _data(DESIGNS["stiff"], 4e-3, 3e-6, seed)
     f0, xf0, y0 = _with_unloaded(ski, f, xf, y, seed + 1)
-    return ski, identify.identify_beam(ski.positions_m, f0, xf0, y0)
+    return ski, identify.identify_beam(ski.positions_m, f0, xf0, y0, **NO_VARIANTS)
 
 
 def test_several_starts_are_checked_run_and_reported():
@@ -409,7 +417,7 @@ def test_a_start_whose_device_model_misses_by_far_is_not_used(monkeypatch):
     monkeypatch.setattr(identify, "identify_start", stiff_start)
     ski, f, xf, y = _data(DESIGNS["stiff"], 4e-3, 3e-6, 5)
     f0, xf0, y0 = _with_unloaded(ski, f, xf, y, 6)
-    ident = identify.identify_beam(ski.positions_m, f0, xf0, y0, max_steps=5)
+    ident = identify.identify_beam(ski.positions_m, f0, xf0, y0, max_steps=5, **NO_VARIANTS)
     proj = [s for s in ident.extra["starts"] if s["start"] == "projection"]
     assert proj and not any(s["used"] for s in proj)
     assert "device model" in proj[0]["note"] and "not used" in proj[0]["note"]
@@ -425,12 +433,19 @@ def test_failure_names_its_cause(monkeypatch):
     ski, f, xf, y = _data(DESIGNS["stiff"], 4e-3, 3e-6, 5)
     f0, xf0, y0 = _with_unloaded(ski, f, xf, y, 6)
     one = identify.identify_beam(
-        ski.positions_m, f0, xf0, y0, starts=("projection",), start_smoothing=100.0, max_steps=8
+        ski.positions_m,
+        f0,
+        xf0,
+        y0,
+        starts=("projection",),
+        start_smoothing=100.0,
+        max_steps=8,
+        **NO_VARIANTS,
     )
     assert not one.ok
     assert "no start reached the forward fit's basin" in one.reason
     assert "not explained by one beam" not in one.reason
-    several = identify.identify_beam(ski.positions_m, f0, xf0, y0, max_steps=8)
+    several = identify.identify_beam(ski.positions_m, f0, xf0, y0, max_steps=8, **NO_VARIANTS)
     assert not several.ok
     conv = {(c["start"], c["start_smoothing"]) for c in several.extra["forward_candidates"]}
     if len(conv) >= 2 and all(c["converged"] for c in several.extra["forward_candidates"]):
