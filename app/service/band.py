@@ -744,8 +744,9 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
                 f"({noise * 1e6:.2f} µm): a model error of about {excess * 1e6:.1f} µm that the "
                 "noise does not explain. The band was calibrated on skis whose beams nearly all "
                 "predict their held-out cases within 1.11 × the noise, so this answer may be "
-                "further off than its band says. More camber cases (13 loads × 9 positions, "
-                "the unloaded profile included) fix the beam better",
+                "further off than its band says. More camber cases (at least 13 loads × 9 "
+                "positions, the unloaded profile included) usually fix the beam better; on a "
+                "ski measured so, check that both sides and the device agree",
             }
         )
     out = {
