@@ -141,7 +141,13 @@ def _starts_and_fits(extra: dict) -> dict:
             for i in extra.get("variant_alternatives") or []
             if i < len(variants)
         ],
-        # the variant starts (other stiffness knots): their forward fits are alternatives only
+        # the variant starts (other stiffness knots): their forward fits are alternatives, or
+        # the chosen beam when every main fit stays above the noise and one of them reaches it
+        # (solvers.identify.variant_choice): its index, and the best main fit's misfit [µm]
+        "variant_chosen": extra.get("variant_chosen"),
+        "main_misfit_um": (
+            extra["main_misfit_m"] * um if extra.get("main_misfit_m") is not None else None
+        ),
         "variant_fits": len(variants),
         "variant_fits_time_s": float(sum(c["time_s"] for c in variants)),
         "variant_misfit_um": [c["misfit_m"] * um for c in variants],
