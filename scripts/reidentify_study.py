@@ -6,10 +6,12 @@ misses").
 Each ski file of ``--work`` (``scripts/own_ski_study.py``'s per-ski cache, ``skis/*.h5``) is
 identified again as its job identified it (:func:`app.path_pool.identify_with_pool` of
 :func:`solvers.identify.identify_beam_checked`, the stored held-out cases). The chosen beam must
-come out the same as the stored one (the identification is deterministic and the variant starts
-never choose): then only the ``identified/alternatives`` group is replaced, the file written
-atomically with the commit in its attributes, and the file as it was kept once under
-``skis-before-reidentify/``. A ski whose chosen beam differs is left as it was and reported.
+come out the same as the stored one (the identification is deterministic; a variant fit is only
+chosen where the main fits stay above the noise, :func:`solvers.identify.variant_choice`): then
+only the ``identified/alternatives`` group is replaced, the file written atomically with the
+commit in its attributes, and the file as it was kept once under ``skis-before-reidentify/``. A
+ski whose chosen beam differs is left as it was and reported (with the variant fit chosen, if
+that is why: ``variant_chosen``, the main misfit it replaced and the held-out RMS).
 ``own_ski_study.py --rescore`` then asks the held-out cases again with the new alternatives.
 
 Usage::
@@ -102,10 +104,15 @@ def reidentify(path: Path, backup_dir: Path, commit: str, **kwargs) -> dict:
     stored_alts = (record.identified.get("alternatives") or {}).get("unloaded_gap_m")
     before = 0 if stored_alts is None else np.atleast_2d(stored_alts).shape[0]
     t0 = time.perf_counter()
-    ident, _ = identify_as_its_job(record, **kwargs)
+    ident, check = identify_as_its_job(record, **kwargs)
     e = ident.extra
     row.update(
         time_s=round(time.perf_counter() - t0, 1),
+        noise_m=float(ident.noise_m),
+        held_out_rms_m=check.get("held_out_rms_m"),
+        stored_held_out_rms_m=float(record.identified["attrs"].get("held_out_rms_m", np.nan)),
+        variant_chosen=e.get("variant_chosen"),
+        main_misfit_m=float(e.get("main_misfit_m", np.nan)),
         wall_starts_s=round(float(e.get("wall_starts_s", np.nan)), 1),
         wall_forward_s=round(float(e.get("wall_forward_s", np.nan)), 1),
         misfit_m=float(ident.misfit_m),

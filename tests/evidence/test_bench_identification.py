@@ -139,6 +139,8 @@ def test_report_fields_of_the_starts_and_fits():
         "restarted": False,
         "tried_rejected_starts": False,
         "start": "uniform",
+        "variant_chosen": None,
+        "main_misfit_m": 3.0e-6,
         "candidate_spread": {
             "converged": 3,
             "misfit_min_m": 3.0e-6,
@@ -162,10 +164,16 @@ def test_report_fields_of_the_starts_and_fits():
     assert f["alternative_beams_misfit_um"] == pytest.approx([3.2, 3.1, 3.05], rel=1e-12)
     assert f["variant_fits"] == 1 and f["variant_fits_time_s"] == 8.0
     assert f["variant_misfit_um"] == pytest.approx([3.05], rel=1e-12)
+    assert f["variant_chosen"] is None and f["main_misfit_um"] == pytest.approx(3.0, rel=1e-12)
+    # a variant fit chosen (solvers.identify.variant_choice): its index and the main misfit
+    chosen = _starts_and_fits({**extra, "variant_chosen": 0, "main_misfit_m": 3.9e-6})
+    assert chosen["variant_chosen"] == 0
+    assert chosen["main_misfit_um"] == pytest.approx(3.9, rel=1e-12)
     # no converged candidate: the spread fields are empty, not an error
     none = _starts_and_fits({"candidate_spread": {"converged": 0}, "forward_candidates": []})
     assert none["candidates_converged"] == 0 and none["candidates_misfit_um"] == [None, None]
     assert none["alternative_beams_misfit_um"] == [] and none["variant_fits"] == 0
+    assert none["variant_chosen"] is None and none["main_misfit_um"] is None
 
 
 def test_design_data_are_the_own_ski_study_coarse_data():
