@@ -870,10 +870,12 @@ VARIANT_REFIT_KNOT_SPACINGS_M: tuple[float, ...] = ()
 #: stiffness knot spacings [m] of the variant starts run on demand (``demand_variant_knot_
 #: spacings_m``): only when the best main fit converged above the noise (after the restarts)
 #: and no variant fit reaches it (variant_choice), each in turn; at the noise they never run.
-#: Measured: own-ski study random-19 9 × 5 (main fits 1.013 × after the restarts, the 33 mm
-#: variant's 1.021 ×, held-out 1.32 × the noise; its forward fit from the true beam 0.994 ×):
-#: a 25 mm variant start's fit reaches 1.0008 ×, held-out 1.04 × (docs/limits.md)
-DEMAND_VARIANT_KNOT_SPACINGS_M = (0.025,)
+#: Off: measured, not served (docs/limits.md, "A variant fit chosen when the main fits stay
+#: above the noise"). (25 mm,) was chosen on random-19 and random-1 9 × 5 (held-out 1.32 → 1.04
+#: and 1.036 → 1.009 × the noise), but the bending ski's band draws from its covariance at the
+#: 9 × 5 grid's × 12 (2000 MPa) then converged for 1 of 4 beams on every answer, leaving that
+#: band without its camber part (24 of 24 answers each; 4 and 24 of them outside the band)
+DEMAND_VARIANT_KNOT_SPACINGS_M: tuple[float, ...] = ()
 #: a start whose device model misses its cases by more than this × the noise is not used
 #: (a uniform-EI start, which has no better alternative, only beyond this) [-]
 START_DROP_RATIO = 100.0
@@ -1038,9 +1040,9 @@ def identify_beam(
         Default VARIANT_REFIT_KNOT_SPACINGS_M (none).
     demand_variant_knot_spacings_m : tuple of float
         Stiffness knot spacings [m] of variant starts run on demand
-        (DEMAND_VARIANT_KNOT_SPACINGS_M): only when the best main fit converged above the
-        noise and no variant fit reaches it, each in turn until one does; their fits are
-        variant candidates like the others. ``()``: none.
+        (DEMAND_VARIANT_KNOT_SPACINGS_M, default none): only when the best main fit
+        converged above the noise and no variant fit reaches it, each in turn until one does;
+        their fits are variant candidates like the others. ``()``: none.
     min_cases : int
         Fewer loaded cases than this cannot identify a beam (``ok=False``).
     max_steps : int

@@ -154,6 +154,9 @@ class Band:
     #: :data:`HELD_OUT_WARN_RATIO` × the device noise (:func:`held_out_excess`): (held-out
     #: RMS, device noise) [m]; None otherwise
     held_out_error: tuple[float, float] | None = None
+    #: a bending-ski answer whose plausible beams mostly did not converge on this snow (fewer
+    #: than 2 solved, so the camber part has no width and is left out): (solved, drawn)
+    beam_draws_failed: tuple[int, int] | None = None
 
 
 def touches_profile_end(gap_map, macro) -> bool:
@@ -498,7 +501,17 @@ def answer_band(
             source = "identified beam: no covariance stored with the identification"
             not_covered.insert(0, "the identified beam's uncertainty (EI(X), c(X)): " + source)
     has_sigma = sigma is not None and bool(np.any(np.asarray(sigma) > 0))
-    if sampled is not None and has_sigma:
+    draws_failed = None
+    if not rigid and sampled is not None and has_sigma and perturbed - sampled.failed < 2:
+        # a width needs 2 solved draws: the camber part is left out, and the answer says so
+        draws_failed = (perturbed - sampled.failed, perturbed)
+        not_covered.insert(
+            0,
+            f"the identified beam's uncertainty (EI(X), c(X)): only {draws_failed[0]} of "
+            f"{perturbed} plausible beams (deviations × {beam_scale:g}) converged on this snow, "
+            "so the band has no camber part",
+        )
+    if sampled is not None and has_sigma and draws_failed is None:
         components["camber_model"] = sampled.widths
     if sampled is not None and sampled.alternatives:
         # the data do not decide between these beams: the answer's spread over them is part of
@@ -599,6 +612,7 @@ def answer_band(
         flat_base=flat_base,
         unmeasured_stiffness=unmeasured,
         held_out_error=held_out,
+        beam_draws_failed=draws_failed,
         bending_ignored=bending_ignored if "ski_model" in components and bending_ignored else None,
         grid_factors=grid_factors,
         alternative_beams=(0, 0)
@@ -747,6 +761,17 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
                 "further off than its band says. More camber cases (at least 13 loads × 9 "
                 "positions, the unloaded profile included) usually fix the beam better; on a "
                 "ski measured so, check that both sides and the device agree",
+            }
+        )
+    if band.beam_draws_failed is not None:
+        solved, drawn = band.beam_draws_failed
+        warnings.append(
+            {
+                "code": "band_beam_draws_failed",
+                "detail": f"only {solved} of the {drawn} plausible beams drawn from the "
+                "identification converged on this snow, so the error band leaves out the "
+                "identified beam's own uncertainty (band.not_covered): the answer may be "
+                "further off than its band says",
             }
         )
     out = {

@@ -225,3 +225,46 @@ def test_an_answer_of_a_beam_off_on_its_held_out_cases_is_warned(catalogue, ski_
     warned = service.contact(replace(catalogue, skis={**catalogue.skis, "ski-a": off}), case)
     assert "beam_held_out_error" in [w["code"] for w in warned["warnings"]]
     assert warned["band"]["relative_half_width"] == plain["band"]["relative_half_width"]
+
+
+def test_a_bending_ski_band_whose_beam_draws_fail_says_so(catalogue, monkeypatch):
+    """Demo ski-a's bending-ski answer: its band has a camber part from 4 plausible beams. When
+    all but one of them fail to converge (forced: band_sampling._solve_each keeps one), a width
+    cannot be formed: the camber part is left out, band.not_covered and a warning say so with the
+    counts, and camber_model.perturbed_solves reads 1 (#26: random-19 on 9 × 5 with a 25 mm-knot
+    beam at × 12 on 2000 MPa snow, 1 of 4 solved, 4 answers > 3 % off outside their band)."""
+    from dataclasses import replace
+
+    from skisnow.app.service import band_sampling
+
+    case = _case(grind="tiny-grind", ski_model="flexible")
+    plain = service.contact(catalogue, case)
+    assert "camber_model" in plain["band"]["components"]
+    assert plain["band"]["camber_model"]["perturbed_solves"] == band_sampling.BEAM_SAMPLES
+    assert "band_beam_draws_failed" not in [w["code"] for w in plain["warnings"]]
+    solve_each = band_sampling._solve_each
+    calls = []
+
+    def one_draw_solves(solve, items):
+        calls.append(len(items))
+        done, failed = solve_each(solve, items)
+        if len(calls) == 1:  # the plausible beams (then the alternatives, untouched)
+            return done[:1], failed + len(done) - 1
+        return done, failed
+
+    monkeypatch.setattr(band_sampling, "_solve_each", one_draw_solves)
+    ski = catalogue.skis["ski-a"]
+    fresh = replace(ski, record=replace(ski.record, cache={}), _flexible={})
+    got = service.contact(replace(catalogue, skis={**catalogue.skis, "ski-a": fresh}), case)
+    band = got["band"]
+    assert calls and calls[0] == band_sampling.BEAM_SAMPLES
+    assert "camber_model" not in band["components"]
+    assert band["camber_model"]["perturbed_solves"] == 1
+    detail = {w["code"]: w["detail"] for w in got["warnings"]}["band_beam_draws_failed"]
+    assert f"only 1 of the {band_sampling.BEAM_SAMPLES} plausible beams" in detail
+    assert any(
+        f"only 1 of {band_sampling.BEAM_SAMPLES} plausible beams" in n for n in band["not_covered"]
+    )
+    # without its camber part the band is no wider than with it
+    w, w0 = (a["band"]["relative_half_width"]["apparent_contact_area"] for a in (got, plain))
+    assert w <= w0
