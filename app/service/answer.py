@@ -37,6 +37,7 @@ from skisnow.app.service.profiles import (
 from skisnow.app.service.rounding import finite_list
 from skisnow.app.snow import snow_record
 from skisnow.app.storage.common import code_version
+from skisnow.solvers.band import end_pixel_share
 from skisnow.solvers.elastic import effective_modulus
 from skisnow.solvers.errors import NotConvergedError, OutOfRangeError, SkisnowError
 from skisnow.solvers.flexible import solve_flexible
@@ -226,6 +227,9 @@ def contact(
             ski_model_used=model_info["used"],
             beam_is_design=ski.beam_is_design,
             rigid_minus_flexible=model_info.get("rigid_minus_flexible")
+            if model_info["requested"] == "auto"
+            else None,
+            flexible_end_pixel_share=model_info.get("flexible", {}).get("end_pixel_share")
             if model_info["requested"] == "auto"
             else None,
             bending_ignored=bending_ignored(model_info),
@@ -573,6 +577,10 @@ def _choose_ski_model(inp: ContactInputs, ski: Ski, preset: Preset, rigid, ms_ri
     ms_flex = multiscale(flex, grind.table, inp.porosity, e_eff)
     diff = rigid_minus_flexible(rigid, flex, ms_rigid, ms_flex)
     info["rigid_minus_flexible"] = diff
+    # the bending ski's own grid estimate: an ``auto`` answer of the rigid shape is judged
+    # against the bending ski, so its band takes the apparent area's grid part from it
+    share = end_pixel_share([z.length_m for z in flex.zones], flex.pixel_size_m[0])
+    info["flexible"]["end_pixel_share"] = share if np.isfinite(share) else None
     if inp.ski_model == "flexible":
         info.update(used="flexible", reason="requested")
         return flex, ms_flex, info

@@ -25,7 +25,9 @@ in quadrature (:func:`solvers.band.combine`):
     answer of the bending ski times :func:`flexible_grid_factors` (:data:`FLEXIBLE_GRID_FACTOR`,
     ``scripts/flexible_band_study.py``; the apparent area's per snow modulus,
     ``scripts/flexible_grid_factor_study.py``), for a rigid one the apparent area's times
-    :func:`rigid_grid_factors` (per snow modulus, ``scripts/rigid_grid_factor_study.py``).
+    :func:`rigid_grid_factors` (per snow modulus, ``scripts/rigid_grid_factor_study.py``). An
+    ``auto`` answer of the rigid shape that was compared to the bending ski takes the apparent
+    area's part from the bending ski's answer (it stands for the bending ski; docs/limits.md).
 ``table_interpolation``
     The texture table's interpolation error between its own nodes, estimated by leaving nodes
     out (:func:`solvers.band.table_interpolation_error`), weighted by where the answer loads the
@@ -415,6 +417,7 @@ def answer_band(
     ski_model_used: str,
     beam_is_design: bool,
     rigid_minus_flexible: dict[str, float] | None = None,
+    flexible_end_pixel_share: float | None = None,
     bending_ignored: str | None = None,
     min_separation_unresolved: str | None = None,
     samples: int = PROFILE_SAMPLES,
@@ -439,6 +442,13 @@ def answer_band(
     least :data:`FLAT_STRETCH_M` is also solved with that stretch perturbed by
     :data:`FLAT_SIGMA_M`; a spread of its apparent area above :data:`FLAT_MIN_WIDTH` puts it
     in the flat-base regime (component ``flat_base``, ``Band.flat_base``).
+
+    ``flexible_end_pixel_share``: when ``auto`` answered with the rigid shape after comparing it
+    to the bending ski (``rigid_minus_flexible``), the bending ski's end-pixel share
+    (:func:`solvers.band.end_pixel_share`); the apparent area's grid part is then the bending
+    ski's (its share × :data:`K_END_PIXELS` × its factor per snow modulus), since such an answer
+    stands for the bending ski: its error is the difference (component ``ski_model``) plus the
+    bending ski's grid error.
 
     ``bending_ignored``: why ``auto`` answered with the rigid shape without a comparison to
     the bending ski (no beam, or the flexible solve failed); the band then adds the measured
@@ -540,6 +550,17 @@ def answer_band(
     grid = grid_component(preset, macro, sampled)
     grid_factors = flexible_grid_factors(e_eff) if not rigid else rigid_grid_factors(e_eff)
     grid = {q: w * grid_factors.get(q, 1.0) for q, w in grid.items()}
+    if rigid and rigid_minus_flexible and flexible_end_pixel_share is not None:
+        # auto answered with the rigid shape after comparing it to the bending ski, whose
+        # answer is the truth it stands for: its error is the difference (ski_model) plus the
+        # bending ski's grid error, so the apparent area's grid part is the bending ski's
+        grid_factors = {
+            **grid_factors,
+            "apparent_contact_area": flexible_area_grid_factor_at(e_eff),
+        }
+        grid["apparent_contact_area"] = (
+            K_END_PIXELS * flexible_end_pixel_share * grid_factors["apparent_contact_area"]
+        )
     components["macro_grid"] = grid
     components["table_interpolation"] = _table_component(table, macro, porosity, e_eff)
     if rigid and rigid_minus_flexible:
