@@ -159,6 +159,8 @@ class Band:
     #: a bending-ski answer whose plausible beams mostly did not converge on this snow (fewer
     #: than 2 solved, so the camber part has no width and is left out): (solved, drawn)
     beam_draws_failed: tuple[int, int] | None = None
+    #: the same for a rigid answer's perturbed loaded profiles: (solved, drawn)
+    profile_draws_failed: tuple[int, int] | None = None
 
 
 def touches_profile_end(gap_map, macro) -> bool:
@@ -512,15 +514,17 @@ def answer_band(
             not_covered.insert(0, "the identified beam's uncertainty (EI(X), c(X)): " + source)
     has_sigma = sigma is not None and bool(np.any(np.asarray(sigma) > 0))
     draws_failed = None
-    if not rigid and sampled is not None and has_sigma and perturbed - sampled.failed < 2:
+    if sampled is not None and has_sigma and perturbed - sampled.failed < 2:
         # a width needs 2 solved draws: the camber part is left out, and the answer says so
         draws_failed = (perturbed - sampled.failed, perturbed)
-        not_covered.insert(
-            0,
-            f"the identified beam's uncertainty (EI(X), c(X)): only {draws_failed[0]} of "
-            f"{perturbed} plausible beams (deviations × {beam_scale:g}) converged on this snow, "
-            "so the band has no camber part",
+        what = (
+            f"the camber model ({source}): only {draws_failed[0]} of {perturbed} perturbed "
+            "loaded profiles"
+            if rigid
+            else f"the identified beam's uncertainty (EI(X), c(X)): only {draws_failed[0]} of "
+            f"{perturbed} plausible beams (deviations × {beam_scale:g})"
         )
+        not_covered.insert(0, what + " converged on this snow, so the band has no camber part")
     if sampled is not None and has_sigma and draws_failed is None:
         components["camber_model"] = sampled.widths
     if sampled is not None and sampled.alternatives:
@@ -633,7 +637,8 @@ def answer_band(
         flat_base=flat_base,
         unmeasured_stiffness=unmeasured,
         held_out_error=held_out,
-        beam_draws_failed=draws_failed,
+        beam_draws_failed=None if rigid else draws_failed,
+        profile_draws_failed=draws_failed if rigid else None,
         bending_ignored=bending_ignored if "ski_model" in components and bending_ignored else None,
         grid_factors=grid_factors,
         alternative_beams=(0, 0)
@@ -793,6 +798,16 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
                 "identification converged on this snow, so the error band leaves out the "
                 "identified beam's own uncertainty (band.not_covered): the answer may be "
                 "further off than its band says",
+            }
+        )
+    if band.profile_draws_failed is not None:
+        solved, drawn = band.profile_draws_failed
+        warnings.append(
+            {
+                "code": "band_profile_draws_failed",
+                "detail": f"only {solved} of the {drawn} perturbed loaded profiles converged on "
+                "this snow, so the error band leaves out the camber model's uncertainty "
+                "(band.not_covered): the answer may be further off than its band says",
             }
         )
     out = {

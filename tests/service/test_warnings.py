@@ -268,3 +268,44 @@ def test_a_bending_ski_band_whose_beam_draws_fail_says_so(catalogue, monkeypatch
     # without its camber part the band is no wider than with it
     w, w0 = (a["band"]["relative_half_width"]["apparent_contact_area"] for a in (got, plain))
     assert w <= w0
+
+
+def test_a_rigid_band_whose_profile_draws_fail_says_so(catalogue, monkeypatch):
+    """The rigid answer's counterpart: when all but one of its perturbed loaded profiles fail to
+    converge (forced: band_sampling._solve_each keeps one of the first batch), the camber part
+    is left out, and band.not_covered and the warning band_profile_draws_failed say so. Never
+    seen in the studies; before, such a band lost its camber part silently."""
+    from dataclasses import replace
+
+    from skisnow.app.service import band_sampling
+
+    case = _case(grind="tiny-grind", ski_model="rigid")
+    plain = service.contact(catalogue, case)
+    assert "camber_model" in plain["band"]["components"]
+    assert plain["band"]["camber_model"]["perturbed_solves"] == band_sampling.PROFILE_SAMPLES
+    solve_each = band_sampling._solve_each
+    calls = []
+
+    def one_draw_solves(solve, items):
+        calls.append(len(items))
+        done, failed = solve_each(solve, items)
+        if len(calls) == 1:  # the perturbed profiles (then the flat stretch, the alternatives)
+            return done[:1], failed + len(done) - 1
+        return done, failed
+
+    monkeypatch.setattr(band_sampling, "_solve_each", one_draw_solves)
+    ski = catalogue.skis["ski-a"]
+    fresh = replace(ski, record=replace(ski.record, cache={}))
+    got = service.contact(replace(catalogue, skis={**catalogue.skis, "ski-a": fresh}), case)
+    band = got["band"]
+    assert calls and calls[0] == band_sampling.PROFILE_SAMPLES
+    assert "camber_model" not in band["components"]
+    assert band["camber_model"]["perturbed_solves"] == 1
+    codes = [w["code"] for w in got["warnings"]]
+    assert "band_beam_draws_failed" not in codes
+    detail = {w["code"]: w["detail"] for w in got["warnings"]}["band_profile_draws_failed"]
+    assert f"only 1 of the {band_sampling.PROFILE_SAMPLES} perturbed loaded profiles" in detail
+    assert any(
+        f"only 1 of {band_sampling.PROFILE_SAMPLES} perturbed loaded profiles" in n
+        for n in band["not_covered"]
+    )
