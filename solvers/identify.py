@@ -870,12 +870,14 @@ VARIANT_REFIT_KNOT_SPACINGS_M: tuple[float, ...] = ()
 #: stiffness knot spacings [m] of the variant starts run on demand (``demand_variant_knot_
 #: spacings_m``): only when the best main fit converged above the noise (after the restarts)
 #: and no variant fit reaches it (variant_choice), each in turn; at the noise they never run.
-#: Off: measured, not served (docs/limits.md, "A variant fit chosen when the main fits stay
-#: above the noise"). (25 mm,) was chosen on random-19 and random-1 9 × 5 (held-out 1.32 → 1.04
-#: and 1.036 → 1.009 × the noise), but the bending ski's band draws from its covariance at the
-#: 9 × 5 grid's × 12 (2000 MPa) then converged for 1 of 4 beams on every answer, leaving that
-#: band without its camber part (24 of 24 answers each; 4 and 24 of them outside the band)
-DEMAND_VARIANT_KNOT_SPACINGS_M: tuple[float, ...] = ()
+#: (25 mm,) is chosen on random-19 and random-1 9 × 5 (held-out 1.32 → 1.04 and 1.036 → 1.009 ×
+#: the noise; docs/limits.md, "A variant fit chosen when the main fits stay above the noise").
+#: It was off while the bending ski's band draws from its covariance at the 9 × 5 grid's × 12
+#: (2000 MPa) converged for 1 of 4 beams on every answer, leaving that band without its camber
+#: part; since the band halves the factor until 2 draws converge
+#: (``BEAM_SCALE_FLOOR`` in app/service/band.py), it is on (docs/limits.md, "The 25 mm variant
+#: on demand, served")
+DEMAND_VARIANT_KNOT_SPACINGS_M: tuple[float, ...] = (0.025,)
 #: a start whose device model misses its cases by more than this × the noise is not used
 #: (a uniform-EI start, which has no better alternative, only beyond this) [-]
 START_DROP_RATIO = 100.0
@@ -1040,7 +1042,7 @@ def identify_beam(
         Default VARIANT_REFIT_KNOT_SPACINGS_M (none).
     demand_variant_knot_spacings_m : tuple of float
         Stiffness knot spacings [m] of variant starts run on demand
-        (DEMAND_VARIANT_KNOT_SPACINGS_M, default none): only when the best main fit
+        (DEMAND_VARIANT_KNOT_SPACINGS_M, default 25 mm): only when the best main fit
         converged above the noise and no variant fit reaches it, each in turn until one does;
         their fits are variant candidates like the others. ``()``: none.
     min_cases : int

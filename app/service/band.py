@@ -102,6 +102,7 @@ from skisnow.solvers.lookup import MicroTable
 
 __all__ = [
     "BAND_SEED",
+    "BEAM_SCALE_FLOOR",
     "GRID_BAND_FACTOR",
     "K_END_PIXELS",
     "K_MIN_SEPARATION",
@@ -161,6 +162,10 @@ class Band:
     beam_draws_failed: tuple[int, int] | None = None
     #: the same for a rigid answer's perturbed loaded profiles: (solved, drawn)
     profile_draws_failed: tuple[int, int] | None = None
+    #: a bending-ski answer whose plausible beams mostly did not converge at the calibrated
+    #: factor, drawn again at half of it (down to :data:`BEAM_SCALE_FLOOR`) until 2 did:
+    #: (calibrated factor, solved, drawn) at that factor; ``beam_scale`` is the one used
+    beam_scale_reduced: tuple[float, int, int] | None = None
 
 
 def touches_profile_end(gap_map, macro) -> bool:
@@ -313,6 +318,13 @@ GRID_BAND_FACTOR = {
     "total_reciprocal_separation": 0.94,
 }
 
+
+#: the smallest factor on the identification's covariance that the bending ski's band draws are
+#: halved down to when fewer than 2 of its plausible beams converge on the snow at the
+#: calibrated one (1: the covariance as fitted). Measured on random-19's 9 × 5 ski with a 25 mm
+#: knot beam at 2000 MPa: at × 12 1 of 4 beams converged on each of 6 cases, at × 8 and × 6 3 of
+#: 4, at × 4 3–4 of 4 (docs/limits.md)
+BEAM_SCALE_FLOOR = 1.0
 
 #: factors on the grid part of an answer of the bending ski, per quantity: each the smallest
 #: (step 0.05) that puts 90 % of the demo skis' ``calib`` truths inside the whole band with the
@@ -468,6 +480,7 @@ def answer_band(
         held_out = held_out_excess(record.identified)
     rigid = ski_model_used == "rigid"
     unmeasured = None
+    scale_reduced = None
     sigma, source = None, ""
     sampled = None
     perturbed = samples
@@ -496,15 +509,28 @@ def answer_band(
     else:
         if beam_scale is None:
             beam_scale = beam_scale_at(e_eff, loaded_cases(record))
-        models = beam_models(record, preset, samples=beam_samples, seed=seed, scale=beam_scale)
         alternatives = [] if beam_is_design else alternative_models(record, preset)
         if not beam_is_design:
             unmeasured = unmeasured_contact(record.identified, macro)
-        if models is not None:
-            sampled = _sample_flexible(
-                macro, ms, models, table, porosity, e_eff, alternatives=alternatives
-            )
-        perturbed = 0 if models is None else len(models[1])
+        while True:
+            models = beam_models(record, preset, samples=beam_samples, seed=seed, scale=beam_scale)
+            if models is not None:
+                sampled = _sample_flexible(
+                    macro, ms, models, table, porosity, e_eff, alternatives=alternatives
+                )
+            perturbed = 0 if models is None else len(models[1])
+            if (
+                not perturbed
+                or perturbed - sampled.failed >= 2
+                or beam_scale / 2 < BEAM_SCALE_FLOOR
+            ):
+                break
+            # too few plausible beams converged on this snow at this factor (a finer-knotted
+            # beam's covariance is wider, and the factors were calibrated on 50 mm knots):
+            # drawn again at half the factor, and the answer says so
+            if scale_reduced is None:
+                scale_reduced = (beam_scale, perturbed - sampled.failed, perturbed)
+            beam_scale /= 2
         if beam_is_design:
             sigma, source = 0.0, "design beam stored with the ski, taken as exact"
         elif perturbed:
@@ -525,6 +551,14 @@ def answer_band(
             f"{perturbed} plausible beams (deviations × {beam_scale:g})"
         )
         not_covered.insert(0, what + " converged on this snow, so the band has no camber part")
+    if scale_reduced is not None and draws_failed is None:
+        not_covered.insert(
+            0,
+            f"the identified beam's uncertainty at its calibrated factor: at × "
+            f"{scale_reduced[0]:g} only {scale_reduced[1]} of {scale_reduced[2]} plausible "
+            f"beams converged on this snow; the camber part is from × {beam_scale:g}, at which "
+            f"{perturbed - sampled.failed} did",
+        )
     if sampled is not None and has_sigma and draws_failed is None:
         components["camber_model"] = sampled.widths
     if sampled is not None and sampled.alternatives:
@@ -638,6 +672,7 @@ def answer_band(
         unmeasured_stiffness=unmeasured,
         held_out_error=held_out,
         beam_draws_failed=None if rigid else draws_failed,
+        beam_scale_reduced=scale_reduced if has_sigma and draws_failed is None else None,
         profile_draws_failed=draws_failed if rigid else None,
         bending_ignored=bending_ignored if "ski_model" in components and bending_ignored else None,
         grid_factors=grid_factors,
@@ -800,6 +835,18 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
                 "further off than its band says",
             }
         )
+    if band.beam_scale_reduced is not None:
+        scale, solved, drawn = band.beam_scale_reduced
+        warnings.append(
+            {
+                "code": "band_beam_scale_reduced",
+                "detail": f"at the calibrated factor (× {scale:g} on the identification's "
+                f"covariance) only {solved} of the {drawn} plausible beams converged on this "
+                f"snow, so the band's camber part is from beams drawn at × {band.beam_scale:g}: "
+                "the factors were calibrated on beams with 50 mm stiffness knots, and this "
+                "answer's band is less tested than most",
+            }
+        )
     if band.profile_draws_failed is not None:
         solved, drawn = band.profile_draws_failed
         warnings.append(
@@ -829,6 +876,10 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
             if band.beam_scale is None
             else None,
             "beam_deviation_scale": band.beam_scale,
+            # the calibrated factor, when too few beams converged at it (then halved)
+            "beam_deviation_scale_calibrated": None
+            if band.beam_scale_reduced is None
+            else band.beam_scale_reduced[0],
             # the factor on the identified profile's spread (rigid answers of an identified
             # beam; per snow modulus and measurement grid)
             "profile_sd_scale": band.profile_scale,
