@@ -548,7 +548,9 @@ def answer_band(
             "loaded profiles"
             if rigid
             else f"the identified beam's uncertainty (EI(X), c(X)): only {draws_failed[0]} of "
-            f"{perturbed} plausible beams (deviations × {beam_scale:g})"
+            f"{perturbed} plausible beams (deviations × {beam_scale:g}"
+            + ("" if scale_reduced is None else f", halved from × {scale_reduced[0]:g}")
+            + ")"
         )
         not_covered.insert(0, what + " converged on this snow, so the band has no camber part")
     if scale_reduced is not None and draws_failed is None:

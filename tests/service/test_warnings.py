@@ -264,6 +264,7 @@ def test_a_bending_ski_band_whose_beam_draws_fail_says_so(catalogue, monkeypatch
     rounds = 1 + int(np.floor(np.log2(scale / band_mod.BEAM_SCALE_FLOOR)))
     assert calls[::2] == [band_sampling.BEAM_SAMPLES] * rounds
     assert "band_beam_scale_reduced" not in [w["code"] for w in got["warnings"]]
+    assert any(f"halved from × {scale:g})" in n for n in band["not_covered"])
     assert "camber_model" not in band["components"]
     assert band["camber_model"]["perturbed_solves"] == 1
     detail = {w["code"]: w["detail"] for w in got["warnings"]}["band_beam_draws_failed"]
