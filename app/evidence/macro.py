@@ -75,7 +75,8 @@ KEPT_PARTS = ("skis", "inference", "flexible")
 def identification_only(previous: Path) -> dict:
     """The macro stage with only the beam identification run again: ``skis``, ``inference``
     and ``flexible`` copied from the ``previous`` run's JSON, named under
-    ``kept_from_previous_run`` with that run's provenance (DataFileError without one)."""
+    ``kept_from_previous_run`` with the provenance of the run that measured them: that run's,
+    or, when it kept them itself, the one it names (DataFileError without a previous run)."""
     if not Path(previous).is_file():
         raise DataFileError(
             f"{previous}: no previous macro run to keep the other parts from; run "
@@ -85,7 +86,9 @@ def identification_only(previous: Path) -> dict:
     out = {k: old[k] for k in KEPT_PARTS if k in old}
     out["kept_from_previous_run"] = {
         "parts": [k for k in KEPT_PARTS if k in old],
-        "provenance": old.get("provenance", {}),
+        # a previous identification-only run kept them too: they date from its source
+        "provenance": (old.get("kept_from_previous_run") or {}).get("provenance")
+        or old.get("provenance", {}),
     }
     out["identification"] = identification_bench.bench_identification()
     return out

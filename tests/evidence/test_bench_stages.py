@@ -72,6 +72,10 @@ def test_macro_identification_only_keeps_the_other_parts(tmp_path, monkeypatch):
     monkeypatch.setattr(macro, "_profile_words", lambda d: "profile")
     text = "\n".join(_kept_lines(macro.render_md, data))
     assert "kept from the run of 2026-11-26T15:29:16+00:00 (commit bd0184f0c140)" in text
+    # run again on its own output: the kept parts still date from the run that measured them
+    prev.write_text(json.dumps({**data, "provenance": {"created_utc": "2026-11-28T08:57:02"}}))
+    again = macro.identification_only(prev)
+    assert again["kept_from_previous_run"]["provenance"] == old["provenance"]
     with pytest.raises(DataFileError, match="bench macro"):
         macro.identification_only(tmp_path / "missing.json")
 
