@@ -228,14 +228,38 @@ def test_an_answer_of_a_beam_off_on_its_held_out_cases_is_warned(catalogue, ski_
     assert warned["band"]["relative_half_width"] == plain["band"]["relative_half_width"]
 
 
+def _answer_with_failing_draws(catalogue, monkeypatch, case, failing):
+    """``service.contact`` for ``case`` on a fresh copy of demo ski-a (no cached band models)
+    with band_sampling._solve_each wrapped: the batches ``failing(k)`` names (k = 1, 2, … in
+    call order) keep one solve and count the rest failed. Returns the answer and the batch
+    sizes in call order."""
+    from dataclasses import replace
+
+    from skisnow.app.service import band_sampling
+
+    solve_each = band_sampling._solve_each
+    calls = []
+
+    def solves(solve, items):
+        calls.append(len(items))
+        done, failed = solve_each(solve, items)
+        if failing(len(calls)):
+            return done[:1], failed + len(done) - 1
+        return done, failed
+
+    monkeypatch.setattr(band_sampling, "_solve_each", solves)
+    ski = catalogue.skis["ski-a"]
+    fresh = replace(ski, record=replace(ski.record, cache={}), _flexible={})
+    got = service.contact(replace(catalogue, skis={**catalogue.skis, "ski-a": fresh}), case)
+    return got, calls
+
+
 def test_a_bending_ski_band_whose_beam_draws_fail_says_so(catalogue, monkeypatch):
     """Demo ski-a's bending-ski answer: its band has a camber part from 4 plausible beams. When
     all but one of them fail to converge (forced: band_sampling._solve_each keeps one), a width
     cannot be formed: the camber part is left out, band.not_covered and a warning say so with the
     counts, and camber_model.perturbed_solves reads 1 (#26: random-19 on 9 × 5 with a 25 mm-knot
     beam at × 12 on 2000 MPa snow, 1 of 4 solved, 4 answers > 3 % off outside their band)."""
-    from dataclasses import replace
-
     from skisnow.app.service import band_sampling
 
     case = _case(grind="tiny-grind", ski_model="flexible")
@@ -243,20 +267,8 @@ def test_a_bending_ski_band_whose_beam_draws_fail_says_so(catalogue, monkeypatch
     assert "camber_model" in plain["band"]["components"]
     assert plain["band"]["camber_model"]["perturbed_solves"] == band_sampling.BEAM_SAMPLES
     assert "band_beam_draws_failed" not in [w["code"] for w in plain["warnings"]]
-    solve_each = band_sampling._solve_each
-    calls = []
-
-    def one_draw_solves(solve, items):
-        calls.append(len(items))
-        done, failed = solve_each(solve, items)
-        if len(calls) % 2 == 1:  # the plausible beams of each factor (then the alternatives)
-            return done[:1], failed + len(done) - 1
-        return done, failed
-
-    monkeypatch.setattr(band_sampling, "_solve_each", one_draw_solves)
-    ski = catalogue.skis["ski-a"]
-    fresh = replace(ski, record=replace(ski.record, cache={}), _flexible={})
-    got = service.contact(replace(catalogue, skis={**catalogue.skis, "ski-a": fresh}), case)
+    # the plausible beams of each factor fail (each batch is followed by the alternatives')
+    got, calls = _answer_with_failing_draws(catalogue, monkeypatch, case, lambda k: k % 2 == 1)
     band = got["band"]
     assert calls and calls[0] == band_sampling.BEAM_SAMPLES
     # drawn at the calibrated factor and at each half of it down to the floor, all in vain
@@ -282,28 +294,14 @@ def test_a_rigid_band_whose_profile_draws_fail_says_so(catalogue, monkeypatch):
     converge (forced: band_sampling._solve_each keeps one of the first batch), the camber part
     is left out, and band.not_covered and the warning band_profile_draws_failed say so. Never
     seen in the studies; before, such a band lost its camber part silently."""
-    from dataclasses import replace
-
     from skisnow.app.service import band_sampling
 
     case = _case(grind="tiny-grind", ski_model="rigid")
     plain = service.contact(catalogue, case)
     assert "camber_model" in plain["band"]["components"]
     assert plain["band"]["camber_model"]["perturbed_solves"] == band_sampling.PROFILE_SAMPLES
-    solve_each = band_sampling._solve_each
-    calls = []
-
-    def one_draw_solves(solve, items):
-        calls.append(len(items))
-        done, failed = solve_each(solve, items)
-        if len(calls) == 1:  # the perturbed profiles (then the flat stretch, the alternatives)
-            return done[:1], failed + len(done) - 1
-        return done, failed
-
-    monkeypatch.setattr(band_sampling, "_solve_each", one_draw_solves)
-    ski = catalogue.skis["ski-a"]
-    fresh = replace(ski, record=replace(ski.record, cache={}))
-    got = service.contact(replace(catalogue, skis={**catalogue.skis, "ski-a": fresh}), case)
+    # the perturbed profiles fail (then the flat stretch, the alternatives: untouched)
+    got, calls = _answer_with_failing_draws(catalogue, monkeypatch, case, lambda k: k == 1)
     band = got["band"]
     assert calls and calls[0] == band_sampling.PROFILE_SAMPLES
     assert "camber_model" not in band["components"]
@@ -325,28 +323,13 @@ def test_a_bending_ski_band_draws_again_at_half_the_factor(catalogue, monkeypatc
     camber_model.beam_deviation_scale_calibrated). #26: random-19 9 × 5 with its 25 mm-knot
     beam at 2000 MPa, 1 of 4 at × 12, 3 of 4 at × 6, whose band then holds all 6 cases tried
     (5–11 % off against ± 15–27 %)."""
-    from dataclasses import replace
-
     from skisnow.app.service import band_sampling
 
     case = _case(grind="tiny-grind", ski_model="flexible")
     plain = service.contact(catalogue, case)
     scale = plain["band"]["camber_model"]["beam_deviation_scale"]
     assert plain["band"]["camber_model"]["beam_deviation_scale_calibrated"] is None
-    solve_each = band_sampling._solve_each
-    calls = []
-
-    def first_batch_fails(solve, items):
-        calls.append(len(items))
-        done, failed = solve_each(solve, items)
-        if len(calls) == 1:
-            return done[:1], failed + len(done) - 1
-        return done, failed
-
-    monkeypatch.setattr(band_sampling, "_solve_each", first_batch_fails)
-    ski = catalogue.skis["ski-a"]
-    fresh = replace(ski, record=replace(ski.record, cache={}), _flexible={})
-    got = service.contact(replace(catalogue, skis={**catalogue.skis, "ski-a": fresh}), case)
+    got, calls = _answer_with_failing_draws(catalogue, monkeypatch, case, lambda k: k == 1)
     band = got["band"]
     assert calls[0] == calls[2] == band_sampling.BEAM_SAMPLES and len(calls) == 4
     assert band["camber_model"]["beam_deviation_scale"] == pytest.approx(scale / 2)
