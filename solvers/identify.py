@@ -1198,22 +1198,35 @@ def identify_beam(
     p_beam = checked_projection(start, u_miss)
     if p_beam is not None and "projection" in starts:
         jobs.append(("projection", float(start.extra["start_smoothing"]), p_beam))
-    u_entry = {
-        "start": "uniform",
-        "smoothing": None,
-        "device_misfit_m": u_miss,
-        "time_s": time.perf_counter() - t_u,
-        "used": True,
-        "note": f"c from {u_source}, EI {u_beam.bending_stiffness_nm2[0]:.0f} N·m² uniform "
-        "(line search on the device model)",
-    }
-    starts_report.append(u_entry)
-    if u_miss > START_DROP_RATIO * noise:
-        u_entry["used"] = False
-        u_entry["note"] += (
-            f"; not used: misses by {u_miss * 1e6:.0f} µm, more than {START_DROP_RATIO:g}× "
-            "the noise"
-        )
+
+    def line_search_entry(name: str, miss: float, t_start: float, note: str) -> bool:
+        """Report a line-searched start (uniform, tapered) in ``starts_report``; False (and
+        why, in its note) when its device model misses by more than START_DROP_RATIO × the
+        noise, so that it is not used."""
+        entry = {
+            "start": name,
+            "smoothing": None,
+            "device_misfit_m": miss,
+            "time_s": time.perf_counter() - t_start,
+            "used": miss <= START_DROP_RATIO * noise,
+            "note": note,
+        }
+        starts_report.append(entry)
+        if not entry["used"]:
+            entry["note"] += (
+                f"; not used: misses by {miss * 1e6:.0f} µm, more than {START_DROP_RATIO:g}× "
+                "the noise"
+            )
+        return entry["used"]
+
+    u_used = line_search_entry(
+        "uniform",
+        u_miss,
+        t_u,
+        f"c from {u_source}, EI {u_beam.bending_stiffness_nm2[0]:.0f} N·m² uniform (line search "
+        "on the device model)",
+    )
+    if not u_used:
         rejected.append(("uniform", None, u_beam))
     elif "uniform" in starts:
         jobs.append(("uniform", None, u_beam))
@@ -1371,22 +1384,15 @@ def identify_beam(
             callback(0.78, "misfit above the noise: a start with EI tapered towards the ends")
         t_t = time.perf_counter()
         t_beam, t_miss, t_ratio = tapered_start()
-        t_entry = {
-            "start": "tapered",
-            "smoothing": None,
-            "device_misfit_m": t_miss,
-            "time_s": time.perf_counter() - t_t,
-            "used": True,
-            "note": f"on demand (the fits stay above the noise): c as the uniform start's, EI "
+        if line_search_entry(
+            "tapered",
+            t_miss,
+            t_t,
+            f"on demand (the fits stay above the noise): c as the uniform start's, EI "
             f"{t_beam.bending_stiffness_nm2.max():.0f} N·m² in the middle tapering to × "
             f"{t_ratio:g} at the ends (the end ratio of TAPERED_START_END_RATIOS and the scale "
             "with the lowest device-model misfit)",
-        }
-        starts_report.append(t_entry)
-        if t_miss > START_DROP_RATIO * noise:
-            t_entry["used"] = False
-            t_entry["note"] += f"; not used: misses by {t_miss * 1e6:.0f} µm"
-        else:
+        ):
             candidates += run_all([("tapered", None, t_beam)], at=0.8)
     # "not one beam" rests on several starts: a failing fit from fewer than two starts is
     # tried again from the starts the device check set aside
