@@ -164,39 +164,27 @@ class BeamFlexibility:
         ei = np.ascontiguousarray(ski.bending_stiffness_nm2, dtype=float)
         # compiled (the numpy form, _flexibility_reference, built five N × N temporaries:
         # 0.3-1 s at 2001 nodes, most of a forward fit's time); the same sums in the same
-        # order, so bit-identical (tests/solvers/test_beam_compiled.py)
-        w, wt = _flexibility_compiled(x, ei, float(ski.spacing_m))
-        self._matrix: np.ndarray | None = w
+        # order, so bit-identical (tests/solvers/test_beam_compiled.py). Only the columns are
+        # built (contiguous writes): also writing the matrix, one cache line per entry, took
+        # 27 ms instead of 7 ms at 2001 nodes, and every forward-fit evaluation builds one
         self.ski = ski
-        self._columns: np.ndarray | None = wt
+        self._columns: np.ndarray = _flexibility_columns_compiled(x, ei, float(ski.spacing_m))
 
     @property
     def matrix(self) -> np.ndarray:
-        """(N, N) flexibility [m/N]; after :meth:`compact`, a read-only transposed view of
-        :attr:`columns` (the same values)."""
-        if self._matrix is None:
-            view = self._columns.T
-            view.flags.writeable = False
-            return view
-        return self._matrix
+        """(N, N) flexibility [m/N]: a read-only transposed view of :attr:`columns` (the same
+        values; not C-contiguous: a product with it may round differently from one with a
+        C-contiguous copy, ``np.ascontiguousarray(flex.matrix)``)."""
+        view = self._columns.T
+        view.flags.writeable = False
+        return view
 
     @property
     def columns(self) -> np.ndarray:
-        """``matrix.T`` as a C-contiguous copy [m/N], made on first use: row j is column j of
-        :attr:`matrix` in contiguous memory, so the contact solve reads the columns of its
-        active nodes as streams instead of one cache line per node of the ski."""
-        if self._columns is None:
-            self._columns = np.ascontiguousarray(self._matrix.T)
+        """``matrix.T``, C-contiguous [m/N]: row j is column j of :attr:`matrix` in contiguous
+        memory, so the contact solve reads the columns of its active nodes as streams instead
+        of one cache line per node of the ski."""
         return self._columns
-
-    def compact(self) -> BeamFlexibility:
-        """Keep only :attr:`columns` (half the memory: 30.5 MB instead of 61 MB at 2001 nodes),
-        for a flexibility kept to answer :func:`solve_beam_contact` (whose compiled loop reads
-        the columns alone: the same answers, bit for bit); :attr:`matrix` is then a transposed
-        view. Returns ``self``."""
-        self.columns  # noqa: B018 (made first, from the matrix, if not yet)
-        self._matrix = None
-        return self
 
     def load_column(self, load_position_m: float) -> np.ndarray:
         """Deflection [m/N] under a unit upward force at x_F (split linearly between nodes;
@@ -224,12 +212,12 @@ def _flexibility_reference(x: np.ndarray, ei: np.ndarray, dx: float) -> np.ndarr
 
 
 @numba.njit(cache=True)
-def _flexibility_compiled(x, ei, dx):
-    """:func:`_flexibility_reference`'s matrix and its transpose (C-contiguous both) [m/N],
-    column by column: κ, slope and deflection are zero at and behind node j (i ≤ j), so only
-    i > j is summed, with the reference's operations in its order (bit-identical)."""
+def _flexibility_columns_compiled(x, ei, dx):
+    """:func:`_flexibility_reference`'s matrix transposed (C-contiguous) [m/N], column by
+    column of the matrix (row by row of the result): κ, slope and deflection are zero at and
+    behind node j (i ≤ j), so only i > j is summed, with the reference's operations in its
+    order (bit-identical)."""
     n = x.size
-    w = np.zeros((n, n))
     wt = np.zeros((n, n))
     half_dx = 0.5 * dx
     dx2 = dx * dx
@@ -242,10 +230,9 @@ def _flexibility_compiled(x, ei, dx):
             w_inc = dx * slope + dx2 * (2.0 * k_prev + k_i) / 6.0
             slope = slope + half_dx * (k_prev + k_i)
             wij = wij + w_inc
-            w[i, j] = wij
             wt[j, i] = wij
             k_prev = k_i
-    return w, wt
+    return wt
 
 
 def solve_beam_contact(
@@ -621,7 +608,7 @@ def _active_set_compiled(
     ----------
     g_cols : ndarray (N, N)
         The flexibility's transpose, C-contiguous (:attr:`BeamFlexibility.columns`) [m/N]; the
-        KKT systems read the flexibility as its transposed view (the same values; a compact
+        KKT systems read the flexibility as its transposed view (the same values;
         :class:`BeamFlexibility` keeps nothing else).
     c, xs, g_load : ndarray (N,)
         Unloaded gap [m], lever arms X − x_F [m], deflection under the load [m].
@@ -655,15 +642,22 @@ def _active_set_compiled(
     it = 0
     z = c.copy()
     runs = np.empty(n, dtype=np.int64)
+    gl = np.empty(n)
     while it < max_iterations:
         it += 1
-        # z = c + a + b xs + G[:, idx] r + g_load, summed in numpy's order
+        # z = c + a + b xs + G[:, idx] r + g_load, summed in numpy's order: each node's sum
+        # over the active nodes k in their order, accumulated a column (a contiguous row of
+        # g_cols) at a time (the same sums: reading a column per node was one cache line per
+        # active node and node, most of a long contact's time)
         m = idx.size
+        gl[:] = 0.0
+        for k in range(m):
+            row = g_cols[idx[k]]
+            rk = r_idx[k]
+            for i in range(n):
+                gl[i] += row[i] * rk
         for i in range(n):
-            gl = 0.0
-            for k in range(m):
-                gl += g_cols[idx[k], i] * r_idx[k]
-            z[i] = c[i] + a_rigid + b_rigid * xs[i] + gl + g_load[i]
+            z[i] = c[i] + a_rigid + b_rigid * xs[i] + gl[i] + g_load[i]
         for k in range(m):
             z[idx[k]] = 0.0
         any_pen = False

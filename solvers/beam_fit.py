@@ -209,18 +209,22 @@ def double_integral(kappa: np.ndarray, dx: float) -> np.ndarray:
     linear between nodes, integrated exactly (the rule of :class:`solvers.beam.BeamFlexibility`).
     ``dx`` node spacing [m] (a float, or the (N−1,) spacings).
 
-    One or two dimensions of float64 with a float ``dx`` (every call of the identification: per
-    case and evaluation of a forward fit) run compiled, bit-identical to
-    :func:`_double_integral_reference` (the same sums in the same order); the rest runs it."""
+    One or two dimensions of float64 (every call of the identification: per case and
+    evaluation of a forward fit, and the variable-projection start's columns, whose ``dx`` are
+    the (N−1,) spacings) run compiled, bit-identical to :func:`_double_integral_reference` (the
+    same sums in the same order); the rest runs it."""
     kappa = np.asarray(kappa)
-    if (
-        kappa.dtype == np.float64
-        and kappa.ndim in (1, 2)
-        and kappa.shape[-1] >= 2
-        and np.ndim(dx) == 0
-    ):
+    if kappa.dtype == np.float64 and kappa.ndim in (1, 2) and kappa.shape[-1] >= 2:
         rows = np.ascontiguousarray(kappa.reshape(-1, kappa.shape[-1]))
-        return _double_integral_rows(rows, float(dx)).reshape(kappa.shape)
+        if np.ndim(dx) == 0:
+            return _double_integral_rows(rows, float(dx)).reshape(kappa.shape)
+        spacings = np.ascontiguousarray(dx, dtype=np.float64)
+        if spacings.shape == (kappa.shape[-1] - 1,):
+            # in the reference's memory layout (its zeros_like: a transposed κ gives a
+            # transposed w), so that the products made with it round as they did
+            w = np.empty_like(kappa)
+            w[...] = _double_integral_rows_spaced(rows, spacings).reshape(kappa.shape)
+            return w
     return _double_integral_reference(kappa, dx)
 
 
@@ -250,6 +254,26 @@ def _double_integral_rows(kappa, dx):
             k1 = kappa[r, i + 1]
             w_inc = dx * slope + dx2 * (2.0 * k0 + k1) / 6.0
             slope = slope + half_dx * (k0 + k1)
+            acc = acc + w_inc
+            w[r, i + 1] = acc
+    return w
+
+
+@numba.njit(cache=True)
+def _double_integral_rows_spaced(kappa, dx):
+    """:func:`_double_integral_rows` with the (N−1,) spacings ``dx`` [m] (bit-identical to
+    :func:`_double_integral_reference` with them)."""
+    m, n = kappa.shape
+    w = np.zeros((m, n))
+    for r in range(m):
+        slope = 0.0
+        acc = 0.0
+        for i in range(n - 1):
+            k0 = kappa[r, i]
+            k1 = kappa[r, i + 1]
+            h = dx[i]
+            w_inc = h * slope + h * h * (2.0 * k0 + k1) / 6.0
+            slope = slope + 0.5 * h * (k0 + k1)
             acc = acc + w_inc
             w[r, i + 1] = acc
     return w

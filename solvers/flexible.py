@@ -168,7 +168,8 @@ def _equilibrated_flexibility(ski: BeamSki) -> tuple[BeamFlexibility, np.ndarray
     """Device flexibility G of ``ski`` and ``B = Π G Π`` on its nodes [m/N]."""
     flex = BeamFlexibility(ski)
     q = _rigid_basis(ski.positions_m)
-    g = flex.matrix
+    # a C-contiguous copy: the products below round as they did when the matrix was stored
+    g = np.ascontiguousarray(flex.matrix)
     gp = g - (g @ q) @ q.T  # G Π
     return flex, gp - q @ (q.T @ gp)  # Π G Π
 

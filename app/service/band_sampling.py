@@ -549,7 +549,7 @@ def alternative_profiles(
 
     Each beam's flexibility is kept in ``record.cache`` as an entry of its own (one beam solve
     with it: ~1 ms, without it ~40 ms; at 1 mm nodes over 2 m it holds 30.5 MB, its columns
-    only: :meth:`solvers.beam.BeamFlexibility.compact`; 61 MB before), so the per-ski cache
+    only, :attr:`solvers.beam.BeamFlexibility.columns`), so the per-ski cache
     budget drops them one by one
     (docs/deployment.md)."""
     ident = record.identified
@@ -562,7 +562,7 @@ def alternative_profiles(
             with _BEAM_MODELS_LOCK:
                 hit = record.cache.get(key)
                 if hit is None or hit[0] is not ident:
-                    hit = (ident, BeamFlexibility(b).compact())
+                    hit = (ident, BeamFlexibility(b))
                     record.cache[key] = hit
         res = solve_beam_contact(b, load_n, load_position_m, flexibility=hit[1])
         if res.converged:

@@ -396,7 +396,7 @@ class ProfileModel:
             if self._xflex is None:
                 with self._build_lock:
                     if self._xflex is None:
-                        self._xflex = BeamFlexibility(self.extrapolation_beam).compact()
+                        self._xflex = BeamFlexibility(self.extrapolation_beam)
             res = _solve_flat(self.extrapolation_beam, load_n, load_position_m, self._xflex)
             return res.positions_m, res.gap_m
         if self.beam is None:
@@ -408,15 +408,14 @@ class ProfileModel:
 
     @property
     def flexibility(self) -> BeamFlexibility | None:
-        """The beam's flexibility, built on first use and kept, compact (its columns only, for
-        :func:`solvers.beam.solve_beam_contact`: :meth:`solvers.beam.BeamFlexibility.compact`);
-        None for a network."""
+        """The beam's flexibility, built on first use and kept (its columns only,
+        :attr:`solvers.beam.BeamFlexibility.columns`); None for a network."""
         if self.beam is None:
             return None
         if self._flex is None:
             with self._build_lock:
                 if self._flex is None:
-                    self._flex = BeamFlexibility(self.beam).compact()
+                    self._flex = BeamFlexibility(self.beam)
         return self._flex
 
     def beam_result(self, load_n: float, load_position_m: float) -> BeamResult:

@@ -99,46 +99,54 @@ def test_flexibility_columns_are_the_transpose():
     assert flex.columns is cols
 
 
+class _StoredMatrix(BeamFlexibility):
+    """A flexibility whose ``matrix`` is a C-contiguous copy: the form stored until 2026-11-29,
+    when the matrix and its columns were both built (61 MB at 2001 nodes)."""
+
+    @property
+    def matrix(self) -> np.ndarray:
+        return np.ascontiguousarray(self.columns.T)
+
+
 @pytest.mark.parametrize("name", ["ski-a", "ski-b"])
-def test_a_compact_flexibility_answers_bit_for_bit_in_half_the_memory(name):
-    """BeamFlexibility.compact() keeps the columns only: half the bytes, ``matrix`` a read-only
-    transposed view of the same values, and every contact solve (both compliances, a warm
-    start, an unconverged one, the reference loop on the view) the same answer, bit for bit."""
+def test_the_flexibility_stores_its_columns_only_and_answers_as_the_stored_matrix(name):
+    """BeamFlexibility keeps the columns only (N² × 8 bytes), ``matrix`` a read-only transposed
+    view of the same values; every contact solve (both compliances, a warm start, an
+    unconverged one, the compiled loop and the reference loop on the view) gives the answer of
+    a flexibility that stores the matrix C-contiguous, bit for bit."""
     for label, beam in _beams(name):
-        full = BeamFlexibility(beam)
-        compact = BeamFlexibility(beam).compact()
-        assert compact.compact() is compact  # idempotent
-        assert compact._matrix is None
+        flex = BeamFlexibility(beam)
+        stored = _StoredMatrix(beam)
         n = beam.positions_m.size
-        assert compact.columns.nbytes == n * n * 8
-        np.testing.assert_array_equal(compact.matrix, full.matrix)
-        assert not compact.matrix.flags.writeable
-        np.testing.assert_array_equal(compact.load_column(-0.123), full.load_column(-0.123))
+        assert flex.columns.nbytes == n * n * 8
+        assert [k for k, v in vars(flex).items() if isinstance(v, np.ndarray)] == ["_columns"]
+        assert flex.matrix.base is flex.columns and not flex.matrix.flags.writeable
+        np.testing.assert_array_equal(flex.matrix, stored.matrix)
+        np.testing.assert_array_equal(flex.load_column(-0.123), stored.load_column(-0.123))
         for kg, mm, comp, it in (
             (40.0, -100.0, 0.0, 200),
             (150.0, 100.0, 1e-7, 200),
             (75, 0, 0, 2),
         ):
             kw = dict(contact_compliance_m_per_n=comp, max_iterations=it)
-            a = solve_beam_contact(beam, kg * G_STANDARD, mm / 1e3, flexibility=full, **kw)
-            b = solve_beam_contact(beam, kg * G_STANDARD, mm / 1e3, flexibility=compact, **kw)
+            a = solve_beam_contact(beam, kg * G_STANDARD, mm / 1e3, flexibility=stored, **kw)
+            b = solve_beam_contact(beam, kg * G_STANDARD, mm / 1e3, flexibility=flex, **kw)
             warm = solve_beam_contact(
                 beam,
                 kg * G_STANDARD,
                 mm / 1e3,
-                flexibility=compact,
+                flexibility=flex,
                 initial_contacts=np.flatnonzero(a.contact),
                 **kw,
             )
-            for res in (b,):
-                assert res.iterations == a.iterations and res.converged == a.converged
-                for field in ("reaction_n", "gap_m", "displacement_m"):
-                    np.testing.assert_array_equal(getattr(res, field), getattr(a, field))
+            assert b.iterations == a.iterations and b.converged == a.converged
+            for field in ("reaction_n", "gap_m", "displacement_m"):
+                np.testing.assert_array_equal(getattr(b, field), getattr(a, field))
             np.testing.assert_array_equal(warm.contact, a.contact)
-        ref_full = _solve_beam_contact_reference(beam, 40 * G_STANDARD, -0.1, flexibility=full)
-        ref_view = _solve_beam_contact_reference(beam, 40 * G_STANDARD, -0.1, flexibility=compact)
-        np.testing.assert_array_equal(ref_view.contact, ref_full.contact)
-        _assert_same(ref_full, ref_view, f"{name} {label} reference loop on the view")
+        ref_stored = _solve_beam_contact_reference(beam, 40 * G_STANDARD, -0.1, flexibility=stored)
+        ref_view = _solve_beam_contact_reference(beam, 40 * G_STANDARD, -0.1, flexibility=flex)
+        np.testing.assert_array_equal(ref_view.contact, ref_stored.contact)
+        _assert_same(ref_stored, ref_view, f"{name} {label} reference loop on the view")
 
 
 @pytest.mark.parametrize("name", ["ski-a", "ski-c"])
@@ -162,14 +170,15 @@ def test_compiled_flexibility_is_the_reference_bit_for_bit(name, stride):
         ref = _flexibility_reference(b.positions_m, b.bending_stiffness_nm2, b.spacing_m)
         np.testing.assert_array_equal(flex.matrix, ref, err_msg=f"{name} {label} {stride}")
         np.testing.assert_array_equal(flex.columns, ref.T, err_msg=f"{name} {label} {stride}")
-        assert flex.matrix.flags.c_contiguous and flex.columns.flags.c_contiguous
+        assert flex.columns.flags.c_contiguous
 
 
 def test_compiled_double_integral_is_the_reference_bit_for_bit():
     """solvers.beam_fit.double_integral (per case and evaluation of a forward fit: the
-    deflection of each stiffness hat's moment) runs compiled for float64 rows and a float
-    spacing, bit-identical to the numpy reference; other inputs (spacings per interval) run the
-    reference itself."""
+    deflection of each stiffness hat's moment; the variable-projection start's columns, with
+    the spacings per interval) runs compiled for float64 rows and a float spacing or the
+    (N − 1,) spacings, bit-identical to the numpy reference; other inputs run the reference
+    itself."""
     from skisnow.solvers.beam_fit import _double_integral_reference, double_integral
 
     rng = np.random.default_rng(11)
@@ -183,9 +192,19 @@ def test_compiled_double_integral_is_the_reference_bit_for_bit():
     np.testing.assert_array_equal(
         double_integral(strided, 1e-3), _double_integral_reference(strided, 1e-3)
     )
-    spacings = np.full(2000, 1e-3)
+    for spacings in (np.full(2000, 1e-3), np.diff(np.linspace(-0.9, 1.1, 2001))):
+        got, ref = double_integral(strided, spacings), _double_integral_reference(strided, spacings)
+        np.testing.assert_array_equal(got, ref)
+        # the reference's layout too (a product with a transposed array rounds differently)
+        assert got.strides == ref.strides
+    for shape in ((39, 1001), (1001,), (1, 2)):
+        kappa = rng.normal(size=shape) * 1e-3
+        spacings = 1e-3 * (1.0 + 0.1 * rng.random(shape[-1] - 1))  # uneven
+        got, ref = double_integral(kappa, spacings), _double_integral_reference(kappa, spacings)
+        np.testing.assert_array_equal(got, ref, err_msg=f"{shape} uneven")
+    kappa3 = rng.normal(size=(2, 3, 11))  # three dimensions: the reference itself
     np.testing.assert_array_equal(
-        double_integral(strided, spacings), _double_integral_reference(strided, spacings)
+        double_integral(kappa3, 1e-3), _double_integral_reference(kappa3, 1e-3)
     )
 
 

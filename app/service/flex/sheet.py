@@ -207,7 +207,7 @@ def _draw_fns(ski: Ski) -> tuple[list, str, float | None]:
                 else sample_beams(ib, BEAM_SAMPLES, BAND_SEED, scale=scale, antithetic=True)
             )
             coarse = [_coarse(b) for b in ([pm.beam, *beams] if beams else [])]
-            store = (rec.identified, [(b, BeamFlexibility(b).compact()) for b in coarse])
+            store = (rec.identified, [(b, BeamFlexibility(b)) for b in coarse])
             rec.cache["flex_draws"] = store
         if not store[1]:
             return [], "identified beam: no covariance stored with the identification", None
