@@ -1,0 +1,303 @@
+"""The served bands across every own-ski population, read from the studies' JSON (issue #26
+point 4; docs/limits.md "The bands across eleven populations").
+
+The per-grid factors (:data:`app.service.band_calibration.BEAM_SCALE_GRID_NODES`) were fitted on
+four populations; eight more have been run since. This reads the committed study files
+(``scripts/own_ski_study.py`` output: every held-out answer with its band, its band's parts and
+its error) and reports, per answer model (rigid, flexible), measurement grid and snow modulus:
+
+- per population: the share of reference truths inside the band, the mean half-width over the
+  RMS error, and the answers more than 3 % off, outside the band and without a warning;
+- per ski: how well each quantity the service knows predicts the ski's RMS error: the Pearson
+  correlation over skis of log RMS error against the log of the band's parts (the beam draws'
+  spread per unit factor, ``camber_model`` ÷ the factor; ``beam_alternatives``; ``macro_grid``)
+  and against the identification's misfit over the noise;
+- for the bending ski, an estimate of each population's coverage and width at other beam-draw
+  factors: the ``camber_model`` part rescaled linearly, the other parts kept. An estimate only
+  (the draws' spread is not linear in their factor: the re-solves of
+  ``scripts/beam_scale_study.py`` are what the factors were fitted on); it says which way a
+  refit would go, not where.
+
+Nothing is solved: seconds. Usage::
+
+    python scripts/population_band_study.py  # the eleven populations of DEFAULT_POPULATIONS
+    python scripts/population_band_study.py --studies 'new=docs/studies/own-ski-random-33-36.json'
+
+Writes docs/studies/population-bands.json and .md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from skisnow.app.storage import common  # noqa: E402
+
+SCHEMA = "skisnow.population-band-study/1"
+STUDIES = REPO / "docs" / "studies"
+#: each population's latest study at the served factors (label: file in docs/studies)
+DEFAULT_POPULATIONS = {
+    "hand-written": "own-ski-factors.json",
+    "random 1-4": "own-ski-factors-random.json",
+    "random 5-8": "own-ski-factors-random-5-8.json",
+    "random 9-12": "own-ski-factors-random-9-12.json",
+    "random 13-16": "own-ski-factors-random-13-16.json",
+    "random 17-20": "own-ski-factors-random-17-20.json",
+    "validation": "own-ski-factors-validation.json",
+    "random 21-24": "own-ski-random-21-24.json",
+    "random 25-28": "own-ski-random-25-28.json",
+    "random 29-32": "own-ski-random-29-32.json",
+    "random 33-36": "own-ski-random-33-36.json",
+}
+MODELS = ("rigid", "flexible")
+GRIDS = ("coarse", "dense")
+MODULI_MPA = (20.0, 200.0, 2000.0)
+#: answers this far off (relative) must be inside the band or carry a warning (#26)
+AREA_OFF = 0.03
+#: the band parts whose per-ski mean is tried as a predictor of the ski's error
+PARTS = ("camber_model", "beam_alternatives", "macro_grid")
+#: beam-draw factors of the bending ski's linear estimate
+ESTIMATE_FACTORS = (1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0)
+
+
+def answers(study: dict, model: str, grid: str, e_snow_mpa: float) -> list[dict]:
+    """The served-beam skis' answers of ``model`` at ``e_snow_mpa`` on ``grid``, each as
+    ``{ski, error, half_width, parts, factor, warned, misfit_over_noise}`` (``error`` relative,
+    against the reference grid's truth)."""
+    out = []
+    for ski in study["skis"]:
+        if ski.get("grid") != grid or ski.get("outcome") != "done":
+            continue
+        if ski.get("served", {}).get("profile_model") != "identified_beam":
+            continue
+        misfit = ski.get("identification", {}).get("misfit_over_noise", math.nan)
+        for case in ski["answers"]:
+            a = case.get(model, {})
+            if case["snow_modulus_mpa"] != e_snow_mpa or a.get("status") != 200:
+                continue
+            out.append(
+                {
+                    "ski": f"{ski['design']} d{ski.get('draw', 0)}",
+                    "error": a["error_ref_pct"] / 100.0,
+                    "half_width": a["band_half_width"],
+                    "parts": a.get("area_components", {}),
+                    "factor": a.get("camber_scale") or 1.0,
+                    "warned": bool(a.get("warnings")),
+                    "misfit_over_noise": misfit,
+                }
+            )
+    return out
+
+
+def stats(errors, half_widths, warned) -> dict:
+    """Coverage, mean half-width over the RMS error, and unwarned misses above 3 %."""
+    err = np.abs(np.asarray(errors, dtype=float))
+    hw = np.asarray(half_widths, dtype=float)
+    if not err.size:
+        return {"answers": 0}
+    rms = float(np.sqrt(np.mean(err**2)))
+    outside = err > hw
+    return {
+        "answers": int(err.size),
+        "coverage": float(np.mean(~outside)),
+        "rms_error": rms,
+        "mean_half_width": float(hw.mean()),
+        "half_width_over_rms": float(hw.mean() / rms) if rms > 0 else math.inf,
+        "unwarned_misses": int(np.sum(outside & (err > AREA_OFF) & ~np.asarray(warned))),
+    }
+
+
+def rescaled_half_widths(rows: list[dict], factor: float) -> np.ndarray:
+    """The half-widths with the ``camber_model`` part at ``factor`` instead of the served one
+    (linear in the factor), the other parts kept (quadrature sum)."""
+    out = []
+    for r in rows:
+        cm = r["parts"].get("camber_model", 0.0)
+        rest2 = max(r["half_width"] ** 2 - cm**2, 0.0)
+        out.append(math.sqrt((cm * factor / r["factor"]) ** 2 + rest2))
+    return np.asarray(out)
+
+
+def predictors(rows: list[dict]) -> dict:
+    """Per ski (≥ 4 skis): Pearson correlation of log RMS error with the log of each band
+    part's mean (``camber_model`` per unit factor) and with the misfit over the noise."""
+    skis: dict[str, list[dict]] = {}
+    for r in rows:
+        skis.setdefault(r["ski"], []).append(r)
+    if len(skis) < 4:
+        return {"skis": len(skis)}
+    y = np.log([np.sqrt(np.mean([r["error"] ** 2 for r in v])) + 1e-9 for v in skis.values()])
+    out: dict[str, float | int] = {"skis": len(skis)}
+    for part in PARTS:
+        per = []
+        for v in skis.values():
+            vals = [
+                r["parts"].get(part, 0.0) / (r["factor"] if part == "camber_model" else 1.0)
+                for r in v
+            ]
+            per.append(math.log(max(float(np.mean(vals)), 1e-9)))
+        out[part] = _corr(y, np.asarray(per))
+    out["misfit_over_noise"] = _corr(
+        y, np.asarray([v[0]["misfit_over_noise"] for v in skis.values()])
+    )
+    return out
+
+
+def _corr(y: np.ndarray, x: np.ndarray) -> float:
+    ok = np.isfinite(x) & np.isfinite(y)
+    if ok.sum() < 4 or np.std(x[ok]) == 0 or np.std(y[ok]) == 0:
+        return math.nan
+    return float(np.corrcoef(y[ok], x[ok])[0, 1])
+
+
+def study(populations: dict[str, dict]) -> dict:
+    """Every cell: per-population served stats, predictors over all skis and (bending ski)
+    the linear estimate at :data:`ESTIMATE_FACTORS`."""
+    cells = []
+    for model in MODELS:
+        for grid in GRIDS:
+            for e in MODULI_MPA:
+                per_pop = {p: answers(s, model, grid, e) for p, s in populations.items()}
+                pooled = [r for rows in per_pop.values() for r in rows]
+                if not pooled:
+                    continue
+                cell = {
+                    "model": model,
+                    "grid": grid,
+                    "e_snow_mpa": e,
+                    "served": {
+                        p: stats(
+                            [r["error"] for r in rows],
+                            [r["half_width"] for r in rows],
+                            [r["warned"] for r in rows],
+                        )
+                        for p, rows in {**per_pop, "pooled": pooled}.items()
+                    },
+                    "predictors": predictors(pooled),
+                }
+                if model == "flexible":
+                    cell["linear_estimate"] = {
+                        f"{k:g}": {
+                            p: stats(
+                                [r["error"] for r in rows],
+                                rescaled_half_widths(rows, k),
+                                [r["warned"] for r in rows],
+                            )
+                            for p, rows in {**per_pop, "pooled": pooled}.items()
+                            if rows
+                        }
+                        for k in ESTIMATE_FACTORS
+                    }
+                cells.append(cell)
+    return {"cells": cells}
+
+
+def markdown(doc: dict) -> str:
+    """The served cells as tables: per population, coverage / width ratio / unwarned misses."""
+    lines = [
+        "# The served bands across the own-ski populations",
+        "",
+        f"_{doc['provenance']['created_utc']}, commit {doc['provenance']['git_commit'][:12]}, "
+        f"`{doc['provenance']['command_line']}`. Targets: coverage ≥ 0.9, mean half-width ≤ 2.5 × "
+        "the RMS error, no unwarned answer more than 3 % off (#26)._",
+        "",
+        "Per cell and population: share of reference truths inside the band / mean half-width ÷ "
+        "RMS error / unwarned misses above 3 %. Predictors: correlation over skis of log RMS "
+        "error with the log of each band part (camber_model per unit factor) and with the "
+        "misfit over the noise.",
+        "",
+    ]
+    pops = list(doc["populations"])
+    head = "| model | grid | E [MPa] | " + " | ".join(pops) + " | pooled | predictors |"
+    lines += [head, "|" + "---|" * (len(pops) + 5)]
+    for c in doc["cells"]:
+        cols = []
+        for p in [*pops, "pooled"]:
+            s = c["served"].get(p, {})
+            cols.append(
+                "–"
+                if not s.get("answers")
+                else f"{s['coverage']:.2f} / {s['half_width_over_rms']:.2f} / "
+                f"{s['unwarned_misses']}"
+            )
+        pr = c["predictors"]
+        pred = ", ".join(
+            f"{k.replace('_', ' ')} {pr[k]:+.2f}"
+            for k in (*PARTS, "misfit_over_noise")
+            if k in pr and math.isfinite(pr[k])
+        )
+        lines.append(
+            f"| {c['model']} | {c['grid']} | {c['e_snow_mpa']:g} | "
+            + " | ".join(cols)
+            + f" | {pred} |"
+        )
+    lines += [
+        "",
+        "Bending ski, linear estimate (the beam draws' part rescaled, not re-solved): per factor, "
+        "the lowest coverage and the largest width ratio over the populations.",
+        "",
+        "| grid | E [MPa] | " + " | ".join(f"× {k:g}" for k in ESTIMATE_FACTORS) + " |",
+        "|" + "---|" * (len(ESTIMATE_FACTORS) + 2),
+    ]
+    for c in doc["cells"]:
+        if "linear_estimate" not in c:
+            continue
+        cols = []
+        for k in ESTIMATE_FACTORS:
+            per = {p: s for p, s in c["linear_estimate"][f"{k:g}"].items() if p != "pooled"}
+            cov = min(s["coverage"] for s in per.values())
+            wid = max(s["half_width_over_rms"] for s in per.values())
+            cols.append(f"{cov:.2f} / {wid:.2f}")
+        lines.append(f"| {c['grid']} | {c['e_snow_mpa']:g} | " + " | ".join(cols) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument(
+        "--studies",
+        nargs="+",
+        help="label=study.json ... (default: the eleven populations of DEFAULT_POPULATIONS)",
+    )
+    ap.add_argument("--out", type=Path, default=STUDIES / "population-bands.json")
+    args = ap.parse_args(argv)
+    pairs = (
+        [s.split("=", 1) for s in args.studies]
+        if args.studies
+        else [(k, str(STUDIES / v)) for k, v in DEFAULT_POPULATIONS.items()]
+    )
+    populations = {label: json.loads(Path(path).read_text("utf-8")) for label, path in pairs}
+    doc = {
+        "schema": SCHEMA,
+        "provenance": common.provenance({"studies": {k: v for k, v in pairs}}),
+        "populations": {
+            label: {
+                "file": str(Path(path).name),
+                "commit": populations[label]["provenance"]["git_commit"],
+            }
+            for label, path in pairs
+        },
+        "targets": {"coverage": 0.9, "half_width_over_rms": 2.5, "unwarned_misses_above": AREA_OFF},
+        **study(populations),
+    }
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    with common.atomic_path(args.out) as tmp:
+        tmp.write_text(json.dumps(doc, indent=1), encoding="utf-8")
+    md = args.out.with_suffix(".md")
+    with common.atomic_path(md) as tmp:
+        tmp.write_text(markdown(doc), encoding="utf-8")
+    print(markdown(doc))
+    print(f"written {args.out} and {md}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

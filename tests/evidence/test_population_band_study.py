@@ -1,0 +1,111 @@
+"""The served bands across the own-ski populations (scripts/population_band_study.py,
+docs/limits.md "The bands across eleven populations")."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO / "scripts"))
+
+import population_band_study as pbs  # noqa: E402
+
+
+def _answer(error, half_width, camber, factor, warned=False, grid_part=0.0):
+    return {
+        "status": 200,
+        "error_ref_pct": 100.0 * error,
+        "band_half_width": half_width,
+        "area_components": {"camber_model": camber, "macro_grid": grid_part},
+        "camber_scale": factor,
+        "warnings": ["wide"] if warned else [],
+    }
+
+
+def _study(skis):
+    """A study file of skis ``(design, errors, camber part at × 4, grid part)`` on the coarse
+    grid at 2000 MPa, the band the camber and grid parts in quadrature."""
+    out = []
+    for design, errors, camber, grid_part in skis:
+        hw = math.hypot(camber, grid_part)
+        answers = [
+            {
+                "snow_modulus_mpa": 2000.0,
+                "flexible": _answer(e, hw, camber, 4.0, grid_part=grid_part),
+                "rigid": {"status": 422},
+            }
+            for e in errors
+        ]
+        out.append(
+            {
+                "design": design,
+                "draw": 0,
+                "grid": "coarse",
+                "outcome": "done",
+                "served": {"profile_model": "identified_beam"},
+                "identification": {"misfit_over_noise": 1.0},
+                "answers": answers,
+            }
+        )
+    # a ski served by its network is not one of the identified beam's answers
+    out.append({**out[0], "design": "net", "served": {"profile_model": "network"}})
+    return {"provenance": {"git_commit": "abc"}, "skis": out}
+
+
+def test_stats_count_coverage_width_and_unwarned_misses():
+    st = pbs.stats([0.01, -0.05, 0.05, 0.02], [0.02, 0.02, 0.02, 0.01], [False, False, True, False])
+    assert st["answers"] == 4 and st["coverage"] == pytest.approx(0.25)
+    assert st["unwarned_misses"] == 1  # -5 % outside, unwarned; +5 % warned; +2 % below 3 %
+    rms = math.sqrt((0.01**2 + 2 * 0.05**2 + 0.02**2) / 4)
+    assert st["half_width_over_rms"] == pytest.approx(0.0175 / rms)
+    assert pbs.stats([], [], []) == {"answers": 0}
+
+
+def test_rescaling_changes_only_the_beam_draws_part_linearly():
+    rows = [{"half_width": 0.05, "factor": 4.0, "parts": {"camber_model": 0.04}}]
+    # the other parts: sqrt(0.05² − 0.04²) = 0.03
+    assert pbs.rescaled_half_widths(rows, 4.0) == pytest.approx([0.05])
+    assert pbs.rescaled_half_widths(rows, 8.0) == pytest.approx([math.hypot(0.08, 0.03)])
+    assert pbs.rescaled_half_widths(rows, 0.0) == pytest.approx([0.03])
+
+
+def test_study_reads_served_beam_answers_and_ranks_the_predictors(tmp_path):
+    """Skis whose error grows with their grid part and not with their camber part: the grid
+    part predicts, the camber part does not; the network-served ski is left out."""
+    rng = np.random.default_rng(0)
+    skis = []
+    for k in range(6):
+        scale = 0.01 * 2**k
+        errors = list(scale * rng.choice([-1.0, 1.0], 8))
+        skis.append((f"d{k}", errors, 0.02 * (1 + (k % 2)), 1.2 * scale))
+    doc = pbs.study({"a": _study(skis[:3]), "b": _study(skis[3:])})
+    (cell,) = [c for c in doc["cells"] if c["model"] == "flexible"]
+    assert cell["grid"] == "coarse" and cell["e_snow_mpa"] == 2000.0
+    assert cell["served"]["a"]["answers"] == 24 and cell["served"]["pooled"]["answers"] == 48
+    assert cell["served"]["pooled"]["coverage"] == 1.0  # every band ≥ 1.2 × its error
+    pred = cell["predictors"]
+    assert pred["skis"] == 6
+    assert pred["macro_grid"] > 0.99 and abs(pred["camber_model"]) < 0.5
+    assert math.isnan(pred["misfit_over_noise"])  # the same misfit on every ski
+    # at × 1 (a quarter of the served draws part) the grid part alone still covers
+    assert cell["linear_estimate"]["1"]["pooled"]["coverage"] == 1.0
+    assert not [c for c in doc["cells"] if c["model"] == "rigid"]  # no rigid answer given
+
+
+def test_main_writes_json_and_markdown_with_provenance(tmp_path):
+    skis = [(f"d{k}", [0.01 * (k + 1), -0.01], 0.02, 0.01) for k in range(4)]
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps(_study(skis)), encoding="utf-8")
+    out = tmp_path / "pb.json"
+    assert pbs.main(["--studies", f"pop={path}", "--out", str(out)]) == 0
+    doc = json.loads(out.read_text("utf-8"))
+    assert doc["schema"] == pbs.SCHEMA and doc["provenance"]["git_commit"]
+    assert doc["populations"]["pop"]["commit"] == "abc"
+    md = out.with_suffix(".md").read_text("utf-8")
+    assert "| flexible | coarse | 2000 |" in md and "× 12" in md
