@@ -217,7 +217,9 @@ def double_integral(kappa: np.ndarray, dx: float) -> np.ndarray:
     if kappa.dtype == np.float64 and kappa.ndim in (1, 2) and kappa.shape[-1] >= 2:
         rows = np.ascontiguousarray(kappa.reshape(-1, kappa.shape[-1]))
         if np.ndim(dx) == 0:
-            return _double_integral_rows(rows, float(dx)).reshape(kappa.shape)
+            # one spacing: every interval's (the same products, so the same bits)
+            spacings = np.full(kappa.shape[-1] - 1, float(dx))
+            return _double_integral_rows_spaced(rows, spacings).reshape(kappa.shape)
         spacings = np.ascontiguousarray(dx, dtype=np.float64)
         if spacings.shape == (kappa.shape[-1] - 1,):
             # in the reference's memory layout (its zeros_like: a transposed κ gives a
@@ -239,30 +241,10 @@ def _double_integral_reference(kappa: np.ndarray, dx) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def _double_integral_rows(kappa, dx):
-    """:func:`_double_integral_reference` of each row of the (m, N) ``kappa``, float ``dx``,
-    with its operations in its order (bit-identical), without its four temporaries."""
-    m, n = kappa.shape
-    w = np.zeros((m, n))
-    half_dx = 0.5 * dx
-    dx2 = dx * dx
-    for r in range(m):
-        slope = 0.0
-        acc = 0.0
-        for i in range(n - 1):
-            k0 = kappa[r, i]
-            k1 = kappa[r, i + 1]
-            w_inc = dx * slope + dx2 * (2.0 * k0 + k1) / 6.0
-            slope = slope + half_dx * (k0 + k1)
-            acc = acc + w_inc
-            w[r, i + 1] = acc
-    return w
-
-
-@numba.njit(cache=True)
 def _double_integral_rows_spaced(kappa, dx):
-    """:func:`_double_integral_rows` with the (N−1,) spacings ``dx`` [m] (bit-identical to
-    :func:`_double_integral_reference` with them)."""
+    """:func:`_double_integral_reference` of each row of the (m, N) ``kappa`` with the (N−1,)
+    spacings ``dx`` [m], its operations in its order (bit-identical), without its four
+    temporaries."""
     m, n = kappa.shape
     w = np.zeros((m, n))
     for r in range(m):
