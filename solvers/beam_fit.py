@@ -215,17 +215,20 @@ def double_integral(kappa: np.ndarray, dx: float) -> np.ndarray:
     same sums in the same order); the rest runs it."""
     kappa = np.asarray(kappa)
     if kappa.dtype == np.float64 and kappa.ndim in (1, 2) and kappa.shape[-1] >= 2:
-        rows = np.ascontiguousarray(kappa.reshape(-1, kappa.shape[-1]))
         if np.ndim(dx) == 0:
             # one spacing: every interval's (the same products, so the same bits)
             spacings = np.full(kappa.shape[-1] - 1, float(dx))
-            return _double_integral_rows_spaced(rows, spacings).reshape(kappa.shape)
-        spacings = np.ascontiguousarray(dx, dtype=np.float64)
+        else:
+            spacings = np.ascontiguousarray(dx, dtype=np.float64)
         if spacings.shape == (kappa.shape[-1] - 1,):
-            # in the reference's memory layout (its zeros_like: a transposed κ gives a
-            # transposed w), so that the products made with it round as they did
-            w = np.empty_like(kappa)
-            w[...] = _double_integral_rows_spaced(rows, spacings).reshape(kappa.shape)
+            rows = np.ascontiguousarray(kappa.reshape(-1, kappa.shape[-1]))
+            w = _double_integral_rows(rows, spacings).reshape(kappa.shape)
+            if w.strides != np.empty_like(kappa).strides:
+                # the reference's memory layout (its zeros_like: a transposed κ gives a
+                # transposed w), so that the products made with it round as they did
+                out = np.empty_like(kappa)
+                out[...] = w
+                return out
             return w
     return _double_integral_reference(kappa, dx)
 
@@ -241,7 +244,7 @@ def _double_integral_reference(kappa: np.ndarray, dx) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def _double_integral_rows_spaced(kappa, dx):
+def _double_integral_rows(kappa, dx):
     """:func:`_double_integral_reference` of each row of the (m, N) ``kappa`` with the (N−1,)
     spacings ``dx`` [m], its operations in its order (bit-identical), without its four
     temporaries."""
