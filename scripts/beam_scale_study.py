@@ -63,16 +63,24 @@ AREA_OFF = 0.03
 
 
 def cache_file(
-    work: Path, name: str, flex_scales: tuple[float, ...], rigid_scales: tuple[float, ...]
+    work: Path,
+    name: str,
+    flex_scales: tuple[float, ...],
+    rigid_scales: tuple[float, ...],
+    moduli_mpa: tuple[float, ...] | None = None,
 ) -> Path:
     """Where :func:`ski_rows` keeps ski ``name``'s answers: keyed by the factor lists, the
-    commit, and the SHA-256 of the kept ski file and of its rescored truths, so that a ski
-    re-identified (or rescored) at the same commit is answered again, not read back stale."""
+    snow moduli asked (``None``: every one), the commit, and the SHA-256 of the kept ski file
+    and of its rescored truths, so that a ski re-identified (or rescored) at the same commit is
+    answered again, not read back stale."""
     digests = [
         hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file() else None
         for p in (work / "skis" / f"{name}.h5", work / "rescored" / f"{name}.json")
     ]
-    key = json.dumps([list(flex_scales), list(rigid_scales), common.git_commit(), *digests])
+    key = [list(flex_scales), list(rigid_scales), common.git_commit(), *digests]
+    if moduli_mpa is not None:  # the key of a run over every modulus stays as it was
+        key.append(sorted(moduli_mpa))
+    key = json.dumps(key)
     tag = hashlib.sha256(key.encode()).hexdigest()[:10]
     return work / "beam-scale" / f"{name}-{tag}.json"
 
@@ -83,10 +91,12 @@ def ski_rows(
     grind: str,
     flex_scales: tuple[float, ...] = FLEX_SCALES,
     rigid_scales: tuple[float, ...] = RIGID_SCALES,
+    moduli_mpa: tuple[float, ...] | None = None,
 ) -> list[dict]:
-    """Every held-out case of ski ``name`` answered at every candidate factor (cached per
-    ski, factor list and commit: :func:`cache_file`)."""
-    cache = cache_file(work, name, flex_scales, rigid_scales)
+    """Every held-out case of ski ``name`` (at the snow moduli ``moduli_mpa`` [MPa]; ``None``:
+    every one) answered at every candidate factor (cached per ski, factor list, moduli and
+    commit: :func:`cache_file`)."""
+    cache = cache_file(work, name, flex_scales, rigid_scales, moduli_mpa)
     if cache.is_file():
         return json.loads(cache.read_text(encoding="utf-8"))
     fields = json.loads((work / "rescored" / f"{name}.json").read_text(encoding="utf-8"))["fields"]
@@ -115,6 +125,8 @@ def ski_rows(
                     )
                 for c in fields["answers"]:
                     if "truth_ref_cm2" not in c:
+                        continue
+                    if moduli_mpa is not None and c["snow_modulus_mpa"] not in moduli_mpa:
                         continue
                     inp = service.ContactInputs(
                         name,
@@ -237,6 +249,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--flex-scales", type=float, nargs="+", default=list(FLEX_SCALES))
     ap.add_argument("--rigid-scales", type=float, nargs="+", default=list(RIGID_SCALES))
     ap.add_argument(
+        "--moduli",
+        type=float,
+        nargs="+",
+        help="ask only the cases at these snow moduli [MPa] (default: every one)",
+    )
+    ap.add_argument(
         "--rows",
         action="store_true",
         help="write every answer too (MBs; the per-ski cache in <work>/beam-scale keeps them)",
@@ -253,7 +271,8 @@ def main(argv: list[str] | None = None) -> int:
             log.info("[%d/%d] %s: no identified beam served, skipped", i, len(names), name)
             continue
         t = time.perf_counter()
-        got = ski_rows(args.work, name, args.grind, flex, rigid)
+        moduli = tuple(args.moduli) if args.moduli else None
+        got = ski_rows(args.work, name, args.grind, flex, rigid, moduli)
         design, grid, draw = name.rsplit("-", 2)
         for r in got:
             r.update(ski=name, design=design, grid=grid, draw=int(draw[1:]))
@@ -270,7 +289,12 @@ def main(argv: list[str] | None = None) -> int:
     doc = {
         "schema": SCHEMA,
         "provenance": common.provenance(
-            {"work": str(args.work), "calib_draws": args.calib_draws, "skis": names}
+            {
+                "work": str(args.work),
+                "calib_draws": args.calib_draws,
+                "skis": names,
+                "moduli_mpa": args.moduli,
+            }
         ),
         "flex_scales": flex,
         "rigid_scales": rigid,

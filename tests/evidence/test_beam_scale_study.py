@@ -83,3 +83,9 @@ def test_the_per_ski_cache_is_keyed_by_the_ski_file_and_its_truths(tmp_path):
     assert second != first
     truths.write_text('{"fields": 1}', encoding="utf-8")
     assert bss.cache_file(tmp_path, "s", (1.0, 2.0), (1.0,)) not in (first, second)
+    third = bss.cache_file(tmp_path, "s", (1.0, 2.0), (1.0,))
+    # the snow moduli asked are part of the key; asking every modulus keeps the old key
+    only = bss.cache_file(tmp_path, "s", (1.0, 2.0), (1.0,), (2000.0,))
+    assert only != third
+    assert bss.cache_file(tmp_path, "s", (1.0, 2.0), (1.0,), (2000.0,)) == only
+    assert bss.cache_file(tmp_path, "s", (1.0, 2.0), (1.0,), None) == third
