@@ -277,8 +277,12 @@ def band_svg(results: Sequence[dict]) -> str:
             colour = _COLOURS[i % len(_COLOURS)]
             if w is None:
                 ax.plot([v], [i], "o", mfc="none", color=colour)
-            else:
-                ax.errorbar([v], [i], xerr=[[v * w], [v * w]], fmt="o", color=colour, capsize=3)
+            elif w >= 1:  # no upper bound: the whisker to 0, an arrow to the right
+                ax.errorbar([v], [i], xerr=[[v], [0.0]], fmt="o", color=colour, capsize=3)
+                ax.plot([2 * v], [i], ">", color=colour)
+            else:  # symmetric in log: v (1 − w) … v / (1 − w) (app.service.band.interval_90)
+                xerr = [[v * w], [v * w / (1 - w)]]
+                ax.errorbar([v], [i], xerr=xerr, fmt="o", color=colour, capsize=3)
         ax.set_title(f"{name}\n[{unit}]", fontsize=BAND_FONT_PT)
         ax.tick_params(labelsize=BAND_FONT_PT)
         ax.xaxis.set_major_locator(MaxNLocator(nbins=2, min_n_ticks=2))

@@ -36,6 +36,7 @@ import functools
 import hashlib
 import json
 import logging
+import math
 import sys
 import time
 from pathlib import Path
@@ -47,7 +48,7 @@ sys.path.insert(0, str(REPO))
 
 from skisnow.app import service  # noqa: E402
 from skisnow.app.service import answer as answer_mod  # noqa: E402
-from skisnow.app.service import band_calibration  # noqa: E402
+from skisnow.app.service import band, band_calibration  # noqa: E402
 from skisnow.app.service.profiles import served_beam  # noqa: E402
 from skisnow.app.storage import common  # noqa: E402
 from skisnow.app.storage.skis import read_ski  # noqa: E402
@@ -173,18 +174,23 @@ def ski_rows(
     return rows
 
 
+def _inside(area: float, truth: float, half_width: float) -> bool:
+    """Whether the served band of an answer ``area`` of relative half-width ``half_width`` holds
+    ``truth`` (:func:`app.service.band.interval_90`: symmetric in log since 2026-11-29)."""
+    lo, hi = band.interval_90(area, half_width)
+    return lo <= truth <= (math.inf if hi is None else hi)
+
+
 def stats(rows: list[dict]) -> dict:
-    """Coverage of the reference truth, mean half-width over the RMS error, unwarned misses."""
+    """Coverage of the reference truth (by the band as served now, whatever the rows' commit),
+    mean half-width over the RMS error, unwarned misses."""
     ok = [r for r in rows if "area_cm2" in r]
     if not ok:
         return {"answers": 0}
     err = np.array([r["area_cm2"] / r["truth_ref_cm2"] - 1 for r in ok])
     hw = np.array([r["half_width"] for r in ok])
     inside = np.array(
-        [
-            r["area_cm2"] * (1 - h) <= r["truth_ref_cm2"] <= r["area_cm2"] * (1 + h)
-            for r, h in zip(ok, hw, strict=True)
-        ]
+        [_inside(r["area_cm2"], r["truth_ref_cm2"], h) for r, h in zip(ok, hw, strict=True)]
     )
     rms = float(np.sqrt(np.mean(err**2)))
     bad = int(

@@ -768,6 +768,8 @@ def score_answer(a: dict, case: dict, model: str) -> None:
     ref = (case.get("truth_ref_cm2") or {}).get(key)
     a["error_pct"] = 100 * (a["area_cm2"] / same - 1)
     lo_hi = a["band_cm2"]
+    if lo_hi and lo_hi[1] is None:  # a band of ≥ 100 % has no upper end (band.interval_90)
+        lo_hi = [lo_hi[0], math.inf]
     a["inside_band_same_grid"] = bool(lo_hi[0] <= same <= lo_hi[1]) if lo_hi else None
     truth = same if ref is None else ref
     a["band_truth"] = "same grid" if ref is None else "reference grid"

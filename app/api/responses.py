@@ -244,8 +244,16 @@ class Band(BaseModel):
 
     model_config = _FIXED
     level: float
-    relative_half_width: dict[str, float | None]
-    intervals: dict[str, list[float] | None]
+    relative_half_width: dict[str, float | None] = Field(
+        ...,
+        description="relative 90 % half-width w per quantity: the interval reaches value × "
+        "(1 − w) below and value ÷ (1 − w) above (symmetric in log)",
+    )
+    intervals: dict[str, list[float | None] | None] = Field(
+        ...,
+        description="[low, high] in the answer's units: value × (1 − w) … value ÷ (1 − w); "
+        "high is null when w ≥ 1 (no upper bound), null without a band",
+    )
     zone_load_relative_half_width: list[float]
     components: dict[str, dict[str, float | None]]
     camber_model: dict[str, Any]

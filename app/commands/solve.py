@@ -121,8 +121,14 @@ def run_solve(args: argparse.Namespace) -> int:
     rel = out.get("band", {}).get("relative_half_width", {})
 
     def pm(q: str) -> str:
+        # the band is symmetric in log: value × (1 − w) … value ÷ (1 − w)
         w = rel.get(q)
-        return "  (not grid-converged: see below)" if w is None else f"  ± {100 * w:4.1f} %"
+        if w is None:
+            return "  (not grid-converged: see below)"
+        if w >= 1:
+            return "  −100 % / no upper bound"
+        lo, hi = f"{100 * w:.1f}", f"{100 * w / (1 - w):.1f}"
+        return f"  ± {lo:>4} %" if lo == hi else f"  −{lo} % / +{hi} %"
 
     print("  90 % error band after each value (sources: --json, band)")
     rows = (

@@ -36,8 +36,12 @@ def test_stats_judge_the_band_against_the_reference_truth():
     rows = [_row(1.0, 0, 0.02, 0.03), _row(1.0, 0, -0.05, 0.03), _row(1.0, 0, 0.05, 0.03, True)]
     st = bss.stats(rows)
     assert st["answers"] == 3
-    # inside: |answer − truth| ≤ half-width × answer, i.e. truth in [A(1−h), A(1+h)]
+    # inside: truth in the served band [A(1 − h), A / (1 − h)]
     assert st["coverage"] == pytest.approx(1 / 3)
+    # 2.9 % under against ± 3 %: inside (the log band reaches 3.09 % above the answer); 3.2 %
+    # under: outside; 3 % over: inside (the truth is 2.9 % below the answer)
+    near = [_row(1.0, 0, -0.029, 0.03), _row(1.0, 0, -0.032, 0.03), _row(1.0, 0, 0.030, 0.03)]
+    assert bss.stats(near)["coverage"] == pytest.approx(2 / 3)
     err = np.array([0.02, -0.05, 0.05])
     assert st["rms_error"] == pytest.approx(np.sqrt(np.mean(err**2)))
     assert st["half_width_over_rms"] == pytest.approx(0.03 / st["rms_error"])

@@ -133,13 +133,25 @@ def test_every_answer_carries_a_band_with_intervals_around_it(shipped):
         v = ans[section][key]
         w = b["relative_half_width"][q]
         assert lo < v < hi
-        assert hi / v - 1 == pytest.approx(w, rel=1e-3)
+        # symmetric in log: v (1 − w) … v / (1 − w)
+        assert lo == pytest.approx(v * (1 - w), rel=1e-3)
+        assert hi == pytest.approx(v / (1 - w), rel=1e-3)
         # each source adds: the total is at least the largest component
         comp = max(c.get(q) or 0.0 for c in b["components"].values())
         assert w >= comp * (1 - 1e-3)
-    for z in ans["apparent"]["zones"]:
+    # the mean apparent pressure F / A: the area's band inverted, the same band in log
+    p, w_a = ans["apparent"]["mean_pressure_kpa"], b["relative_half_width"]["apparent_contact_area"]
+    lo, hi = b["intervals"]["mean_pressure_kpa"]
+    a_lo, a_hi = b["intervals"]["contact_area_cm2"]
+    a = ans["apparent"]["contact_area_cm2"]
+    assert lo == pytest.approx(p * a / a_hi, rel=1e-3) and hi == pytest.approx(
+        p * a / a_lo, rel=1e-3
+    )
+    assert lo == pytest.approx(p * (1 - w_a), rel=1e-3)
+    for z in ans["apparent"]["zones"]:  # zone loads share the load: value × (1 ± w)
         lo, hi = z["load_band_90_n"]
         assert lo < z["load_n"] < hi
+        assert hi - z["load_n"] == pytest.approx(z["load_n"] - lo, rel=1e-3, abs=1e-6)
     lo = ans["distributions"]["pressure_band_low_kpa"]
     hi = ans["distributions"]["pressure_band_high_kpa"]
     p = ans["distributions"]["pressure_kpa"]
@@ -487,9 +499,18 @@ def test_not_covered_says_where_the_pixel_size_estimate_is(small_table):
 
 def test_intervals_of_non_negative_quantities_stop_at_zero():
     """A band wider than the value (a flat-base zone load, ±120 %) ends at 0, not below: areas,
-    pressures, separations and zone loads are never negative; the upper end is unchanged."""
+    pressures, separations and zone loads are never negative. A zone load's band is value ×
+    (1 ± w); the metrics' and the apparent area's are symmetric in log, value × (1 − w) …
+    value ÷ (1 − w), with no upper end from w = 1 on."""
     assert band._interval(10.0, 0.25) == [7.5, 12.5]
     assert band._interval(0.19, 2.2) == [0.0, pytest.approx(0.608)]
+    assert band.interval_90(10.0, 0.25) == [7.5, pytest.approx(40.0 / 3.0, rel=1e-5)]
+    assert band.interval_90(10.0, 0.0) == [10.0, 10.0]
+    assert band.interval_90(0.19, 2.2) == [0.0, None]
+    assert band.interval_90(0.19, 1.0) == [0.0, None]
+    # an underestimate by u is inside from w = u on, as an overestimate by u / (1 − u) is
+    lo, hi = band.interval_90(60.0, 0.4)
+    assert hi == pytest.approx(100.0) and lo == pytest.approx(36.0)
 
 
 def _with_alternatives(ski, beams):
