@@ -237,8 +237,26 @@ GRID_CASES = (45, 117)
 #: at 200 MPa 6 → 4, 13 × 9 at 20 MPa 2 → 1.5 and at 2000 MPa 6 → 4, the rest unchanged
 #: (docs/studies/per-grid-band.json). Random designs 9–12, re-identified and scanned afterwards,
 #: held out at the calibration-only fit: ≥ 96.9 % inside in every cell; joined as a validation
-#: population, the served factors stay the same. Was 3 / 6 / 12 and 2 / 4 / 6
-BEAM_SCALE_GRID_NODES = ((3.0, 4.0, 12.0), (1.5, 4.0, 4.0))
+#: population, the served factors stay the same. Was 3 / 6 / 12 and 2 / 4 / 6.
+#:
+#: Since the bands are symmetric in log (2026-11-29, :func:`app.service.band.interval_90`),
+#: the cells of :data:`BEAM_SCALE_REFITS` are refitted by the same rule on more populations;
+#: 9 × 5 at 2000 MPa 12 → 8
+BEAM_SCALE_GRID_NODES = ((3.0, 4.0, 8.0), (1.5, 4.0, 4.0))
+#: cells of :data:`BEAM_SCALE_GRID_NODES` refitted after the per-grid study
+#: (docs/studies/per-grid-band.json, which serves the others), each with the study file that
+#: chose its factor (``python scripts/beam_scale_refit_study.py``; the test
+#: ``tests/evidence/test_beam_scale_refit_study.py`` holds the table to them). (measurement grid,
+#: snow modulus [MPa]) → study file, relative to the repository.
+#:
+#: - 9 × 5 at 2000 MPa, × 8: the bending ski's answers there were 2.43–5.06 × as wide as their
+#:   RMS error over the eleven own-ski populations (pooled 2.83 ×) and yet held only 85 % of
+#:   random 5–8's truths: every truth outside lay above an underestimate's band. With the
+#:   band symmetric in log, the smallest factor holding ≥ 90 % in every population: two
+#:   populations re-identified and re-solved at × 4 … 12 with this code (random designs 37–42,
+#:   six skis: 100 % at × 8, 2.20 ×; the four validation designs: 99 %, 2.28 ×) and the eleven
+#:   committed ones by the linear estimate (lowest random 5–8, 92 %; pooled 98 %, 2.02 ×)
+BEAM_SCALE_REFITS = {("coarse", 2000.0): "docs/studies/beam-scale-refit.json"}
 #: the identified-profile factor of rigid answers per measurement grid and node
 #: (:data:`IDENTIFIED_SIGMA_E_SNOW_MPA`) [-], fitted as :data:`BEAM_SCALE_GRID_NODES` (1 … 4;
 #: the larger per node of the calibration-only and the pooled fit; with random designs 9–12
