@@ -58,6 +58,20 @@ def test_text_output_has_units_and_warnings(capsys):
     assert "WARNING porosity_near_one" in text
 
 
+def test_text_output_prints_the_band_as_served(capsys, shipped):
+    """The band after each value is the served interval's reach: −w % below, +w / (1 − w) %
+    above (symmetric in log), or ± w % where both agree to 0.1 %."""
+    assert main([*CASE, "--json"]) == 0
+    rel = json.loads(capsys.readouterr().out)["band"]["relative_half_width"]
+    assert main(CASE) == 0
+    text = capsys.readouterr().out
+    w = rel["apparent_contact_area"]
+    lo, hi = f"{100 * w:.1f}", f"{100 * w / (1 - w):.1f}"
+    assert lo != hi  # a band of a few % already differs at 0.1 %
+    (line,) = [x for x in text.splitlines() if x.strip().startswith("apparent contact area")]
+    assert line.endswith(f"−{lo} % / +{hi} %")
+
+
 @pytest.mark.parametrize(
     ("change", "message"),
     [

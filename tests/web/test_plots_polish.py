@@ -86,3 +86,44 @@ def test_pressure_caption_names_what_the_legend_shows(monkeypatch, answers):
     assert any("90 % band" in e for e in entries)
     for words in ("90 % band", "contact zones", "load position", "load share"):
         assert words in caption
+
+
+def _whiskers(ax) -> list[tuple[float, float]]:
+    """The x-extent of every error bar of ``ax`` (matplotlib draws each as a LineCollection)."""
+    from matplotlib.collections import LineCollection
+
+    out = []
+    for c in ax.collections:
+        if isinstance(c, LineCollection):
+            for seg in c.get_segments():
+                if seg[0][1] == seg[1][1]:  # the horizontal bar, not the caps
+                    out.append((float(min(seg[:, 0])), float(max(seg[:, 0]))))
+    return out
+
+
+def test_band_chart_whiskers_are_the_served_intervals(monkeypatch, answers):
+    """The whiskers span band.intervals (symmetric in log: v (1 − w) … v / (1 − w)), and a band
+    of w ≥ 1 (no upper end) is drawn to 0 with an arrow to the right."""
+    fig = _figure_of(monkeypatch, plots.band_svg, answers)
+    got = sorted(_whiskers(fig.axes[0]))
+    want = sorted(tuple(a["band"]["intervals"]["contact_area_cm2"]) for a in answers)
+    assert np.ravel(got) == pytest.approx(np.ravel(want), rel=1e-3)
+    for a in answers:  # longer above than below
+        lo, hi = a["band"]["intervals"]["contact_area_cm2"]
+        v = a["apparent"]["contact_area_cm2"]
+        assert hi - v > v - lo
+    wide = {
+        **answers[0],
+        "band": {
+            **answers[0]["band"],
+            "relative_half_width": {
+                **answers[0]["band"]["relative_half_width"],
+                "apparent_contact_area": 1.2,
+            },
+        },
+    }
+    fig = _figure_of(monkeypatch, plots.band_svg, [wide])
+    v = wide["apparent"]["contact_area_cm2"]
+    assert np.ravel(_whiskers(fig.axes[0])) == pytest.approx([0.0, v])
+    markers = [line.get_marker() for line in fig.axes[0].get_lines()]
+    assert ">" in markers
