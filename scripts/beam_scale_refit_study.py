@@ -241,14 +241,7 @@ def main(argv: list[str] | None = None) -> int:
         "targets": {"coverage": COVERAGE_TARGET, "half_width_over_rms": WIDTH_TARGET},
         "refit": refit(scans, studies, args.grid, args.e_snow_mpa),
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    with common.atomic_path(args.out) as tmp:
-        tmp.write_text(json.dumps(doc, indent=1), encoding="utf-8")
-    md = args.out.with_suffix(".md")
-    with common.atomic_path(md) as tmp:
-        tmp.write_text(markdown(doc), encoding="utf-8")
-    print(markdown(doc))
-    print(f"written {args.out} and {md}")
+    pbs.write_outputs(doc, args.out, markdown(doc))
     return 0
 
 

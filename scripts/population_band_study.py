@@ -300,6 +300,19 @@ def markdown(doc: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def write_outputs(doc: dict, out: Path, md_text: str) -> None:
+    """``doc`` as JSON at ``out`` and ``md_text`` beside it (``.md``), each written atomically;
+    the markdown printed."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with common.atomic_path(out) as tmp:
+        tmp.write_text(json.dumps(doc, indent=1), encoding="utf-8")
+    md = out.with_suffix(".md")
+    with common.atomic_path(md) as tmp:
+        tmp.write_text(md_text, encoding="utf-8")
+    print(md_text)
+    print(f"written {out} and {md}")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument(
@@ -328,14 +341,7 @@ def main(argv: list[str] | None = None) -> int:
         "targets": {"coverage": 0.9, "half_width_over_rms": 2.5, "unwarned_misses_above": AREA_OFF},
         **study(populations),
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    with common.atomic_path(args.out) as tmp:
-        tmp.write_text(json.dumps(doc, indent=1), encoding="utf-8")
-    md = args.out.with_suffix(".md")
-    with common.atomic_path(md) as tmp:
-        tmp.write_text(markdown(doc), encoding="utf-8")
-    print(markdown(doc))
-    print(f"written {args.out} and {md}")
+    write_outputs(doc, args.out, markdown(doc))
     return 0
 
 
