@@ -274,14 +274,17 @@ def band_svg(results: Sequence[dict]) -> str:
         for i, r in enumerate(results):
             v = r[section][key]
             w = r.get("band", {}).get("relative_half_width", {}).get(bkey)
+            wa = (r.get("band", {}).get("relative_half_width_above") or {}).get(bkey, w)
             colour = _COLOURS[i % len(_COLOURS)]
             if w is None:
                 ax.plot([v], [i], "o", mfc="none", color=colour)
-            elif w >= 1:  # no upper bound: the whisker to 0, an arrow to the right
-                ax.errorbar([v], [i], xerr=[[v], [0.0]], fmt="o", color=colour, capsize=3)
+            elif wa is None or wa >= 1:  # no upper bound: an arrow to the right
+                ax.errorbar(
+                    [v], [i], xerr=[[v * min(w, 1.0)], [0.0]], fmt="o", color=colour, capsize=3
+                )
                 ax.plot([2 * v], [i], ">", color=colour)
-            else:  # symmetric in log: v (1 − w) … v / (1 − w) (app.service.band.interval_90)
-                xerr = [[v * w], [v * w / (1 - w)]]
+            else:  # v (1 − w) … v / (1 − wa) (app.service.band.interval_90)
+                xerr = [[v * min(w, 1.0)], [v * wa / (1 - wa)]]
                 ax.errorbar([v], [i], xerr=xerr, fmt="o", color=colour, capsize=3)
         ax.set_title(f"{name}\n[{unit}]", fontsize=BAND_FONT_PT)
         ax.tick_params(labelsize=BAND_FONT_PT)

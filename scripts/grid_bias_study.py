@@ -160,6 +160,8 @@ def markdown(doc: dict) -> str:
     ]
     for c in doc["grid"]:
         p = c["pooled"]
+        if not p.get("n"):
+            continue
         low = min(s["share_above"] for s in c["populations"].values() if s.get("n"))
         lines.append(
             f"| {c['model']} | {c['e_snow_mpa']:g} | {p['n']} | {p['share_above']:.3f} | "

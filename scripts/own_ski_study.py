@@ -257,11 +257,14 @@ def truth_ski(served: service.Ski, beam: BeamSki, name: str) -> service.Ski:
     return service.Ski(name, served.path, served.sha256, rec)
 
 
-def _area_band(answer: dict) -> tuple[list | None, float | None]:
+def _area_band(answer: dict) -> tuple[list | None, float | None, float | None]:
+    """The apparent area's served interval [cm²] and its relative half-widths below and above
+    the answer (the same unless the band names a half-width above: its grid part is a bias)."""
     band = answer.get("band") or {}
     interval = (band.get("intervals") or {}).get("contact_area_cm2")
     half = (band.get("relative_half_width") or {}).get("apparent_contact_area")
-    return interval, half
+    above = (band.get("relative_half_width_above") or {}).get("apparent_contact_area", half)
+    return interval, half, above
 
 
 def _camber_scale(a: dict, used: str | None) -> float | None:
@@ -284,7 +287,7 @@ def served_answer(client, body: dict) -> dict:
             detail = r.text[:300]
         return {"status": r.status_code, "detail": str(detail)[:400]}
     a = r.json()
-    interval, half = _area_band(a)
+    interval, half, above = _area_band(a)
     used = a["provenance"]["ski_model"].get("used")
     comps = (a.get("band") or {}).get("components") or {}
     return {
@@ -292,6 +295,7 @@ def served_answer(client, body: dict) -> dict:
         "area_cm2": a["apparent"]["contact_area_cm2"],
         "band_cm2": interval,
         "band_half_width": half,
+        "band_half_width_above": above,
         "warnings": sorted({w["code"] for w in a.get("warnings", [])}),
         "used": used,
         "profile_model": a["provenance"]["ski"]["profile_model"],
@@ -813,7 +817,14 @@ def answer_stats(skis: list[dict], model: str, modulus: float | None = None) -> 
     # the band is judged against the reference truth where the cache has it
     err_ref = np.array([a.get("error_ref_pct", a["error_pct"]) for a in ok], dtype=float)
     banded = [a for a in ok if a["inside_band"] is not None]
-    half = np.array([100 * a["band_half_width"] for a in banded], dtype=float)
+    # the mean of the two sides (they differ where the grid part is one-sided)
+    half = np.array(
+        [
+            50 * (a["band_half_width"] + a.get("band_half_width_above", a["band_half_width"]))
+            for a in banded
+        ],
+        dtype=float,
+    )
     off = [a for a in ok if abs(a.get("error_ref_pct", a["error_pct"])) > AREA_TARGET * 100]
     bad = [a for a in off if not a["inside_band"] and not a["warnings"]]
     rms = float(np.sqrt(np.mean(err_ref**2))) if err_ref.size else None
@@ -1290,7 +1301,9 @@ def run_study(
         "units": {
             "error_pct": "(answer − truth) / truth of the apparent contact area [%]",
             "band_cm2": "the answer's 90 % band of the apparent area (band.intervals)",
-            "band_half_width": "band.relative_half_width.apparent_contact_area [-]",
+            "band_half_width": "band.relative_half_width.apparent_contact_area [-] (below the "
+            "answer)",
+            "band_half_width_above": "band.relative_half_width_above.apparent_contact_area [-]",
             "profile_rms_um": "served loaded profile − true beam's, where true H* < 0.2 mm [µm]",
         },
         "skis": skis,

@@ -39,7 +39,10 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from skisnow.app.service.band_calibration import grid_above_share_at  # noqa: E402
 from skisnow.app.storage import common  # noqa: E402
+from skisnow.solvers.band import one_sided_part  # noqa: E402
+from skisnow.solvers.elastic import effective_modulus  # noqa: E402
 
 SCHEMA = "skisnow.population-band-study/1"
 STUDIES = REPO / "docs" / "studies"
@@ -86,6 +89,7 @@ def answers(study: dict, model: str, grid: str, e_snow_mpa: float) -> list[dict]
             out.append(
                 {
                     "ski": f"{ski['design']} d{ski.get('draw', 0)}",
+                    "e_snow_mpa": e_snow_mpa,
                     "error": a["error_ref_pct"] / 100.0,
                     "half_width": a["band_half_width"],
                     "parts": a.get("area_components", {}),
@@ -97,7 +101,26 @@ def answers(study: dict, model: str, grid: str, e_snow_mpa: float) -> list[dict]
     return out
 
 
-def stats(errors, half_widths, warned) -> dict:
+def served_sides(
+    row: dict, factor: float | None = None, share: float | None = None
+) -> tuple[float, float]:
+    """The half-widths (below, above) the service serves now for a recorded answer: the
+    quadrature of its recorded parts (the ``camber_model`` part rescaled to ``factor``, linear,
+    when given), with the ``macro_grid`` part moved below the answer at the snow's share
+    (:func:`solvers.band.one_sided_part`, :func:`app.service.band_calibration.
+    grid_above_share_at`; ``share`` instead, to try another). The quadrature of the parts is
+    the recorded half-width to 0.1 %."""
+    parts = dict(row["parts"])
+    if factor is not None and "camber_model" in parts:
+        parts["camber_model"] = parts["camber_model"] * factor / row["factor"]
+    width = math.sqrt(sum(v * v for v in parts.values() if v is not None))
+    grid = parts.get("macro_grid") or 0.0
+    if share is None:
+        share = grid_above_share_at(effective_modulus(row["e_snow_mpa"] * 1e6, 700e6, 0.3))
+    return one_sided_part(width, min(grid, width), share)
+
+
+def stats(errors, half_widths, warned, sides=None) -> dict:
     """Coverage, mean half-width over the RMS error, and unwarned misses above 3 %.
 
     ``errors`` are the answers' relative errors ``area / truth − 1``; an answer's band is
@@ -113,6 +136,20 @@ def stats(errors, half_widths, warned) -> dict:
         return {"answers": 0}
     rms = float(np.sqrt(np.mean(err**2)))
     outside = err / (1.0 + e) > hw
+    now = {}
+    if sides is not None:
+        # the band as served now (:func:`served_sides`): value × (1 − below) … value ÷ (1 −
+        # above); the truth value / (1 + e) is inside when 1 / (1 + e) ≥ 1 − below and
+        # e ≥ −above
+        below, above = (np.asarray(x, dtype=float) for x in zip(*sides, strict=True))
+        out_now = ~((1.0 / (1.0 + e) >= 1.0 - below) & (e >= -above))
+        mean_now = float(np.mean(0.5 * (below + above)))
+        now = {
+            "coverage_now": float(np.mean(~out_now)),
+            "mean_half_width_now": mean_now,
+            "half_width_over_rms_now": mean_now / rms if rms > 0 else math.inf,
+            "unwarned_misses_now": int(np.sum(out_now & (err > AREA_OFF) & ~np.asarray(warned))),
+        }
     # the band served since 2026-11-29, symmetric in log: [area (1 − hw), area / (1 − hw)]
     # (app.service.band.interval_90); the truth of an underestimate is inside when |error| ≤ hw.
     # The committed studies were served area (1 ± hw): ``coverage`` is theirs as served
@@ -130,6 +167,7 @@ def stats(errors, half_widths, warned) -> dict:
         "unwarned_misses_log_band": int(
             np.sum(outside_log & (err > AREA_OFF) & ~np.asarray(warned))
         ),
+        **now,
     }
 
 
@@ -196,10 +234,22 @@ def study(populations: dict[str, dict]) -> dict:
                             [r["error"] for r in rows],
                             [r["half_width"] for r in rows],
                             [r["warned"] for r in rows],
+                            [served_sides(r) for r in rows],
                         )
                         for p, rows in {**per_pop, "pooled": pooled}.items()
                     },
                     "predictors": predictors(pooled),
+                    # the grid part below the answer only, at every modulus (share 0): what
+                    # the calibrated share (1 from 200 MPa) is judged against
+                    "one_sided_everywhere": {
+                        p: stats(
+                            [r["error"] for r in rows],
+                            [r["half_width"] for r in rows],
+                            [r["warned"] for r in rows],
+                            [served_sides(r, share=0.0) for r in rows],
+                        )
+                        for p, rows in {**per_pop, "pooled": pooled}.items()
+                    },
                 }
                 if model == "flexible":
                     cell["linear_estimate"] = {
@@ -208,6 +258,7 @@ def study(populations: dict[str, dict]) -> dict:
                                 [r["error"] for r in rows],
                                 rescaled_half_widths(rows, k),
                                 [r["warned"] for r in rows],
+                                [served_sides(r, k) for r in rows],
                             )
                             for p, rows in {**per_pop, "pooled": pooled}.items()
                             if rows
@@ -227,10 +278,12 @@ def markdown(doc: dict) -> str:
         f"`{doc['provenance']['command_line']}`. Targets: coverage ≥ 0.9, mean half-width ≤ 2.5 × "
         "the RMS error, no unwarned answer more than 3 % off (#26)._",
         "",
-        "Per cell and population: share of reference truths inside the band / mean half-width ÷ "
-        "RMS error / unwarned misses above 3 %. Predictors: correlation over skis of log RMS "
-        "error with the log of each band part (camber_model per unit factor) and with the "
-        "misfit over the noise.",
+        "Per cell and population, the band as served now (the recorded parts in quadrature, the "
+        "apparent area's grid part below the answer at the snow's share, "
+        "`served_sides`): share of reference truths inside the band / mean half-width (the two "
+        "sides' mean) ÷ RMS error / unwarned misses above 3 %. Predictors: correlation over "
+        "skis of log RMS error with the log of each band part (camber_model per unit factor) "
+        "and with the misfit over the noise.",
         "",
     ]
     pops = list(doc["populations"])
@@ -243,8 +296,8 @@ def markdown(doc: dict) -> str:
             cols.append(
                 "–"
                 if not s.get("answers")
-                else f"{s['coverage']:.2f} / {s['half_width_over_rms']:.2f} / "
-                f"{s['unwarned_misses']}"
+                else f"{s['coverage_now']:.2f} / {s['half_width_over_rms_now']:.2f} / "
+                f"{s['unwarned_misses_now']}"
             )
         pr = c["predictors"]
         pred = ", ".join(
@@ -259,30 +312,45 @@ def markdown(doc: dict) -> str:
         )
     lines += [
         "",
-        "The same half-widths as the band symmetric in log, [area (1 − hw), area / (1 − hw)] "
-        "(served since 2026-11-29; these studies were served area (1 ± hw)): the lowest "
-        "population coverage and the pooled one per cell, as served / log band; and the pooled "
-        "truths outside the band as served, above it (underestimates: one of u needed hw ≥ "
-        "u / (1 − u)) / below it.",
+        "Three versions of the same answers' bands: as the studies recorded them (area (1 ± "
+        "hw)), symmetric in log ([area (1 − hw), area / (1 − hw)], served 2026-11-29 to "
+        "2026-12-07), and as served now (the grid part one-sided on soft snow); and, to judge "
+        "the share, the grid part below the answer at every modulus. Per cell: the lowest "
+        "population coverage, the pooled coverage, the pooled mean half-width ÷ RMS error, and "
+        "the pooled unwarned misses above 3 %; the pooled truths outside the recorded band "
+        "above it (underestimates) / below it.",
         "",
-        "| model | grid | E [MPa] | lowest population | pooled | outside above / below |",
-        "|---|---|---|---|---|---|",
+        "| model | grid | E [MPa] | lowest population: recorded / log / now / one-sided "
+        "everywhere | pooled coverage: the same four | pooled width ÷ RMS: recorded (= log) / "
+        "now / one-sided everywhere | pooled unwarned misses: the four | outside above / below "
+        "|",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for c in doc["cells"]:
         per = [s for p, s in c["served"].items() if p != "pooled" and s.get("answers")]
-        pooled = c["served"]["pooled"]
+        one = [
+            s for p, s in c["one_sided_everywhere"].items() if p != "pooled" and s.get("answers")
+        ]
+        pooled, pooled_one = c["served"]["pooled"], c["one_sided_everywhere"]["pooled"]
         lines.append(
             f"| {c['model']} | {c['grid']} | {c['e_snow_mpa']:g} | "
             f"{min(s['coverage'] for s in per):.2f} / "
-            f"{min(s['coverage_log_band'] for s in per):.2f} | "
-            f"{pooled['coverage']:.3f} / {pooled['coverage_log_band']:.3f} | "
+            f"{min(s['coverage_log_band'] for s in per):.2f} / "
+            f"{min(s['coverage_now'] for s in per):.2f} / "
+            f"{min(s['coverage_now'] for s in one):.2f} | "
+            f"{pooled['coverage']:.3f} / {pooled['coverage_log_band']:.3f} / "
+            f"{pooled['coverage_now']:.3f} / {pooled_one['coverage_now']:.3f} | "
+            f"{pooled['half_width_over_rms']:.2f} / {pooled['half_width_over_rms_now']:.2f} / "
+            f"{pooled_one['half_width_over_rms_now']:.2f} | "
+            f"{pooled['unwarned_misses']} / {pooled['unwarned_misses_log_band']} / "
+            f"{pooled['unwarned_misses_now']} / {pooled_one['unwarned_misses_now']} | "
             f"{pooled['outside_above']} / {pooled['outside_below']} |"
         )
     lines += [
         "",
         "Bending ski, linear estimate (the beam draws' part rescaled, not re-solved): per factor, "
-        "the lowest coverage of the band symmetric in log (served since 2026-11-29) and the "
-        "largest width ratio over the populations.",
+        "the lowest coverage of the band as served now and the largest width ratio over the "
+        "populations.",
         "",
         "| grid | E [MPa] | " + " | ".join(f"× {k:g}" for k in ESTIMATE_FACTORS) + " |",
         "|" + "---|" * (len(ESTIMATE_FACTORS) + 2),
@@ -293,8 +361,8 @@ def markdown(doc: dict) -> str:
         cols = []
         for k in ESTIMATE_FACTORS:
             per = {p: s for p, s in c["linear_estimate"][f"{k:g}"].items() if p != "pooled"}
-            cov = min(s["coverage_log_band"] for s in per.values())
-            wid = max(s["half_width_over_rms"] for s in per.values())
+            cov = min(s["coverage_now"] for s in per.values())
+            wid = max(s["half_width_over_rms_now"] for s in per.values())
             cols.append(f"{cov:.2f} / {wid:.2f}")
         lines.append(f"| {c['grid']} | {c['e_snow_mpa']:g} | " + " | ".join(cols) + " |")
     return "\n".join(lines) + "\n"

@@ -30,6 +30,7 @@ __all__ = [
     "end_pixel_share",
     "flat_stretch",
     "model_error_sigma",
+    "one_sided_part",
     "position_error_sigma",
     "profile_perturbations",
     "sampled_half_width",
@@ -180,6 +181,31 @@ def combine(components: dict[str, dict[str, float]]) -> dict[str, float]:
                 continue
             out[q] = math.hypot(out.get(q, 0.0), float(w))
     return out
+
+
+def one_sided_part(width: float, part: float, share_above: float) -> tuple[float, float]:
+    """Relative 90 % half-widths (below, above) [-] of an answer whose combined half-width
+    ``width`` (:func:`combine`) holds a ``part`` that is a one-sided bias: an error that makes
+    the answer too large, so that the truth lies below it (the macro grid's apparent area,
+    docs/limits.md "The grid part is a bias").
+
+    ``share_above`` in [0, 1] is how much of ``part`` may still lie above the answer: 1 gives
+    the symmetric band (``width``, ``width``); 0 gives the rest ``R = sqrt(width² − part²)``
+    above and ``R + part`` below (a bias adds to the other errors, it does not average with
+    them). Between: below ``(1 − s)(R + part) + s·width``, above ``sqrt(R² + (s·part)²)``.
+    ``nan`` in gives ``nan`` out."""
+    if not (math.isfinite(width) and math.isfinite(part)):
+        return float("nan"), float("nan")
+    if not 0.0 <= share_above <= 1.0:
+        raise InputError(f"share_above must lie in [0, 1], got {share_above!r}")
+    if width < 0 or part < 0:
+        raise InputError("width and part must be ≥ 0")
+    part = min(part, width)
+    rest = math.sqrt(max(width * width - part * part, 0.0))
+    s = share_above
+    below = (1.0 - s) * (rest + part) + s * width
+    above = math.hypot(rest, s * part)
+    return below, above
 
 
 def position_error_sigma(

@@ -247,12 +247,26 @@ class Band(BaseModel):
     relative_half_width: dict[str, float | None] = Field(
         ...,
         description="relative 90 % half-width w per quantity: the interval reaches value × "
-        "(1 − w) below and value ÷ (1 − w) above (symmetric in log)",
+        "(1 − w) below and value ÷ (1 − w) above (symmetric in log), or value ÷ (1 − "
+        "w_above) where relative_half_width_above names the quantity",
+    )
+    relative_half_width_above: dict[str, float | None] = Field(
+        default_factory=dict,
+        description="relative 90 % half-width above the answer, for the quantities whose "
+        "macro-grid part is a bias (the apparent contact area: the default grid's area is too "
+        "large, so the band reaches further below than above)",
+    )
+    grid_above_share: float | None = Field(
+        None,
+        description="share of the apparent area's macro-grid part kept above the answer "
+        "(0 on snow of 20 MPa and softer, 1 from 200 MPa, linear in log between)",
     )
     intervals: dict[str, list[float | None] | None] = Field(
         ...,
-        description="[low, high] in the answer's units: value × (1 − w) … value ÷ (1 − w); "
-        "high is null when w ≥ 1 (no upper bound), null without a band",
+        description="[low, high] in the answer's units: value × (1 − w) … value ÷ (1 − "
+        "w_above) (w_above = w unless relative_half_width_above names the quantity; the mean "
+        "apparent pressure's interval is the apparent area's, sides swapped); high is null "
+        "when that width is ≥ 1 (no upper bound), null without a band",
     )
     zone_load_relative_half_width: list[float]
     components: dict[str, dict[str, float | None]]

@@ -119,15 +119,20 @@ def run_solve(args: argparse.Namespace) -> int:
         + (f" (snow {args.snow})" if args.snow else "")
     )
     rel = out.get("band", {}).get("relative_half_width", {})
+    rel_above = out.get("band", {}).get("relative_half_width_above") or {}
 
-    def pm(q: str) -> str:
-        # the band is symmetric in log: value × (1 − w) … value ÷ (1 − w)
-        w = rel.get(q)
+    def pm(q: str, mirrored: bool = False) -> str:
+        # value × (1 − w) … value ÷ (1 − w_above) (w_above = w unless the band names it); a
+        # mirrored quantity (the mean apparent pressure, F / A) swaps the apparent area's sides
+        w, wa = rel.get(q), rel_above.get(q, rel.get(q))
         if w is None:
             return "  (not grid-converged: see below)"
-        if w >= 1:
-            return "  −100 % / no upper bound"
-        lo, hi = f"{100 * w:.1f}", f"{100 * w / (1 - w):.1f}"
+        if mirrored:
+            w, wa = wa, w
+        lo = "100" if w >= 1 else f"{100 * w:.1f}"
+        if wa >= 1:
+            return f"  −{lo} % / no upper bound"
+        hi = f"{100 * wa / (1 - wa):.1f}"
         return f"  ± {lo:>4} %" if lo == hi else f"  −{lo} % / +{hi} %"
 
     print("  90 % error band after each value (sources: --json, band)")
@@ -160,7 +165,7 @@ def run_solve(args: argparse.Namespace) -> int:
         ("mean apparent pressure", a["mean_pressure_kpa"], "kPa ", "apparent_contact_area"),
     )
     for label, value, unit, q in rows:
-        print(f"  {label:32s} {value:10.4g} {unit}{pm(q)}")
+        print(f"  {label:32s} {value:10.4g} {unit}{pm(q, label == 'mean apparent pressure')}")
         if q == "min_average_separation" and rel.get(q) is None:
             sep = service.resolved_min_separation(a["zones"])
             over = (

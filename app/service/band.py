@@ -69,6 +69,7 @@ from skisnow.app.service.band_calibration import (
     beam_scale_at,
     bending_ignored_widths,
     flexible_area_grid_factor_at,
+    grid_above_share_at,
     identified_sigma_scale_at,
     loaded_cases,
     rigid_area_grid_factor_at,
@@ -95,6 +96,7 @@ from skisnow.solvers.band import (
     combine,
     end_pixel_share,
     flat_stretch,
+    one_sided_part,
     table_interpolation_error,
 )
 from skisnow.solvers.identify import measured_stretch
@@ -104,6 +106,7 @@ __all__ = [
     "BAND_SEED",
     "BEAM_SCALE_FLOOR",
     "GRID_BAND_FACTOR",
+    "GRID_ONE_SIDED",
     "K_END_PIXELS",
     "K_MIN_SEPARATION",
     "MIN_SEPARATION_FLOOR",
@@ -123,7 +126,11 @@ __all__ = [
 
 @dataclass
 class Band:
-    """Relative 90 % half-widths per quantity and source, and the sampled distributions."""
+    """Relative 90 % half-widths per quantity and source, and the sampled distributions.
+
+    ``widths`` is each quantity's half-width below the answer (the band's lower end is
+    value × (1 − w)); ``widths_above`` the half-width above it where the two differ
+    (:data:`GRID_ONE_SIDED`; the upper end is value ÷ (1 − w_above)), else the same."""
 
     widths: dict[str, float]
     components: dict[str, dict[str, float]]
@@ -167,6 +174,25 @@ class Band:
     #: factor, drawn again at half of it (down to :data:`BEAM_SCALE_FLOOR`) until 2 did:
     #: (calibrated factor, solved, drawn) at that factor; ``beam_scale`` is the one used
     beam_scale_reduced: tuple[float, int, int] | None = None
+    #: half-widths above the answer of the quantities whose grid part is one-sided
+    #: (:data:`GRID_ONE_SIDED`); a quantity not named: its ``widths`` value
+    widths_above: dict[str, float] | None = None
+    #: share of the grid part kept above the answer
+    #: (:func:`app.service.band_calibration.grid_above_share_at`)
+    grid_above_share: float | None = None
+
+    def width_above(self, quantity: str) -> float:
+        """The relative half-width above the answer of ``quantity`` [-]."""
+        above = (self.widths_above or {}).get(quantity)
+        return self.widths.get(quantity, float("nan")) if above is None else above
+
+
+#: quantities whose macro-grid part is a bias (the default grid's value above the converged
+#: one, docs/studies/grid-bias.md): the band adds it below the answer and keeps only
+#: :func:`app.service.band_calibration.grid_above_share_at` of it above
+#: (:func:`solvers.band.one_sided_part`). The other quantities' grid errors were not measured
+#: signed; their parts stay symmetric
+GRID_ONE_SIDED = ("apparent_contact_area",)
 
 
 def touches_profile_end(gap_map, macro) -> bool:
@@ -621,6 +647,12 @@ def answer_band(
             "(docs/studies/auto-without-beam.json), not this ski's own",
         )
     widths = combine(components)
+    share = grid_above_share_at(e_eff)
+    widths_above = {}
+    for q in GRID_ONE_SIDED:
+        part = grid.get(q, float("nan"))
+        if q in widths and math.isfinite(part):
+            widths[q], widths_above[q] = one_sided_part(widths[q], part, share)
     if min_separation_unresolved:
         widths["min_average_separation"] = float("nan")
         not_covered.insert(
@@ -679,6 +711,8 @@ def answer_band(
         profile_draws_failed=draws_failed if rigid else None,
         bending_ignored=bending_ignored if "ski_model" in components and bending_ignored else None,
         grid_factors=grid_factors,
+        widths_above=widths_above,
+        grid_above_share=share,
         alternative_beams=(0, 0)
         if sampled is None
         else (sampled.alternatives_solved, sampled.alternatives_failed),
@@ -709,10 +743,12 @@ def _interval(value: float, width: float) -> list[float]:
     return [_round(max(value * (1 - width), 0.0), 6), _round(value * (1 + width), 6)]
 
 
-def interval_90(value: float, width: float) -> list[float | None]:
+def interval_90(value: float, width: float, width_above: float | None = None) -> list[float | None]:
     """The 90 % interval of a positive quantity (the metrics, the apparent contact area and
     pressure) of relative half-width ``width``: symmetric in log, value × (1 − width) …
     value ÷ (1 − width); no upper end (None) when ``width`` ≥ 1 (the lower end is then 0).
+    With ``width_above`` (a band whose parts are not all symmetric, :data:`GRID_ONE_SIDED`)
+    the upper end is value ÷ (1 − width_above), None when that is ≥ 1.
 
     Their errors are ratios: the answer to a stiffer or softer profile is the value times a
     factor, and a factor of 0.6 is as likely as one of 1 / 0.6. Value × (1 ± width), served
@@ -720,9 +756,10 @@ def interval_90(value: float, width: float) -> list[float | None]:
     truth outside its band at 2000 MPa over the eleven own-ski populations (71 of 2184) lay
     above it, and the log band holds them (docs/limits.md "The bands across eleven
     populations"). The lower end is as before, so an answer's band only grew above."""
-    if width >= 1.0:
-        return [0.0, None]
-    return [_round(value * (1.0 - width), 6), _round(value / (1.0 - width), 6)]
+    above = width if width_above is None or not math.isfinite(width_above) else width_above
+    lo = 0.0 if width >= 1.0 else _round(value * (1.0 - width), 6)
+    hi = None if above >= 1.0 else _round(value / (1.0 - above), 6)
+    return [lo, hi]
 
 
 #: how far [m] a footprint may reach beyond the measured stretch's last knot before the answer
@@ -778,12 +815,18 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
         w = band.widths.get(q, float("nan"))
         v = answer[section][key]
         rel[q] = _round(w)
-        intervals[key] = interval_90(v, w) if math.isfinite(w) else None
+        intervals[key] = interval_90(v, w, band.width_above(q)) if math.isfinite(w) else None
+    rel_above = {q: _round(band.width_above(q)) for q in GRID_ONE_SIDED if q in band.widths}
     # the mean apparent pressure is F / A: the apparent area's band inverted, which a band
-    # symmetric in log is with the same width
+    # symmetric in log is with the same widths, its sides swapped (an area too large is a
+    # pressure too small)
     w_a = band.widths.get("apparent_contact_area", float("nan"))
     v = answer["apparent"]["mean_pressure_kpa"]
-    intervals["mean_pressure_kpa"] = interval_90(v, w_a) if math.isfinite(w_a) else None
+    intervals["mean_pressure_kpa"] = (
+        interval_90(v, band.width_above("apparent_contact_area"), w_a)
+        if math.isfinite(w_a)
+        else None
+    )
     for z, w in zip(answer["apparent"]["zones"], band.zone_load_widths, strict=False):
         z["load_band_90_n"] = _interval(z["load_n"], w)
     warnings = []
@@ -880,6 +923,12 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
     out = {
         "level": 0.9,
         "relative_half_width": rel,
+        # the half-width above the answer, where it differs from the one below (the grid part
+        # of these quantities is a bias, kept above at grid_above_share of its size)
+        "relative_half_width_above": rel_above,
+        "grid_above_share": _round(band.grid_above_share)
+        if band.grid_above_share is not None
+        else None,
         "intervals": intervals,
         "zone_load_relative_half_width": [_round(w) for w in band.zone_load_widths],
         "components": {
@@ -925,6 +974,10 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
         "perturbed by the data's blind spot, and, when auto answers with the rigid shape, its "
         "measured difference to the bending ski (or, without a beam, the largest difference "
         "measured on comparable skis); the intervals are symmetric in log, value × (1 − w) "
-        "… value ÷ (1 − w), zone loads value × (1 ± w) (docs/limits.md, Error band)",
+        "… value ÷ (1 − w), zone loads value × (1 ± w); the apparent area's grid part is a "
+        "bias (the default grid's area is too large): it is added below the answer and kept "
+        "above at grid_above_share of its size, so its interval is value × (1 − w) … value ÷ "
+        "(1 − w_above) (relative_half_width_above), the mean apparent pressure's the same "
+        "sides swapped (docs/limits.md, Error band)",
     }
     return out, warnings

@@ -57,6 +57,7 @@ CSV_COLUMNS = (
     "apparent_contact_area_cm2",
     "mean_apparent_pressure_kpa",
     "apparent_contact_area_band90_rel",
+    "apparent_contact_area_band90_rel_above",
     "total_real_contact_area_band90_rel",
     "average_real_contact_pressure_band90_rel",
     "min_average_separation_band90_rel",
@@ -176,6 +177,13 @@ def render_csv(out: Outcome) -> str:
                 f"{q}_band90_rel": w
                 for q, w in r.get("band", {}).get("relative_half_width", {}).items()
             },
+            # the band's half-width above the value where it differs from the one below
+            "apparent_contact_area_band90_rel_above": (
+                r.get("band", {}).get("relative_half_width_above") or {}
+            ).get(
+                "apparent_contact_area",
+                r.get("band", {}).get("relative_half_width", {}).get("apparent_contact_area"),
+            ),
             "rear_zone_load_share": share["rear"],
             "front_zone_load_share": share["front"],
             "ski_model": p["ski_model"]["used"],

@@ -72,6 +72,25 @@ def test_text_output_prints_the_band_as_served(capsys, shipped):
     assert line.endswith(f"−{lo} % / +{hi} %")
 
 
+def test_text_output_prints_the_soft_snow_band_one_sided(capsys):
+    """On soft snow the apparent area's band reaches further below (its grid part is a bias):
+    −w % / +w_a / (1 − w_a) %, and the mean apparent pressure's the same sides swapped."""
+    soft = [*CASE]
+    soft[soft.index("--snow-modulus-mpa") + 1] = "20"
+    soft[soft.index("--ski") + 1] = "ski-b"
+    assert main([*soft, "--json", "--preset", "fast"]) == 0
+    b = json.loads(capsys.readouterr().out)["band"]
+    w = b["relative_half_width"]["apparent_contact_area"]
+    wa = b["relative_half_width_above"]["apparent_contact_area"]
+    assert b["grid_above_share"] == 0.0 and wa < w
+    assert main([*soft, "--preset", "fast"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    (area,) = [x for x in lines if x.strip().startswith("apparent contact area")]
+    (pressure,) = [x for x in lines if x.strip().startswith("mean apparent pressure")]
+    assert area.endswith(f"−{100 * w:.1f} % / +{100 * wa / (1 - wa):.1f} %")
+    assert pressure.endswith(f"−{100 * wa:.1f} % / +{100 * w / (1 - w):.1f} %")
+
+
 @pytest.mark.parametrize(
     ("change", "message"),
     [

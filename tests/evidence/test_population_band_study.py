@@ -133,3 +133,34 @@ def test_main_writes_json_and_markdown_with_provenance(tmp_path):
     assert doc["populations"]["pop"]["commit"] == "abc"
     md = out.with_suffix(".md").read_text("utf-8")
     assert "| flexible | coarse | 2000 |" in md and "× 12" in md
+
+
+def test_served_sides_split_the_recorded_parts_as_the_service_does():
+    """The recorded parts in quadrature, the grid part moved below the answer at the snow's
+    share (0 at 20 MPa, 1 at 200 MPa and above): the service's own split
+    (solvers.band.one_sided_part)."""
+    from skisnow.solvers.band import one_sided_part
+
+    parts = {"camber_model": 0.03, "macro_grid": 0.04}
+    soft = {"parts": parts, "factor": 2.0, "e_snow_mpa": 20.0, "half_width": 0.05}
+    assert pbs.served_sides(soft) == pytest.approx((0.07, 0.03))
+    assert pbs.served_sides({**soft, "e_snow_mpa": 2000.0}) == pytest.approx((0.05, 0.05))
+    # the camber part rescaled first: × 4 where the study served × 2
+    assert pbs.served_sides(soft, 4.0) == pytest.approx(
+        one_sided_part(math.hypot(0.06, 0.04), 0.04, 0.0)
+    )
+    assert pbs.served_sides({**soft, "e_snow_mpa": 2000.0}, share=0.0) == pytest.approx(
+        (0.07, 0.03)
+    )
+
+
+def test_stats_now_judge_each_side_of_the_served_band():
+    """An answer 6 % over (truth 5.7 % below) is inside (1 − 0.07, 1 / (1 − 0.03)); one 4 %
+    under (truth 4.2 % above) is outside it (4 % > 3 % above), and unwarned."""
+    st = pbs.stats([0.06, -0.04], [0.05, 0.05], [False, False], [(0.07, 0.03), (0.07, 0.03)])
+    assert st["coverage_now"] == pytest.approx(0.5)
+    assert st["unwarned_misses_now"] == 1
+    assert st["mean_half_width_now"] == pytest.approx(0.05)
+    # the recorded symmetric band (± 5 %) had it the other way round: the overestimate out,
+    # the underestimate in
+    assert st["coverage"] == 0.5 and st["unwarned_misses"] == 1

@@ -102,8 +102,9 @@ def _whiskers(ax) -> list[tuple[float, float]]:
 
 
 def test_band_chart_whiskers_are_the_served_intervals(monkeypatch, answers):
-    """The whiskers span band.intervals (symmetric in log: v (1 − w) … v / (1 − w)), and a band
-    of w ≥ 1 (no upper end) is drawn to 0 with an arrow to the right."""
+    """The whiskers span band.intervals (v (1 − w) … v / (1 − w_above), w_above = w unless
+    band.relative_half_width_above names it), and a band of w_above ≥ 1 (no upper end) is drawn
+    with an arrow to the right."""
     fig = _figure_of(monkeypatch, plots.band_svg, answers)
     got = sorted(_whiskers(fig.axes[0]))
     want = sorted(tuple(a["band"]["intervals"]["contact_area_cm2"]) for a in answers)
@@ -112,18 +113,28 @@ def test_band_chart_whiskers_are_the_served_intervals(monkeypatch, answers):
         lo, hi = a["band"]["intervals"]["contact_area_cm2"]
         v = a["apparent"]["contact_area_cm2"]
         assert hi - v > v - lo
-    wide = {
-        **answers[0],
-        "band": {
-            **answers[0]["band"],
-            "relative_half_width": {
-                **answers[0]["band"]["relative_half_width"],
-                "apparent_contact_area": 1.2,
+
+    def widened(below, above):
+        b = answers[0]["band"]
+        return {
+            **answers[0],
+            "band": {
+                **b,
+                "relative_half_width": {**b["relative_half_width"], "apparent_contact_area": below},
+                "relative_half_width_above": {"apparent_contact_area": above},
             },
-        },
-    }
+        }
+
+    wide = widened(1.2, 1.2)
     fig = _figure_of(monkeypatch, plots.band_svg, [wide])
     v = wide["apparent"]["contact_area_cm2"]
     assert np.ravel(_whiskers(fig.axes[0])) == pytest.approx([0.0, v])
     markers = [line.get_marker() for line in fig.axes[0].get_lines()]
     assert ">" in markers
+    # a band wider below than above (the grid part one-sided on soft snow): each side its own,
+    # the lower end at 0 from w = 1 on, an upper end where the width above is < 1
+    fig = _figure_of(monkeypatch, plots.band_svg, [widened(1.2, 0.1)])
+    assert np.ravel(_whiskers(fig.axes[0])) == pytest.approx([0.0, v / 0.9])
+    assert ">" not in [line.get_marker() for line in fig.axes[0].get_lines()]
+    fig = _figure_of(monkeypatch, plots.band_svg, [widened(0.2, 0.1)])
+    assert np.ravel(_whiskers(fig.axes[0])) == pytest.approx([0.8 * v, v / 0.9])

@@ -108,6 +108,23 @@ def test_results_metrics_match_the_service(client, catalogue):
     assert float(shown) == pytest.approx(ref["metrics"]["total_real_contact_area_mm2"], rel=1e-3)
 
 
+def test_soft_snow_band_reads_further_below_on_the_page_and_in_the_csv(client):
+    """At 20 MPa the apparent area's band is −w % / +w_a/(1 − w_a) % with w_a < w (its grid
+    part is a bias), the mean apparent pressure's the sides swapped; the CSV carries both."""
+    q = _q(snow_modulus_mpa="20", ski="ski-b")
+    rows = list(csv.DictReader(io.StringIO(client.get("/results.csv", params=q).text)))
+    (row,) = rows
+    w = float(row["apparent_contact_area_band90_rel"])
+    wa = float(row["apparent_contact_area_band90_rel_above"])
+    assert 0 < wa < w
+    html = client.get("/results", params=q).text
+    area = f"−{100 * w:.1f} % / +{100 * wa / (1 - wa):.1f} % (90 %)"
+    pressure = f"−{100 * wa:.1f} % / +{100 * w / (1 - w):.1f} % (90 %)"
+    summary = re.search(r'<p class="summary">Apparent contact(.*?)</p>', html, re.S).group(1)
+    assert area in summary and pressure in summary
+    assert summary.index(area) < summary.index("kPa") < summary.index(pressure)
+
+
 def test_csv_one_row_per_combination(client, results_page):
     r = client.get("/results.csv", params=QUERY)
     assert r.status_code == 200
