@@ -44,6 +44,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "scripts"))
 
+import beam_scale_study as bss  # noqa: E402
 import per_grid_band_study as pgs  # noqa: E402  (the grids' names and order)
 import population_band_study as pbs  # noqa: E402
 from skisnow.app.storage import common  # noqa: E402
@@ -73,6 +74,7 @@ def resolved_stats(rows: list[dict]) -> dict:
         [r["area_cm2"] / r["truth_ref_cm2"] - 1.0 for r in ok],
         [r["half_width"] for r in ok],
         [bool(r["warnings"]) for r in ok],
+        [bss.served_sides(r) for r in ok],
     )
     return {**st, "refused": len(rows) - len(ok)}
 
@@ -103,14 +105,16 @@ def refit(scans: dict[str, dict], studies: dict[str, dict], grid: str, e_snow_mp
                 [r["error"] for r in rows],
                 pbs.rescaled_half_widths(rows, k),
                 [r["warned"] for r in rows],
+                [pbs.served_sides(r, k) for r in rows],
             )
             for label, rows in per_study.items()
             if rows
         }
         every = [s for s in (*resolved.values(), *estimated.values()) if s.get("answers")]
         covs = [s["coverage"] for s in every]
-        covs_log = [s["coverage_log_band"] for s in every]
-        widths = [s["half_width_over_rms"] for s in every]
+        # as served now (the grid part one-sided on soft snow; symmetric in log from 200 MPa)
+        covs_log = [s["coverage_now"] for s in every]
+        widths = [s["half_width_over_rms_now"] for s in every]
         pooled = [r for rows in per_study.values() for r in rows]
         candidates.append(
             {
@@ -121,6 +125,7 @@ def refit(scans: dict[str, dict], studies: dict[str, dict], grid: str, e_snow_mp
                     [r["error"] for r in pooled],
                     pbs.rescaled_half_widths(pooled, k),
                     [r["warned"] for r in pooled],
+                    [pbs.served_sides(r, k) for r in pooled],
                 )
                 if pooled
                 else {"answers": 0},
@@ -163,7 +168,7 @@ def markdown(doc: dict) -> str:
         "",
         "| factor | "
         + " | ".join([f"{x} (re-solved)" for x in labels_r] + [f"{x} (est.)" for x in labels_e])
-        + " | estimated pooled | lowest coverage (log band / area × (1 ± hw)) | widest |",
+        + " | estimated pooled | lowest coverage (as served now / area × (1 ± hw)) | widest |",
         "|---" * (len(labels_r) + len(labels_e) + 4) + "|",
     ]
 
@@ -171,8 +176,8 @@ def markdown(doc: dict) -> str:
         if not s.get("answers"):
             return "–"
         return (
-            f"{s['coverage_log_band']:.2f} / {s['half_width_over_rms']:.2f} / "
-            f"{s['unwarned_misses_log_band']}"
+            f"{s['coverage_now']:.2f} / {s['half_width_over_rms_now']:.2f} / "
+            f"{s['unwarned_misses_now']}"
         )
 
     for c in cands:
@@ -192,7 +197,8 @@ def markdown(doc: dict) -> str:
     lines += [
         "",
         f"Smallest factor with ≥ {COVERAGE_TARGET:.0%} of the truths inside the served band "
-        f"(symmetric in log, area × (1 − hw) … area ÷ (1 − hw)) in every population: "
+        f"as served now (area × (1 − hw) … area ÷ (1 − hw_above): symmetric in log, the grid "
+        f"part one-sided on soft snow) in every population: "
         f"{named(fit['chosen'])}. For the band served until 2026-11-29 (area × (1 ± hw)): "
         f"{named(fit['chosen_symmetric_band'])}.",
         "",

@@ -52,6 +52,8 @@ from skisnow.app.service import band, band_calibration  # noqa: E402
 from skisnow.app.service.profiles import served_beam  # noqa: E402
 from skisnow.app.storage import common  # noqa: E402
 from skisnow.app.storage.skis import read_ski  # noqa: E402
+from skisnow.solvers.band import one_sided_part  # noqa: E402
+from skisnow.solvers.elastic import effective_modulus  # noqa: E402
 
 log = logging.getLogger("beam_scale_study")
 
@@ -159,6 +161,9 @@ def ski_rows(
                             "truth_cm2": c["truth_cm2"][key],
                             "truth_ref_cm2": c["truth_ref_cm2"][key],
                             "half_width": a["band"]["relative_half_width"]["apparent_contact_area"],
+                            "half_width_above": (
+                                a["band"].get("relative_half_width_above") or {}
+                            ).get("apparent_contact_area"),
                             "components": {
                                 k: v.get("apparent_contact_area", 0.0) for k, v in comp.items()
                             },
@@ -174,10 +179,26 @@ def ski_rows(
     return rows
 
 
-def _inside(area: float, truth: float, half_width: float) -> bool:
-    """Whether the served band of an answer ``area`` of relative half-width ``half_width`` holds
-    ``truth`` (:func:`app.service.band.interval_90`: symmetric in log since 2026-11-29)."""
-    lo, hi = band.interval_90(area, half_width)
+def served_sides(row: dict) -> tuple[float, float]:
+    """The half-widths (below, above) the service serves now for a recorded row: its band's
+    parts (``components``) in quadrature, the grid part moved below the answer at the snow's
+    share (:func:`solvers.band.one_sided_part`; symmetric in log from 200 MPa); a row without
+    parts, its recorded half-widths."""
+    parts = row.get("components") or {}
+    if not parts:
+        return row["half_width"], row.get("half_width_above", row["half_width"])
+    width = math.sqrt(sum(v * v for v in parts.values() if v is not None))
+    grid = min(parts.get("macro_grid") or 0.0, width)
+    share = band_calibration.grid_above_share_at(
+        effective_modulus(row["e_snow_mpa"] * 1e6, 700e6, 0.3)
+    )
+    return one_sided_part(width, grid, share)
+
+
+def _inside(area: float, truth: float, below: float, above: float | None = None) -> bool:
+    """Whether the served band of an answer ``area`` of relative half-widths ``below`` and
+    ``above`` (None: the same) holds ``truth`` (:func:`app.service.band.interval_90`)."""
+    lo, hi = band.interval_90(area, below, above)
     return lo <= truth <= (math.inf if hi is None else hi)
 
 
@@ -188,9 +209,10 @@ def stats(rows: list[dict]) -> dict:
     if not ok:
         return {"answers": 0}
     err = np.array([r["area_cm2"] / r["truth_ref_cm2"] - 1 for r in ok])
-    hw = np.array([r["half_width"] for r in ok])
+    sides = [served_sides(r) for r in ok]
+    hw = np.array([0.5 * (b + a) for b, a in sides])  # the mean of the two sides
     inside = np.array(
-        [_inside(r["area_cm2"], r["truth_ref_cm2"], h) for r, h in zip(ok, hw, strict=True)]
+        [_inside(r["area_cm2"], r["truth_ref_cm2"], *s) for r, s in zip(ok, sides, strict=True)]
     )
     rms = float(np.sqrt(np.mean(err**2)))
     bad = int(

@@ -39,6 +39,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from skisnow.app.service import band_calibration  # noqa: E402
 from skisnow.app.service.band_calibration import grid_above_share_at  # noqa: E402
 from skisnow.app.storage import common  # noqa: E402
 from skisnow.solvers.band import one_sided_part  # noqa: E402
@@ -118,6 +119,13 @@ def served_sides(
     if share is None:
         share = grid_above_share_at(effective_modulus(row["e_snow_mpa"] * 1e6, 700e6, 0.3))
     return one_sided_part(width, min(grid, width), share)
+
+
+def served_factor(grid: str, e_snow_mpa: float) -> float:
+    """The bending ski's beam-draw factor served now on ``grid`` at ``e_snow_mpa`` [MPa]
+    (:data:`app.service.band_calibration.BEAM_SCALE_GRID_NODES`)."""
+    nodes = band_calibration.BEAM_SCALE_GRID_NODES[GRIDS.index(grid)]
+    return float(nodes[list(band_calibration.BEAM_SCALE_E_SNOW_MPA).index(e_snow_mpa)])
 
 
 def stats(errors, half_widths, warned, sides=None) -> dict:
@@ -225,6 +233,9 @@ def study(populations: dict[str, dict]) -> dict:
                 pooled = [r for rows in per_pop.values() for r in rows]
                 if not pooled:
                     continue
+                # the bending ski's beam-draw factor served now (its camber part rescaled to
+                # it, linear); a rigid answer's profile factor is kept as recorded
+                now = served_factor(grid, e) if model == "flexible" else None
                 cell = {
                     "model": model,
                     "grid": grid,
@@ -234,7 +245,7 @@ def study(populations: dict[str, dict]) -> dict:
                             [r["error"] for r in rows],
                             [r["half_width"] for r in rows],
                             [r["warned"] for r in rows],
-                            [served_sides(r) for r in rows],
+                            [served_sides(r, now) for r in rows],
                         )
                         for p, rows in {**per_pop, "pooled": pooled}.items()
                     },
@@ -246,7 +257,7 @@ def study(populations: dict[str, dict]) -> dict:
                             [r["error"] for r in rows],
                             [r["half_width"] for r in rows],
                             [r["warned"] for r in rows],
-                            [served_sides(r, share=0.0) for r in rows],
+                            [served_sides(r, now, share=0.0) for r in rows],
                         )
                         for p, rows in {**per_pop, "pooled": pooled}.items()
                     },
@@ -279,6 +290,7 @@ def markdown(doc: dict) -> str:
         "the RMS error, no unwarned answer more than 3 % off (#26)._",
         "",
         "Per cell and population, the band as served now (the recorded parts in quadrature, the "
+        "bending ski's beam draws' part rescaled to the factor served now, the "
         "apparent area's grid part below the answer at the snow's share, "
         "`served_sides`): share of reference truths inside the band / mean half-width (the two "
         "sides' mean) ÷ RMS error / unwarned misses above 3 %. Predictors: correlation over "

@@ -241,8 +241,9 @@ GRID_CASES = (45, 117)
 #:
 #: Since the bands are symmetric in log (2026-11-29, :func:`app.service.band.interval_90`),
 #: the cells of :data:`BEAM_SCALE_REFITS` are refitted by the same rule on more populations;
-#: 9 × 5 at 2000 MPa 12 → 8
-BEAM_SCALE_GRID_NODES = ((3.0, 4.0, 8.0), (1.5, 4.0, 4.0))
+#: 9 × 5 at 2000 MPa 12 → 8; with the grid part one-sided on soft snow (2026-12-07), 9 × 5 at
+#: 20 MPa 3 → 2
+BEAM_SCALE_GRID_NODES = ((2.0, 4.0, 8.0), (1.5, 4.0, 4.0))
 #: cells of :data:`BEAM_SCALE_GRID_NODES` refitted after the per-grid study
 #: (docs/studies/per-grid-band.json, which serves the others), each with the study file that
 #: chose its factor (``python scripts/beam_scale_refit_study.py``; the test
@@ -256,7 +257,14 @@ BEAM_SCALE_GRID_NODES = ((3.0, 4.0, 8.0), (1.5, 4.0, 4.0))
 #:   populations re-identified and re-solved at × 4 … 12 with this code (random designs 37–42,
 #:   six skis: 100 % at × 8, 2.20 ×; the four validation designs: 99 %, 2.28 ×) and the eleven
 #:   committed ones by the linear estimate (lowest random 5–8, 92 %; pooled 98 %, 2.02 ×)
-BEAM_SCALE_REFITS = {("coarse", 2000.0): "docs/studies/beam-scale-refit.json"}
+#: - 9 × 5 at 20 MPa, 3 → 2 (2026-12-07): with the grid part one-sided on soft snow
+#:   (:func:`grid_above_share_at`), the rule on the same two re-solved populations (× 2: 98 %
+#:   at 1.72 ×, 99 % at 1.37 ×) and the eleven committed ones' estimate (lowest 93.8 %, pooled
+#:   97 % at 1.10 ×; the widest population 2.41 × against 2.94 × at × 3)
+BEAM_SCALE_REFITS = {
+    ("coarse", 2000.0): "docs/studies/beam-scale-refit.json",
+    ("coarse", 20.0): "docs/studies/beam-scale-refit-coarse-20.json",
+}
 #: the identified-profile factor of rigid answers per measurement grid and node
 #: (:data:`IDENTIFIED_SIGMA_E_SNOW_MPA`) [-], fitted as :data:`BEAM_SCALE_GRID_NODES` (1 … 4;
 #: the larger per node of the calibration-only and the pooled fit; with random designs 9–12
