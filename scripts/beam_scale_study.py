@@ -52,7 +52,6 @@ from skisnow.app.service import band, band_calibration  # noqa: E402
 from skisnow.app.service.profiles import served_beam  # noqa: E402
 from skisnow.app.storage import common  # noqa: E402
 from skisnow.app.storage.skis import read_ski  # noqa: E402
-from skisnow.solvers.band import one_sided_part  # noqa: E402
 from skisnow.solvers.elastic import effective_modulus  # noqa: E402
 
 log = logging.getLogger("beam_scale_study")
@@ -181,18 +180,13 @@ def ski_rows(
 
 def served_sides(row: dict) -> tuple[float, float]:
     """The half-widths (below, above) the service serves now for a recorded row: its band's
-    parts (``components``) in quadrature, the grid part moved below the answer at the snow's
-    share (:func:`solvers.band.one_sided_part`; symmetric in log from 200 MPa); a row without
-    parts, its recorded half-widths."""
+    parts (``components``) as the service combines them (:func:`app.service.band.
+    one_sided_widths`: the grid part below the answer on soft snow, symmetric in log from
+    200 MPa); a row without parts, its recorded half-widths."""
     parts = row.get("components") or {}
     if not parts:
         return row["half_width"], row.get("half_width_above", row["half_width"])
-    width = math.sqrt(sum(v * v for v in parts.values() if v is not None))
-    grid = min(parts.get("macro_grid") or 0.0, width)
-    share = band_calibration.grid_above_share_at(
-        effective_modulus(row["e_snow_mpa"] * 1e6, 700e6, 0.3)
-    )
-    return one_sided_part(width, grid, share)
+    return band.one_sided_widths(parts, effective_modulus(row["e_snow_mpa"] * 1e6, 700e6, 0.3))
 
 
 def _inside(area: float, truth: float, below: float, above: float | None = None) -> bool:

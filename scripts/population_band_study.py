@@ -39,10 +39,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from skisnow.app.service import band_calibration  # noqa: E402
-from skisnow.app.service.band_calibration import grid_above_share_at  # noqa: E402
+from skisnow.app.service import band, band_calibration  # noqa: E402
 from skisnow.app.storage import common  # noqa: E402
-from skisnow.solvers.band import one_sided_part  # noqa: E402
 from skisnow.solvers.elastic import effective_modulus  # noqa: E402
 
 SCHEMA = "skisnow.population-band-study/1"
@@ -105,20 +103,16 @@ def answers(study: dict, model: str, grid: str, e_snow_mpa: float) -> list[dict]
 def served_sides(
     row: dict, factor: float | None = None, share: float | None = None
 ) -> tuple[float, float]:
-    """The half-widths (below, above) the service serves now for a recorded answer: the
-    quadrature of its recorded parts (the ``camber_model`` part rescaled to ``factor``, linear,
-    when given), with the ``macro_grid`` part moved below the answer at the snow's share
-    (:func:`solvers.band.one_sided_part`, :func:`app.service.band_calibration.
-    grid_above_share_at`; ``share`` instead, to try another). The quadrature of the parts is
-    the recorded half-width to 0.1 %."""
+    """The half-widths (below, above) the service serves now for a recorded answer: its
+    recorded parts (the ``camber_model`` part rescaled to ``factor``, linear, when given)
+    combined as the service does (:func:`app.service.band.one_sided_widths`: the grid part
+    below the answer at the snow's share, or at ``share`` to try another). The quadrature of
+    the parts is the recorded half-width to 0.1 %."""
     parts = dict(row["parts"])
     if factor is not None and "camber_model" in parts:
         parts["camber_model"] = parts["camber_model"] * factor / row["factor"]
-    width = math.sqrt(sum(v * v for v in parts.values() if v is not None))
-    grid = parts.get("macro_grid") or 0.0
-    if share is None:
-        share = grid_above_share_at(effective_modulus(row["e_snow_mpa"] * 1e6, 700e6, 0.3))
-    return one_sided_part(width, min(grid, width), share)
+    e_eff = effective_modulus(row["e_snow_mpa"] * 1e6, 700e6, 0.3)
+    return band.one_sided_widths(parts, e_eff, share)
 
 
 def served_factor(grid: str, e_snow_mpa: float) -> float:

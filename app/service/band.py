@@ -120,6 +120,7 @@ __all__ = [
     "flexible_grid_factors",
     "grid_component",
     "interval_90",
+    "one_sided_widths",
     "rigid_grid_factors",
 ]
 
@@ -193,6 +194,20 @@ class Band:
 #: (:func:`solvers.band.one_sided_part`). The other quantities' grid errors were not measured
 #: signed; their parts stay symmetric
 GRID_ONE_SIDED = ("apparent_contact_area",)
+
+
+def one_sided_widths(
+    parts: dict[str, float | None], e_eff_pa: float, share_above: float | None = None
+) -> tuple[float, float]:
+    """The half-widths (below, above) [-] the band serves for a quantity of
+    :data:`GRID_ONE_SIDED` whose parts per source are ``parts`` (``band.components``'s values
+    for it): their quadrature (:func:`solvers.band.combine`), with the ``macro_grid`` part moved
+    below the answer (:func:`solvers.band.one_sided_part`) at the snow's share
+    (:func:`app.service.band_calibration.grid_above_share_at` of ``e_eff_pa`` [Pa], or
+    ``share_above``). The studies rebuild recorded answers' bands with it."""
+    width = combine({src: {"q": w} for src, w in parts.items()}).get("q", 0.0)
+    share = grid_above_share_at(e_eff_pa) if share_above is None else share_above
+    return one_sided_part(width, parts.get("macro_grid") or 0.0, share)
 
 
 def touches_profile_end(gap_map, macro) -> bool:
@@ -650,9 +665,9 @@ def answer_band(
     share = grid_above_share_at(e_eff)
     widths_above = {}
     for q in GRID_ONE_SIDED:
-        part = grid.get(q, float("nan"))
-        if q in widths and math.isfinite(part):
-            widths[q], widths_above[q] = one_sided_part(widths[q], part, share)
+        if q in widths:
+            parts = {src: ws.get(q) for src, ws in components.items()}
+            widths[q], widths_above[q] = one_sided_widths(parts, e_eff, share)
     if min_separation_unresolved:
         widths["min_average_separation"] = float("nan")
         not_covered.insert(

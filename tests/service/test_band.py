@@ -568,6 +568,24 @@ def test_one_sided_part_adds_a_bias_below_and_keeps_a_share_above():
         one_sided_part(-0.05, 0.01, 0.5)
 
 
+def test_one_sided_widths_combine_the_parts_and_move_the_grid_below():
+    """The parts in quadrature (missing ones ignored), the grid part below the answer at the
+    snow's share: what answer_band serves and the studies rebuild recorded answers with."""
+    parts = {"camber_model": 0.03, "macro_grid": 0.04, "ski_model": None}
+    soft, hard = (effective_modulus(e * 1e6, 700e6, 0.3) for e in (20.0, 2000.0))
+    assert band.one_sided_widths(parts, soft) == (pytest.approx(0.07), pytest.approx(0.03))
+    assert band.one_sided_widths(parts, hard) == (pytest.approx(0.05), pytest.approx(0.05))
+    assert band.one_sided_widths(parts, hard, share_above=0.0) == (
+        pytest.approx(0.07),
+        pytest.approx(0.03),
+    )
+    # no grid part: nothing to move
+    assert band.one_sided_widths({"camber_model": 0.03}, soft) == (
+        pytest.approx(0.03),
+        pytest.approx(0.03),
+    )
+
+
 def test_grid_above_share_is_zero_on_soft_snow_and_one_on_hard():
     from skisnow.app.service.band_calibration import grid_above_share_at
 
