@@ -239,6 +239,27 @@ class Provenance(BaseModel):
     multiscale: dict[str, Any] = Field(..., description="the multi-scale step's diagnostics")
 
 
+class StudiedTail(BaseModel):
+    """The studied answers outside their 90 % bands (docs/studies/population-bands.md)."""
+
+    model_config = _FIXED
+    answers: int = Field(..., description="held-out answers studied in this answer's cell")
+    outside_share: float = Field(
+        ..., description="share of their truths outside the band (rounded up)"
+    )
+    farthest_over_half_width: float = Field(
+        ...,
+        description="the farthest truth's distance from its answer ÷ the band's half-width on "
+        "its side (rounded up)",
+    )
+    contact_area_cm2_at_farthest: list[float | None] = Field(
+        ...,
+        description="this answer's apparent-area band stretched that far [cm²]: [low, high], "
+        "high null when unbounded",
+    )
+    source: str
+
+
 class Band(BaseModel):
     """The 90 % error band of the answer (docs/limits.md)."""
 
@@ -267,6 +288,13 @@ class Band(BaseModel):
         "w_above) (w_above = w unless relative_half_width_above names the quantity; the mean "
         "apparent pressure's interval is the apparent area's, sides swapped); high is null "
         "when that width is ≥ 1 (no upper bound), null without a band",
+    )
+    studied_tail: StudiedTail | None = Field(
+        None,
+        description="how far outside their bands the own-ski studies' answers of this kind "
+        "fell (a 90 % band leaves some truths outside by design); null where the studies do "
+        "not stand for the answer (a design beam, the network's profile, auto comparing the "
+        "ski models)",
     )
     zone_load_relative_half_width: list[float]
     components: dict[str, dict[str, float | None]]

@@ -73,6 +73,7 @@ from skisnow.app.service.band_calibration import (
     identified_sigma_scale_at,
     loaded_cases,
     rigid_area_grid_factor_at,
+    studied_tail_at,
 )
 from skisnow.app.service.band_sampling import (
     BAND_SEED,
@@ -181,6 +182,12 @@ class Band:
     #: share of the grid part kept above the answer
     #: (:func:`app.service.band_calibration.grid_above_share_at`)
     grid_above_share: float | None = None
+    #: how the own-ski studies' answers of this kind fell outside their bands
+    #: (:func:`app.service.band_calibration.studied_tail_at`): (share outside, farthest truth
+    #: ÷ the half-width on its side, answers studied); None for an answer the studies do not
+    #: stand for (a design beam, the network's profile, auto's compared or rigid-for-bending
+    #: answers)
+    studied_tail: tuple[float, float, int] | None = None
 
     def width_above(self, quantity: str) -> float:
         """The relative half-width above the answer of ``quantity`` [-]."""
@@ -734,6 +741,11 @@ def answer_band(
         profile_scale=identified_sigma_scale_at(e_eff, loaded_cases(record))
         if rigid and has_sigma and not beam_is_design and served_beam(record.identified)
         else None,
+        studied_tail=studied_tail_at(ski_model_used, e_eff, loaded_cases(record))
+        if not beam_is_design
+        and served_beam(record.identified) is not None
+        and "ski_model" not in components
+        else None,
     )
 
 
@@ -935,6 +947,22 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
                 "(band.not_covered): the answer may be further off than its band says",
             }
         )
+    tail = None
+    if band.studied_tail is not None and math.isfinite(w_a):
+        share, k, n = band.studied_tail
+        tail = {
+            "answers": n,
+            "outside_share": share,
+            "farthest_over_half_width": k,
+            # the apparent area's band stretched as far as the farthest studied truth outside
+            "contact_area_cm2_at_farthest": interval_90(
+                answer["apparent"]["contact_area_cm2"],
+                k * w_a,
+                k * band.width_above("apparent_contact_area"),
+            ),
+            "source": "docs/studies/population-bands.md (identified beams of eleven own-ski "
+            "populations, this ski model, measurement grid and snow modulus)",
+        }
     out = {
         "level": 0.9,
         "relative_half_width": rel,
@@ -945,6 +973,9 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
         if band.grid_above_share is not None
         else None,
         "intervals": intervals,
+        # how far outside the band the studied answers of this kind fell (the band is 90 %:
+        # some truths lie outside by design); None where the studies do not stand for it
+        "studied_tail": tail,
         "zone_load_relative_half_width": [_round(w) for w in band.zone_load_widths],
         "components": {
             src: {q: _round(w) for q, w in ws.items()} for src, ws in band.components.items()

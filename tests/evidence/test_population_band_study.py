@@ -164,3 +164,40 @@ def test_stats_now_judge_each_side_of_the_served_band():
     # the recorded symmetric band (± 5 %) had it the other way round: the overestimate out,
     # the underestimate in
     assert st["coverage"] == 0.5 and st["unwarned_misses"] == 1
+
+
+def test_the_served_tail_is_the_committed_studys_rounded_up():
+    """band_calibration.STUDIED_TAIL is docs/studies/population-bands.json's pooled share
+    outside and farthest reach per model, grid and modulus, rounded up (never below the
+    study, at most one rounding step above); the answers per cell the same."""
+    from skisnow.app.service import band_calibration as bc
+
+    doc = json.loads((REPO / "docs" / "studies" / "population-bands.json").read_text("utf-8"))
+    seen = 0
+    for c in doc["cells"]:
+        s = c["served"]["pooled"]
+        g = pbs.GRIDS.index(c["grid"])
+        n = bc.STUDIED_TAIL_E_SNOW_MPA.index(c["e_snow_mpa"])
+        share, far = bc.STUDIED_TAIL[c["model"]][g][n]
+        assert 0 <= share - (1 - s["coverage_now"]) < 1e-3 + 1e-12
+        assert 0 <= far - s["farthest_over_side_now"] < 1e-2 + 1e-12
+        assert bc.STUDIED_TAIL_ANSWERS[g] == s["answers"]
+        seen += 1
+    assert seen == 12
+
+
+def test_stats_measure_the_tail_and_the_factor_the_3pct_rule_needs():
+    """A truth 6 % below an answer whose band reaches 3 % below (the side towards it) lies
+    2 × the side away; an unwarned one needs the band × 2, and the width ratio doubles."""
+    errors = [0.06 / 0.94, 0.0, 0.01, -0.01]  # the first: truth = answer × 0.94
+    sides = [(0.03, 0.05), (0.03, 0.05), (0.03, 0.05), (0.03, 0.05)]
+    s = pbs.stats(errors, [0.04] * 4, [False] * 4, sides)
+    assert s["farthest_over_side_now"] == pytest.approx(2.0)
+    assert s["misses_over_3pct_now"] == 1 and s["unwarned_misses_now"] == 1
+    assert s["narrow_unwarned_misses_now"] == 0  # its side was 3 %, not under
+    assert s["scale_for_no_unwarned_miss_now"] == pytest.approx(2.0)
+    assert s["half_width_over_rms_at_that_scale"] == pytest.approx(
+        2.0 * s["half_width_over_rms_now"]
+    )
+    warned = pbs.stats(errors, [0.04] * 4, [True, False, False, False], sides)
+    assert warned["scale_for_no_unwarned_miss_now"] == 1.0

@@ -712,3 +712,64 @@ def test_alternative_beams_enter_the_bending_skis_band(shipped):
     )
     cat = replace(shipped, skis={**shipped.skis, "ski-a": design})
     assert "beam_alternatives" not in service.contact(cat, rig)["band"]["components"]
+
+
+def test_an_identified_beams_answer_states_its_studied_tail(shipped):
+    """band.studied_tail: the own-ski studies' share outside and farthest reach for the
+    answer's ski model, grid and snow (band_calibration.studied_tail_at), and the apparent
+    area's band stretched that far: value × (1 − k w) … value ÷ (1 − k w_above)."""
+    from skisnow.app.service.band_calibration import studied_tail_at
+
+    for case in (
+        PAPER,
+        replace(PAPER, snow_modulus_mpa=20.0),
+        replace(PAPER, ski_model="flexible"),
+    ):
+        ans = service.contact(shipped, case)
+        b = ans["band"]
+        tail = b["studied_tail"]
+        e_eff = effective_modulus(case.snow_modulus_mpa * 1e6, 700e6, 0.3)
+        share, k, n = studied_tail_at(
+            case.ski_model, e_eff, loaded_cases(shipped.skis["ski-a"].record)
+        )
+        assert (tail["outside_share"], tail["farthest_over_half_width"], tail["answers"]) == (
+            share,
+            k,
+            n,
+        )
+        w = b["relative_half_width"]["apparent_contact_area"]
+        wa = b["relative_half_width_above"]["apparent_contact_area"]
+        a = ans["apparent"]["contact_area_cm2"]
+        lo, hi = tail["contact_area_cm2_at_farthest"]
+        assert lo == pytest.approx(a * (1 - k * w), rel=1e-3)
+        assert hi == pytest.approx(a / (1 - k * wa), rel=1e-3)
+        lo90, hi90 = b["intervals"]["contact_area_cm2"]
+        assert lo < lo90 < a < hi90 < hi
+
+
+def test_studied_tail_takes_the_worse_node_and_grid():
+    """Between two moduli or two measurement grids the tail is the worse of the cells around
+    (a worst case is not interpolated); a model the studies did not judge gets none."""
+    from skisnow.app.service.band_calibration import STUDIED_TAIL, studied_tail_at
+
+    def at(model, e_mpa, cases):
+        return studied_tail_at(model, effective_modulus(e_mpa * 1e6, 700e6, 0.3), cases)
+
+    rigid = STUDIED_TAIL["rigid"]
+    assert at("rigid", 200.0, 45) == (rigid[0][1][0], rigid[0][1][1], 1104)
+    assert at("rigid", 200.0, 117) == (rigid[1][1][0], rigid[1][1][1], 1080)
+    assert at("rigid", 2.0, 425) == (rigid[1][0][0], rigid[1][0][1], 1080)  # held at the ends
+    mid = at("rigid", 630.0, 45)
+    assert mid[:2] == (
+        max(rigid[0][1][0], rigid[0][2][0]),
+        max(rigid[0][1][1], rigid[0][2][1]),
+    )
+    both = at("flexible", 20.0, 80)
+    flex = STUDIED_TAIL["flexible"]
+    assert both == (
+        max(flex[0][0][0], flex[1][0][0]),
+        max(flex[0][0][1], flex[1][0][1]),
+        1080,
+    )
+    assert at("flexible", 20.0, None) == both
+    assert at("auto", 200.0, 45) is None

@@ -123,6 +123,27 @@ def test_soft_snow_band_reads_further_below_on_the_page_and_in_the_csv(client):
     summary = re.search(r'<p class="summary">Apparent contact(.*?)</p>', html, re.S).group(1)
     assert area in summary and pressure in summary
     assert summary.index(area) < summary.index("kPa") < summary.index(pressure)
+    # "How sure is this?" says why the band above is narrower (not on stiff snow)
+    assert 'class="grid-bias"' in html and "docs/studies/grid-bias.md" in html
+    assert 'class="grid-bias"' not in client.get("/results", params=_q(ski="ski-b")).text
+
+
+def test_the_page_says_how_far_outside_the_band_studied_answers_fell(client, catalogue):
+    """An identified beam's answer names the studied tail of its band and the apparent area's
+    band stretched that far, the numbers of the answer's band.studied_tail."""
+    from skisnow.app import service
+
+    html = client.get("/results", params=_q(ski="ski-b")).text
+    ans = service.contact(
+        catalogue, service.ContactInputs("ski-b", "tiny-grind", 40, -160, 200, 0.5, 700, 0.3)
+    )
+    tail = ans["band"]["studied_tail"]
+    para = re.search(r'<p class="studied-tail">(.*?)</p>', html, re.S).group(1)
+    para = " ".join(para.split())
+    lo, hi = tail["contact_area_cm2_at_farthest"]
+    assert f"Of {tail['answers']} held-out answers" in para
+    assert f"{100 * tail['outside_share']:.1f} % lay outside" in para
+    assert f"{lo:.4g} … {hi:.4g} cm²" in para
 
 
 def test_csv_one_row_per_combination(client, results_page):
