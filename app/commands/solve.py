@@ -176,6 +176,17 @@ def run_solve(args: argparse.Namespace) -> int:
             print(f"    over the resolved zones: {over}")
             for u in sep["unresolved"]:
                 print(f"    not resolved: {u['zone']} zone ({u['reason']})")
+    tail = out.get("band", {}).get("studied_tail")
+    if tail:
+        lo, hi = tail["contact_area_cm2_at_farthest"]
+        print(
+            f"    studied tail: {100 * tail['outside_share']:.1f} % of {tail['answers']} answers "
+            "like this one lay outside their band,\n"
+            f"    the farthest {tail['farthest_over_half_width']:g} × its half-width away "
+            f"(apparent contact area {lo:.4g} … "
+            + ("no upper bound" if hi is None else f"{hi:.4g} cm²")
+            + " that far)"
+        )
     for z in a["zones"]:
         print(
             f"  zone {z['name']:5s} {z['start_mm']:7.0f} … {z['end_mm']:5.0f} mm  "

@@ -58,6 +58,8 @@ CSV_COLUMNS = (
     "mean_apparent_pressure_kpa",
     "apparent_contact_area_band90_rel",
     "apparent_contact_area_band90_rel_above",
+    "studied_tail_outside_share",
+    "studied_tail_farthest_over_half_width",
     "total_real_contact_area_band90_rel",
     "average_real_contact_pressure_band90_rel",
     "min_average_separation_band90_rel",
@@ -168,6 +170,7 @@ def render_csv(out: Outcome) -> str:
         for z in a["zones"]:
             behind = z["start_mm"] + z["end_mm"] < 0
             share["rear" if behind else "front"] += z["load_share"]
+        tail = (r.get("band") or {}).get("studied_tail") or {}
         row = {
             **{k: inp[k] for k in CSV_COLUMNS[:8]},
             **m,
@@ -184,6 +187,10 @@ def render_csv(out: Outcome) -> str:
                 "apparent_contact_area",
                 r.get("band", {}).get("relative_half_width", {}).get("apparent_contact_area"),
             ),
+            # how far outside their bands the studied answers of this kind fell (none where
+            # the own-ski studies do not stand for the answer)
+            "studied_tail_outside_share": tail.get("outside_share"),
+            "studied_tail_farthest_over_half_width": tail.get("farthest_over_half_width"),
             "rear_zone_load_share": share["rear"],
             "front_zone_load_share": share["front"],
             "ski_model": p["ski_model"]["used"],

@@ -62,7 +62,8 @@ def test_text_output_prints_the_band_as_served(capsys, shipped):
     """The band after each value is the served interval's reach: −w % below, +w / (1 − w) %
     above (symmetric in log), or ± w % where both agree to 0.1 %."""
     assert main([*CASE, "--json"]) == 0
-    rel = json.loads(capsys.readouterr().out)["band"]["relative_half_width"]
+    band = json.loads(capsys.readouterr().out)["band"]
+    rel = band["relative_half_width"]
     assert main(CASE) == 0
     text = capsys.readouterr().out
     w = rel["apparent_contact_area"]
@@ -70,6 +71,11 @@ def test_text_output_prints_the_band_as_served(capsys, shipped):
     assert lo != hi  # a band of a few % already differs at 0.1 %
     (line,) = [x for x in text.splitlines() if x.strip().startswith("apparent contact area")]
     assert line.endswith(f"−{lo} % / +{hi} %")
+    # the studied tail after the apparent values, its numbers the answer's
+    tail = band["studied_tail"]
+    far_lo, far_hi = tail["contact_area_cm2_at_farthest"]
+    assert f"studied tail: {100 * tail['outside_share']:.1f} % of {tail['answers']} answers" in text
+    assert f"{far_lo:.4g} … {far_hi:.4g} cm² that far" in text
 
 
 def test_text_output_prints_the_soft_snow_band_one_sided(capsys):

@@ -117,6 +117,9 @@ def test_soft_snow_band_reads_further_below_on_the_page_and_in_the_csv(client):
     w = float(row["apparent_contact_area_band90_rel"])
     wa = float(row["apparent_contact_area_band90_rel_above"])
     assert 0 < wa < w
+    share = float(row["studied_tail_outside_share"])
+    far = float(row["studied_tail_farthest_over_half_width"])
+    assert 0 < share < 0.1 and far > 1  # a tail: some truths outside, beyond one half-width
     html = client.get("/results", params=q).text
     area = f"−{100 * w:.1f} % / +{100 * wa / (1 - wa):.1f} % (90 %)"
     pressure = f"−{100 * wa:.1f} % / +{100 * w / (1 - w):.1f} % (90 %)"
