@@ -144,15 +144,13 @@ def stats(errors, half_widths, warned, sides=None) -> dict:
         # above); the truth value / (1 + e) is inside when 1 / (1 + e) ≥ 1 − below and
         # e ≥ −above
         below, above = (np.asarray(x, dtype=float) for x in zip(*sides, strict=True))
-        out_now = ~((1.0 / (1.0 + e) >= 1.0 - below) & (e >= -above))
+        out_now = ~band.inside_interval(e, below, above)
         mean_now = float(np.mean(0.5 * (below + above)))
         unwarned_off = (err > AREA_OFF) & ~np.asarray(warned)
         # how far each truth lies, in units of the band's side towards it: the band scaled by
         # k holds it when k ≥ this (above: e ≥ −k·above; below: 1 / (1 + e) ≥ 1 − k·below)
         side = np.where(e >= 0, below, above)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            reach = np.where(e >= 0, e / (1.0 + e), -e) / side
-        reach = np.where(np.abs(e) > 0, reach, 0.0)
+        reach = band.reach_over_side(e, below, above)
         need = float(max(1.0, np.max(reach[unwarned_off]))) if unwarned_off.any() else 1.0
         now = {
             "coverage_now": float(np.mean(~out_now)),

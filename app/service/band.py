@@ -789,6 +789,27 @@ def interval_90(value: float, width: float, width_above: float | None = None) ->
     return [lo, hi]
 
 
+def inside_interval(err, below, above) -> np.ndarray:
+    """Whether each truth lies in its served interval value × (1 − below) … value ÷ (1 −
+    above) (:func:`interval_90`), for answers ``err`` = value / truth − 1 off (arrays or
+    floats): truth ≥ value (1 − below) ⇔ 1 / (1 + err) ≥ 1 − below; truth ≤ value / (1 −
+    above) ⇔ err ≥ −above (an ``above`` ≥ 1 has no upper end)."""
+    err, below, above = (np.asarray(a, dtype=float) for a in (err, below, above))
+    return (1.0 / (1.0 + err) >= 1.0 - below) & (err >= -above)
+
+
+def reach_over_side(err, below, above) -> np.ndarray:
+    """How far each truth lies from its answer, in units of the band's half-width on the
+    truth's side: the smallest factor k for which the interval of half-widths k × below,
+    k × above holds it (:func:`inside_interval`); 0 for an exact answer, inf for a side of 0
+    with the truth beyond it."""
+    err, below, above = (np.asarray(a, dtype=float) for a in (err, below, above))
+    dist = np.where(err >= 0, err / (1.0 + err), -err)
+    side = np.where(err >= 0, below, above)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(dist > 0, dist / side, 0.0)
+
+
 #: how far [m] a footprint may reach beyond the measured stretch's last knot before the answer
 #: warns: half the stiffness knots' spacing (the knot's hat function still reaches there)
 UNMEASURED_REACH_M = 0.025

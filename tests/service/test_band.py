@@ -459,21 +459,24 @@ def _calibration_rows() -> list[dict]:
     return rows
 
 
-def served_inside(err, below, above) -> np.ndarray:
-    """Whether the truth lies in the served interval value × (1 − below) … value ÷ (1 −
-    above) (:func:`app.service.band.interval_90`), for answers ``err`` = value / truth − 1
-    off: truth ≥ value (1 − below) ⇔ 1 / (1 + err) ≥ 1 − below; truth ≤ value / (1 − above)
-    ⇔ err ≥ −above."""
-    err, below, above = (np.asarray(a, dtype=float) for a in (err, below, above))
-    return (1.0 / (1.0 + err) >= 1.0 - below) & (err >= -above)
-
-
-def test_served_inside_is_the_served_interval():
-    for err, below, above in ((0.1, 0.05, 0.2), (-0.1, 0.3, 0.05), (0.02, 0.03, 0.0)):
+def test_inside_interval_is_the_served_interval():
+    """band.inside_interval (the studies' vectorised test) agrees with interval_90's ends, and
+    reach_over_side is the factor on both half-widths that just holds the truth."""
+    for err, below, above in (
+        (0.1, 0.05, 0.2),
+        (-0.1, 0.3, 0.05),
+        (0.02, 0.03, 0.0),
+        (-0.5, 0.1, 1.2),
+        (0.0, 0.0, 0.0),
+    ):
         lo, hi = band.interval_90(1.0 + err, below, above)
         truth = 1.0
         want = lo <= truth and (hi is None or truth <= hi)
-        assert bool(served_inside(err, below, above)) == want, (err, below, above)
+        assert bool(band.inside_interval(err, below, above)) == want, (err, below, above)
+        k = float(band.reach_over_side(err, below, above))
+        if 0 < k < math.inf:
+            assert bool(band.inside_interval(err, k * below * 1.0001, k * above * 1.0001))
+            assert not bool(band.inside_interval(err, k * below * 0.999, k * above * 0.999))
 
 
 @functools.cache
@@ -483,7 +486,7 @@ def _calibration() -> tuple[np.ndarray, np.ndarray, list[str]]:
     err = np.array([r["err"] for r in rows])
     below = np.array([r["below"] for r in rows])
     above = np.array([r["above"] for r in rows])
-    inside = served_inside(err, below, above)
+    inside = band.inside_interval(err, below, above)
     return inside, 0.5 * (below + above), np.abs(err), [r["q"] for r in rows]
 
 
