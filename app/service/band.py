@@ -524,7 +524,9 @@ def answer_band(
         "(docs/limits.md)",
     ]
     held_out = None
-    if not beam_is_design and served_beam(record.identified) is not None:
+    # the answer's profile is the ski's identified beam (not a design beam, not the network)
+    identified = not beam_is_design and served_beam(record.identified) is not None
+    if identified:
         not_covered.insert(0, IDENTIFIED_STRUCTURE_NOT_COVERED)
         held_out = held_out_excess(record.identified)
     rigid = ski_model_used == "rigid"
@@ -739,12 +741,10 @@ def answer_band(
         if sampled is None
         else (sampled.alternatives_solved, sampled.alternatives_failed),
         profile_scale=identified_sigma_scale_at(e_eff, loaded_cases(record))
-        if rigid and has_sigma and not beam_is_design and served_beam(record.identified)
+        if rigid and has_sigma and identified
         else None,
         studied_tail=studied_tail_at(ski_model_used, e_eff, loaded_cases(record))
-        if not beam_is_design
-        and served_beam(record.identified) is not None
-        and "ski_model" not in components
+        if identified and "ski_model" not in components
         else None,
     )
 
