@@ -233,6 +233,32 @@ def touches_profile_end(gap_map, macro) -> bool:
 #: a contact zone shorter than this many pixels along the ski does not resolve its peak
 #: pressure, so the minimum average separation inside it is not grid-converged
 MIN_SEPARATION_ZONE_PIXELS = 10
+#: a contact zone whose width-averaged pressure peaks in one of its this many end rows does
+#: not resolve the rise of its pressure at that edge (a smooth contact's pressure vanishes at
+#: its edges and peaks inside): the profile turns sharply there (a kink, the start of the tip's
+#: rise) and the pressure is singular at the corner, so the minimum average separation keeps
+#: falling as the grid is refined. Measured on a seeded random classic design (random-102 of
+#: ``solvers.ski_designs``, 68 kg at +14 mm, 20 MPa, the true beam): the tip zone's pressure
+#: peaks in its last row, and its minimum separation falls 2.56 → 2.38 → 2.29 → 2.21 → 2.12 µm
+#: from 4 mm to 0.25 mm pixels (−3.5 … −7 % per halving, no limit), where the coarse-grid
+#: difference read 1–3 % (docs/studies/metric-bands.md)
+MIN_SEPARATION_EDGE_ROWS = 3
+
+
+def edge_peak_m(positions_m, pressure_pa, zone) -> float | None:
+    """X [m] of a contact zone's pressure peak when it lies in one of the zone's
+    :data:`MIN_SEPARATION_EDGE_ROWS` end rows (its edge's pressure rise not resolved), else
+    ``None``. ``positions_m``, ``pressure_pa``: the answer's width-averaged pressure line; zones
+    too short to tell (:data:`MIN_SEPARATION_ZONE_PIXELS`) are ``None`` (their own rule)."""
+    x = np.asarray(positions_m, dtype=float)
+    rows = np.flatnonzero((x >= zone.start_m) & (x <= zone.end_m))
+    p = np.asarray(pressure_pa, dtype=float)[rows]
+    if rows.size < MIN_SEPARATION_ZONE_PIXELS or not np.isfinite(p).any():
+        return None
+    k = int(np.nanargmax(p))
+    if k < MIN_SEPARATION_EDGE_ROWS or k >= rows.size - MIN_SEPARATION_EDGE_ROWS:
+        return float(x[rows[k]])
+    return None
 
 
 def min_separation_unresolved(gap_map, macro, ms) -> str | None:
@@ -246,6 +272,15 @@ def min_separation_unresolved(gap_map, macro, ms) -> str | None:
     the cut-off."""
     if touches_profile_end(gap_map, macro):
         return "a contact zone reaches the end of the measured profile"
+    for z in ms.zones:
+        at = edge_peak_m(ms.positions_m, ms.pressure_pa, z)
+        if at is not None:
+            return (
+                f"the contact zone at {0.5e3 * (z.start_m + z.end_m):.0f} mm has its peak "
+                f"pressure at its edge ({at * 1e3:.0f} mm): the profile turns sharply there and "
+                "the pressure is singular at the corner, so the minimum keeps falling as the grid "
+                "is refined"
+            )
     dx = gap_map.pixel_size_m[0]
     short = [z for z in macro.zones if z.end_m - z.start_m < MIN_SEPARATION_ZONE_PIXELS * dx]
     if short:
@@ -268,10 +303,11 @@ def footprint_ends_m(gap_map) -> tuple[float, float]:
     return float(gap_map.positions_m[rows[0]]), float(gap_map.positions_m[rows[-1]])
 
 
-def zone_unresolved_reasons(gap_map, zones) -> list[str | None]:
+def zone_unresolved_reasons(gap_map, zones, ms=None) -> list[str | None]:
     """Per contact zone, why its minimum average separation is not grid-converged (the rules
     of :func:`min_separation_unresolved`: shorter than :data:`MIN_SEPARATION_ZONE_PIXELS`
-    pixels, or reaching the end of the measured profile), or ``None`` for a resolved zone."""
+    pixels, reaching the end of the measured profile, or, given the answer's multiscale result
+    ``ms``, its pressure peaking at its edge), or ``None`` for a resolved zone."""
     rows = np.flatnonzero(np.any(np.isfinite(gap_map.gap_m), axis=1))
     dx = gap_map.pixel_size_m[0]
     first = gap_map.positions_m[rows[0]] if rows.size else -np.inf
@@ -279,12 +315,18 @@ def zone_unresolved_reasons(gap_map, zones) -> list[str | None]:
     out: list[str | None] = []
     for z in zones:
         length = z.end_m - z.start_m
+        at = None if ms is None else edge_peak_m(ms.positions_m, ms.pressure_pa, z)
         if z.start_m <= first + 1.5 * dx or z.end_m >= last - 1.5 * dx:
             out.append("it reaches the end of the measured profile")
         elif length < MIN_SEPARATION_ZONE_PIXELS * dx:
             out.append(
                 f"it is {length * 1e3:.0f} mm long ({length / dx:.0f} pixels of {dx * 1e3:g} mm), "
                 "too short to resolve its peak pressure"
+            )
+        elif at is not None:
+            out.append(
+                f"its pressure peaks at its edge ({at * 1e3:.0f} mm), a sharp turn of the profile "
+                "the grid does not resolve"
             )
         else:
             out.append(None)
