@@ -50,14 +50,8 @@ from skisnow.solvers.ski_designs import get_design  # noqa: E402
 
 E_SNOW_MPA = (20.0, 200.0, 2000.0)
 MODELS = ("rigid", "flexible")
-#: quantity → (where its value is in an answer, the key of its interval in ``band.intervals``)
-VALUES = {
-    "apparent_contact_area": ("apparent", "contact_area_cm2"),
-    "total_real_contact_area": ("metrics", "total_real_contact_area_mm2"),
-    "average_real_contact_pressure": ("metrics", "average_real_contact_pressure_mpa"),
-    "min_average_separation": ("metrics", "min_average_separation_um"),
-    "total_reciprocal_separation": ("metrics", "total_reciprocal_separation_m"),
-}
+#: quantity → (where its value is in an answer, its key there): the service's own map
+VALUES = band.ANSWER_KEYS
 
 
 def _value(answer: dict, q: str) -> float:

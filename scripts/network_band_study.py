@@ -132,30 +132,23 @@ def case_rows(name, rec, table, f, xf, e_mpa, scales, truth_beam=None):
 
 def own_ski_cases(study: Path, limit: int | None = None):
     """The skis of an own-ski study (``scripts/own_ski_study.py`` output) whose kept ski file
-    exists: [(name, network record, true beam, [(F [N], x_F [m])])], the cases the study's
-    held-out cases (never seen by the network's training nor by the identification)."""
-    from skisnow.app.storage.skis import read_ski
+    exists, each served by its network: [(name, network record, true beam, [(F [N], x_F [m])])],
+    the cases the study's held-out cases (never seen by the network's training nor by the
+    identification); read by ``metric_band_study.study_skis``."""
     from skisnow.solvers.beam import G_STANDARD
-    from skisnow.solvers.ski_designs import get_design
 
-    doc = json.loads(study.read_text())
-    out = []
-    for s in doc["skis"]:
-        path = Path(s.get("ski_file") or "")
-        if s.get("outcome") != "done" or not path.is_file():
-            continue
-        rec = network_record(read_ski(path))
-        if rec.network is None:
-            continue
-        truth = get_design(s["design"]).build(1e-3)
-        held = s["held_out"]
-        cases = [
-            (float(kg) * G_STANDARD, float(mm) * 1e-3)
-            for kg, mm in zip(held["load_kg"], held["load_position_mm"], strict=True)
-        ][:limit]
-        name = f"{s['design']}-{s['grid']}-d{s['draw']}"
-        out.append((name, rec, truth, cases))
-    return out
+    sys.path.insert(0, str(REPO / "scripts"))
+    from metric_band_study import study_skis
+
+    return [
+        (
+            name,
+            served.record,
+            truth.record.beam,
+            [(float(kg) * G_STANDARD, float(mm) * 1e-3) for kg, mm in cases],
+        )
+        for name, served, truth, cases in study_skis(study, limit, network=True)
+    ]
 
 
 def _above(row, q):
