@@ -277,7 +277,7 @@ def contact(
                 for z, name, why in zip(
                     ms.zones,
                     zone_names(ms.zones, *footprint_ends_m(gmap)),
-                    zone_unresolved_reasons(gmap, ms.zones, ms),
+                    zone_unresolved_reasons(gmap, ms),
                     strict=True,
                 )
             ],

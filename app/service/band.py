@@ -269,18 +269,10 @@ def min_separation_unresolved(gap_map, macro, ms) -> str | None:
     refined the minimum falls there or moves there from another zone (short tip and tail
     contacts at light loads: ski-a at 13 kg falls 4.5 → 4.1 → 3.8 → 3.4 → 3.3 µm from 8 to
     0.5 mm pixels). A zone reaching the end of the measured profile has a singular pressure at
-    the cut-off."""
+    the cut-off, and so has a zone whose pressure peaks at its edge (:func:`edge_peak_m`). The
+    rules in the order of :func:`zone_unresolved_reasons`."""
     if touches_profile_end(gap_map, macro):
         return "a contact zone reaches the end of the measured profile"
-    for z in ms.zones:
-        at = edge_peak_m(ms.positions_m, ms.pressure_pa, z)
-        if at is not None:
-            return (
-                f"the contact zone at {0.5e3 * (z.start_m + z.end_m):.0f} mm has its peak "
-                f"pressure at its edge ({at * 1e3:.0f} mm): the profile turns sharply there and "
-                "the pressure is singular at the corner, so the minimum keeps falling as the grid "
-                "is refined"
-            )
     dx = gap_map.pixel_size_m[0]
     short = [z for z in macro.zones if z.end_m - z.start_m < MIN_SEPARATION_ZONE_PIXELS * dx]
     if short:
@@ -291,6 +283,15 @@ def min_separation_unresolved(gap_map, macro, ms) -> str | None:
             f"long ({length / dx:.0f} pixels of {dx * 1e3:g} mm), too short to resolve its peak "
             "pressure, and the minimum moves there as the grid is refined"
         )
+    for z in ms.zones:
+        at = edge_peak_m(ms.positions_m, ms.pressure_pa, z)
+        if at is not None:
+            return (
+                f"the contact zone at {0.5e3 * (z.start_m + z.end_m):.0f} mm has its peak "
+                f"pressure at its edge ({at * 1e3:.0f} mm): the profile turns sharply there and "
+                "the pressure is singular at the corner, so the minimum keeps falling as the grid "
+                "is refined"
+            )
     return None
 
 
@@ -303,19 +304,18 @@ def footprint_ends_m(gap_map) -> tuple[float, float]:
     return float(gap_map.positions_m[rows[0]]), float(gap_map.positions_m[rows[-1]])
 
 
-def zone_unresolved_reasons(gap_map, zones, ms=None) -> list[str | None]:
-    """Per contact zone, why its minimum average separation is not grid-converged (the rules
-    of :func:`min_separation_unresolved`: shorter than :data:`MIN_SEPARATION_ZONE_PIXELS`
-    pixels, reaching the end of the measured profile, or, given the answer's multiscale result
-    ``ms``, its pressure peaking at its edge), or ``None`` for a resolved zone."""
+def zone_unresolved_reasons(gap_map, ms) -> list[str | None]:
+    """Per contact zone of the answer's multiscale result ``ms``, why its minimum average
+    separation is not grid-converged (the rules of :func:`min_separation_unresolved`: reaching
+    the end of the measured profile, shorter than :data:`MIN_SEPARATION_ZONE_PIXELS` pixels, or
+    its pressure peaking at its edge), or ``None`` for a resolved zone."""
     rows = np.flatnonzero(np.any(np.isfinite(gap_map.gap_m), axis=1))
     dx = gap_map.pixel_size_m[0]
     first = gap_map.positions_m[rows[0]] if rows.size else -np.inf
     last = gap_map.positions_m[rows[-1]] if rows.size else np.inf
     out: list[str | None] = []
-    for z in zones:
+    for z in ms.zones:
         length = z.end_m - z.start_m
-        at = None if ms is None else edge_peak_m(ms.positions_m, ms.pressure_pa, z)
         if z.start_m <= first + 1.5 * dx or z.end_m >= last - 1.5 * dx:
             out.append("it reaches the end of the measured profile")
         elif length < MIN_SEPARATION_ZONE_PIXELS * dx:
@@ -323,7 +323,7 @@ def zone_unresolved_reasons(gap_map, zones, ms=None) -> list[str | None]:
                 f"it is {length * 1e3:.0f} mm long ({length / dx:.0f} pixels of {dx * 1e3:g} mm), "
                 "too short to resolve its peak pressure"
             )
-        elif at is not None:
+        elif (at := edge_peak_m(ms.positions_m, ms.pressure_pa, z)) is not None:
             out.append(
                 f"its pressure peaks at its edge ({at * 1e3:.0f} mm), a sharp turn of the profile "
                 "the grid does not resolve"

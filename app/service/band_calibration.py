@@ -201,10 +201,15 @@ def at_snow_modulus(
 ) -> float:
     """``nodes`` (values at the snow moduli ``e_snow_mpa`` [MPa], base 700 MPa, ν 0.3) at the
     effective modulus ``e_eff_pa`` [Pa]: linear in log E' between the nodes, held at the ends."""
+    return float(np.interp(np.log(e_eff_pa), np.log(effective_nodes_pa(e_snow_mpa)), nodes))
+
+
+def effective_nodes_pa(e_snow_mpa: tuple[float, ...]) -> list[float]:
+    """The effective moduli E' [Pa] of snow moduli ``e_snow_mpa`` [MPa] against the base
+    (700 MPa, ν 0.3) the calibration nodes are stated for."""
     from skisnow.solvers.elastic import effective_modulus
 
-    e_nodes = np.log([effective_modulus(e * 1e6, 700e6, 0.3) for e in e_snow_mpa])
-    return float(np.interp(np.log(e_eff_pa), e_nodes, nodes))
+    return [effective_modulus(e * 1e6, 700e6, 0.3) for e in e_snow_mpa]
 
 
 # ------------------------------------------------------------- per measurement grid
@@ -456,11 +461,9 @@ def studied_tail_at(
     measured with ``cases`` loaded cases; None for another model. A tail is a worst case, so
     not interpolated: the larger of the nodes around the modulus and, for a ski between the
     grids (or not known), of both grids; the answers are the fewest of the cells taken."""
-    from skisnow.solvers.elastic import effective_modulus
-
     if ski_model not in STUDIED_TAIL:
         return None
-    e_nodes = [effective_modulus(e * 1e6, 700e6, 0.3) for e in STUDIED_TAIL_E_SNOW_MPA]
+    e_nodes = effective_nodes_pa(STUDIED_TAIL_E_SNOW_MPA)
     below = [i for i, e in enumerate(e_nodes) if e <= e_eff_pa * (1 + 1e-9)]
     above = [i for i, e in enumerate(e_nodes) if e >= e_eff_pa * (1 - 1e-9)]
     nodes = sorted({below[-1] if below else 0, above[0] if above else len(e_nodes) - 1})
@@ -520,8 +523,7 @@ BENDING_IGNORED_WIDTH: dict[str, tuple[float, ...]] = {
 def bending_ignored_widths(e_eff_pa: float) -> dict[str, float]:
     """:data:`BENDING_IGNORED_WIDTH` at the answer's effective modulus [Pa]: linear in
     log E' between the study's moduli, held at the ends."""
-    from skisnow.solvers.elastic import effective_modulus
-
-    e_nodes = np.log([effective_modulus(e * 1e6, 700e6, 0.3) for e in BENDING_IGNORED_E_SNOW_MPA])
-    le = float(np.log(e_eff_pa))
-    return {q: float(np.interp(le, e_nodes, w)) for q, w in BENDING_IGNORED_WIDTH.items()}
+    return {
+        q: at_snow_modulus(e_eff_pa, BENDING_IGNORED_E_SNOW_MPA, w)
+        for q, w in BENDING_IGNORED_WIDTH.items()
+    }
