@@ -1,5 +1,6 @@
 """The identification part of ``skisnow bench macro`` (issue #26, Benchmark: "identification,
-several starts included: ≤ 2 min per ski on 2 cores"; "ski job end to end: report it").
+several starts included: ≤ 2 min per ski on 2 cores"; the ski job end to end:
+:mod:`app.evidence.ski_job`).
 
 Skis identified, one run each, as the ski job identifies them
 (:func:`app.path_pool.identify_with_pool` of :func:`solvers.identify.identify_beam_checked`:
@@ -21,12 +22,10 @@ measurements and against the truth near contact (H* < 0.2 mm).
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import resource
 import time
-from pathlib import Path
 
 import numpy as np
 from skisnow.app.storage.skis import SHIPPED_SKI_DIR, CamberData, identified_beam, read_ski
@@ -49,40 +48,45 @@ DEMO_SKIS = ("ski-a", "ski-b", "ski-c")
 #: one study design per family (classic, functional, skate; solvers.ski_designs.FAMILIES)
 BENCH_DESIGNS = ("race-classic", "asymmetric", "skate")
 #: the virtual device as scripts/own_ski_study.py runs it: node spacing [m], noise [m], loads
-#: [kg] and positions [m] (linspace), the coarse grid (loads × positions), and the seed of
-#: draw 0 on the coarse grid (MEASURE_SEED + 100 · design index + 10 · draw + grid index)
+#: [kg] and positions [m] (linspace), and the seed of draw 0 on a grid
+#: (MEASURE_SEED + 100 · design index + 10 · draw + grid index)
 SPACING_M = 1e-3
 NOISE_M = 3e-6
 LOAD_RANGE_KG = (10.0, 90.0)
 POSITION_RANGE_M = (-0.30, 0.10)
-COARSE_GRID = (9, 5)
+#: the study's grids (loads × positions) in its order (the order sets the seed, below)
+GRIDS = {"dense": (13, 9), "coarse": (9, 5)}
 MEASURE_SEED = 26_000
-COARSE_GRID_INDEX = 1
 #: held-out profiles are compared with the truth where the truth's gap is below this [m]
 NEAR_CONTACT_M = 2e-4
 #: a 1-min load average above this on 2 cores: other jobs competed for the cores
 LOADED_MACHINE = 2.5
-#: where the ski job's end-to-end times come from (the study's coarse run, quick network)
-STUDY_JSON = Path("studies") / "own-ski-study-coarse.json"
 
 
-def design_camber_data(design: str, seed: int | None = None) -> tuple[CamberData, BeamSki]:
-    """The virtual device's measurement of a study design on the coarse grid: the unloaded
-    profile first (load 0 at position 0), then every loaded case, 3 µm noise; ``seed``
-    (default: draw 0 of the study's coarse grid). Returns the data and the true beam."""
+def design_camber_data(
+    design: str, seed: int | None = None, grid: str = "coarse"
+) -> tuple[CamberData, BeamSki]:
+    """The virtual device's measurement of a study design on ``grid`` (``"coarse"`` 9 × 5 or
+    ``"dense"`` 13 × 9, :data:`GRIDS`): the unloaded profile first (load 0 at position 0), then
+    every loaded case, 3 µm noise; ``seed`` (default: draw 0 of the study's ``grid``, the same
+    data as ``scripts/own_ski_study.py``). Returns the data (named ``<design>-<grid>-d0``) and the
+    true beam."""
     from skisnow.solvers.ski_designs import STUDY_DESIGNS
 
+    if grid not in GRIDS:
+        raise ValueError(f"grid must be one of {sorted(GRIDS)}, got {grid!r}")
     truth = STUDY_DESIGNS[design].build(SPACING_M)
     if seed is None:
-        seed = MEASURE_SEED + 100 * list(STUDY_DESIGNS).index(design) + COARSE_GRID_INDEX
+        seed = MEASURE_SEED + 100 * list(STUDY_DESIGNS).index(design) + list(GRIDS).index(grid)
     rng = np.random.default_rng(seed)
     y0 = measure_unloaded(truth, noise_m=NOISE_M, rng=rng)
-    loads = np.linspace(*LOAD_RANGE_KG, COARSE_GRID[0]) * G_STANDARD
-    positions = np.linspace(*POSITION_RANGE_M, COARSE_GRID[1])
+    n_loads, n_positions = GRIDS[grid]
+    loads = np.linspace(*LOAD_RANGE_KG, n_loads) * G_STANDARD
+    positions = np.linspace(*POSITION_RANGE_M, n_positions)
     f, xf, y = measure_camber(truth, loads, positions, noise_m=NOISE_M, rng=rng)
     f = np.concatenate([[0.0], f])
     data = CamberData(
-        f"{design}-coarse-d0",
+        f"{design}-{grid}-d0",
         truth.positions_m,
         f,
         np.concatenate([[0.0], xf]),
@@ -169,8 +173,8 @@ def bench_identification(
 ) -> dict:
     """Identify each demo ski (shipped measurements, the stored held-out cases) and each study
     design (coarse 9 × 5 grid with the unloaded profile, the ski job's held-out cases) as the
-    ski job does; one run each. Returns ``{"skis": {name: row}, "target_s", "job"}``, where
-    ``job`` holds the ski job's end-to-end times of the study's coarse run (when present)."""
+    ski job does; one run each. Returns ``{"skis": {name: row}, "target_s"}`` (the ski job end
+    to end: :mod:`app.evidence.ski_job`)."""
     from skisnow.app.storage.skis import mean_profiles
     from skisnow.app.training.data import job_held_out
 
@@ -192,40 +196,7 @@ def bench_identification(
             "kind": f"study design ({FAMILIES[design]})",
             **_one(data, truth, held, None),
         }
-    return {"target_s": TARGET_S, "skis": rows, "job": study_job_times()}
-
-
-def study_job_times(docs: Path | None = None) -> dict:
-    """The ski job's end-to-end times (upload to done: network training, identification, model
-    choice) of the own-ski study's coarse run, from ``docs/studies/own-ski-study-coarse.json``
-    (``{}`` when absent): per ski [s], with the run's command, commit and date."""
-    from skisnow.app.storage.common import docs_dir
-
-    path = (docs_dir() if docs is None else Path(docs)) / STUDY_JSON
-    if not path.is_file():
-        return {}
-    doc = json.loads(path.read_text())
-    prov = doc.get("provenance", {})
-    times = {
-        f"{s['design']}-{s['grid']}-d{s['draw']}": s["job"]["time_s"]
-        for s in doc.get("skis", [])
-        if s.get("job", {}).get("time_s") is not None
-    }
-    return {
-        "source": f"docs/{STUDY_JSON.as_posix()}",
-        "job_time_s": times,
-        "training": doc.get("settings", {}).get("training"),
-        "command_line": prov.get("command_line"),
-        "git_commit": prov.get("git_commit"),
-        "created_utc": prov.get("created_utc"),
-    }
-
-
-def _training_words(training: dict | None) -> str:
-    """The study's network settings as words: "train_epochs 300, train_ensemble 1"."""
-    if not training:
-        return "settings not recorded"
-    return ", ".join(f"{k} {v:g}" for k, v in training.items() if k.startswith("train_"))
+    return {"target_s": TARGET_S, "skis": rows}
 
 
 def _cases(r: dict) -> str:
@@ -333,19 +304,6 @@ def render_md(d: dict) -> list[str]:
                 f"{n} max |Δc| {v['max_dc_um']:.3f} µm, max |Δ ln EI| {v['max_dlog_ei']:.4f}"
                 for n, v in shipped.items()
             )
-            + ".",
-            "",
-        ]
-    job = d.get("job") or {}
-    if job.get("job_time_s"):
-        t = job["job_time_s"]
-        lines += [
-            "Ski job end to end (upload to done: camber network, identification, held-out "
-            f"model choice), not re-run here: {min(t.values()):.0f}–{max(t.values()):.0f} s over "
-            f"{len(t)} study designs (coarse 9 × 5 grid with the unloaded profile, quick "
-            f"network: {_training_words(job.get('training'))}), from `{job['source']}` (commit "
-            f"{str(job.get('git_commit'))[:12]}, {job.get('created_utc')}, a loaded machine): "
-            + ", ".join(f"{n} {v:.0f} s" for n, v in t.items())
             + ".",
             "",
         ]

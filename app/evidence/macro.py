@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 from skisnow.app.evidence import identification as identification_bench
+from skisnow.app.evidence import ski_job as ski_job_bench
 from skisnow.app.evidence.paper_case import (
     BASE_MODULUS_MPA,
     DOC_POROSITY,
@@ -40,20 +41,24 @@ log = logging.getLogger(__name__)
 
 
 def bench_macro_stage(
-    repeats: int = 7, inference_calls: int = 300, identification: bool = True
+    repeats: int = 7, inference_calls: int = 300, identification: bool = True, job: bool = True
 ) -> dict:
     """``skisnow bench macro``: one macro solve per demo ski at the default grid against the
     fine reference (:func:`bench_macro`), the bending ski, the network inference
     time and (``identification``) the beam identification, several starts included, of the
     three demo skis and three study designs on the coarse grid
     (:func:`app.evidence.identification.bench_identification`; minutes per ski on 2 cores; the
-    tests leave it out, tests/solvers/test_identify*.py cover the identification)."""
+    tests leave it out, tests/solvers/test_identify*.py cover the identification) and (``job``)
+    the ski job end to end with the service's default settings
+    (:func:`app.evidence.ski_job.bench_ski_job`; about a minute per ski)."""
     from skisnow.solvers import camber
 
     out = {"skis": bench_macro(repeats=repeats), "inference": {}}
     out["flexible"] = bench_flexible(repeats=repeats)
     if identification:
         out["identification"] = identification_bench.bench_identification()
+    if job:
+        out["ski_job"] = ski_job_bench.bench_ski_job()
     for name in out["skis"]:
         net = read_ski(SHIPPED_SKI_DIR / f"{name}.h5").network
         if net is None:
@@ -68,30 +73,71 @@ def bench_macro_stage(
     return out
 
 
-#: the parts of the macro stage that ``--only-identification`` keeps from the last run
-KEPT_PARTS = ("skis", "inference", "flexible")
+#: the parts of the macro stage; ``--only-identification`` and ``--only-job`` run one of the
+#: last two again and keep the others from the last run
+PARTS = ("skis", "inference", "flexible", "identification", "ski_job")
+#: the parts run on their own (``--only-<flag>``) and what runs them
+RERUNNABLE = {
+    "identification": ("--only-identification", identification_bench.bench_identification),
+    "ski_job": ("--only-job", ski_job_bench.bench_ski_job),
+}
 
 
-def identification_only(previous: Path) -> dict:
-    """The macro stage with only the beam identification run again: ``skis``, ``inference``
-    and ``flexible`` copied from the ``previous`` run's JSON, named under
-    ``kept_from_previous_run`` with the provenance of the run that measured them: that run's,
-    or, when it kept them itself, the one it names (DataFileError without a previous run)."""
+def _kept_provenance(old: dict) -> dict[str, dict]:
+    """Per part of a stored macro run, the provenance of the run that measured it: the file's own,
+    or, for a part that run kept itself, the one it names (both the per-part form and the
+    older ``{"parts": [...], "provenance": {...}}`` one)."""
+    kept = old.get("kept_from_previous_run") or {}
+    parts = kept.get("parts", {})
+    if isinstance(parts, list):  # the older form: one provenance for every kept part
+        parts = {k: kept.get("provenance", {}) for k in parts}
+    return {k: parts.get(k) or old.get("provenance", {}) for k in PARTS if k in old}
+
+
+def rerun_only(previous: Path, part: str) -> dict:
+    """The macro stage with only ``part`` (a key of :data:`RERUNNABLE`) run again, every other
+    part the ``previous`` run's JSON holds copied, named under ``kept_from_previous_run``
+    (``parts``: part → the provenance of the run that measured it). DataFileError without a
+    previous run."""
     if not Path(previous).is_file():
         raise DataFileError(
             f"{previous}: no previous macro run to keep the other parts from; run "
             "`skisnow bench macro` once in full"
         )
     old = json.loads(Path(previous).read_text(encoding="utf-8"))
-    out = {k: old[k] for k in KEPT_PARTS if k in old}
-    out["kept_from_previous_run"] = {
-        "parts": [k for k in KEPT_PARTS if k in old],
-        # a previous identification-only run kept them too: they date from its source
-        "provenance": (old.get("kept_from_previous_run") or {}).get("provenance")
-        or old.get("provenance", {}),
-    }
-    out["identification"] = identification_bench.bench_identification()
+    provenance = _kept_provenance(old)
+    out = {k: old[k] for k in PARTS if k in old and k != part}
+    out["kept_from_previous_run"] = {"parts": {k: provenance[k] for k in out}}
+    out[part] = RERUNNABLE[part][1]()
     return out
+
+
+def _kept_md(d: dict) -> list[str]:
+    """The note naming the parts kept from earlier runs, grouped by the run that measured them,
+    and the part run again."""
+    kept = d.get("kept_from_previous_run")
+    if not kept:
+        return []
+    parts = kept.get("parts", {})
+    if isinstance(parts, list):
+        parts = {k: kept.get("provenance", {}) for k in parts}
+    runs: dict[tuple, list[str]] = {}
+    for name, prov in parts.items():
+        key = (prov.get("created_utc", "?"), str(prov.get("git_commit", "?"))[:12])
+        runs.setdefault(key, []).append(name)
+    words = "; ".join(
+        f"{', '.join(names)} from the run of {when} (commit {commit})"
+        for (when, commit), names in runs.items()
+    )
+    again = [
+        f"{name.replace('_', ' ')} (`skisnow bench macro {flag}`)"
+        for name, (flag, _) in RERUNNABLE.items()
+        if name in d and name not in parts
+    ]
+    return [
+        "",
+        f"Parts kept from earlier runs: {words}; run again here: {', '.join(again) or 'none'}.",
+    ]
 
 
 def bench_flexible(repeats: int = 7, skis: tuple[str, ...] = ("ski-a", "ski-b")) -> dict:
@@ -260,17 +306,9 @@ def render_md(d: dict) -> list[str]:
         )
     lines.append("")
     lines += _flexible_md(d.get("flexible", {}))
-    kept = d.get("kept_from_previous_run")
-    if kept:
-        prov = kept.get("provenance", {})
-        lines += [
-            "",
-            f"The {', '.join(kept.get('parts', []))} parts above are kept from the run of "
-            f"{prov.get('created_utc', '?')} (commit {str(prov.get('git_commit', '?'))[:12]}); "
-            "only the beam identification below was run again (`skisnow bench macro "
-            "--only-identification`).",
-        ]
+    lines += _kept_md(d)
     lines += identification_bench.render_md(d.get("identification", {}))
+    lines += ski_job_bench.render_md(d.get("ski_job", {}))
     return lines
 
 

@@ -80,17 +80,26 @@ CHOICE_RULE = (
     "measured H* < 0.2 mm, on the same held-out measured cases neither model was fitted to; the "
     "camber network serves only when e_network² + t < e_beam², t = σ²·sqrt(2/n) the standard "
     "deviation of a mean of n squared noise readings (the resolution of the estimate): within "
-    "it the beam is preferred (it is physics: it extrapolates in load and bends on the snow)"
+    "it the beam is preferred (it is physics: it extrapolates in load and bends on the snow); "
+    "a network that failed the job's accuracy check (held-out RMSE where H* < 0.2 mm above "
+    "the service's limit) is not served"
 )
 
 
 def choose_profile_model(
-    beam_excess_m: float, network_excess_m: float, tie_m2: float
+    beam_excess_m: float, network_excess_m: float, tie_m2: float, network_refused: str = ""
 ) -> tuple[str, str]:
     """The profile model a ski serves from the held-out comparison (:data:`CHOICE_RULE`):
     ``("identified_beam" | "network", why)``. ``beam_excess_m`` is NaN when no beam passed
-    the identification; ``network_excess_m`` NaN when there is no network."""
+    the identification; ``network_excess_m`` NaN when there is no network.
+    ``network_refused``: why the network may not serve (its failed accuracy check), or ''."""
     b, n = float(beam_excess_m), float(network_excess_m)
+    if network_refused and np.isfinite(b):
+        return "identified_beam", (
+            f"the camber network failed its accuracy check ({network_refused}): the identified "
+            f"beam serves (it predicts the held-out cases to {b * 1e6:.2f} µm above the device "
+            "noise where H* < 0.2 mm)"
+        )
     if not np.isfinite(b):
         return "network", "no identified beam to compare"
     if not np.isfinite(n):
@@ -122,6 +131,7 @@ def held_out_comparison(
     case_index: np.ndarray,
     noise_m: float,
     params: dict | None,
+    network_refused: str = "",
 ) -> dict:
     """The :data:`MODEL_CHOICE` group: the camber network and the identified beam judged on the
     same held-out measured cases (neither was fitted to them), and the model the ski serves.
@@ -144,6 +154,9 @@ def held_out_comparison(
     params : dict
         Provenance parameters; its ``seed`` and ``fraction`` (the held-out draw's) are also
         stored as the attributes ``seed`` and ``held_out_fraction``.
+    network_refused : str
+        Why the network may not serve (the job's failed accuracy check), or ''; kept as the
+        attribute ``network_refused``. The network is still judged (its errors are stored).
 
     Returns
     -------
@@ -199,8 +212,13 @@ def held_out_comparison(
         attrs[f"{name}_excess_band_m"] = _excess(rms_band, noise_m)
         attrs[f"{name}_excess_all_m"] = _excess(rms_all, noise_m)
         out[f"{name}_case_rms_m"] = np.sqrt(np.mean(d**2, axis=1))
+    if network_refused:
+        attrs["network_refused"] = network_refused
     served, why = choose_profile_model(
-        attrs["beam_excess_band_m"], attrs["network_excess_band_m"], attrs["tie_m2"]
+        attrs["beam_excess_band_m"],
+        attrs["network_excess_band_m"],
+        attrs["tie_m2"],
+        network_refused,
     )
     attrs["served"] = served
     attrs["reason"] = why

@@ -42,42 +42,67 @@ def test_bench_macro_stage_renders():
     assert all(0 < r["median_s"] < 1 for r in data["inference"].values())
 
 
-def test_macro_identification_only_keeps_the_other_parts(tmp_path, monkeypatch):
-    """``bench macro --only-identification``: the identification is run again (here a stand-in:
-    the real one takes minutes per ski), the other parts are the previous run's, and the page
-    says which and from when; without a previous run it says what to run."""
+@pytest.mark.parametrize(
+    ("part", "bench"),
+    [
+        ("identification", "skisnow.app.evidence.identification.bench_identification"),
+        ("ski_job", "skisnow.app.evidence.ski_job.bench_ski_job"),
+    ],
+)
+def test_macro_rerun_only_keeps_the_other_parts(tmp_path, monkeypatch, part, bench):
+    """``bench macro --only-identification`` / ``--only-job``: the part is run again (here a
+    stand-in: the real ones take minutes), every other part is the previous run's, and the page
+    names each kept part with the run that measured it; without a previous run it says what to
+    run."""
     import json
 
     from skisnow.solvers.errors import DataFileError
 
     prev = tmp_path / "macro.json"
+    first = {"created_utc": "2026-11-26T15:29:16+00:00", "git_commit": "bd0184f0c140b2"}
+    second = {"created_utc": "2026-11-29T07:22:10+00:00", "git_commit": "bf77bc48bf57aa"}
+    # the older form of the note: one provenance for the parts kept by the identification rerun
     old = {
         "stage": "macro",
-        "provenance": {"created_utc": "2026-11-26T15:29:16+00:00", "git_commit": "bd0184f0c140b2"},
+        "provenance": second,
         "skis": {"ski-a": {"x": 1}},
         "inference": {"ski-a": {"median_s": 1e-4}},
         "flexible": {"ski-a": {"y": 2}},
         "identification": {"skis": {"old": {}}},
+        "kept_from_previous_run": {
+            "parts": ["skis", "inference", "flexible"],
+            "provenance": first,
+        },
     }
     prev.write_text(json.dumps(old))
-    fresh = {"target_s": 120.0, "skis": {"new": {}}, "job": {}}
-    monkeypatch.setattr(macro.identification_bench, "bench_identification", lambda: fresh)
-    data = macro.identification_only(prev)
-    assert data["identification"] == fresh
-    assert {k: data[k] for k in macro.KEPT_PARTS} == {k: old[k] for k in macro.KEPT_PARTS}
-    assert data["kept_from_previous_run"]["parts"] == list(macro.KEPT_PARTS)
-    assert data["kept_from_previous_run"]["provenance"] == old["provenance"]
+    fresh = {"skis": {"new": {}}}
+    monkeypatch.setitem(macro.RERUNNABLE, part, (macro.RERUNNABLE[part][0], lambda: fresh))
+    data = macro.rerun_only(prev, part)
+    assert data[part] == fresh
+    kept = [k for k in macro.PARTS if k in old and k != part]
+    assert {k: data[k] for k in kept} == {k: old[k] for k in kept}
+    parts = data["kept_from_previous_run"]["parts"]
+    assert list(parts) == kept
+    assert parts["skis"] == first  # kept twice: still the run that measured it
+    if part == "ski_job":
+        assert parts["identification"] == second
     monkeypatch.setattr(macro.identification_bench, "render_md", lambda d: ["IDENT"])
+    monkeypatch.setattr(macro.ski_job_bench, "render_md", lambda d: ["JOB"])
     monkeypatch.setattr(macro, "_case_words", lambda: "case")
     monkeypatch.setattr(macro, "_profile_words", lambda d: "profile")
     text = "\n".join(_kept_lines(macro.render_md, data))
-    assert "kept from the run of 2026-11-26T15:29:16+00:00 (commit bd0184f0c140)" in text
+    assert (
+        "skis, inference, flexible from the run of 2026-11-26T15:29:16+00:00 (commit bd0184f0c140)"
+        in text
+    )
+    flag = macro.RERUNNABLE[part][0]
+    assert f"run again here: {part.replace('_', ' ')} (`skisnow bench macro {flag}`)" in text
     # run again on its own output: the kept parts still date from the run that measured them
-    prev.write_text(json.dumps({**data, "provenance": {"created_utc": "2026-11-28T08:57:02"}}))
-    again = macro.identification_only(prev)
-    assert again["kept_from_previous_run"]["provenance"] == old["provenance"]
+    prev.write_text(json.dumps({**data, "provenance": {"created_utc": "2026-12-07T08:57:02"}}))
+    again = macro.rerun_only(prev, part)
+    assert again["kept_from_previous_run"]["parts"]["skis"] == first
     with pytest.raises(DataFileError, match="bench macro"):
-        macro.identification_only(tmp_path / "missing.json")
+        macro.rerun_only(tmp_path / "missing.json", part)
 
 
 def _kept_lines(render, data):

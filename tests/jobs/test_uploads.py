@@ -490,7 +490,52 @@ def test_ski_upload_with_the_unloaded_profile_ends_done(catalogue, tmp_path, cam
         assert page.status_code == 200 and 'id="model-choice-table"' in page.text
 
 
-def test_ski_refused_by_accuracy_check(catalogue, tmp_path, upload_csv):
+def test_a_network_above_the_accuracy_limit_leaves_the_beam_to_serve(
+    catalogue, tmp_path, upload_csv
+):
+    """A network that fails the accuracy check (5 epochs, limit 8 µm) does not fail the job
+    when the beam identified from the same cases passes its own held-out check: the beam
+    serves, the held-out comparison says why, and the job's stage times are kept (#26: with the
+    service's default settings the 9 × 5 grid the upload accepts failed here, 25 µm on
+    race-classic; docs/benchmarks.md "Ski job end to end")."""
+    with make_client(
+        catalogue, tmp_path, train_epochs=5, train_lbfgs_epochs=0, ski_max_test_rmse_um=8.0
+    ) as client:
+        r = post_ski(client, upload_csv, name="rough")
+        assert r.status_code == 202, r.text[:500]
+        job = wait_job(client, r.json()["job"])
+        assert job["state"] == "done", job
+        assert "above the accuracy limit: not served" in job["message"]
+        assert "limit 8 µm" in job["message"]
+        shown = client.get("/v1/skis/rough").json()
+        assert shown["usable"] is True
+        model = shown["profile_model"]
+        assert model["name"] == "identified_beam"
+        comparison = model["held_out_comparison"]
+        assert comparison["served"] == "identified_beam"
+        assert "failed its accuracy check" in comparison["reason"]
+        # the network was judged all the same: its held-out error is far above the beam's
+        assert comparison["network_excess_band_um"] > comparison["beam_excess_band_um"]
+        stages = shown["metadata"]["job_stage_s"]
+        assert list(stages) == ["training", "identification", "model_choice", "ski_file", "figures"]
+        assert all(v >= 0 for v in stages.values()) and stages["identification"] > 0
+        answer = client.post(
+            "/v1/contact",
+            json={"ski": "rough", "grind": "tiny-grind", **CONTACT},
+        )
+        assert answer.status_code == 200, answer.text[:300]
+
+
+def test_ski_refused_when_neither_model_can_serve(catalogue, tmp_path, upload_csv, monkeypatch):
+    """The network fails its accuracy check and the beam is not identified: the job fails with
+    both reasons and keeps nothing; the name can be used again."""
+    from skisnow.app.jobs import ski_job
+
+    def no_beam(data, item, callback=None, held_out_index=None):
+        reason = "beam not identified: misfit 9.00 µm is 3.0× the device noise"
+        return {"attrs": {"ok": False, "reason": reason}}, reason + " (rigid model only)"
+
+    monkeypatch.setattr(ski_job, "_identify", no_beam)
     with make_client(
         catalogue, tmp_path, train_epochs=5, train_lbfgs_epochs=0, ski_max_test_rmse_um=8.0
     ) as client:
@@ -499,6 +544,8 @@ def test_ski_refused_by_accuracy_check(catalogue, tmp_path, upload_csv):
         job = wait_job(client, r.json()["job"])
         assert job["state"] == "failed"
         assert "accuracy check failed" in job["error"] and "limit 8 µm" in job["error"]
+        assert "beam not identified: misfit 9.00 µm" in job["error"]
+        assert "neither camber model can serve" in job["error"]
         shown = client.get("/v1/skis/rough").json()
         assert shown["state"] == "failed" and shown["usable"] is False
         assert stored_files(tmp_path) == []
