@@ -28,9 +28,10 @@ log = logging.getLogger(__name__)
 
 __all__ = ["JOB_SKIS", "POLL_S", "bench_ski_job", "render_md"]
 
-#: (design, grid) of the skis timed: a classic and a skate design on the dense 13 × 9 grid (the
-#: grid the docs recommend) and the classic one on the coarse 9 × 5 grid too
-JOB_SKIS = (("race-classic", "dense"), ("race-classic", "coarse"), ("skate", "dense"))
+#: (design, grid) of the skis timed: one design per family (classic, functional, skate;
+#: app.evidence.identification.BENCH_DESIGNS), each on the dense 13 × 9 grid and on the smallest
+#: grid the upload accepts, 9 × 5
+JOB_SKIS = tuple((d, g) for d in ib.BENCH_DESIGNS for g in ("dense", "coarse"))
 #: how often the job's state is read [s]
 POLL_S = 0.2
 #: a job that takes longer is reported as timed out [s]
