@@ -216,7 +216,9 @@ def _f(v, fmt: str) -> str:
 
 
 def render_md(d: dict) -> list[str]:
-    """The section "Beam identification" of docs/benchmarks.md from a stored run."""
+    """The section "Beam identification" of docs/benchmarks.md from a stored run (its optional
+    ``comparison``: a sentence on the same run at another commit, kept in the JSON so that the
+    page, which is regenerated, keeps it)."""
     if not d:
         return []
     if "skis" not in d:  # a run before issue #26: demo skis only, one start per path
@@ -287,9 +289,10 @@ def render_md(d: dict) -> list[str]:
     lines.append("")
     if loads:
         lines += [
-            f"CPU: this process and its two path workers together. The machine was shared: 1-min "
-            f"load average {min(loads):.1f}–{max(loads):.1f} at the runs' starts and ends (2 "
-            "cores; above 2, other work competed for them).",
+            "CPU: this process and its two path workers together. "
+            + (d["comparison"] + " " if d.get("comparison") else "")
+            + f"The machine was shared: 1-min load average {min(loads):.1f}–{max(loads):.1f} at "
+            "the runs' starts and ends (2 cores; above 2, other work competed for them).",
             "",
         ]
     failed = [f"{n} ({r.get('reason')})" for n, r in rows.items() if not r.get("identified")]

@@ -105,6 +105,9 @@ def _one(design: str, grid: str, work: Path, overrides: dict | None = None) -> d
         item = client.get(f"/v1/skis/{name}").json()
     meta = item.get("metadata") or {}
     row["stage_s"] = meta.get("job_stage_s", {})
+    # the network's held-out RMSE where H* < 0.2 mm [µm]: above the limit it is not served
+    rmse_m = (meta.get("accuracy") or {}).get("test_rmse_band_m")
+    row["network_test_rmse_um"] = None if rmse_m is None else round(rmse_m * 1e6, 2)
     row["profile_model"] = (item.get("profile_model") or {}).get("name")
     row["load_avg_1min"] = [load_before, os.getloadavg()[0]]
     log.info("ski job bench: %s %s in %.0f s %s", name, row["state"], row["time_s"], row["stage_s"])
@@ -129,6 +132,13 @@ def _stages(stage_s: dict) -> str:
     return " / ".join(_seconds(stage_s[k]) if k in stage_s else "—" for k in order)
 
 
+def _rmse(v: float | None, limit: float) -> str:
+    """The network's held-out RMSE [µm], with "not served" above the limit."""
+    if v is None:
+        return "—"
+    return f"{v:.1f}" + (" (not served)" if v > limit else "")
+
+
 def _seconds(v: float) -> str:
     """A stage's seconds: whole above 10 s, two digits below (0.38, 4.2)."""
     return f"{v:.0f}" if v >= 10 else f"{v:.2g}"
@@ -148,11 +158,16 @@ def render_md(d: dict) -> list[str]:
         f"to the job's `done` (polled every {d.get('poll_s', POLL_S):g} s); the split is the "
         "job's own (`job_stage_s` in the item's metadata). Skis: study designs measured by the "
         "virtual device (draw 0 of `scripts/own_ski_study.py`, the unloaded profile first, 3 µm "
-        "noise), the dense grid 13 × 9 and the coarse 9 × 5. One run each, on 2 cores.",
+        "noise), the dense grid 13 × 9 and the coarse 9 × 5, the smallest the upload accepts. A "
+        "network whose held-out RMSE (where H* < 0.2 mm, device noise included) is above the "
+        "limit is not served and the identified beam serves alone; before #26's fix such a job "
+        'failed ("accuracy check failed"). One run each, on 2 cores.',
         "",
         "| ski | cases | state | upload to done [s] | training / identification / model choice / "
-        "ski file / figures [s] | profile model served | 1-min load before → after |",
-        "|---|---|---|---|---|---|---|",
+        "ski file / figures [s] | network held-out RMSE [µm] (limit "
+        f"{t.get('ski_max_test_rmse_um', 8.0):g}) | profile model served | 1-min load before → "
+        "after |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for name, r in d["skis"].items():
         la = r.get("load_avg_1min") or []
@@ -161,6 +176,7 @@ def render_md(d: dict) -> list[str]:
         lines.append(
             f"| {name} | {r.get('cases', '—')} | {r.get('state')} | "
             f"{'—' if time_s is None else f'{time_s:.0f}'} | {_stages(r.get('stage_s') or {})} | "
+            f"{_rmse(r.get('network_test_rmse_um'), t.get('ski_max_test_rmse_um', 8.0))} | "
             f"{r.get('profile_model') or '—'} | {load} |"
         )
     lines.append("")

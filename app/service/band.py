@@ -721,6 +721,10 @@ def answer_band(
             widths[q], widths_above[q] = one_sided_widths(parts, e_eff, share)
     if min_separation_unresolved:
         widths["min_average_separation"] = float("nan")
+        # its parts mean nothing without a converged value: none is listed (the page and the
+        # JSON would show a grid part of a quantity that has no band)
+        for ws in components.values():
+            ws.pop("min_average_separation", None)
         not_covered.insert(
             0,
             "the minimum average separation has no grid-converged value here ("

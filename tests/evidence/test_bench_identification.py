@@ -73,7 +73,10 @@ def test_section_renders_each_ski_and_says_whether_the_target_is_met():
     assert "(skate-coarse-d0; the slowest 131 s)." in text  # load 2.4: not a loaded machine
     assert "load average 1.9–2.4" in text
     assert "ski-a max |Δc| 0.000 µm, max |Δ ln EI| 0.0000" in text
-    assert "quick network: train_epochs 300)" in text
+    # a stored comparison with another commit is kept on the regenerated page
+    note = "The same run at the commit before: 491 s CPU."
+    again = "\n".join(ib.render_md({**d, "comparison": note}))
+    assert f"CPU: this process and its two path workers together. {note} The machine" in again
     # under load the verdict says the wall times are upper bounds
     loaded = "\n".join(ib.render_md({"skis": {"a": _row(130.0, load_avg_1min=[6.4, 6.9])}}))
     assert "(a; the slowest 130 s), measured while other jobs loaded the 2 cores" in loaded

@@ -25,6 +25,8 @@ def test_the_job_bench_uploads_a_study_ski_and_splits_its_time():
     lines = ski_job.render_md(d)
     assert lines[0] == "### Ski job end to end (issue #26)"
     assert any(line.startswith("| race-classic-coarse-d0 | 46 | done |") for line in lines)
+    assert row["network_test_rmse_um"] > 8.0  # 5 epochs: far above the limit
+    assert any(" (not served) | identified_beam |" in line for line in lines)
     assert "5 Adam + 0 L-BFGS epochs × 1 members" in "\n".join(lines)
 
 
@@ -45,12 +47,14 @@ def test_the_section_renders_a_failed_job_and_an_empty_run():
                     "figures": 0.38,
                 },
                 "profile_model": "identified_beam",
+                "network_test_rmse_um": 4.24,
                 "load_avg_1min": [0.9, 1.7],
             },
             "b-coarse-d0": {"cases": 46, "state": "failed", "time_s": 15.1, "stage_s": {}},
         },
     }
     lines = ski_job.render_md(d)
-    row = "| a-dense-d0 | 118 | done | 54 | 27 / 23 / 0.05 / 0.07 / 0.38 | identified_beam |"
+    row = "| a-dense-d0 | 118 | done | 54 | 27 / 23 / 0.05 / 0.07 / 0.38 | 4.2 | identified_beam |"
     assert f"{row} 0.9 → 1.7 |" in lines
-    assert "| b-coarse-d0 | 46 | failed | 15 | — / — / — / — / — | — | — |" in lines
+    assert "| b-coarse-d0 | 46 | failed | 15 | — / — / — / — / — | — | — | — |" in lines
+    assert "network held-out RMSE [µm] (limit 8)" in "\n".join(lines)
