@@ -243,20 +243,34 @@ MIN_SEPARATION_ZONE_PIXELS = 10
 #: from 4 mm to 0.25 mm pixels (−3.5 … −7 % per halving, no limit), where the coarse-grid
 #: difference read 1–3 % (docs/studies/metric-bands.md)
 MIN_SEPARATION_EDGE_ROWS = 3
+#: on grids finer than the default (4 mm: its 3 end rows span 12 mm, where the rule above was
+#: measured) the contact climbs a few pixels up the corner's steep side, so the peak sits a
+#: few rows inside the zone: a peak within this distance of the zone's end [m] and in the
+#: zone's outer quarter is an edge peak too. Measured on the `fine` preset (1 mm): ski-b 80 kg
+#: at −100 mm, 20 MPa, tail and tip zones peak 5 and 2 mm from their ends (121 and 58 mm long;
+#: peak / mean pressure 5.1 and 4.9), random-102's true beam 5 and 6 mm (54 and 63 mm long),
+#: where smooth zones peak 21–205 mm inside (ski-a 40 kg at −160 mm, 200 MPa, 44 and 109 mm
+#: long: 21 and 51 mm; peak / mean 1.3–1.75); scripts in the note of issue #26
+MIN_SEPARATION_EDGE_M = 12e-3
 
 
 def edge_peak_m(positions_m, pressure_pa, zone) -> float | None:
     """X [m] of a contact zone's pressure peak when it lies in one of the zone's
-    :data:`MIN_SEPARATION_EDGE_ROWS` end rows (its edge's pressure rise not resolved), else
-    ``None``. ``positions_m``, ``pressure_pa``: the answer's width-averaged pressure line; zones
-    too short to tell (:data:`MIN_SEPARATION_ZONE_PIXELS`) are ``None`` (their own rule)."""
+    :data:`MIN_SEPARATION_EDGE_ROWS` end rows, or (finer grids) within
+    :data:`MIN_SEPARATION_EDGE_M` of its end and in its outer quarter (its edge's pressure rise
+    not resolved), else ``None``. ``positions_m``, ``pressure_pa``: the answer's width-averaged
+    pressure line (uniform rows); zones too short to tell (:data:`MIN_SEPARATION_ZONE_PIXELS`)
+    are ``None`` (their own rule)."""
     x = np.asarray(positions_m, dtype=float)
     rows = np.flatnonzero((x >= zone.start_m) & (x <= zone.end_m))
     p = np.asarray(pressure_pa, dtype=float)[rows]
     if rows.size < MIN_SEPARATION_ZONE_PIXELS or not np.isfinite(p).any():
         return None
     k = int(np.nanargmax(p))
-    if k < MIN_SEPARATION_EDGE_ROWS or k >= rows.size - MIN_SEPARATION_EDGE_ROWS:
+    inside = min(k, rows.size - 1 - k)  # rows between the peak and the zone's nearer end
+    dx = float(x[rows[1]] - x[rows[0]])
+    near_end = inside * dx < MIN_SEPARATION_EDGE_M and inside < rows.size / 4
+    if inside < MIN_SEPARATION_EDGE_ROWS or near_end:
         return float(x[rows[k]])
     return None
 

@@ -374,21 +374,21 @@ def test_a_zone_peaking_at_its_edge_has_a_pressure_that_does_not_converge():
     steep rise, like the start of a tip's rise) concentrates the pressure at the zone's edge,
     and the peak grows without limit as the grid is refined (≥ 10 % per halving here: the
     minimum separation, which follows it, has no grid-converged value); a smooth profile peaks
-    inside and converges. :func:`band.edge_peak_m` tells the two apart on 4 and 2 mm pixels."""
+    inside and converges. :func:`band.edge_peak_m` tells the two apart on 4, 2 and 1 mm pixels
+    (on 1 mm the contact climbs a few pixels up the steep side: the rule's distance in mm)."""
     x = np.linspace(-0.5, 0.5, 100_001)
     smooth = x**2 / (2 * 20.0)  # radius 20 m
     corner = np.where(x < 0, -0.002 * x, 0.02 * x)  # slopes 2 and 20 µm/mm meeting at 0
     peaks = {}
     for name, g in (("smooth", smooth), ("corner", corner)):
         peaks[name] = []
-        for pixel_m in (0.004, 0.002):
+        for pixel_m in (0.004, 0.002, 0.001):
             peak, at = _peak_and_edge(g, x, pixel_m)
             peaks[name].append(peak)
             if name == "smooth":
                 assert at is None
             else:
-                assert at is not None and abs(at) <= pixel_m
-        peaks[name].append(_peak_and_edge(g, x, 0.001)[0])
+                assert at is not None and abs(at) < band.MIN_SEPARATION_EDGE_M, (pixel_m, at)
     assert np.all(np.abs(np.diff(peaks["smooth"])) < 0.01 * peaks["smooth"][0])
     assert np.all(np.diff(peaks["corner"]) / peaks["corner"][:-1] > 0.1)
 
@@ -408,6 +408,31 @@ def test_a_zone_peaking_at_its_edge_has_no_min_separation_band(shipped):
     # no part of a band that is not given is listed (the page showed a ±6 % grid part for it)
     parts = ans["band"]["components"]
     assert parts["macro_grid"] and all("min_average_separation" not in w for w in parts.values())
+
+
+def test_an_edge_peak_on_the_fine_grid_is_found_a_few_pixels_inside_its_zone(shipped):
+    """On the `fine` preset (1 mm) ski-b's tail and tip zones (80 kg, −100 mm, 20 MPa) peak 5
+    and 2 mm inside their ends, more than 3 rows: the rule's distance in mm finds them, while a
+    smooth answer's zones (ski-a 40 kg at −160 mm, 200 MPa) peak 21–51 mm inside and stay
+    resolved."""
+    cornered = service.contact(
+        shipped,
+        service.ContactInputs(
+            "ski-b", "grind-1", 80, -100, 20, 0.5, ski_model="rigid", preset="fine"
+        ),
+    )
+    assert cornered["band"]["relative_half_width"]["min_average_separation"] is None
+    why = [z["unresolved"] for z in cornered["apparent"]["zones"]]
+    assert why[0] and "peaks at its edge" in why[0] and why[1] is None
+    assert why[2] and "peaks at its edge" in why[2]
+    smooth = service.contact(
+        shipped,
+        service.ContactInputs(
+            "ski-a", "grind-1", 40, -160, 200, 0.5, ski_model="rigid", preset="fine"
+        ),
+    )
+    assert all(z["unresolved"] is None for z in smooth["apparent"]["zones"])
+    assert smooth["band"]["relative_half_width"]["min_average_separation"] is not None
 
 
 @pytest.mark.xfail(
