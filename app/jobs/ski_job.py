@@ -91,9 +91,7 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
     # a network above the limit may not serve, but the job goes on: an identified beam that
     # passes its own held-out check serves alone (a coarse grid the network cannot learn, #26);
     # the job fails only when neither model can serve (below, after the identification)
-    network_refused = (
-        "" if math.isfinite(rmse_um) and rmse_um <= limit else f"accuracy check failed: {figures}"
-    )
+    network_refused = "" if math.isfinite(rmse_um) and rmse_um <= limit else figures
     ctx.check_stop()
     o = item.metadata["outline"]
     record = SkiRecord(
@@ -121,8 +119,8 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
     stage_done("identification")
     if network_refused and identified_beam(record.identified) is None:
         raise InputError(
-            f"{network_refused}; {beam_note}: neither camber model can serve; measure more load "
-            "cases or denser positions"
+            f"accuracy check failed: {figures}; {beam_note}: neither camber model can serve; "
+            "measure more load cases or denser positions"
         )
     record.identified, choice_note = _choose_model(
         record.identified, result.network, (fm, xfm, ym), held_m, item, network_refused

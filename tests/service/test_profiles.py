@@ -92,8 +92,8 @@ def test_choice_rule_prefers_the_beam_within_the_resolution_of_the_estimate():
     assert choose_profile_model(np.nan, 0.50e-6, tie)[0] == "network"  # no beam
     assert choose_profile_model(0.50e-6, np.nan, tie)[0] == "identified_beam"  # no network
     # a network that failed the job's accuracy check never serves beside a beam, even a better one
-    served, why = choose_profile_model(0.50e-6, 0.20e-6, tie, "accuracy check failed: 25 µm")
-    assert served == "identified_beam" and "failed its accuracy check (accuracy check" in why
+    served, why = choose_profile_model(0.50e-6, 0.20e-6, tie, "held-out RMSE 25 µm (limit 8 µm)")
+    assert served == "identified_beam" and "failed its accuracy check (held-out RMSE 25" in why
 
 
 @pytest.mark.skipif(read_ski(SKI).network is None, reason="ski-a ships its network")
