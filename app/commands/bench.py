@@ -136,14 +136,19 @@ def _run_micro(args: argparse.Namespace) -> int:
 
 
 def _run_macro(args: argparse.Namespace) -> int:
+    from skisnow.app.api.factory import create_api
+    from skisnow.app.evidence import identification, ski_job
+
     previous = writer.DOCS / "bench" / "macro.json"
     if args.only_identification:
-        data = macro.rerun_only(previous, "identification")
+        data = macro.rerun_only(previous, "identification", identification.bench_identification)
     elif args.only_job:
-        data = macro.rerun_only(previous, "ski_job")
+        data = macro.rerun_only(previous, "ski_job", lambda: ski_job.bench_ski_job(create_api))
     else:
         data = macro.bench_macro_stage(
-            args.repeats, identification=args.identification, job=args.job
+            args.repeats,
+            identification=args.identification,
+            make_app=create_api if args.job else None,
         )
     path = writer.write_stage("macro", data, None)
     print(f"wrote {path} and {writer.DOCS / 'benchmarks.md'}")

@@ -41,7 +41,7 @@ log = logging.getLogger(__name__)
 
 
 def bench_macro_stage(
-    repeats: int = 7, inference_calls: int = 300, identification: bool = True, job: bool = True
+    repeats: int = 7, inference_calls: int = 300, identification: bool = True, make_app=None
 ) -> dict:
     """``skisnow bench macro``: one macro solve per demo ski at the default grid against the
     fine reference (:func:`bench_macro`), the bending ski, the network inference
@@ -57,8 +57,8 @@ def bench_macro_stage(
     out["flexible"] = bench_flexible(repeats=repeats)
     if identification:
         out["identification"] = identification_bench.bench_identification()
-    if job:
-        out["ski_job"] = ski_job_bench.bench_ski_job()
+    if make_app is not None:
+        out["ski_job"] = ski_job_bench.bench_ski_job(make_app)
     for name in out["skis"]:
         net = read_ski(SHIPPED_SKI_DIR / f"{name}.h5").network
         if net is None:
@@ -76,11 +76,8 @@ def bench_macro_stage(
 #: the parts of the macro stage; ``--only-identification`` and ``--only-job`` run one of the
 #: last two again and keep the others from the last run
 PARTS = ("skis", "inference", "flexible", "identification", "ski_job")
-#: the parts run on their own (``--only-<flag>``) and what runs them
-RERUNNABLE = {
-    "identification": ("--only-identification", identification_bench.bench_identification),
-    "ski_job": ("--only-job", ski_job_bench.bench_ski_job),
-}
+#: the parts run on their own and their flags
+RERUNNABLE = {"identification": "--only-identification", "ski_job": "--only-job"}
 
 
 def _kept_provenance(old: dict) -> dict[str, dict]:
@@ -94,11 +91,11 @@ def _kept_provenance(old: dict) -> dict[str, dict]:
     return {k: parts.get(k) or old.get("provenance", {}) for k in PARTS if k in old}
 
 
-def rerun_only(previous: Path, part: str) -> dict:
-    """The macro stage with only ``part`` (a key of :data:`RERUNNABLE`) run again, every other
-    part the ``previous`` run's JSON holds copied, named under ``kept_from_previous_run``
-    (``parts``: part → the provenance of the run that measured it). DataFileError without a
-    previous run."""
+def rerun_only(previous: Path, part: str, run) -> dict:
+    """The macro stage with only ``part`` (a key of :data:`RERUNNABLE`) run again by ``run()``,
+    every other part the ``previous`` run's JSON holds copied, named under
+    ``kept_from_previous_run`` (``parts``: part → the provenance of the run that measured it).
+    DataFileError without a previous run."""
     if not Path(previous).is_file():
         raise DataFileError(
             f"{previous}: no previous macro run to keep the other parts from; run "
@@ -108,7 +105,7 @@ def rerun_only(previous: Path, part: str) -> dict:
     provenance = _kept_provenance(old)
     out = {k: old[k] for k in PARTS if k in old and k != part}
     out["kept_from_previous_run"] = {"parts": {k: provenance[k] for k in out}}
-    out[part] = RERUNNABLE[part][1]()
+    out[part] = run()
     return out
 
 
@@ -131,7 +128,7 @@ def _kept_md(d: dict) -> list[str]:
     )
     again = [
         f"{name.replace('_', ' ')} (`skisnow bench macro {flag}`)"
-        for name, (flag, _) in RERUNNABLE.items()
+        for name, flag in RERUNNABLE.items()
         if name in d and name not in parts
     ]
     return [

@@ -38,9 +38,11 @@ POLL_S = 0.2
 TIMEOUT_S = 3600.0
 
 
-def _client(data_dir: Path, overrides: dict | None = None):
-    """A fresh app on ``data_dir`` with the service's default settings (``overrides``: a test's
-    smaller network), answering for the shipped tables and skis (job poll at :data:`POLL_S`)."""
+def _client(make_app, data_dir: Path, overrides: dict | None = None):
+    """A fresh app from ``make_app(settings, catalogue)`` (the API factory; this module sits below
+    the API and is handed it) on ``data_dir`` with the service's default settings
+    (``overrides``: a test's smaller network), answering for the shipped tables and skis (job poll
+    at :data:`POLL_S`)."""
     try:
         from fastapi.testclient import TestClient
     except ImportError as exc:  # httpx missing
@@ -49,13 +51,12 @@ def _client(data_dir: Path, overrides: dict | None = None):
             "pip install -e '.[test]'"
         ) from exc
     from skisnow.app import service
-    from skisnow.app.main import create_app
     from skisnow.app.settings import Settings
     from skisnow.app.storage.skis import SHIPPED_SKI_DIR
 
     shipped = service.load_catalogue(SHIPPED_SKI_DIR.parent)
     settings = Settings(data_dir=data_dir, warm_up=False, job_poll_s=POLL_S, **(overrides or {}))
-    return TestClient(create_app(settings, catalogue=shipped), raise_server_exceptions=False)
+    return TestClient(make_app(settings, shipped), raise_server_exceptions=False)
 
 
 def _training_settings(overrides: dict | None = None) -> dict:
@@ -68,7 +69,7 @@ def _training_settings(overrides: dict | None = None) -> dict:
     return {k: (overrides or {}).get(k, fields[k].default) for k in keys}
 
 
-def _one(design: str, grid: str, work: Path, overrides: dict | None = None) -> dict:
+def _one(make_app, design: str, grid: str, work: Path, overrides: dict | None = None) -> dict:
     """Upload one measured ski and wait for its job: the row of the bench."""
     from skisnow.app.storage.skis import write_camber_csv
 
@@ -81,7 +82,7 @@ def _one(design: str, grid: str, work: Path, overrides: dict | None = None) -> d
     data_dir.mkdir(parents=True)
     row: dict = {"design": design, "grid": grid, "cases": int(data.loads_n.size)}
     load_before = os.getloadavg()[0]
-    with _client(data_dir, overrides) as client:
+    with _client(make_app, data_dir, overrides) as client:
         t0 = time.perf_counter()
         r = client.post(
             "/v1/skis",
@@ -115,15 +116,16 @@ def _one(design: str, grid: str, work: Path, overrides: dict | None = None) -> d
 
 
 def bench_ski_job(
-    skis: tuple[tuple[str, str], ...] = JOB_SKIS, overrides: dict | None = None
+    make_app, skis: tuple[tuple[str, str], ...] = JOB_SKIS, overrides: dict | None = None
 ) -> dict:
     """Time the ski job of each (design, grid) in :data:`JOB_SKIS` from upload to done, with the
-    service's default settings (``overrides``: settings changed, for a test); one run each, one
+    service's default settings (``overrides``: settings changed, for a test), through the app of
+    ``make_app(settings, catalogue)`` (:func:`app.api.factory.create_api`); one run each, one
     after the other."""
     with tempfile.TemporaryDirectory(prefix="skisnow-job-bench-") as tmp:
         rows = {}
         for design, grid in skis:
-            rows[f"{design}-{grid}-d0"] = _one(design, grid, Path(tmp), overrides)
+            rows[f"{design}-{grid}-d0"] = _one(make_app, design, grid, Path(tmp), overrides)
     return {"training": _training_settings(overrides), "poll_s": POLL_S, "skis": rows}
 
 

@@ -3,6 +3,7 @@ through the app, timed, with the job's own stage times; and its section of docs/
 
 from __future__ import annotations
 
+from skisnow.app.api.factory import create_api
 from skisnow.app.evidence import ski_job
 
 #: a network small enough for a test; its accuracy check fails on the coarse grid (limit 8 µm),
@@ -11,7 +12,7 @@ SMALL = {"train_epochs": 5, "train_lbfgs_epochs": 0, "train_ensemble": 1}
 
 
 def test_the_job_bench_uploads_a_study_ski_and_splits_its_time():
-    d = ski_job.bench_ski_job((("race-classic", "coarse"),), overrides=SMALL)
+    d = ski_job.bench_ski_job(create_api, (("race-classic", "coarse"),), overrides=SMALL)
     assert d["training"] == {**SMALL, "ski_max_test_rmse_um": 8.0}
     row = d["skis"]["race-classic-coarse-d0"]
     assert row["state"] == "done", row
