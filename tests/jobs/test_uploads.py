@@ -490,6 +490,17 @@ def test_ski_upload_with_the_unloaded_profile_ends_done(catalogue, tmp_path, cam
         assert page.status_code == 200 and 'id="model-choice-table"' in page.text
 
 
+#: a network far above the accuracy limit (5 epochs against the default limit, 8 µm)
+ROUGH_NETWORK = {"train_epochs": 5, "train_lbfgs_epochs": 0, "ski_max_test_rmse_um": 8.0}
+
+
+def _upload_and_wait(client, content: bytes, name: str) -> dict:
+    """Upload a camber CSV (accepted) and wait for its job: the job's view."""
+    r = post_ski(client, content, name=name)
+    assert r.status_code == 202, r.text[:500]
+    return wait_job(client, r.json()["job"])
+
+
 def test_a_network_above_the_accuracy_limit_leaves_the_beam_to_serve(
     catalogue, tmp_path, upload_csv
 ):
@@ -498,12 +509,8 @@ def test_a_network_above_the_accuracy_limit_leaves_the_beam_to_serve(
     serves, the held-out comparison says why, and the job's stage times are kept (#26: with the
     service's default settings the 9 × 5 grid the upload accepts failed here, 25 µm on
     race-classic; docs/benchmarks.md "Ski job end to end")."""
-    with make_client(
-        catalogue, tmp_path, train_epochs=5, train_lbfgs_epochs=0, ski_max_test_rmse_um=8.0
-    ) as client:
-        r = post_ski(client, upload_csv, name="rough")
-        assert r.status_code == 202, r.text[:500]
-        job = wait_job(client, r.json()["job"])
+    with make_client(catalogue, tmp_path, **ROUGH_NETWORK) as client:
+        job = _upload_and_wait(client, upload_csv, "rough")
         assert job["state"] == "done", job
         assert "above the accuracy limit: not served" in job["message"]
         assert "limit 8 µm" in job["message"]
@@ -536,12 +543,8 @@ def test_ski_refused_when_neither_model_can_serve(catalogue, tmp_path, upload_cs
         return {"attrs": {"ok": False, "reason": reason}}, reason + " (rigid model only)"
 
     monkeypatch.setattr(ski_job, "_identify", no_beam)
-    with make_client(
-        catalogue, tmp_path, train_epochs=5, train_lbfgs_epochs=0, ski_max_test_rmse_um=8.0
-    ) as client:
-        r = post_ski(client, upload_csv, name="rough")
-        assert r.status_code == 202, r.text[:500]
-        job = wait_job(client, r.json()["job"])
+    with make_client(catalogue, tmp_path, **ROUGH_NETWORK) as client:
+        job = _upload_and_wait(client, upload_csv, "rough")
         assert job["state"] == "failed"
         assert "accuracy check failed" in job["error"] and "limit 8 µm" in job["error"]
         assert "beam not identified: misfit 9.00 µm" in job["error"]
