@@ -30,6 +30,7 @@ import time
 import numpy as np
 from skisnow.app.storage.skis import SHIPPED_SKI_DIR, CamberData, identified_beam, read_ski
 from skisnow.solvers.beam import G_STANDARD, BeamSki, measure_camber, measure_unloaded
+from skisnow.solvers.errors import InputError
 
 log = logging.getLogger(__name__)
 
@@ -74,7 +75,7 @@ def design_camber_data(
     from skisnow.solvers.ski_designs import STUDY_DESIGNS
 
     if grid not in GRIDS:
-        raise ValueError(f"grid must be one of {sorted(GRIDS)}, got {grid!r}")
+        raise InputError(f"grid must be one of {sorted(GRIDS)}, got {grid!r}")
     truth = STUDY_DESIGNS[design].build(SPACING_M)
     if seed is None:
         seed = MEASURE_SEED + 100 * list(STUDY_DESIGNS).index(design) + list(GRIDS).index(grid)

@@ -48,9 +48,10 @@ def bench_macro_stage(
     time and (``identification``) the beam identification, several starts included, of the
     three demo skis and three study designs on the coarse grid
     (:func:`app.evidence.identification.bench_identification`; minutes per ski on 2 cores; the
-    tests leave it out, tests/solvers/test_identify*.py cover the identification) and (``job``)
-    the ski job end to end with the service's default settings
-    (:func:`app.evidence.ski_job.bench_ski_job`; about a minute per ski)."""
+    tests leave it out, tests/solvers/test_identify*.py cover the identification) and, given
+    ``make_app`` (the API factory, :func:`app.api.factory.create_api`), the ski job end to end
+    with the service's default settings (:func:`app.evidence.ski_job.bench_ski_job`; about a
+    minute per ski)."""
     from skisnow.solvers import camber
 
     out = {"skis": bench_macro(repeats=repeats), "inference": {}}
@@ -80,14 +81,21 @@ PARTS = ("skis", "inference", "flexible", "identification", "ski_job")
 RERUNNABLE = {"identification": "--only-identification", "ski_job": "--only-job"}
 
 
+def _kept_parts(d: dict) -> dict[str, dict]:
+    """The parts a stored macro run kept from earlier runs, each with the provenance of the run
+    that measured it (the per-part form, or the older ``{"parts": [...], "provenance": {...}}``
+    one: one provenance for every kept part)."""
+    kept = d.get("kept_from_previous_run") or {}
+    parts = kept.get("parts", {})
+    if isinstance(parts, list):
+        return {k: kept.get("provenance", {}) for k in parts}
+    return parts
+
+
 def _kept_provenance(old: dict) -> dict[str, dict]:
     """Per part of a stored macro run, the provenance of the run that measured it: the file's own,
-    or, for a part that run kept itself, the one it names (both the per-part form and the
-    older ``{"parts": [...], "provenance": {...}}`` one)."""
-    kept = old.get("kept_from_previous_run") or {}
-    parts = kept.get("parts", {})
-    if isinstance(parts, list):  # the older form: one provenance for every kept part
-        parts = {k: kept.get("provenance", {}) for k in parts}
+    or, for a part that run kept itself, the one it names."""
+    parts = _kept_parts(old)
     return {k: parts.get(k) or old.get("provenance", {}) for k in PARTS if k in old}
 
 
@@ -112,12 +120,9 @@ def rerun_only(previous: Path, part: str, run) -> dict:
 def _kept_md(d: dict) -> list[str]:
     """The note naming the parts kept from earlier runs, grouped by the run that measured them,
     and the part run again."""
-    kept = d.get("kept_from_previous_run")
-    if not kept:
+    parts = _kept_parts(d)
+    if not parts:
         return []
-    parts = kept.get("parts", {})
-    if isinstance(parts, list):
-        parts = {k: kept.get("provenance", {}) for k in parts}
     runs: dict[tuple, list[str]] = {}
     for name, prov in parts.items():
         key = (prov.get("created_utc", "?"), str(prov.get("git_commit", "?"))[:12])

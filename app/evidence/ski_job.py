@@ -4,11 +4,12 @@ job end to end (network + beam): report it").
 Each ski is measured by the virtual device (:func:`app.evidence.identification.design_camber_data`:
 a study design, draw 0 of ``scripts/own_ski_study.py`` on its grid, the unloaded profile first,
 3 µm noise), written as the CSV a technician uploads, and sent through ``POST /v1/skis`` of a
-fresh app on a temporary data directory with the **service's default settings** (the default
-camber network: :class:`app.settings.Settings` ``train_epochs``, ``train_lbfgs_epochs``,
-``train_ensemble``). The time is the user's: from the upload's request to the job's ``done``,
-polled every 0.2 s. The job's own split (``job_stage_s`` in the item's metadata: training,
-identification, model choice, ski file, figures) says where it went.
+fresh app on a temporary data directory with the **service's settings** as ``skisnow serve``
+reads them (by default the default camber network: :class:`app.settings.Settings`
+``train_epochs``, ``train_lbfgs_epochs``, ``train_ensemble``; the run records those it used).
+The time is the user's: from the upload's request to the job's ``done``, polled every 0.2 s.
+The job's own split (``job_stage_s`` in the item's metadata: training, identification, model
+choice, ski file, figures) says where it went.
 
 Needs torch (the network's training: ``pip install -e '.[train]'``) and httpx (the app's test
 client: ``.[test]``); both come with the test dependencies.
@@ -38,11 +39,22 @@ POLL_S = 0.2
 TIMEOUT_S = 3600.0
 
 
-def _client(make_app, data_dir: Path, overrides: dict | None = None):
+#: the settings of the network the run used (reported with the run)
+TRAINING_KEYS = ("train_epochs", "train_lbfgs_epochs", "train_ensemble", "ski_max_test_rmse_um")
+
+
+def _settings(data_dir: Path, overrides: dict | None = None):
+    """The service's settings as ``skisnow serve`` reads them (defaults, SKISNOW_* environment)
+    on ``data_dir``, no warm-up, the job polled every :data:`POLL_S`; ``overrides``: a test's
+    smaller network."""
+    from skisnow.app.settings import Settings
+
+    return Settings(data_dir=data_dir, warm_up=False, job_poll_s=POLL_S, **(overrides or {}))
+
+
+def _client(make_app, settings):
     """A fresh app from ``make_app(settings, catalogue)`` (the API factory; this module sits below
-    the API and is handed it) on ``data_dir`` with the service's default settings
-    (``overrides``: a test's smaller network), answering for the shipped tables and skis (job poll
-    at :data:`POLL_S`)."""
+    the API and is handed it), answering for the shipped tables and skis."""
     try:
         from fastapi.testclient import TestClient
     except ImportError as exc:  # httpx missing
@@ -51,25 +63,13 @@ def _client(make_app, data_dir: Path, overrides: dict | None = None):
             "pip install -e '.[test]'"
         ) from exc
     from skisnow.app import service
-    from skisnow.app.settings import Settings
     from skisnow.app.storage.skis import SHIPPED_SKI_DIR
 
     shipped = service.load_catalogue(SHIPPED_SKI_DIR.parent)
-    settings = Settings(data_dir=data_dir, warm_up=False, job_poll_s=POLL_S, **(overrides or {}))
     return TestClient(make_app(settings, shipped), raise_server_exceptions=False)
 
 
-def _training_settings(overrides: dict | None = None) -> dict:
-    """The network's settings as the run used them: the defaults (app/settings.py) unless
-    overridden."""
-    from skisnow.app.settings import Settings
-
-    fields = Settings.model_fields
-    keys = ("train_epochs", "train_lbfgs_epochs", "train_ensemble", "ski_max_test_rmse_um")
-    return {k: (overrides or {}).get(k, fields[k].default) for k in keys}
-
-
-def _one(make_app, design: str, grid: str, work: Path, overrides: dict | None = None) -> dict:
+def _one(make_app, design: str, grid: str, work: Path, overrides: dict | None) -> dict:
     """Upload one measured ski and wait for its job: the row of the bench."""
     from skisnow.app.storage.skis import write_camber_csv
 
@@ -82,7 +82,7 @@ def _one(make_app, design: str, grid: str, work: Path, overrides: dict | None = 
     data_dir.mkdir(parents=True)
     row: dict = {"design": design, "grid": grid, "cases": int(data.loads_n.size)}
     load_before = os.getloadavg()[0]
-    with _client(make_app, data_dir, overrides) as client:
+    with _client(make_app, _settings(data_dir, overrides)) as client:
         t0 = time.perf_counter()
         r = client.post(
             "/v1/skis",
@@ -123,10 +123,12 @@ def bench_ski_job(
     ``make_app(settings, catalogue)`` (:func:`app.api.factory.create_api`); one run each, one
     after the other."""
     with tempfile.TemporaryDirectory(prefix="skisnow-job-bench-") as tmp:
+        used = _settings(Path(tmp), overrides)
         rows = {}
         for design, grid in skis:
             rows[f"{design}-{grid}-d0"] = _one(make_app, design, grid, Path(tmp), overrides)
-    return {"training": _training_settings(overrides), "poll_s": POLL_S, "skis": rows}
+    training = {k: getattr(used, k) for k in TRAINING_KEYS}
+    return {"training": training, "poll_s": POLL_S, "skis": rows}
 
 
 def _stages(stage_s: dict) -> str:

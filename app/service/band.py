@@ -250,7 +250,10 @@ MIN_SEPARATION_EDGE_ROWS = 3
 #: at −100 mm, 20 MPa, tail and tip zones peak 5 and 2 mm from their ends (121 and 58 mm long;
 #: peak / mean pressure 5.1 and 4.9), random-102's true beam 5 and 6 mm (54 and 63 mm long),
 #: where smooth zones peak 21–205 mm inside (ski-a 40 kg at −160 mm, 200 MPa, 44 and 109 mm
-#: long: 21 and 51 mm; peak / mean 1.3–1.75); scripts in the note of issue #26
+#: long: 21 and 51 mm; peak / mean 1.3–1.75). The demo skis' cases are the test
+#: test_an_edge_peak_on_the_fine_grid_is_found_a_few_pixels_inside_its_zone (tests/service);
+#: random-102 is the true beam of docs/studies/own-ski-random-101-104.json, solved rigid on the
+#: fine preset's grid
 MIN_SEPARATION_EDGE_M = 12e-3
 
 
@@ -275,6 +278,12 @@ def edge_peak_m(positions_m, pressure_pa, zone) -> float | None:
     return None
 
 
+def _pixels(n: float) -> str:
+    """ "1 pixel", "8 pixels": a zone's length in pixels, rounded."""
+    k = round(n)
+    return f"{k} pixel" + ("" if k == 1 else "s")
+
+
 def min_separation_unresolved(gap_map, macro, ms) -> str | None:
     """Why the answer's minimum average separation has no grid-converged value, or ``None``.
 
@@ -294,7 +303,7 @@ def min_separation_unresolved(gap_map, macro, ms) -> str | None:
         length = z.end_m - z.start_m
         return (
             f"a contact zone at {0.5e3 * (z.start_m + z.end_m):.0f} mm is {length * 1e3:.0f} mm "
-            f"long ({length / dx:.0f} pixels of {dx * 1e3:g} mm), too short to resolve its peak "
+            f"long ({_pixels(length / dx)} of {dx * 1e3:g} mm), too short to resolve its peak "
             "pressure, and the minimum moves there as the grid is refined"
         )
     for z in ms.zones:
@@ -334,7 +343,7 @@ def zone_unresolved_reasons(gap_map, ms) -> list[str | None]:
             out.append("it reaches the end of the measured profile")
         elif length < MIN_SEPARATION_ZONE_PIXELS * dx:
             out.append(
-                f"it is {length * 1e3:.0f} mm long ({length / dx:.0f} pixels of {dx * 1e3:g} mm), "
+                f"it is {length * 1e3:.0f} mm long ({_pixels(length / dx)} of {dx * 1e3:g} mm), "
                 "too short to resolve its peak pressure"
             )
         elif (at := edge_peak_m(ms.positions_m, ms.pressure_pa, z)) is not None:

@@ -192,7 +192,9 @@ def test_design_data_are_the_own_ski_study_data(grid, cases):
 
 
 def test_design_data_refuse_an_unknown_grid():
-    with pytest.raises(ValueError, match="grid must be one of"):
+    from skisnow.solvers.errors import InputError
+
+    with pytest.raises(InputError, match="grid must be one of"):
         ib.design_camber_data("skate", grid="sparse")
 
 
