@@ -502,15 +502,18 @@ def _add_item_with_job(
         raise
 
 
-def _decode_text(data: bytes, filename: str) -> str:
-    if b"\x00" in data[:4096]:
-        raise UnsupportedContentError(f"file {filename!r} is not a text CSV (binary bytes)")
-    try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
+def _decode_text(data: bytes, filename: str) -> tuple[str, str]:
+    """The text of an uploaded camber CSV and its encoding's name
+    (:func:`app.storage.skis.decode_camber_bytes`)."""
+    from skisnow.app.storage.skis import decode_camber_bytes
+
+    decoded = decode_camber_bytes(data)
+    if decoded is None:
         raise UnsupportedContentError(
-            f"file {filename!r} is not UTF-8 text (byte {exc.start})"
-        ) from None
+            f"file {filename!r} is not a text CSV (binary bytes); save it from the spreadsheet "
+            "as CSV (UTF-8, Windows or Unicode text)"
+        )
+    return decoded
 
 
 def _parse_mm_list(text: str, field: str) -> np.ndarray:
@@ -544,6 +547,15 @@ def _check_span(x_mm: np.ndarray, length_mm: float) -> None:
         )
     need_mm = MIN_SPAN_FRACTION * length_mm
     if span_mm >= need_mm:
+        if x_mm[0] >= 0 or x_mm[-1] <= 0:
+            end = "tail" if x_mm[0] >= 0 else "tip"
+            raise InputError(
+                f"file: positions look measured from the {end}: all of them ({x_mm[0]:g} … "
+                f"{x_mm[-1]:g} mm) lie on one side of 0, but position_mm and "
+                "load_position_mm are from the balance point (0 mm, negative towards the "
+                "tail); subtract the balance point's distance from the "
+                f"{end} (about {length_mm / 2:g} mm on a {length_mm:g} mm ski)"
+            )
         return
     if MIN_SPAN_FRACTION * length_mm <= 10 * span_mm <= length_mm + 1e-6:
         raise InputError(
@@ -605,7 +617,7 @@ def check_ski_upload(
         raise UnsupportedContentError(
             f"file {filename!r}: camber measurements must be a neutral .csv file"
         )
-    text = _decode_text(data, filename)
+    text, encoding = _decode_text(data, filename)
     if "\n" not in text:
         text += "\n"  # read_camber_csv takes a one-line string for a path: never here
     camber_data = skis.read_camber_csv(
@@ -668,6 +680,7 @@ def check_ski_upload(
         "samples_per_case": int(x.size),
         "sample_spacing_mm": spacing_mm,
         "measured_side": side,
+        "text_encoding": encoding,
         "load_range_kg": [float(f.min() / 9.82), float(f.max() / 9.82)],
         "load_position_range_mm": [float(xf.min() * 1e3), float(xf.max() * 1e3)],
     }

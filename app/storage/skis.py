@@ -18,7 +18,8 @@ Neutral camber CSV (one row per sample; see docs/macro.md)::
   :func:`mean_profiles`) a case with F = 0 N is the unloaded profile, with x_F = 0 m
   (:func:`unloaded_mask`). Every other load is > 0.
 - Spreadsheet dialects: ``,`` with decimal points, ``;`` or tab with decimal commas (or points);
-  headers in any order and case; empty trailing columns ignored (docs/uploads.md).
+  headers in any order and case, a unit in brackets read ("Load (kg)" is ``load_kg``); empty
+  trailing columns ignored; UTF-8, UTF-16 or Windows-1252 text (docs/uploads.md).
 
 Units are converted here, once: kg → N with g = 9.82 m/s² (docs/physics.md §2), mm → m.
 """
@@ -29,6 +30,7 @@ import csv
 import io
 import json
 import os
+import re
 import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -52,6 +54,7 @@ __all__ = [
     "SkiOutline",
     "SkiRecord",
     "camber_csv_text",
+    "decode_camber_bytes",
     "read_camber_csv",
     "read_ski",
     "replace_ski_group",
@@ -198,39 +201,123 @@ def _split_header(line: str) -> tuple[str, list[str]]:
     return sep, [c.strip().strip("\ufeff").strip().lower() for c in cells]
 
 
+#: units a header may give a column in brackets ("Load (kg)"), per column [its unit]
+_COLUMN_UNITS = {"load": "kg", "load_position": "mm", "position": "mm", "gap": "mm"}
+#: what to do with a column given in another unit: (unit as normalised, how to convert)
+_UNIT_HINTS = {
+    "n": "divide newtons by 9.82 for kg",
+    "um": "divide µm by 1000 for mm",
+    "cm": "multiply cm by 10 for mm",
+    "m": "multiply m by 1000 for mm",
+    "in": "multiply inches by 25.4 for mm",
+    "g": "divide g by 1000 for kg",
+    "lb": "multiply lb by 0.4536 for kg",
+}
+
+
+def _column_key(cell: str) -> str:
+    """A header cell as a column name: lower case (the caller), runs of spaces, hyphens and dots
+    as ``_``, and a unit in brackets joined on ("Load (kg)", "load [kg]" → ``load_kg``;
+    "Gap mm (mm)" → ``gap_mm``); µ as u."""
+    text = cell.replace("µ", "u").replace("μ", "u")
+    unit = ""
+    m = re.fullmatch(r"(.*?)\s*[\(\[]\s*([^\)\]]*?)\s*[\)\]]", text)
+    if m:
+        text, unit = m.group(1), re.sub(r"[\s\-.]+", "_", m.group(2)).strip("_")
+    name = re.sub(r"[\s\-.]+", "_", text).strip("_")
+    if unit and not name.endswith("_" + unit):
+        name = f"{name}_{unit}"
+    return name
+
+
+def _unit_hint(key: str) -> str:
+    """For an unknown column that is a known one in another unit, what to change."""
+    for base, unit in _COLUMN_UNITS.items():
+        if key.startswith(base + "_"):
+            other = key[len(base) + 1 :]
+            if other in _UNIT_HINTS and other != unit:
+                return f" ({base} is read in {unit} as {base}_{unit}: {_UNIT_HINTS[other]})"
+    return ""
+
+
 def _header_columns(cells: list[str]) -> list[int]:
-    """Index of each of :data:`CSV_COLUMNS` in the header cells; empty trailing cells (a
-    trailing separator, empty spreadsheet columns) are ignored, anything else is refused."""
+    """Index of each of :data:`CSV_COLUMNS` in the header cells (:func:`_column_key`: "Load
+    (kg)" is ``load_kg``); empty trailing cells (a trailing separator, empty spreadsheet
+    columns) are ignored, anything else is refused, a known column in another unit with the
+    conversion to make."""
     while cells and not cells[-1]:
         cells = cells[:-1]
+    keys = [_column_key(c) for c in cells]
     expected = ",".join(CSV_COLUMNS)
-    unknown = [c or "(empty)" for c in cells if c not in CSV_COLUMNS]
-    missing = [c for c in CSV_COLUMNS if c not in cells]
-    doubled = sorted({c for c in cells if c in CSV_COLUMNS and cells.count(c) > 1})
+    unknown = [
+        (repr(c) if c else "'(empty)'") + _unit_hint(k)
+        for c, k in zip(cells, keys, strict=True)
+        if k not in CSV_COLUMNS
+    ]
+    missing = [c for c in CSV_COLUMNS if c not in keys]
+    doubled = sorted({k for k in keys if k in CSV_COLUMNS and keys.count(k) > 1})
     problems = []
     if missing:
         problems.append("missing " + ", ".join(missing))
     if unknown:
-        names = ", ".join(repr(c) for c in unknown)
-        problems.append(f"unknown column(s) {names} (remove them)")
+        problems.append(f"unknown column(s) {', '.join(unknown)} (remove or rename them)")
     if doubled:
         problems.append("repeated " + ", ".join(doubled))
     if problems:
         raise InputError(
-            f"line 1: header must name the columns {expected} (any order, any case), got "
-            f"{','.join(cells) or 'an empty line'}: " + "; ".join(problems)
+            f"line 1: header must name the columns {expected} (any order, any case; a unit in "
+            f"brackets, as in 'Load (kg)', is read), got {','.join(cells) or 'an empty line'}: "
+            + "; ".join(problems)
         )
-    return [cells.index(c) for c in CSV_COLUMNS]
+    return [keys.index(c) for c in CSV_COLUMNS]
+
+
+def decode_camber_bytes(data: bytes) -> tuple[str, str] | None:
+    """The text of a camber CSV's bytes and the name of the encoding it was read in: UTF-8 (a
+    BOM ignored); UTF-16 with a byte-order mark, or without one when every other byte of the
+    start is zero (a spreadsheet's "Unicode text"); else Windows-1252 (a spreadsheet's "CSV"
+    on Windows; a file with one of its five unassigned bytes as latin-1). The ASCII digits read
+    the same in each: decoding changes no number. None for bytes that are no text (zero bytes
+    in another pattern, or UTF-16 that does not decode)."""
+    head = data[:4096]
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        codec = "utf-16"
+    elif b"\x00" in head:
+        if len(head) < 4:
+            return None
+        even, odd = head[0::2], head[1::2]
+        if not odd.strip(b"\x00") and b"\x00" not in even:
+            codec = "utf-16-le"
+        elif not even.strip(b"\x00") and b"\x00" not in odd:
+            codec = "utf-16-be"
+        else:
+            return None
+    else:
+        try:
+            return data.decode("utf-8-sig"), "UTF-8"
+        except UnicodeDecodeError:
+            pass
+        try:
+            return data.decode("cp1252"), "Windows-1252"
+        except UnicodeDecodeError:  # one of its five unassigned bytes
+            return data.decode("latin-1"), "Windows-1252"
+    try:
+        return data.decode(codec), "UTF-16"
+    except UnicodeDecodeError:
+        return None
 
 
 def _lines(source: str | os.PathLike):
-    """The lines of a CSV path (DataFileError when missing) or of the CSV text itself."""
+    """The lines of a CSV path (DataFileError when missing; its encoding read by
+    :func:`decode_camber_bytes`) or of the CSV text itself."""
     if isinstance(source, os.PathLike) or (isinstance(source, str) and "\n" not in source):
         path = Path(source)
         if not path.is_file():
             raise DataFileError(f"camber CSV not found: {path}")
-        with open(path, encoding="utf-8-sig", newline="") as fh:
-            yield from fh
+        decoded = decode_camber_bytes(path.read_bytes())
+        if decoded is None:
+            raise DataFileError(f"camber CSV {path} is not text (zero bytes)")
+        yield from _lines(decoded[0] if "\n" in decoded[0] else decoded[0] + "\n")
     else:  # one line at a time: no copy of a large text, read only as far as needed
         text, start = str(source), 0
         while start < len(text):
@@ -250,9 +337,10 @@ def read_camber_csv(
 
     Spreadsheet dialects are read: ``,``-separated with decimal points, ``;``- or
     tab-separated with decimal commas or points (one decimal mark per file); header names in
-    any order and any case (surrounding spaces and a BOM ignored), empty trailing columns
-    ignored, unknown columns refused by name. Only the decimal mark is read: no number is
-    otherwise changed.
+    any order and any case (surrounding spaces and a BOM ignored; "Load (kg)" is ``load_kg``:
+    :func:`_column_key`), empty trailing columns ignored, unknown columns refused by name (a
+    known one in another unit with the conversion to make). Only the decimal mark is read: no
+    number is otherwise changed. A path is read in its encoding (:func:`decode_camber_bytes`).
 
     Rows with ``load_kg`` = 0 are the unloaded profile (at most one case per side): its
     ``load_position_mm`` is ignored and stored as 0 (F = 0 N, x_F = 0 m; :func:`unloaded_mask`).
@@ -324,16 +412,30 @@ def read_camber_csv(
                 f"got {load_kg:g}"
             )
         if load_kg > LOAD_KG_RANGE[1]:
-            raise InputError(f"line {lineno}: load_kg must be in [0, 200], got {load_kg}")
+            raise InputError(
+                f"line {lineno}: load_kg must be in [0, 200], got {load_kg:g}: loads above "
+                "200 kg look like newtons; load_kg is in kg (divide N by 9.82)"
+            )
         for name, v in (("load_position_mm", load_pos), ("position_mm", pos)):
             if abs(v) > POSITION_MM_LIMIT:
-                raise InputError(f"line {lineno}: {name} must be within ±1500 mm, got {v}")
+                raise InputError(
+                    f"line {lineno}: {name} must be within ±1500 mm, got {v:g}: positions are "
+                    "from the balance point (0 mm, negative towards the tail); a position "
+                    "this far looks measured from the ski's end: subtract the balance "
+                    "point's distance from it"
+                )
         if not GAP_MM_RANGE[0] <= gap <= GAP_MM_RANGE[1]:
             hint = ""
             if gap > GAP_MM_RANGE[1]:
                 hint = (
                     f"; {gap:g} is above the device's range of {GAP_MM_RANGE[1]:g} mm: values "
                     "look like µm; gap_mm is in mm (divide µm by 1000)"
+                )
+            else:
+                hint = (
+                    "; gap_mm is the gap between the base and the flat, ≥ 0 (0 where the base "
+                    "touches): if the device writes the base's height below the flat as "
+                    "negative, change the sign of the column"
                 )
             raise InputError(
                 f"line {lineno}: gap_mm must be in [{GAP_MM_RANGE[0]}, {GAP_MM_RANGE[1]}] "

@@ -223,7 +223,7 @@ def test_spreadsheet_problems_are_named(upload_csv):
     neutral = upload_csv.decode()
     lines = neutral.splitlines()
     extra = "\n".join([lines[0] + ",Temp_C", *(line + ",-5" for line in lines[1:])]) + "\n"
-    assert "unknown column(s) 'temp_c' (remove them)" in refused(extra)
+    assert "unknown column(s) 'temp_c' (remove or rename them)" in refused(extra)
     missing = "\n".join(line.rsplit(",", 1)[0] for line in lines) + "\n"
     assert "missing gap_mm" in refused(missing)
     sheet = _spreadsheet(neutral).splitlines()
@@ -232,6 +232,112 @@ def test_spreadsheet_problems_are_named(upload_csv):
         r"line 6: column '\w+' is '[^']*': this file's decimal mark is ','",
         refused("\n".join(sheet) + "\n"),
     )
+
+
+def _same_data(a, b) -> None:
+    assert a.ski_id == b.ski_id and a.sides == b.sides
+    for name in ("positions_m", "loads_n", "load_positions_m", "profiles_m"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+
+
+@pytest.mark.parametrize(
+    "header",
+    [
+        "Ski ID,Side,Load (kg),Load position (mm),Position (mm),Gap (mm)",
+        "ski_id,side,load_kg [kg],load_position_mm [mm],position_mm [mm],gap_mm [mm]",
+        "SKI-ID,Side,Load kg,Load-position mm,Position  mm,Gap.mm",
+    ],
+)
+def test_headers_with_spaces_or_units_in_brackets_name_the_same_columns(upload_csv, header):
+    neutral = upload_csv.decode()
+    lines = neutral.splitlines()
+    a, _, fig_a = check(neutral)
+    b, _, fig_b = check("\n".join([header, *lines[1:]]) + "\n")
+    assert fig_a == fig_b
+    _same_data(a, b)
+
+
+@pytest.mark.parametrize(
+    ("column", "name", "words"),
+    [
+        (
+            2,
+            "Load (N)",
+            "'load (n)' (load is read in kg as load_kg: divide newtons by 9.82 for kg)",
+        ),
+        (5, "Gap (µm)", "'gap (µm)' (gap is read in mm as gap_mm: divide µm by 1000 for mm)"),
+        (4, "position_cm", "'position_cm' (position is read in mm as position_mm: multiply cm"),
+        (3, "load position [m]", "load_position is read in mm as load_position_mm: multiply m"),
+    ],
+)
+def test_a_column_in_another_unit_is_refused_with_the_conversion(upload_csv, column, name, words):
+    lines = upload_csv.decode().splitlines()
+    header = lines[0].split(",")
+    header[column] = name
+    message = refused("\n".join([",".join(header), *lines[1:]]) + "\n")
+    assert message.startswith("line 1: header must name the columns")
+    assert f"missing {CSV_COLUMNS[column]}" in message and words in message
+
+
+@pytest.mark.parametrize(
+    ("encode", "encoding"),
+    [
+        (lambda t: t.encode("utf-16"), "UTF-16"),  # with its byte-order mark
+        (lambda t: t.encode("utf-16-le"), "UTF-16"),  # "Unicode text" without one
+        (lambda t: t.encode("utf-16-be"), "UTF-16"),
+        (lambda t: t.encode("cp1252"), "Windows-1252"),
+        (lambda t: "\ufeff".encode() + t.encode(), "UTF-8"),
+    ],
+)
+def test_unicode_and_windows_text_files_read_to_the_same_data(
+    upload_csv, tmp_path, encode, encoding
+):
+    # a name with letters outside ASCII, as a Windows spreadsheet saves it
+    text = upload_csv.decode().replace("my-ski", "Åsarna µ-ski")
+    a, _, fig_a = check(text)
+    data = encode(text)
+    b, _, fig_b = check(data)
+    assert fig_b["text_encoding"] == encoding and fig_a["text_encoding"] == "UTF-8"
+    assert {**fig_a, "text_encoding": encoding} == fig_b
+    _same_data(a, b)
+    assert b.ski_id == "Åsarna µ-ski"
+    # the ski job reads the stored bytes (a path) the same way
+    path = tmp_path / "ski.csv"
+    path.write_bytes(data)
+    _same_data(a, read_camber_csv(path))
+
+
+def test_bytes_that_are_no_text_are_refused_with_what_to_save(upload_csv):
+    from skisnow.app.errors import UnsupportedContentError
+
+    for data in (b"\x00\x01binary", b"PK\x03\x04\x00\x00" + upload_csv[:200]):
+        with pytest.raises(UnsupportedContentError, match="save it from the spreadsheet as CSV"):
+            check(data)
+
+
+def test_values_in_other_units_or_conventions_are_refused_with_the_change(upload_csv):
+    header, rows = rows_of(upload_csv)
+
+    def text(rs) -> str:
+        return "\n".join([header, *(",".join(r) for r in rs)]) + "\n"
+
+    newtons = [[*r[:2], f"{float(r[2]) * 9.82:g}", *r[3:]] for r in rows]
+    assert "loads above 200 kg look like newtons; load_kg is in kg (divide N by 9.82)" in refused(
+        text(newtons)
+    )
+    heights = [[*r[:5], f"{-float(r[5]):.4f}"] for r in rows]
+    message = refused(text(heights))
+    assert message.startswith("line 2: gap_mm must be in [-0.05, 50.0]")
+    assert "change the sign of the column" in message
+    # positions from the tail of a 2 m ski: beyond ±1500 mm
+    tail = [[*r[:3], f"{float(r[3]) + 1000:g}", f"{float(r[4]) + 1000:g}", r[5]] for r in rows]
+    message = refused(text(tail))
+    assert "must be within ±1500 mm" in message and "looks measured from the ski's end" in message
+    # ... and of a 1.4 m junior ski: within ±1500 mm, all on one side of the balance point
+    junior = [r for r in tail if float(r[4]) <= 1400]
+    message = refused(text(junior), length_mm=1450.0)
+    assert message.startswith("file: positions look measured from the tail: all of them (")
+    assert "subtract the balance point's distance from the tail (about 725 mm" in message
 
 
 def test_the_example_csv_is_a_realistic_device_file_the_upload_accepts():
