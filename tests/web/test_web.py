@@ -128,7 +128,15 @@ def test_soft_snow_band_reads_further_below_on_the_page_and_in_the_csv(client):
     assert summary.index(area) < summary.index("kPa") < summary.index(pressure)
     # "How sure is this?" says why the band above is narrower (not on stiff snow)
     assert 'class="grid-bias"' in html and "docs/studies/grid-bias.md" in html
+    assert "since the default grid's area came out larger" in " ".join(html.split())
     assert 'class="grid-bias"' not in client.get("/results", params=_q(ski="ski-b")).text
+    # on the fine grid the paragraph says which grid was studied, and that this one's is smaller
+    fine = client.get("/results", params={**q, "preset": "fine"}).text
+    assert 'class="grid-bias"' in fine and "default grid's area" not in fine
+    assert (
+        "the area on the default grid (the grid studied; this answer's fine grid has its own"
+        in (" ".join(fine.split()))
+    )
 
 
 def test_the_page_says_how_far_outside_the_band_studied_answers_fell(client, catalogue):
