@@ -681,6 +681,10 @@ def check_ski_upload(
         "sample_spacing_mm": spacing_mm,
         "measured_side": side,
         "text_encoding": encoding,
+        # a device that scans from the tip lists positions decreasing: the same samples
+        "positions_in_file": "decreasing (read in increasing order)"
+        if camber_data.read_descending
+        else "increasing",
         "load_range_kg": [float(f.min() / 9.82), float(f.max() / 9.82)],
         "load_position_range_mm": [float(xf.min() * 1e3), float(xf.max() * 1e3)],
     }

@@ -9,7 +9,8 @@ Neutral camber CSV (one row per sample; see docs/macro.md)::
 - ``side`` is ``left``, ``right`` or ``mean``; positions are from the balance point, positive
   towards the tip; ``gap_mm`` is the gap between base and flat.
 - One profile per case (side, load_kg, load_position_mm), positions strictly increasing within a
-  case, the same positions in every case, one ski_id per file.
+  case (or strictly decreasing in every case: a device that scans from the tip; read as the
+  same samples in increasing order), the same positions in every case, one ski_id per file.
 - Ranges: 0 ≤ load_kg ≤ 200, |positions| ≤ 1500 mm, −0.05 ≤ gap_mm ≤ 50. Gaps down to −0.05 mm are
   accepted as device noise around a touching point (a real stylus reads a few µm either side of
   zero) and kept as read; the macro solver clips them to zero.
@@ -92,6 +93,9 @@ class CamberData:
         ``left``, ``right`` or ``mean`` per case.
     profiles_m : ndarray (K, M)
         Measured gaps H*(X) [m].
+    read_descending : bool
+        The CSV listed each case's positions from the tip to the tail (decreasing); read in
+        that order and kept increasing here (the same samples; :func:`read_camber_csv`).
     """
 
     ski_id: str
@@ -100,6 +104,7 @@ class CamberData:
     load_positions_m: np.ndarray
     sides: list[str]
     profiles_m: np.ndarray
+    read_descending: bool = False
 
 
 @dataclass
@@ -151,12 +156,33 @@ class SkiRecord:
 not_owned(SkiRecord)
 
 
+def _sampling_hint(cases: dict) -> str:
+    """For the row cap: the first case's sampling, when finer than the job needs."""
+    if not cases:
+        return ""
+    xs = next(iter(cases.values()))[0]
+    if len(xs) < 3:
+        return ""
+    step_mm = abs(xs[-1] - xs[0]) / (len(xs) - 1)
+    if step_mm >= 1.0:
+        return ""
+    return (
+        f"; its first case has {len(xs)} samples every {step_mm:.3g} mm: every 1–5 mm is "
+        "enough (the job needs ≤ 5 mm), so thinning the positions keeps it within the cap"
+    )
+
+
 def _parse_float(text: str, column: str, lineno: int, decimal: list[str]) -> float:
     """One number of the CSV. ``decimal`` holds the file's decimal mark once a number showed
     it (``[","]`` or ``["."]``; empty: not yet seen, or ``,`` is the separator so ``.``). Only
     the decimal mark is read: a number with the other mark (a thousands separator, or a file
     mixing both) is refused, never guessed."""
     raw = text.strip()
+    if not raw:
+        raise InputError(
+            f"line {lineno}: column {column!r} is empty: every sample needs a value (an "
+            "unmeasured point is not filled in for you: leave its position out of every case)"
+        )
     if decimal and decimal[0] == "":  # comma-separated file: the decimal mark is "."
         body = raw
     else:
@@ -370,6 +396,7 @@ def read_camber_csv(
     ski_id: str | None = None
     cases: dict[tuple[str, float, float], tuple[list[float], list[float], int]] = {}
     unloaded: dict[str, tuple[float, int]] = {}  # side -> (load position read, first line)
+    order = 0  # +1: positions increase within a case, -1: decrease (tip first); 0: not yet seen
     rows = 0
     for lineno, row in enumerate(csv.reader(lines, delimiter=sep), start=2):
         if not row or all(not c.strip() for c in row):
@@ -382,6 +409,7 @@ def read_camber_csv(
                 f"line {lineno}: more than {max_rows} data rows, the cap of a camber CSV "
                 "(max_camber_rows, SKISNOW_MAX_CAMBER_ROWS); a camber device records a few "
                 "hundred cases of a few thousand samples: send one ski's measurements"
+                + _sampling_hint(cases)
             )
         if len(row) < width:
             raise InputError(f"line {lineno}: expected {len(CSV_COLUMNS)} columns, got {len(row)}")
@@ -444,7 +472,11 @@ def read_camber_csv(
         if load_kg == UNLOADED_LOAD_KG:
             seen = unloaded.setdefault(side, (load_pos, lineno))
             prev = cases.get((side, 0.0, 0.0))
-            if seen[0] != load_pos or (prev is not None and pos <= prev[0][0]):
+            # a second profile starts again at (or before) the first one's first position
+            again = prev is not None and (
+                (pos - prev[0][0]) * order <= 0 if order else pos == prev[0][0]
+            )
+            if seen[0] != load_pos or again:
                 raise InputError(
                     f"line {lineno}: a second unloaded profile (load_kg 0) of side {side}; the "
                     f"first starts at line {seen[1]}: at most one unloaded profile per side"
@@ -460,17 +492,23 @@ def read_camber_csv(
                 )
             cases[key] = ([], [], lineno)
         xs, gs, _ = cases[key]
-        if xs and pos <= xs[-1]:
-            raise InputError(
-                f"line {lineno}: position_mm {pos} is not greater than the previous position "
-                f"{xs[-1]} of case side={side}, load_kg={load_kg:g}, "
-                f"load_position_mm={load_pos:g} (positions must be strictly increasing within a "
-                "case)"
-            )
+        if xs:
+            if order == 0 and pos != xs[-1]:
+                order = 1 if pos > xs[-1] else -1  # the file's order: the first step decides
+            if (pos - xs[-1]) * order <= 0:
+                way = "greater" if order >= 0 else "smaller"
+                raise InputError(
+                    f"line {lineno}: position_mm {pos:g} is not {way} than the previous "
+                    f"position {xs[-1]:g} of case side={side}, load_kg={load_kg:g}, "
+                    f"load_position_mm={load_pos:g} (positions must run one way within a case, "
+                    "the same way in every case: increasing, or decreasing from the tip)"
+                )
         xs.append(pos)
         gs.append(gap)
     if not cases:
         raise InputError("no data rows after the header")
+    if order < 0:  # listed from the tip: the same samples, kept in increasing order
+        cases = {k: (xs[::-1], gs[::-1], line) for k, (xs, gs, line) in cases.items()}
     keys = list(cases)
     grid = np.asarray(cases[keys[0]][0])
     for key in keys[1:]:
@@ -491,6 +529,7 @@ def read_camber_csv(
         load_positions_m=np.array([k[2] for k in keys]) * 1e-3,
         sides=[k[0] for k in keys],
         profiles_m=np.array([cases[k][1] for k in keys]) * 1e-3,
+        read_descending=order < 0,
     )
 
 

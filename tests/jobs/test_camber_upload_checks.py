@@ -340,6 +340,44 @@ def test_values_in_other_units_or_conventions_are_refused_with_the_change(upload
     assert "subtract the balance point's distance from the tail (about 725 mm" in message
 
 
+def test_positions_listed_from_the_tip_read_as_the_same_samples(upload_csv):
+    neutral = with_unloaded(upload_csv)
+    lines = neutral.splitlines()
+    header, rows = lines[0], lines[1:]
+    cases: dict[str, list[str]] = {}
+    for row in rows:
+        cases.setdefault(",".join(row.split(",")[1:4]), []).append(row)
+    tip_first = [row for case in cases.values() for row in reversed(case)]
+    a, _, fig_a = check(neutral)
+    b, _, fig_b = check("\n".join([header, *tip_first]) + "\n")
+    _same_data(a, b)
+    assert not a.read_descending and b.read_descending
+    assert fig_a["positions_in_file"] == "increasing"
+    assert fig_b["positions_in_file"] == "decreasing (read in increasing order)"
+    assert {**fig_a, "positions_in_file": ""} == {**fig_b, "positions_in_file": ""}
+    # one order for every case: a case listed the other way is refused with its line
+    cases_list = list(cases.values())
+    mixed = [*reversed(cases_list[0]), *(r for c in cases_list[1:] for r in c)]
+    message = refused("\n".join([header, *mixed]) + "\n")
+    assert re.match(r"line \d+: position_mm \S+ is not smaller than the previous position", message)
+    assert "the same way in every case" in message
+    # a second unloaded profile is still found when the file runs from the tip
+    zero = [r for r in tip_first if r.split(",")[2] == "0"]
+    message = refused("\n".join([header, *zero, *tip_first]) + "\n")
+    assert "a second unloaded profile (load_kg 0) of side mean" in message
+
+
+def test_an_empty_value_and_a_too_fine_sampling_are_refused_with_what_to_change(upload_csv):
+    header, rows = rows_of(upload_csv)
+    rows[20][5] = ""
+    message = refused("\n".join([header, *(",".join(r) for r in rows)]) + "\n")
+    assert message.startswith("line 22: column 'gap_mm' is empty: every sample needs a value")
+    # 0.25 mm sampling of one case: the row cap says to thin the positions
+    fine = "".join(f"s,mean,40,0,{x / 4:g},0.5\n" for x in range(-4000, 4001))
+    message = refused(",".join(CSV_COLUMNS) + "\n" + fine, max_rows=5000)
+    assert "its first case has 5000 samples every 0.25 mm: every 1–5 mm is enough" in message
+
+
 def test_the_example_csv_is_a_realistic_device_file_the_upload_accepts():
     text = example_camber_csv()
     data, _, figures = check(text)
