@@ -449,18 +449,33 @@ def camber_csv_unloaded(tmp_path_factory) -> bytes:
 def test_ski_upload_with_the_unloaded_profile_ends_done(catalogue, tmp_path, camber_csv_unloaded):
     """A CSV with the unloaded profile (load_kg 0) trains: the network's range starts at 0 N and
     answers the measured unloaded profile at F = 0; both models are judged on the same held-out
-    cases (seeded, recorded, never the unloaded one) and the better one serves."""
+    cases (seeded, recorded, never the unloaded one) and the better one serves. The file is sent
+    as a Windows spreadsheet saves "Unicode text" of a device that scans from the tip (UTF-16,
+    tabs, decimal commas, 'Load (kg)' headers, positions decreasing): the job reads the stored
+    bytes to the same measurements as the neutral file."""
     from skisnow.app.service.profiles import MODEL_CHOICE
-    from skisnow.app.storage.skis import mean_profiles, read_ski
+    from skisnow.app.storage.skis import mean_profiles, read_camber_csv, read_ski
     from skisnow.solvers import camber
 
-    with make_client(catalogue, tmp_path) as client:
-        r = post_ski(client, camber_csv_unloaded, name="zero-ski")
+    neutral = camber_csv_unloaded.decode().splitlines()
+    cases: dict[str, list[str]] = {}
+    for row in neutral[1:]:
+        cases.setdefault(",".join(row.split(",")[1:4]), []).append(row)
+    rows = [r.replace(",", "\t").replace(".", ",") for c in cases.values() for r in reversed(c)]
+    header = "Ski ID\tSide\tLoad (kg)\tLoad position (mm)\tPosition (mm)\tGap (mm)"
+    sheet = "\r\n".join([header, *rows]).encode("utf-16")  # 1.2 MB: twice the UTF-8 size
+    with make_client(catalogue, tmp_path, max_upload_bytes=4_000_000) as client:
+        r = post_ski(client, sheet, name="zero-ski")
         assert r.status_code == 202, r.text[:500]
         job = wait_job(client, r.json()["job"])
         assert job["state"] == "done", job
         shown = client.get("/v1/skis/zero-ski").json()
+        assert shown["metadata"]["data"]["text_encoding"] == "UTF-16"
+        assert shown["metadata"]["data"]["positions_in_file"].startswith("decreasing")
         record = read_ski(tmp_path / "skis" / f"{shown['id']}.h5")
+        read = read_camber_csv(camber_csv_unloaded.decode())
+        np.testing.assert_array_equal(record.measurements.profiles_m, read.profiles_m)
+        np.testing.assert_array_equal(record.measurements.positions_m, read.positions_m)
         net = record.network
         assert net["attrs"]["load_min_n"] == 0.0 and net["attrs"]["unloaded_cases"] == 1
         f, _, y, _ = mean_profiles(record.measurements)
