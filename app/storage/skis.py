@@ -219,10 +219,12 @@ MAX_CAMBER_CASES = 2000
 MAX_CAMBER_ROWS = 600_000
 
 
-def _split_header(line: str) -> tuple[str, list[str]]:
-    """The separator of a header line and its cells (lower case, spaces and BOM stripped)."""
+def _split_header(line: str, sep: str | None = None) -> tuple[str, list[str]]:
+    """The separator of a header line (``sep`` when the file named it) and its cells (lower
+    case, spaces and BOM stripped)."""
     line = line.lstrip("\ufeff").rstrip("\r\n")
-    sep = next((s for s in CSV_SEPARATORS if s in line), ",")
+    if sep is None:
+        sep = next((s for s in CSV_SEPARATORS if s in line), ",")
     cells = next(csv.reader([line], delimiter=sep))
     return sep, [c.strip().strip("\ufeff").strip().lower() for c in cells]
 
@@ -266,7 +268,7 @@ def _unit_hint(key: str) -> str:
     return ""
 
 
-def _header_columns(cells: list[str]) -> list[int]:
+def _header_columns(cells: list[str], lineno: int = 1) -> list[int]:
     """Index of each of :data:`CSV_COLUMNS` in the header cells (:func:`_column_key`: "Load
     (kg)" is ``load_kg``); empty trailing cells (a trailing separator, empty spreadsheet
     columns) are ignored, anything else is refused, a known column in another unit with the
@@ -291,9 +293,9 @@ def _header_columns(cells: list[str]) -> list[int]:
         problems.append("repeated " + ", ".join(doubled))
     if problems:
         raise InputError(
-            f"line 1: header must name the columns {expected} (any order, any case; a unit in "
-            f"brackets, as in 'Load (kg)', is read), got {','.join(cells) or 'an empty line'}: "
-            + "; ".join(problems)
+            f"line {lineno}: header must name the columns {expected} (any order, any case; a "
+            "unit in brackets, as in 'Load (kg)', is read), got "
+            f"{','.join(cells) or 'an empty line'}: " + "; ".join(problems)
         )
     return [keys.index(c) for c in CSV_COLUMNS]
 
@@ -361,7 +363,9 @@ def read_camber_csv(
 ) -> CamberData:
     """Read and validate a camber CSV (a path, or the CSV text itself), row by row.
 
-    Spreadsheet dialects are read: ``,``-separated with decimal points, ``;``- or
+    Spreadsheet dialects are read: blank lines, comment lines (``#`` first) and a separator
+    line (``sep=;``) before the header, comment lines among the rows; ``,``-separated with
+    decimal points, ``;``- or
     tab-separated with decimal commas or points (one decimal mark per file); header names in
     any order and any case (surrounding spaces and a BOM ignored; "Load (kg)" is ``load_kg``:
     :func:`_column_key`), empty trailing columns ignored, unknown columns refused by name (a
@@ -386,11 +390,23 @@ def read_camber_csv(
         With the line number and what is wrong (header, number, range, order, grid, caps).
     """
     lines = _lines(source)
-    first = next(lines, None)
-    if first is None or not first.strip():
-        raise InputError("line 1: empty file, expected header " + ",".join(CSV_COLUMNS))
-    sep, cells = _split_header(first)
-    idx = _header_columns(cells)
+    header_line, sep_line = 0, None
+    while True:
+        first = next(lines, None)
+        header_line += 1
+        if first is None:
+            where = "empty file" if header_line == 1 else "no header line after the comments"
+            raise InputError(f"line 1: {where}, expected header " + ",".join(CSV_COLUMNS))
+        text = first.lstrip("\ufeff").rstrip("\r\n")
+        if not text.strip() or text.lstrip().startswith("#"):
+            continue  # blank lines and a device's comment lines before the header
+        hint = re.fullmatch(r'"?sep=(.)"?', text.strip(" "), flags=re.IGNORECASE)
+        if hint and sep_line is None:
+            sep_line = hint.group(1)  # a spreadsheet's separator line ("sep=;")
+            continue
+        break
+    sep, cells = _split_header(first, sep_line)
+    idx = _header_columns(cells, header_line)
     width = max(idx) + 1
     decimal: list[str] = [""] if sep == "," else []
     ski_id: str | None = None
@@ -398,9 +414,9 @@ def read_camber_csv(
     unloaded: dict[str, tuple[float, int]] = {}  # side -> (load position read, first line)
     order = 0  # +1: positions increase within a case, -1: decrease (tip first); 0: not yet seen
     rows = 0
-    for lineno, row in enumerate(csv.reader(lines, delimiter=sep), start=2):
-        if not row or all(not c.strip() for c in row):
-            continue
+    for lineno, row in enumerate(csv.reader(lines, delimiter=sep), start=header_line + 1):
+        if not row or all(not c.strip() for c in row) or row[0].lstrip().startswith("#"):
+            continue  # blank and comment lines
         rows += 1
         if not rows % _CHECKPOINT_ROWS:
             checkpoint()  # let the event loop run; the upload's time bound

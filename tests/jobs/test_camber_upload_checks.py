@@ -378,6 +378,27 @@ def test_an_empty_value_and_a_too_fine_sampling_are_refused_with_what_to_change(
     assert "its first case has 5000 samples every 0.25 mm: every 1–5 mm is enough" in message
 
 
+def test_comment_lines_and_a_separator_line_are_read_past_with_the_file_s_line_numbers(
+    upload_csv,
+):
+    neutral = upload_csv.decode()
+    lines = neutral.splitlines()
+    preamble = ["# device: camber rig 2, 2026-12-01", "", "#operator;  J. Doe"]
+    a, _, _ = check(neutral)
+    b, _, _ = check("\n".join([*preamble, *lines[:3], "# re-zeroed", *lines[3:]]) + "\n")
+    _same_data(a, b)
+    sheet = _spreadsheet(neutral).lstrip("\ufeff")
+    c, _, _ = check("sep=;\r\n" + sheet)
+    _same_data(a, c)
+    # errors name the line of the file, comments counted
+    rows = lines[1:]
+    rows[4] = rows[4].rsplit(",", 1)[0] + ",x"
+    message = refused("\n".join([*preamble, lines[0], *rows]) + "\n")
+    assert message.startswith("line 9: column 'gap_mm' is not a number: 'x'")
+    assert refused("\n".join([*preamble, "a,b"]) + "\n").startswith("line 4: header must")
+    assert refused("# only a comment\n").startswith("line 1: no header line after the comments")
+
+
 def test_the_example_csv_is_a_realistic_device_file_the_upload_accepts():
     text = example_camber_csv()
     data, _, figures = check(text)
