@@ -17,7 +17,9 @@ Usage::
 
     python scripts/network_band_study.py --out docs/studies/network-band.json
 
-About 3–5 min on a loaded 2-core machine (3 min 24 s – 4 min 48 s measured).
+About 3–5 min on a loaded 2-core machine (3 min 24 s – 4 min 48 s measured). With
+``--own-ski`` the rows' set is ``own``, the ski's measurement grid and ``refused`` where its
+network failed the job's accuracy check (the service never serves it).
 """
 
 from __future__ import annotations
@@ -151,6 +153,18 @@ def own_ski_cases(study: Path, limit: int | None = None):
     ]
 
 
+def own_set(name: str, record) -> str:
+    """The set of an own ski's rows: ``own``, its measurement grid when the name gives it, and
+    whether its network failed the job's accuracy check (then the service never serves it:
+    its rows say what a refused network would have answered)."""
+    from skisnow.app.settings import Settings
+
+    grid = next((g for g in ("dense", "coarse") if f"-{g}-" in name), "")
+    rmse_m = (record.network or {}).get("attrs", {}).get("metric_test_rmse_band_m", 0.0)
+    refused = " refused" if rmse_m * 1e6 > Settings().ski_max_test_rmse_um else ""
+    return " ".join(p for p in ("own", grid) if p) + refused
+
+
 def _above(row, q):
     """A row's half-width above its answer (rows written before the grid part was one-sided:
     the one width)."""
@@ -216,6 +230,9 @@ def main(argv=None):
         "held-out cases, set 'own')",
     )
     ap.add_argument("--cases", type=int, help="at most this many cases per own ski")
+    ap.add_argument(
+        "--no-rows", action="store_true", help="write the summary only (no per-case rows)"
+    )
     args = ap.parse_args(argv)
     t0 = time.time()
     cat = service.load_catalogue(REPO / "tables")
@@ -226,7 +243,7 @@ def main(argv=None):
             for f, xf in cases:
                 for e in E_SNOW_MPA:
                     for r in case_rows(name, rec, table, f, xf, e, args.scales, truth):
-                        rows.append(dict(r, set="own"))
+                        rows.append(dict(r, set=own_set(name, rec)))
             print(name, f"{time.time() - t0:.0f} s", file=sys.stderr)
     for name in () if args.own_ski is not None else ("ski-a", "ski-b"):
         rec = network_record(cat.ski(name).record)
@@ -241,7 +258,7 @@ def main(argv=None):
         "command": "python scripts/network_band_study.py " + " ".join(sys.argv[1:] or argv or []),
         "seconds": time.time() - t0,
         "summary": summary,
-        "rows": rows,
+        "rows": [] if args.no_rows else rows,
     }
     args.out.write_text(json.dumps(out, indent=1, default=float))
     for k, v in summary.items():

@@ -983,7 +983,7 @@ def plot(doc: dict, path: Path) -> None:
                         pos + jitter, np.maximum(err, 1e-3), s=8, alpha=0.5, color=colours[model]
                     )
                     ax.plot([pos - 0.3, pos + 0.3], [np.median(err)] * 2, color="k", lw=1)
-                labels.append(f"{model[:4]}\n{e:g}")
+                labels.append(f"{model if len(model) <= 5 else model[:4]}\n{e:g}")
                 pos += 1
         ax.axhline(AREA_TARGET * 100, color="r", lw=0.8, ls="--", label="3 %")
         ax.set_yscale("log")
@@ -1062,7 +1062,8 @@ def markdown(doc: dict, json_path: Path | None = None) -> str:
         f"{', '.join(s['designs'])}; draws {s['draws']}; grids {', '.join(s['grids'])}; "
         f"{s['held_out']} held-out cases per ski at {', '.join(f'{e:g}' for e in s['moduli'])} "
         f"MPa, porosity {POROSITY:g}, grind `{s['grind']}`; network "
-        f"{s['training']}; CSV every {s['csv_spacing_mm']:g} mm; reference fit "
+        f"{s['training'] or 'the service defaults (app/settings.py)'}; CSV every "
+        f"{s['csv_spacing_mm']:g} mm; reference fit "
         f"{'on' if s['reference_fit'] else 'off'}. Time: "
         f"{sum(v or 0 for v in doc['timing']['ski_time_s'].values()):.0f} s over the skis "
         f"(this invocation {doc['timing']['wall_s']:.0f} s; machine shared with other jobs).",
