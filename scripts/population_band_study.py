@@ -20,7 +20,7 @@ its error) and reports, per answer model (rigid, flexible), measurement grid and
 
 Nothing is solved: seconds. Usage::
 
-    python scripts/population_band_study.py  # the eleven populations of DEFAULT_POPULATIONS
+    python scripts/population_band_study.py  # the twelve populations of DEFAULT_POPULATIONS
     python scripts/population_band_study.py --studies 'new=docs/studies/own-ski-random-33-36.json'
 
 Writes docs/studies/population-bands.json and .md.
@@ -58,6 +58,8 @@ DEFAULT_POPULATIONS = {
     "random 25-28": "own-ski-random-25-28.json",
     "random 29-32": "own-ski-random-29-32.json",
     "random 33-36": "own-ski-random-33-36.json",
+    # the one population run with the service's default network (its limit kept)
+    "random 501-504, default network": "own-ski-default-network-random-501-504.json",
 }
 MODELS = ("rigid", "flexible")
 GRIDS = ("coarse", "dense")
@@ -436,7 +438,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--studies",
         nargs="+",
-        help="label=study.json ... (default: the eleven populations of DEFAULT_POPULATIONS)",
+        help="label=study.json ... (default: the twelve populations of DEFAULT_POPULATIONS)",
     )
     ap.add_argument("--out", type=Path, default=STUDIES / "population-bands.json")
     args = ap.parse_args(argv)

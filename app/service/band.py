@@ -1050,7 +1050,7 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
                 k * w_a,
                 k * band.width_above("apparent_contact_area"),
             ),
-            "source": "docs/studies/population-bands.md (identified beams of eleven own-ski "
+            "source": "docs/studies/population-bands.md (identified beams of twelve own-ski "
             "populations, this ski model, measurement grid and snow modulus)",
         }
     out = {
