@@ -156,6 +156,28 @@ class SkiRecord:
 not_owned(SkiRecord)
 
 
+def _units_row(row: list[str], idx: list[int], lineno: int) -> bool:
+    """Whether ``row`` (the first after the header) is a row of units ("kg", "[mm]", "-"): True
+    when its numeric columns hold none of a number and each names its column's unit; a
+    column in another unit is refused with the conversion to make (:func:`_unit_hint`)."""
+    cells = {name: row[k].strip() for name, k in zip(CSV_COLUMNS, idx, strict=True)}
+    numeric = {name: cells[name] for name in CSV_COLUMNS[2:]}
+    if any(re.search(r"\d", v) for v in numeric.values()) or not any(
+        re.search(r"[^\W\d_]", v) for v in numeric.values()
+    ):
+        return False  # a number, or no unit's letter: a data row (its own checks say what)
+    problems = []
+    for name, text in numeric.items():
+        unit = _column_key(text.lower()).strip("_")
+        base, want = name.rsplit("_", 1)
+        if unit != want:
+            hint = _unit_hint(f"{base}_{unit}") or f" (expected {want})"
+            problems.append(f"{name} in {text!r}{hint}")
+    if problems:
+        raise InputError(f"line {lineno}: a row of units gives " + "; ".join(problems))
+    return True
+
+
 def _sampling_hint(cases: dict) -> str:
     """For the row cap: the first case's sampling, when finer than the job needs."""
     if not cases:
@@ -364,7 +386,8 @@ def read_camber_csv(
     """Read and validate a camber CSV (a path, or the CSV text itself), row by row.
 
     Spreadsheet dialects are read: blank lines, comment lines (``#`` first) and a separator
-    line (``sep=;``) before the header, comment lines among the rows; ``,``-separated with
+    line (``sep=;``) before the header, a row of units under it (the units expected:
+    :func:`_units_row`), comment lines among the rows; ``,``-separated with
     decimal points, ``;``- or
     tab-separated with decimal commas or points (one decimal mark per file); header names in
     any order and any case (surrounding spaces and a BOM ignored; "Load (kg)" is ``load_kg``:
@@ -417,6 +440,8 @@ def read_camber_csv(
     for lineno, row in enumerate(csv.reader(lines, delimiter=sep), start=header_line + 1):
         if not row or all(not c.strip() for c in row) or row[0].lstrip().startswith("#"):
             continue  # blank and comment lines
+        if rows == 0 and len(row) >= width and _units_row(row, idx, lineno):
+            continue  # a spreadsheet's row of units under the header, the units expected
         rows += 1
         if not rows % _CHECKPOINT_ROWS:
             checkpoint()  # let the event loop run; the upload's time bound

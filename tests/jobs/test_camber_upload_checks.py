@@ -399,6 +399,34 @@ def test_comment_lines_and_a_separator_line_are_read_past_with_the_file_s_line_n
     assert refused("# only a comment\n").startswith("line 1: no header line after the comments")
 
 
+@pytest.mark.parametrize(
+    ("units", "refusal"),
+    [
+        ("-,-,kg,mm,mm,mm", None),
+        (",,[kg],(mm),[mm],mm", None),
+        (",,kg,mm,mm,µm", "gap_mm in 'µm' (gap is read in mm as gap_mm: divide µm by 1000 for mm)"),
+        (",,N,mm,mm,mm", "load_kg in 'N' (load is read in kg as load_kg: divide newtons by 9.82"),
+        (",,kg,cm,cm,mm", "load_position_mm in 'cm' (load_position is read in mm as"),
+    ],
+)
+def test_a_row_of_units_under_the_header_is_read_past_when_it_names_the_units(
+    upload_csv, units, refusal
+):
+    lines = upload_csv.decode().splitlines()
+    text = "\n".join([lines[0], units, *lines[1:]]) + "\n"
+    if refusal is None:
+        a, _, fig_a = check(upload_csv)
+        b, _, fig_b = check(text)
+        assert fig_a == fig_b
+        _same_data(a, b)
+    else:
+        message = refused(text)
+        assert message.startswith("line 2: a row of units gives ") and refusal in message
+    # a first data row without numbers is no units row: its own check names it
+    blank = "\n".join([lines[0], "my-ski,mean,,,,", *lines[1:]]) + "\n"
+    assert refused(blank).startswith("line 2: column 'load_kg' is empty")
+
+
 def test_the_example_csv_is_a_realistic_device_file_the_upload_accepts():
     text = example_camber_csv()
     data, _, figures = check(text)
