@@ -505,6 +505,103 @@ def test_ski_upload_with_the_unloaded_profile_ends_done(catalogue, tmp_path, cam
         assert page.status_code == 200 and 'id="model-choice-table"' in page.text
 
 
+def test_a_junior_ski_from_a_windows_spreadsheet_gets_its_beam_and_true_answers(
+    catalogue, tmp_path
+):
+    """A ski unlike every study design: 1.5 m long, 0.7 kN·m², loads 5–45 kg, measured on both
+    sides (9 × 5 cases and the unloaded profile each, 3 µm noise), sent as a Windows
+    spreadsheet's CSV (`;`, decimal commas, Windows-1252). The job ends done with its beam
+    served, and the answers agree with the true beam's within 3 % and inside their band."""
+    from skisnow.app.storage.skis import CamberData, camber_csv_text, read_ski
+    from skisnow.solvers.beam import G_STANDARD, ClassicSkiDesign, measure_camber, measure_unloaded
+
+    design = ClassicSkiDesign(
+        tail_m=-0.72,
+        tip_m=0.78,
+        tail_contact_m=-0.66,
+        tip_contact_m=0.58,
+        camber_height_m=1.1e-3,
+        pocket_m=(-0.25, 0.2),
+        pocket_height_m=3e-4,
+        stiffness_nm2=700.0,
+        end_stiffness_ratio=0.2,
+        tail_rise_m=0.005,
+        tip_rise_m=0.03,
+    )
+    truth = design.build(1e-3)
+    rng = np.random.default_rng(11)
+    f_all, xf_all, sides, profiles = [], [], [], []
+    for side in ("left", "right"):
+        y0 = measure_unloaded(truth, noise_m=3e-6, rng=rng)
+        f, xf, y = measure_camber(
+            truth,
+            np.linspace(5, 45, 9) * G_STANDARD,
+            np.linspace(-0.2, 0.08, 5),
+            noise_m=3e-6,
+            rng=rng,
+        )
+        f_all += [0.0, *f]
+        xf_all += [0.0, *xf]
+        sides += [side] * (f.size + 1)
+        profiles += [y0, *y]
+    data = CamberData(
+        "Junior Ø",
+        truth.positions_m[::5],
+        np.array(f_all),
+        np.array(xf_all),
+        sides,
+        np.array(profiles)[:, ::5],
+    )
+    sheet = "\r\n".join(
+        line.replace(",", ";").replace(".", ",") for line in camber_csv_text(data).splitlines()
+    ).encode("cp1252")
+    with make_client(catalogue, tmp_path) as client:
+        r = post_ski(client, sheet, name="junior", length_mm="1500")
+        assert r.status_code == 202, r.text[:500]
+        assert r.json()["data"]["text_encoding"] == "Windows-1252"
+        job = wait_job(client, r.json()["job"])
+        assert job["state"] == "done", job
+        shown = client.get("/v1/skis/junior").json()
+        assert shown["profile_model"]["name"] == "identified_beam"
+        record = read_ski(tmp_path / "skis" / f"{shown['id']}.h5")
+        assert record.measurements.ski_id == "Junior Ø"
+        ski = service.Ski("junior-truth", tmp_path / "skis" / "t.h5", "", record)
+        true_ski = service.Ski(
+            "junior-truth",
+            ski.path,
+            "",
+            type(record)(record.measurements, record.outline, beam=truth),
+        )
+        cat = service.Catalogue(
+            tables_dir=catalogue.tables_dir,
+            skis={"junior-truth": true_ski},
+            grinds=dict(catalogue.grinds),
+        )
+        for model in ("rigid", "flexible"):
+            q = {
+                "ski": "junior",
+                "grind": "tiny-grind",
+                "load_kg": 25,
+                "load_position_mm": -123,
+                "snow_modulus_mpa": 200,
+                "porosity": 0.5,
+                "ski_model": model,
+            }
+            a = client.post("/v1/contact", json=q)
+            assert a.status_code == 200, a.text[:500]
+            a = a.json()
+            want = service.contact(
+                cat,
+                service.ContactInputs(
+                    "junior-truth", "tiny-grind", 25, -123, 200, 0.5, ski_model=model
+                ),
+            )["apparent"]["contact_area_cm2"]
+            got = a["apparent"]["contact_area_cm2"]
+            lo, hi = a["band"]["intervals"]["contact_area_cm2"]
+            assert abs(got / want - 1) < 0.03, (model, got, want)
+            assert lo <= want <= hi, (model, lo, want, hi)
+
+
 #: a network far above the accuracy limit (5 epochs against the default limit, 8 µm)
 ROUGH_NETWORK = {"train_epochs": 5, "train_lbfgs_epochs": 0, "ski_max_test_rmse_um": 8.0}
 
