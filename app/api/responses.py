@@ -11,7 +11,7 @@ Routes whose answers are large (contact, compare, flex) send them as they are
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -240,7 +240,8 @@ class Provenance(BaseModel):
 
 
 class StudiedTail(BaseModel):
-    """The studied answers outside their 90 % bands (docs/studies/population-bands.md)."""
+    """The studied answers outside their 90 % bands (docs/studies/population-bands.md; for a
+    camber network's answers docs/camber-identification.md)."""
 
     model_config = _FIXED
     answers: int = Field(..., description="held-out answers studied in this answer's cell")
@@ -256,6 +257,9 @@ class StudiedTail(BaseModel):
         ...,
         description="this answer's apparent-area band stretched that far [cm²]: [low, high], "
         "high null when unbounded",
+    )
+    of: Literal["identified_beam", "network"] = Field(
+        ..., description="which answers were studied: identified beams' or camber networks'"
     )
     source: str
 

@@ -72,6 +72,7 @@ from skisnow.app.service.band_calibration import (
     grid_above_share_at,
     identified_sigma_scale_at,
     loaded_cases,
+    network_studied_tail_at,
     rigid_area_grid_factor_at,
     studied_tail_at,
 )
@@ -182,12 +183,15 @@ class Band:
     #: share of the grid part kept above the answer
     #: (:func:`app.service.band_calibration.grid_above_share_at`)
     grid_above_share: float | None = None
-    #: how the own-ski studies' answers of this kind fell outside their bands
-    #: (:func:`app.service.band_calibration.studied_tail_at`): (share outside, farthest truth
-    #: ÷ the half-width on its side, answers studied); None for an answer the studies do not
-    #: stand for (a design beam, the network's profile, auto's compared or rigid-for-bending
-    #: answers)
+    #: how the studies' answers of this kind fell outside their bands
+    #: (:func:`app.service.band_calibration.studied_tail_at` for an identified beam,
+    #: :func:`~app.service.band_calibration.network_studied_tail_at` for a rigid answer of the
+    #: camber network): (share outside, farthest truth ÷ the half-width on its side, answers
+    #: studied); None for an answer the studies do not stand for (a design beam, auto's
+    #: compared or rigid-for-bending answers)
     studied_tail: tuple[float, float, int] | None = None
+    #: which studies :attr:`studied_tail` comes from: "identified_beam" or "network"
+    studied_tail_of: str | None = None
 
     def width_above(self, quantity: str) -> float:
         """The relative half-width above the answer of ``quantity`` [-]."""
@@ -595,6 +599,8 @@ def answer_band(
         not_covered.insert(0, IDENTIFIED_STRUCTURE_NOT_COVERED)
         held_out = held_out_excess(record.identified)
     rigid = ski_model_used == "rigid"
+    # a rigid answer from the ski's camber network (no beam served, none given with the ski)
+    network_served = rigid and not identified and not beam_is_design and record.network is not None
     unmeasured = None
     scale_reduced = None
     sigma, source = None, ""
@@ -814,6 +820,13 @@ def answer_band(
         else None,
         studied_tail=studied_tail_at(ski_model_used, e_eff, loaded_cases(record))
         if identified and "ski_model" not in components
+        else network_studied_tail_at(e_eff)
+        if network_served and "ski_model" not in components
+        else None,
+        studied_tail_of="identified_beam"
+        if identified and "ski_model" not in components
+        else "network"
+        if network_served and "ski_model" not in components
         else None,
     )
 
@@ -1050,8 +1063,13 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
                 k * w_a,
                 k * band.width_above("apparent_contact_area"),
             ),
+            "of": band.studied_tail_of,
             "source": "docs/studies/population-bands.md (identified beams of twelve own-ski "
-            "populations, this ski model, measurement grid and snow modulus)",
+            "populations, this ski model, measurement grid and snow modulus)"
+            if band.studied_tail_of != "network"
+            else "docs/camber-identification.md, 'With the service's default network' (rigid "
+            "answers of camber networks: the demo skis' and four unseen designs' on 13 × 9 "
+            "cases, this snow modulus; scripts/network_band_study.py)",
         }
     out = {
         "level": 0.9,

@@ -833,6 +833,60 @@ def test_an_identified_beams_answer_states_its_studied_tail(shipped):
         assert lo < lo90 < a < hi90 < hi
 
 
+def test_a_network_served_answer_states_the_networks_studied_tail(shipped):
+    """A rigid answer of a ski served by its camber network (the demo ski's identification
+    removed) states the tail of the networks' studies (band.studied_tail, of "network"); a
+    bending answer of the same ski has none (it bends its design beam, exact)."""
+    from skisnow.app.service.band_calibration import network_studied_tail_at
+
+    ski = shipped.skis["ski-b"]
+    rec = replace(ski.record, identified=None, beam=None, cache={})
+    cat = service.Catalogue(
+        tables_dir=shipped.tables_dir,
+        skis={"ski-b-net": replace(ski, name="ski-b-net", record=rec)},
+        grinds=shipped.grinds,
+    )
+    for e_mpa in (20.0, 200.0, 2000.0):
+        ans = service.contact(cat, replace(PAPER, ski="ski-b-net", snow_modulus_mpa=e_mpa))
+        assert ans["provenance"]["ski"]["profile_model"] == "network"
+        tail = ans["band"]["studied_tail"]
+        share, k, n = network_studied_tail_at(effective_modulus(e_mpa * 1e6, 700e6, 0.3))
+        assert tail["of"] == "network" and "network" in tail["source"]
+        assert (tail["outside_share"], tail["farthest_over_half_width"], tail["answers"]) == (
+            share,
+            k,
+            n,
+        )
+        w = ans["band"]["relative_half_width"]["apparent_contact_area"]
+        lo, _ = tail["contact_area_cm2_at_farthest"]
+        assert lo == pytest.approx(ans["apparent"]["contact_area_cm2"] * (1 - k * w), rel=1e-3)
+    assert service.contact(shipped, PAPER)["band"]["studied_tail"]["of"] == "identified_beam"
+
+
+def test_the_network_tail_is_its_committed_studies_pooled_and_rounded_up():
+    """band_calibration.NETWORK_STUDIED_TAIL: per snow modulus, the committed network band
+    studies' sets of NETWORK_STUDIED_TAIL_STUDIES at the served factor, pooled (share outside
+    weighted by answers, the farthest reach the largest), rounded up by at most one step."""
+    import json
+
+    from skisnow.app.service import band_calibration as bc
+
+    for n, e_mpa in enumerate(bc.STUDIED_TAIL_E_SNOW_MPA):
+        answers, outside, far = 0, 0.0, 0.0
+        for path, sets in bc.NETWORK_STUDIED_TAIL_STUDIES.items():
+            summary = json.loads((TABLES.parent / path).read_text("utf-8"))["summary"]
+            for st in sets:
+                cell = summary[f"{st} scale {bc.NETWORK_SIGMA_SCALE:g} {e_mpa:g} MPa"]
+                area = cell["apparent_contact_area"]
+                answers += area["n"]
+                outside += area["n"] * (1 - area["inside"])
+                far = max(far, area["farthest_over_side"])
+        share, k = bc.NETWORK_STUDIED_TAIL[n]
+        assert answers == bc.NETWORK_STUDIED_TAIL_ANSWERS
+        assert 0 <= share - outside / answers < 1e-3 + 1e-12
+        assert 0 <= k - far < 1e-2 + 1e-12
+
+
 def test_studied_tail_takes_the_worse_node_and_grid():
     """Between two moduli or two measurement grids the tail is the worse of the cells around
     (a worst case is not interpolated); a model the studies did not judge gets none."""
