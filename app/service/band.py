@@ -792,6 +792,17 @@ def answer_band(
             np.maximum(nom - sampled.line_half_width_pa, 0.0),
             nom + sampled.line_half_width_pa,
         )
+    # the studies that stand for this answer (none for auto's compared or rigid-for-bending
+    # answers, nor for a design beam)
+    tail_of = (
+        None
+        if "ski_model" in components
+        else "identified_beam"
+        if identified
+        else "network"
+        if network_served
+        else None
+    )
     return Band(
         widths=widths,
         components=components,
@@ -818,16 +829,12 @@ def answer_band(
         profile_scale=identified_sigma_scale_at(e_eff, loaded_cases(record))
         if rigid and has_sigma and identified
         else None,
-        studied_tail=studied_tail_at(ski_model_used, e_eff, loaded_cases(record))
-        if identified and "ski_model" not in components
-        else network_studied_tail_at(e_eff)
-        if network_served and "ski_model" not in components
-        else None,
-        studied_tail_of="identified_beam"
-        if identified and "ski_model" not in components
-        else "network"
-        if network_served and "ski_model" not in components
-        else None,
+        studied_tail=None
+        if tail_of is None
+        else studied_tail_at(ski_model_used, e_eff, loaded_cases(record))
+        if tail_of == "identified_beam"
+        else network_studied_tail_at(e_eff),
+        studied_tail_of=tail_of,
     )
 
 

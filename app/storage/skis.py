@@ -253,15 +253,20 @@ def _split_header(line: str, sep: str | None = None) -> tuple[str, list[str]]:
 
 #: units a header may give a column in brackets ("Load (kg)"), per column [its unit]
 _COLUMN_UNITS = {"load": "kg", "load_position": "mm", "position": "mm", "gap": "mm"}
-#: what to do with a column given in another unit: (unit as normalised, how to convert)
+#: what to do with a column given in another unit, per unit the column is read in: the other
+#: unit as normalised (:func:`_column_key`) → how to convert
 _UNIT_HINTS = {
-    "n": "divide newtons by 9.82 for kg",
-    "um": "divide µm by 1000 for mm",
-    "cm": "multiply cm by 10 for mm",
-    "m": "multiply m by 1000 for mm",
-    "in": "multiply inches by 25.4 for mm",
-    "g": "divide g by 1000 for kg",
-    "lb": "multiply lb by 0.4536 for kg",
+    "kg": {
+        "n": "divide newtons by 9.82 for kg",
+        "g": "divide g by 1000 for kg",
+        "lb": "multiply lb by 0.4536 for kg",
+    },
+    "mm": {
+        "um": "divide µm by 1000 for mm",
+        "cm": "multiply cm by 10 for mm",
+        "m": "multiply m by 1000 for mm",
+        "in": "multiply inches by 25.4 for mm",
+    },
 }
 
 
@@ -285,8 +290,8 @@ def _unit_hint(key: str) -> str:
     for base, unit in _COLUMN_UNITS.items():
         if key.startswith(base + "_"):
             other = key[len(base) + 1 :]
-            if other in _UNIT_HINTS and other != unit:
-                return f" ({base} is read in {unit} as {base}_{unit}: {_UNIT_HINTS[other]})"
+            if other in _UNIT_HINTS[unit]:
+                return f" ({base} is read in {unit} as {base}_{unit}: {_UNIT_HINTS[unit][other]})"
     return ""
 
 
