@@ -37,6 +37,7 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
     from skisnow.app.training.data import camber_training_arrays, job_held_out
     from skisnow.app.training.files import write_network_to_ski
     from skisnow.app.training.fit import train_camber_network
+    from skisnow.app.training.model import TRAIN_EXTRA_HINT
 
     item = ctx.item
     data = read_camber_csv(layout.ski_csv(item.id))
@@ -66,21 +67,26 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
         t_stage = now
 
     ctx.progress(0.0, "training the camber network")
-    result = train_camber_network(
-        x,
-        f,
-        xf,
-        h,
-        epochs=settings.train_epochs,
-        lbfgs_epochs=settings.train_lbfgs_epochs,
-        ensemble=settings.train_ensemble,
-        ski_id=item.name,
-        metadata={"measured_side": side, "measurements_source": f"upload {item.id}.csv"},
-        progress=progress,
-        test_index=held_t,
-    )
+    try:
+        result = train_camber_network(
+            x,
+            f,
+            xf,
+            h,
+            epochs=settings.train_epochs,
+            lbfgs_epochs=settings.train_lbfgs_epochs,
+            ensemble=settings.train_ensemble,
+            ski_id=item.name,
+            metadata={"measured_side": side, "measurements_source": f"upload {item.id}.csv"},
+            progress=progress,
+            test_index=held_t,
+        )
+    except ImportError as exc:  # a plain install (no torch): the identified beam may serve
+        if str(exc) != TRAIN_EXTRA_HINT:
+            raise
+        result = None
     stage_done("training")
-    m = result.metrics
+    m = result.metrics if result is not None else {}
     rmse_um = float(m.get("test_rmse_band_m", math.nan)) * 1e6
     limit = settings.ski_max_test_rmse_um
     figures = (
@@ -90,8 +96,15 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
     )
     # a network above the limit may not serve, but the job goes on: an identified beam that
     # passes its own held-out check serves alone (a coarse grid the network cannot learn, #26);
-    # the job fails only when neither model can serve (below, after the identification)
+    # the job fails only when neither model can serve (below, after the identification). So
+    # does a server without PyTorch, where no network is trained at all
     network_refused = "" if math.isfinite(rmse_um) and rmse_um <= limit else figures
+    trained = "network trained"
+    if result is None:
+        trained = figures = f"network not trained ({TRAIN_EXTRA_HINT})"
+        network_refused = ""
+    elif network_refused:
+        trained += " (above the accuracy limit: not served)"
     ctx.check_stop()
     o = item.metadata["outline"]
     record = SkiRecord(
@@ -117,20 +130,23 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
         held_out_index=held_m,
     )
     stage_done("identification")
-    if network_refused and identified_beam(record.identified) is None:
+    if (network_refused or result is None) and identified_beam(record.identified) is None:
+        failed = f"accuracy check failed: {figures}" if result is not None else figures
         raise InputError(
-            f"accuracy check failed: {figures}; {beam_note}: neither camber model can serve; "
+            f"{failed}; {beam_note}: neither camber model can serve; "
             "measure more load cases or denser positions"
         )
+    network = result.network if result is not None else None
     record.identified, choice_note = _choose_model(
-        record.identified, result.network, (fm, xfm, ym), held_m, item, network_refused
+        record.identified, network, (fm, xfm, ym), held_m, item, network_refused
     )
     stage_done("model_choice")
     work = layout.work(item.id)
     work.mkdir(parents=True, exist_ok=True)
     staged = work / "ski.h5"
     write_ski(staged, record, parameters={"item": item.id, "name": item.name})
-    write_network_to_ski(staged, result.network)
+    if network is not None:
+        write_network_to_ski(staged, network)
     read_ski(staged)  # verify before it enters the catalogue
     final = layout.ski_file(item.id)
     final.parent.mkdir(parents=True, exist_ok=True)
@@ -149,9 +165,8 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
         item.id, state="ready", file_path=str(final), sha256=sha256_file(final), metadata=meta
     )
     on_ready(db_item)
-    trained = "network trained"
-    if network_refused:
-        trained += " (above the accuracy limit: not served)"
+    if result is None:
+        return f"{trained}; {beam_note}; {choice_note}"
     return f"{trained}; {figures}; {beam_note}; {choice_note}"
 
 

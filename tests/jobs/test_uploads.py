@@ -645,6 +645,48 @@ def test_a_network_above_the_accuracy_limit_leaves_the_beam_to_serve(
         assert answer.status_code == 200, answer.text[:300]
 
 
+def test_a_server_without_pytorch_serves_the_identified_beam(
+    catalogue, tmp_path, upload_csv, monkeypatch
+):
+    """A plain install (README's service command) has no PyTorch, so no network is trained: the
+    job still identifies the beam, which serves alone; the ski answers (found by the README's
+    service check: every upload failed with "needs PyTorch")."""
+    from skisnow.app.training import fit
+    from skisnow.app.training.model import TRAIN_EXTRA_HINT
+
+    def no_torch(*args, **kwargs):
+        raise ImportError(TRAIN_EXTRA_HINT)
+
+    monkeypatch.setattr(fit, "train_camber_network", no_torch)
+    with make_client(catalogue, tmp_path) as client:
+        job = _upload_and_wait(client, upload_csv, "plain")
+        assert job["state"] == "done", job
+        assert job["message"].startswith(f"network not trained ({TRAIN_EXTRA_HINT}); beam ")
+        shown = client.get("/v1/skis/plain").json()
+        assert shown["usable"] is True
+        model = shown["profile_model"]
+        assert model["name"] == "identified_beam"
+        assert model["held_out_comparison"]["reason"] == "no camber network to compare"
+        q = {"ski": "plain", "grind": "tiny-grind", "load_kg": 40, "load_position_mm": -160}
+        q |= {"snow_modulus_mpa": 200, "porosity": 0.5}
+        for ski_model in ("rigid", "flexible", "auto"):
+            r = client.post("/v1/contact", json={**q, "ski_model": ski_model})
+            assert r.status_code == 200, r.text[:300]
+        assert client.get("/skis/plain").status_code == 200
+    # and where the identification fails too, the job fails with both reasons
+    from skisnow.app.jobs import ski_job
+
+    reason = "beam not identified: misfit 9.00 µm is 3.0× the device noise"
+    monkeypatch.setattr(
+        ski_job, "_identify", lambda *a, **k: ({"attrs": {"ok": False, "reason": reason}}, reason)
+    )
+    with make_client(catalogue, tmp_path / "again") as client:
+        job = _upload_and_wait(client, upload_csv, "plain")
+        assert job["state"] == "failed"
+        assert job["error"].startswith(f"network not trained ({TRAIN_EXTRA_HINT}); beam not")
+        assert "neither camber model can serve" in job["error"]
+
+
 def test_ski_refused_when_neither_model_can_serve(catalogue, tmp_path, upload_csv, monkeypatch):
     """The network fails its accuracy check and the beam is not identified: the job fails with
     both reasons and keeps nothing; the name can be used again."""
