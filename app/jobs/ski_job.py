@@ -138,7 +138,12 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
         )
     network = result.network if result is not None else None
     record.identified, choice_note = _choose_model(
-        record.identified, network, (fm, xfm, ym), held_m, item, network_refused
+        record.identified,
+        network,
+        (fm, xfm, ym),
+        held_m,
+        item,
+        network_refused if network is not None else TRAIN_EXTRA_HINT,
     )
     stage_done("model_choice")
     work = layout.work(item.id)

@@ -92,8 +92,12 @@ def choose_profile_model(
     """The profile model a ski serves from the held-out comparison (:data:`CHOICE_RULE`):
     ``("identified_beam" | "network", why)``. ``beam_excess_m`` is NaN when no beam passed
     the identification; ``network_excess_m`` NaN when there is no network.
-    ``network_refused``: why the network may not serve (its failed accuracy check), or ''."""
+    ``network_refused``: why the network may not serve (its failed accuracy check; without a
+    network, why there is none), or ''."""
     b, n = float(beam_excess_m), float(network_excess_m)
+    if not np.isfinite(n) and np.isfinite(b):
+        why = f" ({network_refused})" if network_refused else ""
+        return "identified_beam", "no camber network to compare" + why
     if network_refused and np.isfinite(b):
         return "identified_beam", (
             f"the camber network failed its accuracy check ({network_refused}): the identified "
