@@ -86,25 +86,28 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
             raise
         result = None
     stage_done("training")
-    m = result.metrics if result is not None else {}
-    rmse_um = float(m.get("test_rmse_band_m", math.nan)) * 1e6
-    limit = settings.ski_max_test_rmse_um
-    figures = (
-        f"held-out RMSE where H* < 0.2 mm = {rmse_um:.2f} µm on {m.get('test_n_cases', 0)} test "
-        f"case(s) (limit {limit:g} µm), validation {m.get('validation_rmse_band_m', 0) * 1e6:.2f}"
-        f" µm, train {m.get('train_rmse_band_m', 0) * 1e6:.2f} µm"
-    )
-    # a network above the limit may not serve, but the job goes on: an identified beam that
-    # passes its own held-out check serves alone (a coarse grid the network cannot learn, #26);
-    # the job fails only when neither model can serve (below, after the identification). So
-    # does a server without PyTorch, where no network is trained at all
-    network_refused = "" if math.isfinite(rmse_um) and rmse_um <= limit else figures
-    trained = "network trained"
+    # a network that may not serve leaves the job going on: an identified beam that passes its
+    # own held-out check serves alone (a coarse grid the network cannot learn, #26; a server
+    # without PyTorch, where no network is trained); the job fails only when neither model can
+    # serve (below, after the identification). ``network_refused``: why the network may not
     if result is None:
-        trained = figures = f"network not trained ({TRAIN_EXTRA_HINT})"
-        network_refused = ""
-    elif network_refused:
-        trained += " (above the accuracy limit: not served)"
+        network, m = None, {}
+        network_note = failed = f"network not trained ({TRAIN_EXTRA_HINT})"
+        network_refused = TRAIN_EXTRA_HINT
+    else:
+        network, m = result.network, result.metrics
+        rmse_um = float(m.get("test_rmse_band_m", math.nan)) * 1e6
+        limit = settings.ski_max_test_rmse_um
+        figures = (
+            f"held-out RMSE where H* < 0.2 mm = {rmse_um:.2f} µm on {m.get('test_n_cases', 0)} "
+            f"test case(s) (limit {limit:g} µm), validation "
+            f"{m.get('validation_rmse_band_m', 0) * 1e6:.2f} µm, train "
+            f"{m.get('train_rmse_band_m', 0) * 1e6:.2f} µm"
+        )
+        network_refused = "" if math.isfinite(rmse_um) and rmse_um <= limit else figures
+        above = " (above the accuracy limit: not served)" if network_refused else ""
+        network_note = f"network trained{above}; {figures}"
+        failed = f"accuracy check failed: {figures}"
     ctx.check_stop()
     o = item.metadata["outline"]
     record = SkiRecord(
@@ -130,20 +133,13 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
         held_out_index=held_m,
     )
     stage_done("identification")
-    if (network_refused or result is None) and identified_beam(record.identified) is None:
-        failed = f"accuracy check failed: {figures}" if result is not None else figures
+    if network_refused and identified_beam(record.identified) is None:
         raise InputError(
             f"{failed}; {beam_note}: neither camber model can serve; "
             "measure more load cases or denser positions"
         )
-    network = result.network if result is not None else None
     record.identified, choice_note = _choose_model(
-        record.identified,
-        network,
-        (fm, xfm, ym),
-        held_m,
-        item,
-        network_refused if network is not None else TRAIN_EXTRA_HINT,
+        record.identified, network, (fm, xfm, ym), held_m, item, network_refused
     )
     stage_done("model_choice")
     work = layout.work(item.id)
@@ -170,9 +166,7 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
         item.id, state="ready", file_path=str(final), sha256=sha256_file(final), metadata=meta
     )
     on_ready(db_item)
-    if result is None:
-        return f"{trained}; {beam_note}; {choice_note}"
-    return f"{trained}; {figures}; {beam_note}; {choice_note}"
+    return f"{network_note}; {beam_note}; {choice_note}"
 
 
 def _draw_page_figures(item, path: Path, layout: Layout) -> None:
