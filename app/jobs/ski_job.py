@@ -40,7 +40,8 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
     from skisnow.app.training.model import TRAIN_EXTRA_HINT
 
     item = ctx.item
-    data = read_camber_csv(layout.ski_csv(item.id))
+    # the upload's name stands in for a ski_id the file left out, as at upload
+    data = read_camber_csv(layout.ski_csv(item.id), default_ski_id=item.name)
     _, x, f, xf, h, side = camber_training_arrays(data)
     # one held-out draw (seeded, recorded) for both models: the network is trained and the beam
     # identified without these cases, and both are judged on them (app.service.profiles)

@@ -72,6 +72,14 @@ MIN_GRID_LOAD_POSITIONS = 5
 MAX_SAMPLE_SPACING_MM = 5.0
 #: the measured span must cover at least this fraction of the ski's length_mm [-]
 MIN_SPAN_FRACTION = 0.8
+#: A ski pressed on the flat touches it, so each load case's smallest gap reads about 0 (the
+#: device noise pulls it a few µm below). Measured (``python scripts/zero_offset_study.py``,
+#: docs/studies/zero-offset.json): on 310 designs (the study's, the validation's, random
+#: 0–299), 9 loads × 5 positions, 3 µm noise, samples every 5 mm over the central 80 % of the
+#: ski, no load case's smallest gap was above 0.71 µm and the median over a ski's cases was
+#: −8.0 … −3.1 µm: none flagged with no offset, all with an offset of 0.03 mm or more. A median
+#: above this is a device zero set below the flat [mm].
+ZERO_OFFSET_LIMIT_MM = 0.02
 SKI_LENGTH_MM_RANGE = (1000.0, 2600.0)
 SKI_WIDTH_MM_RANGE = (30.0, 80.0)
 
@@ -570,6 +578,28 @@ def _check_span(x_mm: np.ndarray, length_mm: float) -> None:
     )
 
 
+def _check_zero(data) -> None:
+    """Refuse a file whose load cases never touch the flat: each side's median over its load
+    cases of the case's smallest gap above :data:`ZERO_OFFSET_LIMIT_MM` is a device zero set
+    below the flat (every gap too large by about that much), said so with the amount."""
+    from skisnow.app.storage.skis import unloaded_mask
+
+    loaded = ~unloaded_mask(data)
+    sides = np.asarray(data.sides)
+    for side in sorted(set(sides[loaded])):
+        cases = np.flatnonzero(loaded & (sides == side))
+        smallest_mm = data.profiles_m[cases].min(axis=1) * 1e3
+        offset_mm = float(np.median(smallest_mm))
+        if offset_mm > ZERO_OFFSET_LIMIT_MM:
+            raise InputError(
+                f"file: the base never touches the flat: on side {side} the smallest gap of "
+                f"a load case is {offset_mm:.3f} mm (median of {cases.size} cases, the lowest "
+                f"{smallest_mm.min():.3f} mm), but a ski pressed on the flat touches it where "
+                "gap_mm reads 0 (± the device noise). The device's zero looks set about "
+                f"{offset_mm:.3f} mm below the flat: zero it on the flat and measure again"
+            )
+
+
 def _check_grid(loads_n: np.ndarray, load_positions_m: np.ndarray, spacing_mm: float) -> None:
     """Refuse a file below the smallest grid that gets a served beam, with that sentence."""
     loaded = loads_n > 0
@@ -596,6 +626,7 @@ def check_ski_upload(
     width_positions_mm: str | None,
     max_cases: int | None = None,
     max_rows: int | None = None,
+    default_ski_id: str | None = None,
 ):
     """Validate a camber CSV upload and the outline; refuse, in plain words, what the job
     would fail on: a span under :data:`MIN_SPAN_FRACTION` of ``length_mm`` (positions in cm
@@ -624,6 +655,7 @@ def check_ski_upload(
         text,
         max_cases=max_cases or skis.MAX_CAMBER_CASES,
         max_rows=max_rows or skis.MAX_CAMBER_ROWS,
+        default_ski_id=default_ski_id,
     )
     if not SKI_LENGTH_MM_RANGE[0] <= length_mm <= SKI_LENGTH_MM_RANGE[1]:
         raise InputError(
@@ -642,6 +674,7 @@ def check_ski_upload(
     spacing_mm = float(np.median(np.diff(x))) * 1e3
     _check_grid(f_all, xf_all, spacing_mm)
     loaded = f_all > 0  # the unloaded profile is no load case to hold out
+    _check_zero(camber_data)
     f, xf = f_all[loaded], xf_all[loaded]
     try:
         split_load_cases(f, xf)
@@ -685,6 +718,10 @@ def check_ski_upload(
         "positions_in_file": "decreasing (read in increasing order)"
         if camber_data.read_descending
         else "increasing",
+        # kgf / kp read as kg: one kgf is the weight of one kg (the same numbers)
+        "load_unit_in_file": camber_data.load_unit_in_file,
+        # ski_id / side left out of the file: the upload's name, side mean
+        "columns_not_in_file": list(camber_data.defaulted_columns),
         "load_range_kg": [float(f.min() / 9.82), float(f.max() / 9.82)],
         "load_position_range_mm": [float(xf.min() * 1e3), float(xf.max() * 1e3)],
     }
@@ -724,6 +761,7 @@ def accept_ski(
         width_positions_mm=width_positions_mm,
         max_cases=max_cases,
         max_rows=max_rows,
+        default_ski_id=name,
     )
     meta = {
         **metadata,

@@ -69,6 +69,10 @@ SCHEMA = "skisnow.ski/1"
 _CHECKPOINT_ROWS = 32
 CSV_COLUMNS = ("ski_id", "side", "load_kg", "load_position_mm", "position_mm", "gap_mm")
 SIDES = ("left", "right", "mean")
+#: columns a file may leave out (a device that measures one ski along its middle writes
+#: neither): ``ski_id`` is then the caller's (the upload's name, a path's stem), ``side`` is
+#: ``mean``; :attr:`CamberData.defaulted_columns` records which
+OPTIONAL_CSV_COLUMNS = ("ski_id", "side")
 LOAD_KG_RANGE = (0.0, 200.0)
 POSITION_MM_LIMIT = 1500.0
 #: accepted gap range [mm]; small negative values are device noise around contact
@@ -96,6 +100,12 @@ class CamberData:
     read_descending : bool
         The CSV listed each case's positions from the tip to the tail (decreasing); read in
         that order and kept increasing here (the same samples; :func:`read_camber_csv`).
+    load_unit_in_file : str
+        The unit the CSV's header gave the load in: ``kg``, or ``kgf`` / ``kp``
+        (kilogram-force, kilopond: the weight of one kg, so the same numbers).
+    defaulted_columns : tuple of str
+        Columns the CSV left out and their value used, as ``"name=value"``
+        (:data:`OPTIONAL_CSV_COLUMNS`).
     """
 
     ski_id: str
@@ -105,6 +115,8 @@ class CamberData:
     sides: list[str]
     profiles_m: np.ndarray
     read_descending: bool = False
+    load_unit_in_file: str = "kg"
+    defaulted_columns: tuple[str, ...] = ()
 
 
 @dataclass
@@ -160,8 +172,8 @@ def _units_row(row: list[str], idx: list[int], lineno: int) -> bool:
     """Whether ``row`` (the first after the header) is a row of units ("kg", "[mm]", "-"): True
     when its numeric columns hold none of a number and each names its column's unit; a
     column in another unit is refused with the conversion to make (:func:`_unit_hint`)."""
-    cells = {name: row[k].strip() for name, k in zip(CSV_COLUMNS, idx, strict=True)}
-    numeric = {name: cells[name] for name in CSV_COLUMNS[2:]}
+    numeric = {name: row[k].strip() for name, k in zip(CSV_COLUMNS, idx, strict=True)}
+    numeric = {name: numeric[name] for name in CSV_COLUMNS[2:]}
     if any(re.search(r"\d", v) for v in numeric.values()) or not any(
         re.search(r"[^\W\d_]", v) for v in numeric.values()
     ):
@@ -170,6 +182,8 @@ def _units_row(row: list[str], idx: list[int], lineno: int) -> bool:
     for name, text in numeric.items():
         unit = _column_key(text.lower()).strip("_")
         base, want = name.rsplit("_", 1)
+        if want == "kg" and unit in _KG_WEIGHT_UNITS:
+            unit = want  # kilogram-force: the kg values (_KG_WEIGHT_UNITS)
         if unit != want:
             hint = _unit_hint(f"{base}_{unit}") or f" (expected {want})"
             problems.append(f"{name} in {text!r}{hint}")
@@ -270,6 +284,12 @@ _UNIT_HINTS = {
 }
 
 
+#: load columns in kilogram-force (a weight; kp: kilopond, the same unit), read as load_kg: one
+#: kgf is the weight of one kg, so the numbers are the kg values (no conversion; recorded as
+#: :attr:`CamberData.load_unit_in_file`)
+_KG_WEIGHT_UNITS = ("kgf", "kp")
+
+
 def _column_key(cell: str) -> str:
     """A header cell as a column name: lower case (the caller), runs of spaces, hyphens and dots
     as ``_``, and a unit in brackets joined on ("Load (kg)", "load [kg]" → ``load_kg``;
@@ -303,13 +323,14 @@ def _header_columns(cells: list[str], lineno: int = 1) -> list[int]:
     while cells and not cells[-1]:
         cells = cells[:-1]
     keys = [_column_key(c) for c in cells]
+    keys = ["load_kg" if k in {f"load_{u}" for u in _KG_WEIGHT_UNITS} else k for k in keys]
     expected = ",".join(CSV_COLUMNS)
     unknown = [
         (repr(c) if c else "'(empty)'") + _unit_hint(k)
         for c, k in zip(cells, keys, strict=True)
         if k not in CSV_COLUMNS
     ]
-    missing = [c for c in CSV_COLUMNS if c not in keys]
+    missing = [c for c in CSV_COLUMNS if c not in keys and c not in OPTIONAL_CSV_COLUMNS]
     doubled = sorted({k for k in keys if k in CSV_COLUMNS and keys.count(k) > 1})
     problems = []
     if missing:
@@ -321,10 +342,11 @@ def _header_columns(cells: list[str], lineno: int = 1) -> list[int]:
     if problems:
         raise InputError(
             f"line {lineno}: header must name the columns {expected} (any order, any case; a "
-            "unit in brackets, as in 'Load (kg)', is read), got "
+            "unit in brackets, as in 'Load (kg)', is read; ski_id and side may be left out), "
+            "got "
             f"{','.join(cells) or 'an empty line'}: " + "; ".join(problems)
         )
-    return [keys.index(c) for c in CSV_COLUMNS]
+    return [keys.index(c) if c in keys else -1 for c in CSV_COLUMNS]
 
 
 def decode_camber_bytes(data: bytes) -> tuple[str, str] | None:
@@ -387,6 +409,7 @@ def read_camber_csv(
     *,
     max_cases: int | None = None,
     max_rows: int | None = None,
+    default_ski_id: str | None = None,
 ) -> CamberData:
     """Read and validate a camber CSV (a path, or the CSV text itself), row by row.
 
@@ -399,6 +422,10 @@ def read_camber_csv(
     :func:`_column_key`), empty trailing columns ignored, unknown columns refused by name (a
     known one in another unit with the conversion to make). Only the decimal mark is read: no
     number is otherwise changed. A path is read in its encoding (:func:`decode_camber_bytes`).
+
+    ``ski_id`` and ``side`` may be left out (:data:`OPTIONAL_CSV_COLUMNS`): ``ski_id`` is then
+    ``default_ski_id`` (None: a path's stem, else ``ski``) and ``side`` is ``mean``, recorded in
+    :attr:`CamberData.defaulted_columns`.
 
     Rows with ``load_kg`` = 0 are the unloaded profile (at most one case per side): its
     ``load_position_mm`` is ignored and stored as 0 (F = 0 N, x_F = 0 m; :func:`unloaded_mask`).
@@ -435,6 +462,15 @@ def read_camber_csv(
         break
     sep, cells = _split_header(first, sep_line)
     idx = _header_columns(cells, header_line)
+    if default_ski_id is None:
+        path_like = isinstance(source, os.PathLike) or "\n" not in str(source)
+        default_ski_id = Path(source).stem if path_like else "ski"
+    defaults = {"ski_id": default_ski_id, "side": "mean"}
+    defaulted = tuple(
+        f"{c}={defaults[c]}" for c, k in zip(CSV_COLUMNS[:2], idx[:2], strict=True) if k < 0
+    )
+    load_key = _column_key(cells[idx[2]])
+    load_unit = next((u for u in _KG_WEIGHT_UNITS if load_key == f"load_{u}"), "kg")
     width = max(idx) + 1
     decimal: list[str] = [""] if sep == "," else []
     ski_id: str | None = None
@@ -442,6 +478,8 @@ def read_camber_csv(
     unloaded: dict[str, tuple[float, int]] = {}  # side -> (load position read, first line)
     order = 0  # +1: positions increase within a case, -1: decrease (tip first); 0: not yet seen
     rows = 0
+    below: tuple[int, float] | None = None  # the first gap below GAP_MM_RANGE: (line, gap)
+    largest_gap, lowest_gap = -np.inf, np.inf
     for lineno, row in enumerate(csv.reader(lines, delimiter=sep), start=header_line + 1):
         if not row or all(not c.strip() for c in row) or row[0].lstrip().startswith("#"):
             continue  # blank and comment lines
@@ -464,7 +502,10 @@ def read_camber_csv(
             raise InputError(
                 f"line {lineno}: a value in column {extra[0]}, which has no name in the header"
             )
-        sid, side_raw = row[idx[0]].strip(), row[idx[1]].strip()
+        sid, side_raw = (
+            row[k].strip() if k >= 0 else defaults[c]
+            for c, k in zip(CSV_COLUMNS[:2], idx[:2], strict=True)
+        )
         side = side_raw.lower()
         if not sid:
             raise InputError(f"line {lineno}: ski_id is empty")
@@ -498,23 +539,16 @@ def read_camber_csv(
                     "this far looks measured from the ski's end: subtract the balance "
                     "point's distance from it"
                 )
-        if not GAP_MM_RANGE[0] <= gap <= GAP_MM_RANGE[1]:
-            hint = ""
-            if gap > GAP_MM_RANGE[1]:
-                hint = (
-                    f"; {gap:g} is above the device's range of {GAP_MM_RANGE[1]:g} mm: values "
-                    "look like µm; gap_mm is in mm (divide µm by 1000)"
-                )
-            else:
-                hint = (
-                    "; gap_mm is the gap between the base and the flat, ≥ 0 (0 where the base "
-                    "touches): if the device writes the base's height below the flat as "
-                    "negative, change the sign of the column"
-                )
+        if gap > GAP_MM_RANGE[1]:
             raise InputError(
                 f"line {lineno}: gap_mm must be in [{GAP_MM_RANGE[0]}, {GAP_MM_RANGE[1]}] "
-                f"(small negative values are device noise), got {gap}{hint}"
+                f"(small negative values are device noise), got {gap}; {gap:g} is above the "
+                f"device's range of {GAP_MM_RANGE[1]:g} mm: values look like µm; gap_mm is in "
+                "mm (divide µm by 1000)"
             )
+        if gap < GAP_MM_RANGE[0] and below is None:
+            below = (lineno, gap)  # refused after the rows: the file's largest gap says why
+        largest_gap, lowest_gap = max(largest_gap, gap), min(lowest_gap, gap)
         if load_kg == UNLOADED_LOAD_KG:
             seen = unloaded.setdefault(side, (load_pos, lineno))
             prev = cases.get((side, 0.0, 0.0))
@@ -553,6 +587,8 @@ def read_camber_csv(
         gs.append(gap)
     if not cases:
         raise InputError("no data rows after the header")
+    if below is not None:
+        raise InputError(_negative_gap_message(*below, lowest_gap, largest_gap))
     if order < 0:  # listed from the tip: the same samples, kept in increasing order
         cases = {k: (xs[::-1], gs[::-1], line) for k, (xs, gs, line) in cases.items()}
     keys = list(cases)
@@ -576,6 +612,38 @@ def read_camber_csv(
         sides=[k[0] for k in keys],
         profiles_m=np.array([cases[k][1] for k in keys]) * 1e-3,
         read_descending=order < 0,
+        load_unit_in_file=load_unit,
+        defaulted_columns=defaulted,
+    )
+
+
+#: a file whose gaps reach above this has a camber: its gaps below the range are a device zero
+#: set above the flat, not a column of the opposite sign [mm]
+_CAMBER_SEEN_MM = 0.1
+
+
+def _negative_gap_message(
+    lineno: int, gap: float, lowest_gap_mm: float, largest_gap_mm: float
+) -> str:
+    """Why a gap below :data:`GAP_MM_RANGE` is refused, and what to change: the sign of the
+    column when no gap of the file shows a camber (at most :data:`_CAMBER_SEEN_MM`), else the
+    device's zero (the base's touching part reads below the flat)."""
+    head = (
+        f"line {lineno}: gap_mm must be in [{GAP_MM_RANGE[0]}, {GAP_MM_RANGE[1]}] (small "
+        f"negative values are device noise), got {gap}"
+    )
+    if largest_gap_mm > _CAMBER_SEEN_MM:
+        return (
+            f"{head}; gap_mm is the gap between the base and the flat, 0 where the base touches, "
+            f"and the file's gaps reach {largest_gap_mm:g} mm elsewhere, so the touching base "
+            f"reads down to {lowest_gap_mm:g} mm: the device's zero looks set about "
+            f"{-lowest_gap_mm:g} mm above the flat: zero it on the flat and measure again"
+        )
+    return (
+        f"{head}; gap_mm is the gap between the base and the flat, ≥ 0 (0 where the base "
+        "touches), and no gap of the file is above "
+        f"{_CAMBER_SEEN_MM:g} mm: if the device writes the base's height below the flat as "
+        "negative, change the sign of the column"
     )
 
 

@@ -545,3 +545,103 @@ def test_the_caps_are_settings_of_the_upload_route(catalogue, tmp_path, upload_c
     with make_client(catalogue, tmp_path, max_camber_rows=1000) as client:
         body = is_problem(post_ski(client, upload_csv, name="capped"), 422)
         assert body["detail"].startswith("line 1002: more than 1000 data rows")
+
+
+def _shifted(csv_bytes: bytes, offset_mm: float) -> str:
+    """The CSV with every gap ``offset_mm`` larger: a device zeroed off the flat."""
+    header, rows = rows_of(csv_bytes)
+    shifted = [[*r[:5], f"{float(r[5]) + offset_mm:.4f}"] for r in rows]
+    return "\n".join([header, *(",".join(r) for r in shifted)]) + "\n"
+
+
+def test_a_device_zeroed_below_the_flat_is_refused_with_the_offset(upload_csv):
+    """Every load case of a ski pressed on the flat touches it (docs/studies/zero-offset.json:
+    310 designs, no case's smallest gap above 0.71 µm at the sparsest accepted sampling)."""
+    data, _, _ = check(upload_csv)
+    smallest = data.profiles_m.min(axis=1)
+    assert np.all(smallest < 1e-6)  # the file as measured touches in every case
+    check(_shifted(upload_csv, 0.01))  # within the limit (0.02 mm): accepted
+    message = refused(_shifted(upload_csv, 0.05))
+    assert message.startswith("file: the base never touches the flat: on side mean")
+    got = float(re.search(r"looks set about ([0-9.]+) mm below the flat", message).group(1))
+    assert got == pytest.approx(0.05 + np.median(smallest) * 1e3, abs=1.5e-3)
+    assert "of 45 cases" in message and "zero it on the flat and measure again" in message
+
+
+def test_the_zero_offset_limit_is_the_study_s():
+    """The limit as scripts/zero_offset_study.py measured it: no false alarm on its 310 designs
+    with the device zeroed, every design flagged from a 0.03 mm offset on."""
+    import json
+
+    study = json.loads((REPO / "docs" / "studies" / "zero-offset.json").read_text())
+    assert study["limit_mm"] == uploads.ZERO_OFFSET_LIMIT_MM
+    assert study["designs"] == len(study["rows"]) >= 300
+    assert study["flagged_per_offset_mm"]["0"] == 0
+    assert study["flagged_per_offset_mm"]["0.03"] == study["designs"]
+    assert study["largest_case_minimum_mm"] < 0.1 * uploads.ZERO_OFFSET_LIMIT_MM
+
+
+def test_a_device_zeroed_above_the_flat_is_not_told_to_change_the_sign(upload_csv):
+    """A camber whose touching part reads below −0.05 mm is a zero above the flat; a column with
+    every gap ≤ 0 is one of the opposite sign: each refusal says its own change."""
+    header, rows = rows_of(upload_csv)
+    low = min(float(r[5]) for r in rows)
+    message = refused(_shifted(upload_csv, -0.1))
+    assert "the device's zero looks set about" in message and "change the sign" not in message
+    got = float(re.search(r"reads down to (-[0-9.]+) mm", message).group(1))
+    assert got == pytest.approx(low - 0.1, abs=1e-4)
+    first = next(i for i, r in enumerate(rows) if float(r[5]) - 0.1 < -0.05)
+    assert message.startswith(f"line {first + 2}: gap_mm must be in [-0.05, 50.0]")
+    heights = [[*r[:5], f"{-float(r[5]):.4f}"] for r in rows]
+    text = "\n".join([header, *(",".join(r) for r in heights)]) + "\n"
+    message = refused(text)
+    assert "change the sign of the column" in message and "zero" not in message
+
+
+@pytest.mark.parametrize("name", ["Load (kgf)", "load_kgf", "Load kp", "LOAD [KP]"])
+def test_loads_in_kilogram_force_read_as_kg_and_say_so(upload_csv, name):
+    """kgf (kp) is the weight of one kg: the numbers are the kg values, none is changed."""
+    header, rows = rows_of(upload_csv)
+    cells = header.split(",")
+    cells[cells.index("load_kg")] = name
+    text = "\n".join([",".join(cells), *(",".join(r) for r in rows)]) + "\n"
+    data, _, figures = check(text)
+    plain, _, plain_figures = check(upload_csv)
+    assert figures["load_unit_in_file"] == data.load_unit_in_file
+    assert data.load_unit_in_file in ("kgf", "kp") and plain.load_unit_in_file == "kg"
+    assert plain_figures["load_unit_in_file"] == "kg"
+    np.testing.assert_array_equal(data.loads_n, plain.loads_n)
+    units = "\n".join([header, "-,-,kgf,mm,mm,mm", *(",".join(r) for r in rows)]) + "\n"
+    np.testing.assert_array_equal(check(units)[0].loads_n, plain.loads_n)
+
+
+def test_a_file_without_ski_id_and_side_reads_as_the_upload_s_ski_on_side_mean(
+    upload_csv, tmp_path
+):
+    """A device that measures one ski along its middle writes neither column: the ski is the
+    upload's name (a path's stem on the command line), the side ``mean``; the answer says so."""
+    header, rows = rows_of(upload_csv)
+    text = "\n".join(
+        ["Load (kg);Load position (mm);Position (mm);Gap (mm)"]
+        + [";".join(r[2:]).replace(".", ",") for r in rows]
+    )
+    data, _, figures = uploads.check_ski_upload(
+        text.encode(), "ski.csv", **OUTLINE, default_ski_id="my-ski"
+    )
+    plain, _, _ = check(upload_csv)
+    assert data.ski_id == "my-ski" and data.sides == plain.sides == ["mean"] * len(plain.sides)
+    np.testing.assert_array_equal(data.profiles_m, plain.profiles_m)
+    np.testing.assert_array_equal(data.loads_n, plain.loads_n)
+    assert figures["columns_not_in_file"] == ["ski_id=my-ski", "side=mean"]
+    assert check(upload_csv)[2]["columns_not_in_file"] == []
+    path = tmp_path / "shop-7.csv"
+    path.write_text(text + "\n")
+    assert read_camber_csv(path).ski_id == "shop-7"
+    # side given, ski_id not: only the one defaulted
+    with_side = "\n".join([header.split(",", 1)[1], *(",".join(r[1:]) for r in rows)]) + "\n"
+    assert read_camber_csv(with_side).defaulted_columns == ("ski_id=ski",)
+    # a required column left out is still refused by name
+    message = refused(
+        "\n".join([",".join(header.split(",")[:-1])] + [",".join(r[:-1]) for r in rows])
+    )
+    assert "missing gap_mm" in message and "ski_id and side may be left out" in message

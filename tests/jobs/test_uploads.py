@@ -451,8 +451,9 @@ def test_ski_upload_with_the_unloaded_profile_ends_done(catalogue, tmp_path, cam
     answers the measured unloaded profile at F = 0; both models are judged on the same held-out
     cases (seeded, recorded, never the unloaded one) and the better one serves. The file is sent
     as a Windows spreadsheet saves "Unicode text" of a device that scans from the tip (UTF-16,
-    tabs, decimal commas, 'Load (kg)' headers, positions decreasing): the job reads the stored
-    bytes to the same measurements as the neutral file."""
+    tabs, decimal commas, 'Load (kg)' headers, positions decreasing, no ski_id and side
+    columns): the job reads the stored bytes to the same measurements as the neutral file, the
+    ski named as uploaded."""
     from skisnow.app.service.profiles import MODEL_CHOICE
     from skisnow.app.storage.skis import mean_profiles, read_camber_csv, read_ski
     from skisnow.solvers import camber
@@ -461,8 +462,13 @@ def test_ski_upload_with_the_unloaded_profile_ends_done(catalogue, tmp_path, cam
     cases: dict[str, list[str]] = {}
     for row in neutral[1:]:
         cases.setdefault(",".join(row.split(",")[1:4]), []).append(row)
-    rows = [r.replace(",", "\t").replace(".", ",") for c in cases.values() for r in reversed(c)]
-    header = "Ski ID\tSide\tLoad (kg)\tLoad position (mm)\tPosition (mm)\tGap (mm)"
+    assert {r.split(",")[1] for r in neutral[1:]} == {"mean"}  # a middle-line device's file
+    rows = [
+        r.split(",", 2)[2].replace(",", "\t").replace(".", ",")
+        for c in cases.values()
+        for r in reversed(c)
+    ]
+    header = "Load (kg)\tLoad position (mm)\tPosition (mm)\tGap (mm)"
     sheet = "\r\n".join([header, *rows]).encode("utf-16")  # 1.2 MB: twice the UTF-8 size
     with make_client(catalogue, tmp_path, max_upload_bytes=4_000_000) as client:
         r = post_ski(client, sheet, name="zero-ski")
@@ -472,7 +478,9 @@ def test_ski_upload_with_the_unloaded_profile_ends_done(catalogue, tmp_path, cam
         shown = client.get("/v1/skis/zero-ski").json()
         assert shown["metadata"]["data"]["text_encoding"] == "UTF-16"
         assert shown["metadata"]["data"]["positions_in_file"].startswith("decreasing")
+        assert shown["metadata"]["data"]["columns_not_in_file"] == ["ski_id=zero-ski", "side=mean"]
         record = read_ski(tmp_path / "skis" / f"{shown['id']}.h5")
+        assert record.measurements.ski_id == "zero-ski"
         read = read_camber_csv(camber_csv_unloaded.decode())
         np.testing.assert_array_equal(record.measurements.profiles_m, read.profiles_m)
         np.testing.assert_array_equal(record.measurements.positions_m, read.positions_m)
