@@ -600,7 +600,9 @@ def read_camber_csv(
                 f"line {first_line}: case side={key[0]}, load_kg={key[1]:g}, "
                 f"load_position_mm={key[2]:g} has {len(xs)} positions "
                 f"({xs[0]:g}..{xs[-1]:g} mm) but the first case has {grid.size} "
-                f"({grid[0]:g}..{grid[-1]:g} mm): all cases must share one sampling grid"
+                f"({grid[0]:g}..{grid[-1]:g} mm): all cases must share one sampling grid (a "
+                "device that records each pass at its own positions: interpolate every case "
+                "onto the first case's positions; the upload resamples nothing)"
             )
     if grid.size < 2:
         raise InputError("each case needs at least 2 positions")
