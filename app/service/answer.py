@@ -509,7 +509,7 @@ def auto_uses_flexible(diff: dict[str, float]) -> tuple[bool, str]:
 #: the words every ``auto`` answer of the rigid shape without a comparison adds to its warning
 BENDING_IGNORED = (
     ". auto answers with the rigid shape and ignores how the ski bends on the snow: on "
-    "comparable skis that changes the apparent contact area by up to 45–67 % (docs/studies/"
+    "comparable skis that changes the apparent contact area by up to 60–69 % (docs/studies/"
     "auto-without-beam.json); the band includes that difference (band.components.ski_model)"
 )
 

@@ -738,7 +738,7 @@ def answer_band(
             0,
             f"the ski's bending on the snow: auto answered with the rigid shape ({bending_ignored})"
             "; the band's ski_model part is the largest rigid-versus-bending difference measured "
-            "on eight comparable ski designs at this snow modulus "
+            "on 32 comparable ski designs at this snow modulus "
             "(docs/studies/auto-without-beam.json), not this ski's own",
         )
     widths = combine(components)

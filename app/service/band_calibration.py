@@ -555,16 +555,17 @@ FLAT_MIN_WIDTH = 0.03
 
 #: snow moduli of ``scripts/auto_without_beam_study.py`` [MPa] (base 700 MPa, ν 0.3)
 BENDING_IGNORED_E_SNOW_MPA = (2.0, 5.0, 20.0, 50.0, 200.0, 500.0, 2000.0)
-#: per quantity, per modulus: the largest |bending / rigid − 1| over the catalogue's eight
-#: designs at six loads, rounded up to 0.01 (docs/studies/auto-without-beam.json, ``calib``);
-#: the demo skis'
-#: 12 cases per modulus (``test``) all lie inside
+#: per quantity, per modulus: the largest |bending / rigid − 1| over 32 designs (the
+#: catalogue's eight and random-700 … random-723) at six loads, rounded up to 0.01
+#: (docs/studies/auto-without-beam.json, ``calib``, ``fitted_width``; refitted 2026-12-07: the
+#: eight alone covered 89.6–100 % of 24 fresh random designs' cases, these 98.6–100 %, and all
+#: of the demo skis' 12 per modulus, ``test``)
 BENDING_IGNORED_WIDTH: dict[str, tuple[float, ...]] = {
-    "apparent_contact_area": (0.60, 0.67, 0.62, 0.54, 0.50, 0.45, 0.48),
-    "total_real_contact_area": (0.10, 0.10, 0.07, 0.09, 0.12, 0.10, 0.10),
-    "average_real_contact_pressure": (0.11, 0.11, 0.08, 0.10, 0.13, 0.11, 0.11),
-    "min_average_separation": (0.50, 0.45, 0.49, 0.44, 0.33, 0.28, 0.23),
-    "total_reciprocal_separation": (0.30, 0.39, 0.42, 0.33, 0.30, 0.25, 0.21),
+    "apparent_contact_area": (0.60, 0.67, 0.66, 0.69, 0.66, 0.66, 0.67),
+    "total_real_contact_area": (0.10, 0.10, 0.08, 0.11, 0.14, 0.14, 0.12),
+    "average_real_contact_pressure": (0.11, 0.11, 0.09, 0.13, 0.15, 0.16, 0.14),
+    "min_average_separation": (0.56, 0.45, 0.49, 0.44, 0.33, 0.29, 0.24),
+    "total_reciprocal_separation": (0.30, 0.39, 0.43, 0.42, 0.41, 0.37, 0.32),
 }
 
 

@@ -478,3 +478,21 @@ def test_an_identified_beams_band_names_the_shape_error_the_data_cannot_show(shi
     ans = service.contact(net, req)
     assert ans["provenance"]["ski"]["profile_model"] != "identified_beam"
     assert band.IDENTIFIED_STRUCTURE_NOT_COVERED not in ans["band"]["not_covered"]
+
+
+def test_bending_ignored_width_is_the_study_s_fit_and_covers_fresh_random_designs():
+    """The served table is the study's ``fitted_width`` (the largest over its calibration
+    designs, rounded up), and it covers ≥ 95 % of the held-out random designs' differences and
+    all of the demo skis' (docs/studies/auto-without-beam.json)."""
+    import json
+
+    study = json.loads((ROOT / "docs" / "studies" / "auto-without-beam.json").read_text())
+    params = json.loads(study["provenance"]["parameters_json"])
+    assert params["calib_randoms"] >= 24 and params["randoms"] >= 24
+    for q, widths in band_calibration.BENDING_IGNORED_WIDTH.items():
+        cells = study["summary"][q]
+        for e_mpa, w in zip(band_calibration.BENDING_IGNORED_E_SNOW_MPA, widths, strict=True):
+            cell = cells[str(e_mpa)]
+            assert cell["fitted_width"] == w == cell["served_width"], (q, e_mpa)
+            assert cell["served_inside"]["random"] >= 0.95, (q, e_mpa)
+            assert cell["served_inside"]["test"] == 1.0, (q, e_mpa)
