@@ -27,6 +27,7 @@ Units are converted here, once: kg → N with g = 9.82 m/s² (docs/physics.md §
 
 from __future__ import annotations
 
+import codecs
 import csv
 import io
 import json
@@ -349,6 +350,36 @@ def _header_columns(cells: list[str], lineno: int = 1) -> list[int]:
     return [keys.index(c) if c in keys else -1 for c in CSV_COLUMNS]
 
 
+def _sniff_codec(head: bytes) -> str | None:
+    """The codec the first bytes of a camber CSV call for: ``utf-16`` (a byte-order mark),
+    ``utf-16-le`` / ``utf-16-be`` (every other byte of the start zero: a spreadsheet's "Unicode
+    text" without its mark), ``""`` (a single-byte text: UTF-8 or Windows-1252, decided by the
+    whole file), None (zero bytes in another pattern: no text)."""
+    if head.startswith((b"\xff\xfe", b"\xfe\xff")):
+        return "utf-16"
+    if b"\x00" not in head:
+        return ""
+    if len(head) < 4:
+        return None
+    even, odd = head[0::2], head[1::2]
+    if not odd.strip(b"\x00") and b"\x00" not in even:
+        return "utf-16-le"
+    if not even.strip(b"\x00") and b"\x00" not in odd:
+        return "utf-16-be"
+    return None
+
+
+#: the name an encoding read is kept under (``data.text_encoding``), per Python codec
+_ENCODING_NAMES = {
+    "utf-16": "UTF-16",
+    "utf-16-le": "UTF-16",
+    "utf-16-be": "UTF-16",
+    "utf-8-sig": "UTF-8",
+    "cp1252": "Windows-1252",
+    "latin-1": "Windows-1252",
+}
+
+
 def decode_camber_bytes(data: bytes) -> tuple[str, str] | None:
     """The text of a camber CSV's bytes and the name of the encoding it was read in: UTF-8 (a
     BOM ignored); UTF-16 with a byte-order mark, or without one when every other byte of the
@@ -356,50 +387,66 @@ def decode_camber_bytes(data: bytes) -> tuple[str, str] | None:
     on Windows; a file with one of its five unassigned bytes as latin-1). The ASCII digits read
     the same in each: decoding changes no number. None for bytes that are no text (zero bytes
     in another pattern, or UTF-16 that does not decode)."""
-    head = data[:4096]
-    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
-        codec = "utf-16"
-    elif b"\x00" in head:
-        if len(head) < 4:
-            return None
-        even, odd = head[0::2], head[1::2]
-        if not odd.strip(b"\x00") and b"\x00" not in even:
-            codec = "utf-16-le"
-        elif not even.strip(b"\x00") and b"\x00" not in odd:
-            codec = "utf-16-be"
-        else:
-            return None
-    else:
-        try:
-            return data.decode("utf-8-sig"), "UTF-8"
-        except UnicodeDecodeError:
-            pass
-        try:
-            return data.decode("cp1252"), "Windows-1252"
-        except UnicodeDecodeError:  # one of its five unassigned bytes
-            return data.decode("latin-1"), "Windows-1252"
-    try:
-        return data.decode(codec), "UTF-16"
-    except UnicodeDecodeError:
+    codec = _sniff_codec(data[:4096])
+    if codec is None:
         return None
+    for name in (codec,) if codec else ("utf-8-sig", "cp1252", "latin-1"):
+        try:
+            return data.decode(name), _ENCODING_NAMES[name]
+        except UnicodeDecodeError:
+            continue
+    return None
+
+
+_CHUNK_BYTES = 1 << 20
+
+
+def _file_codec(path: Path) -> str:
+    """The Python codec a camber CSV file is read in (:func:`decode_camber_bytes`'s choice),
+    decided without holding the file: its start, then a single-byte file checked as UTF-8 in
+    chunks (else Windows-1252, else latin-1). DataFileError for a file that is no text."""
+    with open(path, "rb") as fh:
+        codec = _sniff_codec(fh.read(4096))
+        if codec is None:
+            raise DataFileError(f"camber CSV {path} is not text (zero bytes)")
+        if codec:
+            return codec
+        for name in ("utf-8-sig", "cp1252"):
+            fh.seek(0)
+            decoder = codecs.getincrementaldecoder(name)()
+            try:
+                while chunk := fh.read(_CHUNK_BYTES):
+                    decoder.decode(chunk)
+                decoder.decode(b"", final=True)
+            except UnicodeDecodeError:
+                continue
+            return name
+    return "latin-1"
+
+
+#: a line's end: CRLF (Windows), LF, or a lone CR (a Mac spreadsheet's "CSV (Macintosh)")
+_EOL = re.compile(r"\r\n|\r|\n")
 
 
 def _lines(source: str | os.PathLike):
-    """The lines of a CSV path (DataFileError when missing; its encoding read by
-    :func:`decode_camber_bytes`) or of the CSV text itself."""
+    """The lines of a CSV path (DataFileError when missing; read line by line in the encoding
+    :func:`_file_codec` finds) or of the CSV text itself, each with its end (CRLF, LF or a
+    lone CR)."""
     if isinstance(source, os.PathLike) or (isinstance(source, str) and "\n" not in source):
         path = Path(source)
         if not path.is_file():
             raise DataFileError(f"camber CSV not found: {path}")
-        decoded = decode_camber_bytes(path.read_bytes())
-        if decoded is None:
-            raise DataFileError(f"camber CSV {path} is not text (zero bytes)")
-        yield from _lines(decoded[0] if "\n" in decoded[0] else decoded[0] + "\n")
+        codec = _file_codec(path)
+        try:
+            with open(path, encoding=codec, newline="") as fh:
+                yield from fh  # newline="": split at CRLF, LF and CR, kept as read
+        except UnicodeDecodeError as exc:  # UTF-16 that does not decode
+            raise DataFileError(f"camber CSV {path} is not {codec} text: {exc}") from None
     else:  # one line at a time: no copy of a large text, read only as far as needed
         text, start = str(source), 0
         while start < len(text):
-            end = text.find("\n", start)
-            end = len(text) if end < 0 else end + 1
+            m = _EOL.search(text, start)
+            end = len(text) if m is None else m.end()
             yield text[start:end]
             start = end
 

@@ -645,3 +645,11 @@ def test_a_file_without_ski_id_and_side_reads_as_the_upload_s_ski_on_side_mean(
         "\n".join([",".join(header.split(",")[:-1])] + [",".join(r[:-1]) for r in rows])
     )
     assert "missing gap_mm" in message and "ski_id and side may be left out" in message
+
+
+def test_a_mac_spreadsheet_s_csv_with_lone_cr_line_ends_is_accepted(upload_csv):
+    """Excel's "CSV (Macintosh)" ends its lines with a lone CR."""
+    mac, _, _ = check(upload_csv.replace(b"\n", b"\r"))
+    plain, _, _ = check(upload_csv)
+    np.testing.assert_array_equal(mac.profiles_m, plain.profiles_m)
+    np.testing.assert_array_equal(mac.loads_n, plain.loads_n)

@@ -153,3 +153,47 @@ def test_alternative_beams_round_trip_through_the_ski_file(tmp_path):
     replace_ski_group(path, "identified", bad)
     with pytest.raises(DataFileError, match="alternatives"):
         identified_alternatives(read_ski(path).identified)
+
+
+@pytest.mark.parametrize("eol", ["\r\n", "\r"], ids=["CRLF", "CR (a Mac spreadsheet)"])
+def test_line_ends_of_windows_and_mac_spreadsheets_read_the_same(tmp_path, eol):
+    """A lone CR ends a line as CRLF and LF do, in the text and in a file."""
+    text = _csv(GOOD).replace("\n", eol)
+    plain = read_camber_csv(_csv(GOOD))
+    path = tmp_path / "mac.csv"
+    path.write_bytes(text.encode())
+    for source in (text + "\n", path):
+        d = read_camber_csv(source)
+        np.testing.assert_array_equal(d.profiles_m, plain.profiles_m)
+        np.testing.assert_array_equal(d.positions_m, plain.positions_m)
+
+
+def test_a_file_is_read_in_its_encoding_line_by_line(tmp_path, monkeypatch):
+    """A path is read in the encoding the whole file shows (a Windows byte far past the start
+    makes it Windows-1252), a chunk at a time, never held whole."""
+    from skisnow.app.storage import skis
+
+    monkeypatch.setattr(skis, "_CHUNK_BYTES", 64)  # many chunks on a small file
+    rows = [r.replace("s1", "Åre") for r in GOOD]
+    text = _csv(rows[:3]) + "# " + "x" * 500 + "\n" + "".join(r + "\n" for r in rows[3:])
+    for encoding, name in (("utf-8", "utf-8-sig"), ("cp1252", "cp1252")):
+        path = tmp_path / f"{encoding}.csv"
+        path.write_bytes(text.encode(encoding))
+        assert skis._file_codec(path) == name
+        d = read_camber_csv(path)
+        assert d.ski_id == "Åre" and d.profiles_m.shape == (2, 3)
+    reads = []
+    real_open = open
+
+    def spy(path, *a, **k):  # the lines come from the open file, not a decoded copy
+        fh = real_open(path, *a, **k)
+        reads.append(k.get("encoding"))
+        return fh
+
+    monkeypatch.setattr("builtins.open", spy)
+    read_camber_csv(tmp_path / "cp1252.csv")
+    assert reads[-1] == "cp1252"
+    bad = tmp_path / "bad.csv"
+    bad.write_bytes(b"\xff\xfe" + b"a\x00\x00\xd8")  # UTF-16 with a lone surrogate
+    with pytest.raises(DataFileError, match="is not utf-16 text"):
+        read_camber_csv(bad)
