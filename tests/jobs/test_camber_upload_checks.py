@@ -653,3 +653,37 @@ def test_a_mac_spreadsheet_s_csv_with_lone_cr_line_ends_is_accepted(upload_csv):
     plain, _, _ = check(upload_csv)
     np.testing.assert_array_equal(mac.profiles_m, plain.profiles_m)
     np.testing.assert_array_equal(mac.loads_n, plain.loads_n)
+
+
+def test_the_spacing_accuracy_is_the_spacing_study_s():
+    """uploads.SPACING_ACCURACY (stated at upload) is what the spacing studies measured: the
+    same four designs and draws at 1, 2 and 5 mm (docs/studies/own-ski-spacing-*)."""
+    import json
+
+    seeds = None
+    for mm, ((lo, hi), rigid, flexible) in uploads.SPACING_ACCURACY.items():
+        name = f"own-ski-spacing-{mm:g}mm-random-601-604.json"
+        study = json.loads((REPO / "docs" / "studies" / name).read_text())
+        assert study["settings"]["csv_spacing_mm"] == mm
+        dense = [s for s in study["skis"] if s["grid"] == "dense"]
+        rms = [s["served"]["profile_rms_um"] for s in dense]
+        # rounded outwards to 0.01 µm
+        assert (lo, hi) == (np.floor(min(rms) * 100) / 100, np.ceil(max(rms) * 100) / 100)
+        models = study["summary"]["dense"]["models"]
+        assert rigid == round(models["rigid"]["all"]["share_within_3pct"], 3)
+        assert flexible == round(models["flexible"]["all"]["share_within_3pct"], 3)
+        drawn = sorted((s["design"], json.dumps(s["seeds"], sort_keys=True)) for s in dense)
+        assert seeds is None or drawn == seeds  # the same skis measured at each spacing
+        seeds = drawn
+    assert uploads.RECOMMENDED_SAMPLE_SPACING_MM in uploads.SPACING_ACCURACY
+    assert max(uploads.SPACING_ACCURACY) == uploads.MAX_SAMPLE_SPACING_MM
+
+
+def test_a_file_sampled_coarser_than_1_mm_is_told_what_it_costs(upload_csv):
+    """The upload answer's notes say what the sampling costs; at 1 mm there is no such note."""
+    _, _, figures = check(upload_csv)  # every 5 mm
+    assert figures["sample_spacing_mm"] == pytest.approx(5.0)
+    note = next(n for n in figures["notes"] if n.startswith("samples every 5 mm"))
+    assert "5 mm: profiles 0.87–1.75 µm" in note and "Measure every 1 mm" in note
+    assert uploads.sampling_note(1.0) is None and uploads.sampling_note(2.0) is not None
+    assert "samples every 1 mm give the most accurate answers" in uploads.minimum_grid_sentence()

@@ -113,8 +113,11 @@
         ". Building the lookup table of grind " + item.name + ".";
     }
     if (kind === "ski" && body.data) {
+      // how the file was read, and what its sampling costs (app.jobs.uploads._upload_notes)
+      var notes = (body.data.notes || []).map(function (n) { return " Note: " + n + "."; });
       return "Checked: " + body.data.load_cases + " load cases, " + body.data.samples_per_case +
-        " samples each. Training the camber network of ski " + item.name + ".";
+        " samples each." + notes.join("") + " Training the camber network of ski " +
+        item.name + ".";
     }
     return "Accepted " + kind + " " + (item.name || "") + ".";
   }
