@@ -209,6 +209,25 @@ def _sampling_hint(cases: dict) -> str:
     )
 
 
+_NUMBER_AND_UNIT = re.compile(r"([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*([^\d\s].*)")
+
+
+def _number_with_unit(body: str, raw: str, column: str, lineno: int) -> float:
+    """A number written with its unit (``0.5 mm``, ``40 kg``): read when the unit is the
+    column's (kgf and kp for kg: :data:`_KG_WEIGHT_UNITS`), refused with the conversion to make
+    when it is another known one (:func:`_unit_hint`); anything else is no number."""
+    m = _NUMBER_AND_UNIT.fullmatch(body.strip())
+    base, want = column.rsplit("_", 1)
+    if m:
+        unit = _column_key(m.group(2).lower()).strip("_")
+        if unit == want or (want == "kg" and unit in _KG_WEIGHT_UNITS):
+            return float(m.group(1))
+        hint = _unit_hint(f"{base}_{unit}")
+        if hint:
+            raise InputError(f"line {lineno}: column {column!r} is {raw!r}{hint}")
+    raise InputError(f"line {lineno}: column {column!r} is not a number: {raw!r}")
+
+
 def _parse_float(text: str, column: str, lineno: int, decimal: list[str]) -> float:
     """One number of the CSV. ``decimal`` holds the file's decimal mark once a number showed
     it (``[","]`` or ``["."]``; empty: not yet seen, or ``,`` is the separator so ``.``). Only
@@ -237,7 +256,7 @@ def _parse_float(text: str, column: str, lineno: int, decimal: list[str]) -> flo
     try:
         value = float(body)
     except ValueError:
-        raise InputError(f"line {lineno}: column {column!r} is not a number: {raw!r}") from None
+        value = _number_with_unit(body, raw, column, lineno)
     if not np.isfinite(value):
         raise InputError(f"line {lineno}: column {column!r} is {raw!r} (NaN/inf not allowed)")
     return value

@@ -197,3 +197,21 @@ def test_a_file_is_read_in_its_encoding_line_by_line(tmp_path, monkeypatch):
     bad.write_bytes(b"\xff\xfe" + b"a\x00\x00\xd8")  # UTF-16 with a lone surrogate
     with pytest.raises(DataFileError, match="is not utf-16 text"):
         read_camber_csv(bad)
+
+
+def test_numbers_written_with_their_column_s_unit_read_others_are_refused_with_the_change():
+    rows = [r.split(",") for r in GOOD]
+    with_units = [f"{a},{b},{c} kg,{d} mm,{e}mm,{f} mm" for a, b, c, d, e, f in rows]
+    d = read_camber_csv(_csv(with_units))
+    plain = read_camber_csv(_csv(GOOD))
+    np.testing.assert_array_equal(d.profiles_m, plain.profiles_m)
+    np.testing.assert_array_equal(d.loads_n, plain.loads_n)
+    semicolon = _csv([r.replace(",", ";").replace(".", ",") for r in with_units])
+    semicolon = semicolon.replace(HEADER, HEADER.replace(",", ";"))
+    np.testing.assert_array_equal(read_camber_csv(semicolon).profiles_m, plain.profiles_m)
+    with pytest.raises(InputError, match=r"'500 µm' \(gap is read in mm as gap_mm: divide µm"):
+        read_camber_csv(_csv(["s1,mean,40,-160,-10,500 µm"]))
+    with pytest.raises(InputError, match=r"'392 N' \(load is read in kg as load_kg: divide new"):
+        read_camber_csv(_csv(["s1,mean,392 N,-160,-10,0.5"]))
+    with pytest.raises(InputError, match=r"column 'gap_mm' is not a number: '0.5 zz'"):
+        read_camber_csv(_csv(["s1,mean,40,-160,-10,0.5 zz"]))
