@@ -423,3 +423,39 @@ def test_delete_buttons_delete_from_the_upload_and_ski_pages(catalogue, page, tm
         expect(page.locator(".delete-result")).to_contain_text("ski mine deleted")
         assert state.db.item_by_name("ski", "mine") is None and not path.exists()
     assert errors == []
+
+
+def test_a_ski_upload_shows_how_its_file_was_read_and_what_its_sampling_costs(
+    catalogue, page, tmp_path, upload_csv
+):
+    """The upload answer's notes (app.jobs.uploads._upload_notes) are shown after "Checked":
+    a spreadsheet's `Load (kgf)` without ski_id and side, sampled every 5 mm."""
+    from skisnow.app import service
+    from skisnow.app.main import create_app
+    from skisnow.app.settings import Settings
+
+    lines = upload_csv.decode().splitlines()
+    rows = [";".join(line.split(",")[2:]).replace(".", ",") for line in lines[1:]]
+    sheet = "\r\n".join(["Load (kgf);Load position (mm);Position (mm);Gap (mm)", *rows])
+    cat = service.Catalogue(
+        tables_dir=catalogue.tables_dir, skis=dict(catalogue.skis), grinds=dict(catalogue.grinds)
+    )
+    app = create_app(Settings(data_dir=tmp_path / "data", warm_up=False), catalogue=cat)
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    with serve(app) as url:
+        app.state.uploads.runner.stop()  # the job is not the point here
+        page.goto(url + "/upload")
+        csv = {"name": "shop.csv", "mimeType": "text/csv", "buffer": sheet.encode()}
+        page.set_input_files("#ski-file", files=[csv])
+        page.fill("#ski-name", "shop-ski")
+        page.fill("#ski-length_mm", "2000")
+        page.fill("#ski-width_mm", "44")
+        page.click("#ski-submit")
+        accepted = page.locator("#ski-job .accepted")
+        expect(accepted).to_contain_text("Checked: 45 load cases")
+        expect(accepted).to_contain_text("Note: loads read in kgf as kg")
+        expect(accepted).to_contain_text("Note: no ski_id column: ski_id shop-ski.")
+        expect(accepted).to_contain_text("Note: samples every 5 mm")
+        expect(accepted).to_contain_text("Measure every 1 mm for the most accurate answers.")
+    assert errors == []
