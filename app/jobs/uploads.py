@@ -622,13 +622,12 @@ def _check_span(x_mm: np.ndarray, length_mm: float) -> None:
     )
 
 
-def _check_zero(data) -> None:
+def _check_zero(data, unloaded: np.ndarray) -> None:
     """Refuse a file whose load cases never touch the flat: each side's median over its load
-    cases of the case's smallest gap above :data:`ZERO_OFFSET_LIMIT_MM` is a device zero set
-    below the flat (every gap too large by about that much), said so with the amount."""
-    from skisnow.app.storage.skis import unloaded_mask
-
-    loaded = ~unloaded_mask(data)
+    cases (not ``unloaded``: :func:`app.storage.skis.unloaded_mask`) of the case's smallest gap
+    above :data:`ZERO_OFFSET_LIMIT_MM` is a device zero set below the flat (every gap too large
+    by about that much), said so with the amount."""
+    loaded = ~unloaded
     sides = np.asarray(data.sides)
     for side in sorted(set(sides[loaded])):
         cases = np.flatnonzero(loaded & (sides == side))
@@ -718,7 +717,7 @@ def check_ski_upload(
     spacing_mm = float(np.median(np.diff(x))) * 1e3
     _check_grid(f_all, xf_all, spacing_mm)
     loaded = f_all > 0  # the unloaded profile is no load case to hold out
-    _check_zero(camber_data)
+    _check_zero(camber_data, unloaded)
     f, xf = f_all[loaded], xf_all[loaded]
     try:
         split_load_cases(f, xf)

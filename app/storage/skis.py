@@ -173,8 +173,7 @@ def _units_row(row: list[str], idx: list[int], lineno: int) -> bool:
     """Whether ``row`` (the first after the header) is a row of units ("kg", "[mm]", "-"): True
     when its numeric columns hold none of a number and each names its column's unit; a
     column in another unit is refused with the conversion to make (:func:`_unit_hint`)."""
-    numeric = {name: row[k].strip() for name, k in zip(CSV_COLUMNS, idx, strict=True)}
-    numeric = {name: numeric[name] for name in CSV_COLUMNS[2:]}
+    numeric = {name: row[k].strip() for name, k in zip(CSV_COLUMNS[2:], idx[2:], strict=True)}
     if any(re.search(r"\d", v) for v in numeric.values()) or not any(
         re.search(r"[^\W\d_]", v) for v in numeric.values()
     ):
@@ -183,9 +182,7 @@ def _units_row(row: list[str], idx: list[int], lineno: int) -> bool:
     for name, text in numeric.items():
         unit = _column_key(text.lower()).strip("_")
         base, want = name.rsplit("_", 1)
-        if want == "kg" and unit in _KG_WEIGHT_UNITS:
-            unit = want  # kilogram-force: the kg values (_KG_WEIGHT_UNITS)
-        if unit != want:
+        if not _reads_as(unit, want):
             hint = _unit_hint(f"{base}_{unit}") or f" (expected {want})"
             problems.append(f"{name} in {text!r}{hint}")
     if problems:
@@ -220,7 +217,7 @@ def _number_with_unit(body: str, raw: str, column: str, lineno: int) -> float:
     base, want = column.rsplit("_", 1)
     if m:
         unit = _column_key(m.group(2).lower()).strip("_")
-        if unit == want or (want == "kg" and unit in _KG_WEIGHT_UNITS):
+        if _reads_as(unit, want):
             return float(m.group(1))
         hint = _unit_hint(f"{base}_{unit}")
         if hint:
@@ -310,6 +307,13 @@ _UNIT_HINTS = {
 _KG_WEIGHT_UNITS = ("kgf", "kp")
 
 
+def _reads_as(unit: str, want: str) -> bool:
+    """Whether a number in ``unit`` (as normalised by :func:`_column_key`) is read unchanged in
+    a column whose unit is ``want``: the same unit, or kgf / kp for kg
+    (:data:`_KG_WEIGHT_UNITS`)."""
+    return unit == want or (want == "kg" and unit in _KG_WEIGHT_UNITS)
+
+
 def _column_key(cell: str) -> str:
     """A header cell as a column name: lower case (the caller), runs of spaces, hyphens and dots
     as ``_``, and a unit in brackets joined on ("Load (kg)", "load [kg]" → ``load_kg``;
@@ -343,7 +347,7 @@ def _header_columns(cells: list[str], lineno: int = 1) -> list[int]:
     while cells and not cells[-1]:
         cells = cells[:-1]
     keys = [_column_key(c) for c in cells]
-    keys = ["load_kg" if k in {f"load_{u}" for u in _KG_WEIGHT_UNITS} else k for k in keys]
+    keys = ["load_kg" if k.startswith("load_") and _reads_as(k[5:], "kg") else k for k in keys]
     expected = ",".join(CSV_COLUMNS)
     unknown = [
         (repr(c) if c else "'(empty)'") + _unit_hint(k)
@@ -388,6 +392,9 @@ def _sniff_codec(head: bytes) -> str | None:
     return None
 
 
+#: a text without zero bytes is read in the first of these that decodes it (latin-1 decodes
+#: anything: a Windows file with one of cp1252's five unassigned bytes)
+_SINGLE_BYTE_CODECS = ("utf-8-sig", "cp1252", "latin-1")
 #: the name an encoding read is kept under (``data.text_encoding``), per Python codec
 _ENCODING_NAMES = {
     "utf-16": "UTF-16",
@@ -409,7 +416,7 @@ def decode_camber_bytes(data: bytes) -> tuple[str, str] | None:
     codec = _sniff_codec(data[:4096])
     if codec is None:
         return None
-    for name in (codec,) if codec else ("utf-8-sig", "cp1252", "latin-1"):
+    for name in (codec,) if codec else _SINGLE_BYTE_CODECS:
         try:
             return data.decode(name), _ENCODING_NAMES[name]
         except UnicodeDecodeError:
@@ -430,7 +437,7 @@ def _file_codec(path: Path) -> str:
             raise DataFileError(f"camber CSV {path} is not text (zero bytes)")
         if codec:
             return codec
-        for name in ("utf-8-sig", "cp1252"):
+        for name in _SINGLE_BYTE_CODECS[:-1]:
             fh.seek(0)
             decoder = codecs.getincrementaldecoder(name)()
             try:
@@ -440,7 +447,12 @@ def _file_codec(path: Path) -> str:
             except UnicodeDecodeError:
                 continue
             return name
-    return "latin-1"
+    return _SINGLE_BYTE_CODECS[-1]
+
+
+def _is_path(source: str | os.PathLike) -> bool:
+    """Whether ``source`` names a file (a path, or a one-line string) rather than CSV text."""
+    return isinstance(source, os.PathLike) or "\n" not in str(source)
 
 
 #: a line's end: CRLF (Windows), LF, or a lone CR (a Mac spreadsheet's "CSV (Macintosh)")
@@ -451,7 +463,7 @@ def _lines(source: str | os.PathLike):
     """The lines of a CSV path (DataFileError when missing; read line by line in the encoding
     :func:`_file_codec` finds) or of the CSV text itself, each with its end (CRLF, LF or a
     lone CR)."""
-    if isinstance(source, os.PathLike) or (isinstance(source, str) and "\n" not in source):
+    if _is_path(source):
         path = Path(source)
         if not path.is_file():
             raise DataFileError(f"camber CSV not found: {path}")
@@ -529,14 +541,12 @@ def read_camber_csv(
     sep, cells = _split_header(first, sep_line)
     idx = _header_columns(cells, header_line)
     if default_ski_id is None:
-        path_like = isinstance(source, os.PathLike) or "\n" not in str(source)
-        default_ski_id = Path(source).stem if path_like else "ski"
+        default_ski_id = Path(source).stem if _is_path(source) else "ski"
     defaults = {"ski_id": default_ski_id, "side": "mean"}
     defaulted = tuple(
         f"{c}={defaults[c]}" for c, k in zip(CSV_COLUMNS[:2], idx[:2], strict=True) if k < 0
     )
-    load_key = _column_key(cells[idx[2]])
-    load_unit = next((u for u in _KG_WEIGHT_UNITS if load_key == f"load_{u}"), "kg")
+    load_unit = _column_key(cells[idx[2]])[len("load_") :]  # kg, or kgf / kp read as kg
     width = max(idx) + 1
     decimal: list[str] = [""] if sep == "," else []
     ski_id: str | None = None
