@@ -356,9 +356,15 @@ def reference_truths(cat: service.Catalogue, name: str, grind: str, kg, mm, e_mp
 
 def reference_fit(record, truth: BeamSki, kg, mm, grind_name, cat, moduli) -> dict:
     """:func:`solvers.beam_fit.fit_forward` from the true beam on the measured loaded cases
-    (the identification's own settings), and how that beam meets the targets."""
+    (the identification's own settings, its device model's node spacing included), and how
+    that beam meets the targets."""
     from skisnow.solvers.beam_fit import fit_forward
-    from skisnow.solvers.identify import DEFAULT_KNOT_SPACING_M, DEFAULT_SMOOTHING, estimate_noise
+    from skisnow.solvers.identify import (
+        DEFAULT_KNOT_SPACING_M,
+        DEFAULT_MODEL_SPACING_M,
+        DEFAULT_SMOOTHING,
+        estimate_noise,
+    )
 
     f, xf, y, _ = mean_profiles(record.measurements)
     loaded = f > 0
@@ -374,7 +380,15 @@ def reference_fit(record, truth: BeamSki, kg, mm, grind_name, cat, moduli) -> di
     knots = np.linspace(x[0], x[-1], max(3, round(span / DEFAULT_KNOT_SPACING_M) + 1))
     t0 = time.perf_counter()
     fit = fit_forward(
-        x, f, xf, y, start, noise_m=noise, stiffness_knots_m=knots, smoothing=DEFAULT_SMOOTHING
+        x,
+        f,
+        xf,
+        y,
+        start,
+        noise_m=noise,
+        stiffness_knots_m=knots,
+        smoothing=DEFAULT_SMOOTHING,
+        model_spacing_m=DEFAULT_MODEL_SPACING_M,  # the identification's device model
     )
     out = {
         "cases": int(f.size),

@@ -58,6 +58,7 @@ __all__ = [
     "detect_camber_kinks",
     "fit_forward",
     "flat_supports",
+    "model_grid",
 ]
 
 #: knot spacing of the camber's cubic B-spline [m]: on the demo skis' true cambers (with their
@@ -82,6 +83,12 @@ COARSE_RTOL = 1e-4
 COARSE_STEPS = 30
 #: cases the first stage uses at most (spread over all; the rigid stage uses every case)
 STAGE_CASES = 120
+#: fit_forward's ``model_spacing_m``: measured nodes more than this many times the model
+#: spacing apart get the finer model grid (1.25 mm data stay on their nodes at 1 mm)
+MODEL_REFINE_RATIO = 1.5
+#: accepted steps the finer grid's stage may take at least (it starts from the measured
+#: nodes' fit, near its minimum)
+FINE_STEPS = 20
 #: half-width of the window in which a slope kink of the mean profile is tested [m]
 KINK_WINDOW_M = 0.015
 #: a slope jump is a kink when it exceeds this many standard errors (2000 nodes tested: a
@@ -349,12 +356,16 @@ class ForwardFit:
 class _Model:
     """Data, bases and the evaluation of residuals and Gauss–Newton normal equations."""
 
-    def __init__(self, x, loads, xfs, y, noise, camber_mat, stiff_knots, smoothing):
+    def __init__(self, x, loads, xfs, y, noise, camber_mat, stiff_knots, smoothing, obs=None):
         self.x, self.loads, self.xfs, self.y = x, loads, xfs, y
         self.noise = noise
         self.dx = float(x[1] - x[0])
         self.bc = camber_mat
-        self.bc_sparse = scipy.sparse.csr_matrix(camber_mat)
+        #: the nodes the cases were measured at (indices into x; every node when None): the
+        #: model's nodes may be finer than the measurement's (fit_forward's model_spacing_m)
+        self.obs = slice(None) if obs is None else np.asarray(obs, dtype=int)
+        bc_obs = camber_mat[self.obs]
+        self.bc_sparse = scipy.sparse.csr_matrix(bc_obs)
         self.bc_sparse_t = scipy.sparse.csr_matrix(self.bc_sparse.T)
         self.bc_gram = (self.bc_sparse_t @ self.bc_sparse).toarray()
         self.phi = hats(x, stiff_knots)
@@ -405,12 +416,12 @@ class _Model:
                 c_now = self.bc @ theta[: self.nc]
                 i0, i1 = flat_supports(x, c_now)
                 gap = camber_on_flat(x, c_now)
-                rho = gap - self.y[k]
+                rho = gap[self.obs] - self.y[k]
                 per[k] = float(rho @ rho)
                 if not jacobian:
                     continue
-                s1 = (x - x[i0]) / (x[i1] - x[i0])
-                v = np.stack([1.0 - s1, s1], axis=1)  # (N, 2)
+                s1 = (x[self.obs] - x[i0]) / (x[i1] - x[i0])
+                v = np.stack([1.0 - s1, s1], axis=1)  # (N_obs, 2)
                 rows = self.bc[[i0, i1]]  # (2, nc)
                 btv = self.bc_sparse_t @ v  # (nc, 2)
                 cross = btv @ rows
@@ -428,7 +439,7 @@ class _Model:
             self.contacts[k] = np.flatnonzero(res.reaction_n > 0)
             all_converged &= bool(res.converged)
             gap = res.gap_m if self.compliance == 0.0 else beam.unloaded_gap_m + res.displacement_m
-            rho = gap - self.y[k]
+            rho = gap[self.obs] - self.y[k]
             per[k] = float(rho @ rho)
             if not jacobian:
                 continue
@@ -459,7 +470,9 @@ class _Model:
             sd[:m_act, sl_c] = self.bc[act]
             sd[:m_act, sl_q] = ut[:, act].T
             w = np.linalg.lstsq(kkt, sd, rcond=None)[0] if m_act else np.zeros((2, p))
-            # J = D − Bm W with D = [Bc, U]
+            # J = D − Bm W with D = [Bc, U], on the measured nodes' rows (the contact rows
+            # above are the model's)
+            ut, bm = ut[:, self.obs], bm[self.obs]
             jtj[sl_c, sl_q] += self.bc_sparse_t @ ut.T  # Bcᵀ U (nc, nq)
             jtj[sl_q, sl_q] += ut @ ut.T
             dtb = np.empty((p, m_act + 2))
@@ -474,6 +487,31 @@ class _Model:
         if jacobian:
             jtj[sl_q, sl_c] = jtj[sl_c, sl_q].T
         return float(per.sum()), per, jtj, jtr, all_converged
+
+
+def model_grid(
+    positions_m: np.ndarray, model_spacing_m: float
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The finer model grid of :func:`fit_forward`'s ``model_spacing_m``: (its nodes [m], the
+    indices of the measured nodes among them), or None when the measured nodes serve (no
+    spacing given, or they are at most MODEL_REFINE_RATIO × ``model_spacing_m`` apart).
+
+    Each measured interval is divided into round(dx / ``model_spacing_m``) equal parts, and
+    the measured positions are kept bit for bit."""
+    x = np.asarray(positions_m, dtype=float)
+    if not (model_spacing_m > 0) or x.size < 2:
+        return None
+    dx = float(x[1] - x[0])
+    if dx <= MODEL_REFINE_RATIO * model_spacing_m:
+        return None
+    parts = max(2, round(dx / model_spacing_m))
+    frac = np.arange(parts) / parts
+    x_f = np.empty((x.size - 1) * parts + 1)
+    x_f[:-1] = (x[:-1, None] + np.diff(x)[:, None] * frac[None, :]).ravel()
+    x_f[-1] = x[-1]
+    obs = np.arange(0, x_f.size, parts)
+    x_f[obs] = x
+    return x_f, obs
 
 
 def _scaled_inverse(h: np.ndarray) -> np.ndarray:
@@ -505,6 +543,7 @@ def fit_forward(
     rtol: float = 1e-5,
     foundation_length_m: float = DEFAULT_FOUNDATION_LENGTH_M,
     coarse_spacing_m: float = DEFAULT_COARSE_SPACING_M,
+    model_spacing_m: float = 0.0,
     callback=None,
 ) -> ForwardFit:
     """Levenberg–Marquardt fit of (c, EI) through the exact device model, from ``start``.
@@ -543,12 +582,22 @@ def fit_forward(
         Continuation in the grid: when the nodes are finer than this [m], the softened stages
         and a first rigid stage fit every k-th node only (spacing ≈ this), and the last stage
         polishes on every node. 0 fits every node throughout.
+    model_spacing_m : float
+        Node spacing of the device model [m]. When the measured nodes are more than
+        MODEL_REFINE_RATIO times coarser, the fit ends with a stage on a model grid that
+        divides each measured interval into round(spacing / model_spacing_m) (the measured
+        nodes among its nodes; residuals only there), and the beam is returned on that grid:
+        the rigid flat touches the ski between measured nodes too, and a model on nodes
+        5 mm apart misses the device's contact (docs/camber-identification.md, "Sample
+        spacing"). 0: the measured nodes.
     callback : callable, optional
         ``callback(step, misfit_m)`` after each accepted step (progress; silent by default).
 
     Returns
     -------
     ForwardFit
+        Its beam on the model grid (the measured nodes, or the finer grid of
+        ``model_spacing_m``); ``case_misfit_m`` and ``misfit_m`` over the measured nodes.
     """
     t0 = time.perf_counter()
     x = np.asarray(positions_m, dtype=float)
@@ -663,8 +712,9 @@ def fit_forward(
         plan.append((1, 0.0))
     else:
         plan += [(1, c) for c in _continuation(start, foundation_length_m)]
+    fine = model_grid(x, model_spacing_m)
     for i, (level, compliance) in enumerate(plan):
-        last = i == len(plan) - 1
+        last = i == len(plan) - 1 and fine is None
         rigid = compliance == 0.0
         rows = slice(None, None, level)
         cases = np.arange(loads.size)
@@ -677,7 +727,7 @@ def fit_forward(
                     ]
                 )
             )
-        if last:
+        if last or (level == 1 and compliance == 0.0):
             stage_model = model
         else:
             stage_model = _Model(
@@ -699,6 +749,17 @@ def fit_forward(
             budget, stage_rtol = STAGE_STEPS, STAGE_RTOL
         theta, converged, message = levenberg_marquardt(
             stage_model, theta, max(budget, 1), stage_rtol
+        )
+        messages.append(message)
+    if fine is not None:
+        # the last stage on the finer model grid (θ carries over: c's B-spline and 1/EI's
+        # hats are functions of X), residuals at the measured nodes only
+        x_f, obs = fine
+        bc_f = BSpline.design_matrix(x_f, knots_c, 3).toarray()
+        model = _Model(x_f, loads, xfs, y, noise_m, bc_f, knots_q, smoothing, obs=obs)
+        gauge = model.line_c @ model.line_c.T / s2
+        theta, converged, message = levenberg_marquardt(
+            model, theta, max(max_steps - total[0], FINE_STEPS), rtol
         )
         messages.append(message)
     message = messages[-1]
@@ -725,7 +786,7 @@ def fit_forward(
         log_compliance=theta[nc:].copy(),
         covariance=0.5 * (cov + cov.T),
         misfit_m=misfit,
-        case_misfit_m=np.sqrt(per / x.size),
+        case_misfit_m=np.sqrt(per / y.shape[1]),
         converged=converged and ok,
         iterations=steps,
         message=message if ok else message + "; a contact solve did not converge",

@@ -58,7 +58,6 @@ from .beam import BeamFlexibility, BeamSki, solve_beam_contact
 from .beam_fit import (
     DEFAULT_CAMBER_SPACING_M,
     ForwardFit,
-    camber_basis,
     camber_on_flat,
     detect_camber_kinks,
     fit_forward,
@@ -825,6 +824,11 @@ DEFAULT_START_SPACING_M = 0.0
 #: dense 'stiff' / 'soft' test designs) and every node (the demo skis: coarse-to-fine alone left
 #: ski-a at 0.13 µm held-out and 3.6 % at 98 N, every node alone 0.07 µm); the lower objective wins
 DEFAULT_FORWARD_PATHS = (0.002, 0.0)
+#: the forward fits' device model node spacing [m] (fit_forward's ``model_spacing_m``): samples
+#: every 2 or 5 mm are fitted with the model on 1 mm nodes, as the device's flat touches the
+#: ski between samples too (random-601 from its true beam, 5 mm samples: held-out profiles
+#: 0.78 µm off on the samples' nodes, 0.37 µm on 1 mm nodes; docs/camber-identification.md)
+DEFAULT_MODEL_SPACING_M = 0.001
 #: a coarse start whose device model (the exact contact solve of its beam) misses its own cases
 #: by more than this × the noise is redone on every node [-] (good starts: 1.2-3.5×; the failed
 #: coarse start of ski-b: 110×)
@@ -985,6 +989,7 @@ def identify_beam(
     start_smoothing: float | None = None,
     start_spacing_m: float = DEFAULT_START_SPACING_M,
     forward_coarse_spacings_m: tuple[float, ...] = DEFAULT_FORWARD_PATHS,
+    model_spacing_m: float | None = None,
     starts: tuple[str, ...] = DEFAULT_STARTS,
     variant_knot_spacings_m: tuple[float, ...] = VARIANT_KNOT_SPACINGS_M,
     variant_refit_knot_spacings_m: tuple[float, ...] = VARIANT_REFIT_KNOT_SPACINGS_M,
@@ -1034,6 +1039,12 @@ def identify_beam(
         The forward fit runs once per entry, with that ``coarse_spacing_m`` of
         :func:`solvers.beam_fit.fit_forward` (0: every node throughout), all from the one start;
         the converged fit with the lowest objective is kept (``extra["forward_candidates"]``).
+    model_spacing_m : float, optional
+        Node spacing of the forward fits' device model [m] (``model_spacing_m`` of
+        :func:`solvers.beam_fit.fit_forward`; default DEFAULT_MODEL_SPACING_M, read at call
+        time): measured nodes farther apart end their fits on this finer grid, and the beam is
+        returned on it (the measured nodes among its nodes). 0: the measured nodes (data made
+        by the device model on the same nodes, as tests on coarse grids make them).
     starts : tuple of str
         The starts the forward paths run from (DEFAULT_STARTS): "projection" (the variable-
         projection start) and "uniform" (c from the unloaded profile when a 0 N case is given,
@@ -1246,6 +1257,7 @@ def identify_beam(
         camber_spacing_m=camber_spacing_m,
         kinks_m=kinks_m,
         max_steps=max_steps,
+        model_spacing_m=DEFAULT_MODEL_SPACING_M if model_spacing_m is None else model_spacing_m,
     )
 
     # wall time [s] of the forward fits (every run_all) and of the starts (the rest)
@@ -1441,12 +1453,14 @@ def identify_beam(
     knots_m = fwd.stiffness_knots_m
     nc = fwd.camber_coefficients.size
     cov_g = fwd.covariance[nc:, nc:]
-    phi = hats(x, knots_m)
-    bc, _ = camber_basis(x, camber_spacing_m, fwd.kinks_m)
+    # the beam's nodes: the measured ones, or the finer model grid (model_spacing_m)
+    xb = fwd.beam.positions_m
+    phi = hats(xb, knots_m)
+    bc = BSpline.design_matrix(xb, fwd.camber_knots_m, 3).toarray()
     cov_c = fwd.covariance[:nc, :nc]
     camber_sd = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", bc, cov_c, bc), 0.0))
-    spread, per_candidate = _candidate_spread(x, fwd, [c[3] for c in candidates])
-    _, per_variant = _candidate_spread(x, fwd, [c[3] for c in variant_candidates])
+    spread, per_candidate = _candidate_spread(xb, fwd, [c[3] for c in candidates])
+    _, per_variant = _candidate_spread(xb, fwd, [c[3] for c in variant_candidates])
     pool = [c[3] for c in candidates + variant_candidates]
     alternatives = alternative_fits(fwd, pool[: len(candidates)]) if fwd.converged else []
     if fwd.converged and variant_candidates:
@@ -1505,7 +1519,7 @@ def identify_beam(
         knots_m=knots_m,
         log_compliance=fwd.log_compliance.copy(),
         log_compliance_covariance=cov_g,
-        camber_sensitivity=np.zeros((x.size, knots_m.size)),
+        camber_sensitivity=np.zeros((xb.size, knots_m.size)),
         camber_sd_m=camber_sd,
         solve_time_s=total_s,
         alternative_beams=tuple(pool[i].beam for i in alternatives),
@@ -1546,6 +1560,9 @@ def identify_beam(
             "misfit_per_step_m": fwd.history_m,
             "kinks_m": fwd.kinks_m.tolist(),
             "camber_spacing_m": float(camber_spacing_m),
+            # the device model's node spacing [m]: the measured one, or the finer model grid
+            "model_spacing_m": float(xb[1] - xb[0]),
+            "measured_spacing_m": float(dx),
             "sigma_ratio": fwd.misfit_m / noise,
             # per stiffness knot, the share of the estimate the cases set (the rest: the prior)
             "stiffness_data_share": (
@@ -1999,9 +2016,22 @@ def profile_sigma(
     return np.where(known, sigma, fill)
 
 
-def predict_gaps(beam: BeamSki, loads_n: np.ndarray, load_positions_m: np.ndarray) -> np.ndarray:
-    """Loaded gaps (K, N) [m] of ``beam`` on the rigid flat for each case (the device model). A
-    case of 0 N is the unloaded profile: the camber resting on the flat (x_F ignored)."""
+def predict_gaps(
+    beam: BeamSki,
+    loads_n: np.ndarray,
+    load_positions_m: np.ndarray,
+    positions_m: np.ndarray | None = None,
+) -> np.ndarray:
+    """Loaded gaps (K, N) [m] of ``beam`` on the rigid flat for each case (the device model),
+    on the beam's nodes, or read at ``positions_m`` (N,) [m] (linear between nodes; exact where
+    they are nodes, as the measured nodes of a beam on a finer model grid are). A case of 0 N
+    is the unloaded profile: the camber resting on the flat (x_F ignored)."""
+    if positions_m is not None:
+        gaps = predict_gaps(beam, loads_n, load_positions_m)
+        at = np.asarray(positions_m, dtype=float)
+        if at.shape == beam.positions_m.shape and np.array_equal(at, beam.positions_m):
+            return gaps
+        return np.stack([np.interp(at, beam.positions_m, g) for g in gaps]).reshape(-1, at.size)
     flex = BeamFlexibility(beam)
     loads = np.atleast_1d(np.asarray(loads_n, dtype=float))
     pos = np.atleast_1d(np.asarray(load_positions_m, dtype=float))
@@ -2070,7 +2100,7 @@ def identify_beam_checked(
         "held_out_rms_m": None,
     }
     if held.any() and ident.ok:
-        pred = predict_gaps(ident.beam, loads[held], xfs[held])
+        pred = predict_gaps(ident.beam, loads[held], xfs[held], positions_m)
         rms = float(np.sqrt(np.mean((pred - y[held]) ** 2)))
         check["held_out_rms_m"] = rms
         if rms > HELD_OUT_LIMIT * ident.noise_m:

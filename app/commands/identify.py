@@ -139,6 +139,7 @@ def store_identification(path: Path, record, keep: dict, params: dict) -> None:
         keep["positions_m"],
         params,
         keep["profiles_m"],
+        nodes_m=record.measurements.positions_m,
     )
     replace_ski_group(path, "identified", group)
     record.identified = group

@@ -140,7 +140,7 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
             "measure more load cases or denser positions"
         )
     record.identified, choice_note = _choose_model(
-        record.identified, network, (fm, xfm, ym), held_m, item, network_refused
+        record.identified, network, (fm, xfm, ym), held_m, item, network_refused, data.positions_m
     )
     stage_done("model_choice")
     work = layout.work(item.id)
@@ -187,11 +187,18 @@ def _draw_page_figures(item, path: Path, layout: Layout) -> None:
 
 
 def _choose_model(
-    identified: dict, network: dict, cases, held_m, item, network_refused: str = ""
+    identified: dict,
+    network: dict,
+    cases,
+    held_m,
+    item,
+    network_refused: str = "",
+    nodes_m=None,
 ) -> tuple[dict, str]:
     """The ``identified`` group with the held-out comparison of the two profile models
     (:func:`app.service.profiles.held_out_comparison`) and one sentence for the job result.
-    ``network_refused``: why the network may not serve (its failed accuracy check), or ''."""
+    ``network_refused``: why the network may not serve (its failed accuracy check), or '';
+    ``nodes_m``: the measured nodes [m] (where a finer-grid beam's gaps are read)."""
     from skisnow.app.service.profiles import MODEL_CHOICE, held_out_comparison
     from skisnow.app.storage.skis import identified_beam
     from skisnow.app.training.data import HELD_OUT_FRACTION, HELD_OUT_SEED
@@ -203,7 +210,16 @@ def _choose_model(
         noise = estimate_noise(y)
     params = {"item": item.id, "seed": HELD_OUT_SEED, "fraction": HELD_OUT_FRACTION}
     group = held_out_comparison(
-        network, identified_beam(identified), f, xf, y, held_m, noise, params, network_refused
+        network,
+        identified_beam(identified),
+        f,
+        xf,
+        y,
+        held_m,
+        noise,
+        params,
+        network_refused,
+        nodes_m=nodes_m,
     )
     a = group["attrs"]
     note = f"profile model: {a['served']} ({a['reason']})"
@@ -239,7 +255,9 @@ def _identify(data, item, callback=None, held_out_index=None) -> tuple[dict, str
         reason = f"beam not identified: {exc}"
         failed = {"attrs": {"ok": False, "reason": reason, **provenance({"item": item.id})}}
         return failed, reason + " (rigid model only)"
-    group = identification_group(ident, check, note, f, xf, {"item": item.id}, y)
+    group = identification_group(
+        ident, check, note, f, xf, {"item": item.id}, y, nodes_m=data.positions_m
+    )
     if not ident.ok:
         return group, f"beam not identified: {ident.reason} (rigid model only)"
     return group, (

@@ -57,7 +57,7 @@ def identify_report(
         )
     held = np.zeros(f.size, dtype=bool)
     held[check["held_out_index"]] = True
-    x = data.positions_m
+    x = ident.beam.positions_m  # the beam's nodes (finer than the samples' when they are far)
     report: dict = {
         "ski_id": data.ski_id,
         "cases": int(f.size),
@@ -88,11 +88,11 @@ def identify_report(
         ],
     }
     if held.any():
-        pred = predict_gaps(ident.beam, f[held], xf[held])
+        pred = predict_gaps(ident.beam, f[held], xf[held], data.positions_m)
         res = pred - y[held]
         report["held_out_vs_measured_rms_um"] = float(np.sqrt(np.mean(res**2))) * 1e6
         if design_beam is not None:
-            truth = predict_gaps(design_beam, f[held], xf[held])
+            truth = predict_gaps(design_beam, f[held], xf[held], data.positions_m)
             near = truth < NEAR_CONTACT_M
             err = (pred - truth)[near]
             report["held_out_vs_design_beam_rms_um"] = float(np.sqrt(np.mean(err**2))) * 1e6

@@ -136,6 +136,7 @@ def held_out_comparison(
     noise_m: float,
     params: dict | None,
     network_refused: str = "",
+    nodes_m: np.ndarray | None = None,
 ) -> dict:
     """The :data:`MODEL_CHOICE` group: the camber network and the identified beam judged on the
     same held-out measured cases (neither was fitted to them), and the model the ski serves.
@@ -161,6 +162,9 @@ def held_out_comparison(
     network_refused : str
         Why the network may not serve (the job's failed accuracy check), or ''; kept as the
         attribute ``network_refused``. The network is still judged (its errors are stored).
+    nodes_m : ndarray (N,), optional
+        The measurement nodes X [m], where the beam's gaps are read (a beam identified on a
+        finer model grid than the samples'); default: the beam's own nodes.
 
     Returns
     -------
@@ -181,7 +185,7 @@ def held_out_comparison(
     if network is not None and idx.size:
         preds["network"] = camber.predict_profiles(network, f, xf).gaps_m
     if beam is not None and idx.size:
-        preds["beam"] = predict_gaps(beam, f, xf)
+        preds["beam"] = predict_gaps(beam, f, xf, nodes_m)
     attrs: dict = {
         "description": "the camber network and the identified beam judged on the same held-out "
         "measured cases (fitted without them); the served model is the one with the lower "
@@ -513,7 +517,8 @@ def held_out_case_errors(
     profiles_m : ndarray (K, N)
         Measured profiles [m] on the identification's nodes.
     nodes_m : ndarray (N,), optional
-        The measurement nodes X [m]; checked equal to the identification's.
+        The measurement nodes X [m] (default: the identification's); checked to be among the
+        identification's nodes (the measured ones, or a finer model grid).
 
     Raises
     ------
@@ -526,16 +531,19 @@ def held_out_case_errors(
     if held is None:
         raise DataFileError("the identification's held-out cases do not match the measurements")
     x = np.asarray(identified.get("positions_m", []), dtype=float)
-    if x.size != np.shape(profiles_m)[1] or (
-        nodes_m is not None and not np.array_equal(x, nodes_m)
-    ):
+    if nodes_m is None:
+        nodes_m = x
+    nodes_m = np.asarray(nodes_m, dtype=float)
+    # the beam's nodes are the measured ones, or a finer model grid that holds them
+    on_grid = np.isin(nodes_m, x).all() if x.size >= nodes_m.size else False
+    if nodes_m.size != np.shape(profiles_m)[1] or not on_grid:
         raise DataFileError("the identification is on other nodes than the measurements")
     beam = BeamSki(
         x,
         np.asarray(identified["bending_stiffness_nm2"], dtype=float),
         np.asarray(identified["unloaded_gap_m"], dtype=float),
     )
-    pred = predict_gaps(beam, np.asarray(loads_n)[held], np.asarray(positions_m)[held])
+    pred = predict_gaps(beam, np.asarray(loads_n)[held], np.asarray(positions_m)[held], nodes_m)
     return np.sqrt(np.mean((pred - np.asarray(profiles_m)[held]) ** 2, axis=1))
 
 
@@ -580,13 +588,16 @@ def identification_group(
     positions_m,
     params: dict,
     profiles_m: np.ndarray | None = None,
+    nodes_m: np.ndarray | None = None,
 ):
     """The ``identified`` group of a ski file: the identification, its held-out check in the
     provenance, (when it passed) the loaded profile's spread along the ski over the measured
     cases, the error band's camber-model part (:func:`solvers.identify.profile_sigma`; at most
     PROFILE_SIGMA_CASES cases, spread over the measured ones), and, given the measured
     ``profiles_m`` [m] (K, N), each held-out case's error (:data:`HELD_OUT_ERRORS`, what
-    ``GET /v1/skis/{name}`` and the ski's page show; about a second for 85 cases)."""
+    ``GET /v1/skis/{name}`` and the ski's page show; about a second for 85 cases); ``nodes_m``
+    [m]: the measured nodes of ``profiles_m`` (default: the beam's; a beam identified on a finer
+    model grid is read at them)."""
     sd = None
     if ident.ok:
         pick = np.unique(np.linspace(0, loads_n.size - 1, PROFILE_SIGMA_CASES).round().astype(int))
@@ -598,7 +609,7 @@ def identification_group(
     out["held_out_index"] = np.asarray(check.get("held_out_index", []), dtype=int)
     if profiles_m is not None and out["held_out_index"].size:
         try:  # a failed identification may hold NaN arrays: no errors to store
-            error = held_out_case_errors(out, loads_n, positions_m, profiles_m)
+            error = held_out_case_errors(out, loads_n, positions_m, profiles_m, nodes_m=nodes_m)
         except SkisnowError:
             return out
         index = np.flatnonzero(held_out_mask(out, np.asarray(loads_n).size))

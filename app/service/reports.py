@@ -80,6 +80,12 @@ def _identification_report(ski: Ski) -> dict:
         if "case_misfit_m" in ident
         else [],
     }
+    # the node spacing of the beam's device model [mm]: the samples' own, or the finer model
+    # grid a sparser sampling is identified on (solvers.identify DEFAULT_MODEL_SPACING_M)
+    nodes = np.asarray(ident.get("positions_m", []), dtype=float)
+    out["model_spacing_mm"] = (
+        round(float(nodes[1] - nodes[0]) * 1e3, 4) if nodes.size > 1 and a.get("ok") else None
+    )
     held_rms = a.get("held_out_rms_m")
     held_rms = float(held_rms) if held_rms is not None and math.isfinite(held_rms) else None
     out["held_out_cases"] = int(a.get("held_out_cases", 0))

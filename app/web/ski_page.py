@@ -70,6 +70,13 @@ def _numbers(ident: dict) -> list[tuple]:
             "{:.3f}",
         ),
         ("held_out_to_noise", "Held-out error / noise", ident["held_out_to_noise"], "–", "{:.3f}"),
+        (
+            "model_spacing_mm",
+            "Beam model's node spacing",
+            ident.get("model_spacing_mm"),
+            "mm",
+            "{:.3g}",
+        ),
     )
     return [n for n in numbers if n[2] is not None]
 

@@ -573,6 +573,11 @@ def test_a_junior_ski_from_a_windows_spreadsheet_gets_its_beam_and_true_answers(
         assert shown["profile_model"]["name"] == "identified_beam"
         record = read_ski(tmp_path / "skis" / f"{shown['id']}.h5")
         assert record.measurements.ski_id == "Junior Ø"
+        # samples every 5 mm, the beam on 1 mm model nodes with the samples among them
+        nodes = np.asarray(record.identified["positions_m"])
+        assert np.allclose(np.diff(nodes), 1e-3, rtol=1e-6)
+        assert np.isin(record.measurements.positions_m, nodes).all()
+        assert shown["beam"]["identification"]["model_spacing_mm"] == pytest.approx(1.0)
         ski = service.Ski("junior-truth", tmp_path / "skis" / "t.h5", "", record)
         true_ski = service.Ski(
             "junior-truth",

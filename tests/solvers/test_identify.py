@@ -7,7 +7,7 @@ import functools
 import numpy as np
 import pytest
 from skisnow.solvers import identify
-from skisnow.solvers.beam import OTHER_DESIGNS, measure_camber, solve_beam_contact
+from skisnow.solvers.beam import OTHER_DESIGNS, measure_camber, measure_unloaded, solve_beam_contact
 from skisnow.solvers.beam_fit import camber_on_flat
 from skisnow.solvers.errors import InputError
 
@@ -20,6 +20,14 @@ DESIGNS = OTHER_DESIGNS
 #: test_variant_starts_are_alternatives_only) and cost a start and two fits: tests of the main
 #: fits run without them
 NO_VARIANTS = {"variant_knot_spacings_m": (), "demand_variant_knot_spacings_m": ()}
+
+
+@pytest.fixture(autouse=True)
+def _model_on_the_data_nodes(monkeypatch):
+    """The data of these tests are the device model on their own coarse nodes (4 mm, for
+    speed): the forward fits model them on the same nodes (model_spacing_m 0). The finer model
+    grid, for samples of a finer device, has its own tests (test_sparse_samples_*)."""
+    monkeypatch.setattr(identify, "DEFAULT_MODEL_SPACING_M", 0.0)
 
 
 def _data(design, spacing_m, noise_m, seed):
@@ -886,3 +894,43 @@ def test_variant_refits_run_as_variant_candidates_only():
     ]
     assert [x for x in labels if x.startswith("forward from")] == want[: len(used)]
     assert len(labels) == 2 * len(plain.extra["variant_candidates"])
+
+
+#: the shipped default, before the module's fixture sets the model on the data's nodes
+_SHIPPED_MODEL_SPACING_M = identify.DEFAULT_MODEL_SPACING_M
+
+
+def test_sparse_samples_are_identified_on_a_finer_model_grid(monkeypatch):
+    """Samples every 5 mm of a device that touches the ski anywhere (the virtual device on
+    1 mm nodes), the unloaded profile and 9 × 5 cases, identified as the ski job does (held-out
+    check, shipped defaults): the beam comes on 1 mm nodes with the samples among them, and it
+    predicts unseen loaded profiles near contact far better than a beam on the samples' nodes.
+    Measured: 0.61 µm against 1.53 µm (13 s against 10 s)."""
+    monkeypatch.setattr(identify, "DEFAULT_MODEL_SPACING_M", _SHIPPED_MODEL_SPACING_M)
+    truth = DESIGNS["stiff"].build(1e-3)
+    f, xf, y = measure_camber(
+        truth, np.linspace(10, 90, 9) * 9.82, np.linspace(-0.30, 0.10, 5), noise_m=3e-6, rng=9
+    )
+    y0 = measure_unloaded(truth, noise_m=3e-6, rng=10)
+    f, xf, y = np.r_[0.0, f], np.r_[0.0, xf], np.vstack([y0, y])[:, ::5]
+    x = truth.positions_m[::5]
+    rng = np.random.default_rng(3)
+    hf, hx = rng.uniform(15, 85, 12) * 9.82, rng.uniform(-0.28, 0.08, 12)
+    exact = identify.predict_gaps(truth, hf, hx)
+    near = exact < 2e-4
+    errors = {}
+    for spacing in (None, 0.0):
+        ident, check = identify.identify_beam_checked(
+            x, f, xf, y, model_spacing_m=spacing, **NO_VARIANTS
+        )
+        assert ident.ok, ident.reason
+        assert check["held_out_rms_m"] < 1.3 * ident.noise_m  # read at the samples' nodes
+        pred = identify.predict_gaps(ident.beam, hf, hx, truth.positions_m)
+        errors[spacing] = float(np.sqrt(np.mean((pred - exact)[near] ** 2)))
+        if spacing is None:
+            xb = ident.beam.positions_m
+            assert xb.size == (x.size - 1) * 5 + 1 and np.array_equal(xb[::5], x)
+            assert ident.extra["model_spacing_m"] == pytest.approx(1e-3)
+            assert ident.camber_sd_m.shape == xb.shape
+    assert errors[None] < 0.9e-6
+    assert errors[None] < 0.6 * errors[0.0]

@@ -143,6 +143,10 @@ def test_summary_numbers_equal_the_api(demo):
     )
     for label in ("Device noise σ", "Held-out error, RMS over 85 cases", "µm"):
         assert label in html
+    # the beam's device model is on the samples' 1 mm nodes (a sparser sampling gets 1 mm
+    # model nodes of its own: solvers.identify DEFAULT_MODEL_SPACING_M)
+    assert ident["model_spacing_mm"] == pytest.approx(1.0, abs=1e-6)
+    assert _number(html, "model_spacing_mm") == pytest.approx(1.0)
 
 
 def test_beam_table_equals_the_api(demo):
