@@ -2045,8 +2045,16 @@ def predict_gaps(
     return out
 
 
-#: held-out RMS over the noise above which an identified beam is rejected [-]
+#: held-out RMS over the noise above which an identified beam is rejected [-], taken where the
+#: measured gap is below HELD_OUT_BAND_M (the contact band the answers use; the model choice,
+#: app.service.profiles, judges the same band). The whole profile's RMS is reported too, and
+#: an answer warns when it is above the noise (app.service.band.HELD_OUT_WARN_RATIO): a ski
+#: whose tail lifts 0.27 mm at heavy forward loads was predicted there 30 µm off (EI at the
+#: tail 20 % off, few cases bend it) while every contact was predicted at 1.25 × the noise
+#: (tests/jobs/test_uploads.py, the junior ski)
 HELD_OUT_LIMIT = 2.0
+#: the held-out check's contact band: measured gaps below this [m]
+HELD_OUT_BAND_M = 2e-4
 
 
 def identify_beam_checked(
@@ -2063,8 +2071,10 @@ def identify_beam_checked(
     """:func:`identify_beam` on the cases left after a seeded held-out draw, then a check on
     the held-out cases: a misfit at the noise alone does not prove a good beam (the fit has
     freedom to spare), so the beam must also predict cases it has not seen, within
-    ``HELD_OUT_LIMIT`` × the noise. Returns the identification (``ok=False`` with the reason
-    when the check fails) and the check's figures (held-out RMS [m], count, indices, seed).
+    ``HELD_OUT_LIMIT`` × the noise where the measured gap is below HELD_OUT_BAND_M (every node
+    when none is). Returns the identification (``ok=False`` with the reason when the check
+    fails) and the check's figures: held-out RMS over the whole profiles
+    (``held_out_rms_m``) and in the band (``held_out_rms_band_m``) [m], count, indices, seed.
     ``held_out_index`` (indices into the cases), if given, is the held-out choice instead of
     the draw (a ski job holds the same cases out of its camber network). A case of 0 N (the
     unloaded profile) is never held out.
@@ -2098,16 +2108,21 @@ def identify_beam_checked(
         "held_out_index": np.flatnonzero(held).tolist(),
         "seed": int(seed),
         "held_out_rms_m": None,
+        "held_out_rms_band_m": None,
     }
     if held.any() and ident.ok:
         pred = predict_gaps(ident.beam, loads[held], xfs[held], positions_m)
-        rms = float(np.sqrt(np.mean((pred - y[held]) ** 2)))
-        check["held_out_rms_m"] = rms
+        res = pred - y[held]
+        band = y[held] < HELD_OUT_BAND_M
+        check["held_out_rms_m"] = float(np.sqrt(np.mean(res**2)))
+        rms = float(np.sqrt(np.mean(res[band] ** 2))) if band.any() else check["held_out_rms_m"]
+        check["held_out_rms_band_m"] = rms
         if rms > HELD_OUT_LIMIT * ident.noise_m:
             ident.ok = False
             ident.reason = (
-                f"held-out cases miss by {rms * 1e6:.2f} µm RMS, more than {HELD_OUT_LIMIT:g}× "
-                f"the device noise {ident.noise_m * 1e6:.2f} µm: the beam fits the measured "
-                "cases but does not predict others"
+                f"held-out cases miss by {rms * 1e6:.2f} µm RMS where the measured gap is below "
+                f"{HELD_OUT_BAND_M * 1e3:g} mm, more than {HELD_OUT_LIMIT:g}× the device noise "
+                f"{ident.noise_m * 1e6:.2f} µm: the beam fits the measured cases but does not "
+                "predict others"
             )
     return ident, check

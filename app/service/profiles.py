@@ -605,6 +605,8 @@ def identification_group(
     out = identified_to_dict(ident, {**params, "profiles": sides, **check}, sd)
     rms = check.get("held_out_rms_m")
     out["attrs"]["held_out_rms_m"] = float("nan") if rms is None else float(rms)
+    rms_band = check.get("held_out_rms_band_m")
+    out["attrs"]["held_out_rms_band_m"] = float("nan") if rms_band is None else float(rms_band)
     out["attrs"]["held_out_cases"] = int(check.get("held_out_cases", 0))
     out["held_out_index"] = np.asarray(check.get("held_out_index", []), dtype=int)
     if profiles_m is not None and out["held_out_index"].size:

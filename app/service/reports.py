@@ -90,6 +90,11 @@ def _identification_report(ski: Ski) -> dict:
     held_rms = float(held_rms) if held_rms is not None and math.isfinite(held_rms) else None
     out["held_out_cases"] = int(a.get("held_out_cases", 0))
     out["held_out_rms_um"] = None if held_rms is None else held_rms * 1e6
+    # where the measured gap is below 0.2 mm: what the held-out check judges (files written
+    # before it was stored have none)
+    band_rms = a.get("held_out_rms_band_m")
+    ok_band = band_rms is not None and math.isfinite(float(band_rms))
+    out["held_out_rms_band_um"] = float(band_rms) * 1e6 if ok_band else None
     for key, value in (("misfit_to_noise", a.get("misfit_m")), ("held_out_to_noise", held_rms)):
         ok = value is not None and noise and math.isfinite(value)
         out[key] = round(float(value) / float(noise), 4) if ok else None

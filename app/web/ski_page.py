@@ -71,6 +71,13 @@ def _numbers(ident: dict) -> list[tuple]:
         ),
         ("held_out_to_noise", "Held-out error / noise", ident["held_out_to_noise"], "–", "{:.3f}"),
         (
+            "held_out_rms_band_um",
+            "Held-out error where the measured gap < 0.2 mm (the check's)",
+            ident.get("held_out_rms_band_um"),
+            "µm",
+            "{:.3f}",
+        ),
+        (
             "model_spacing_mm",
             "Beam model's node spacing",
             ident.get("model_spacing_mm"),

@@ -88,7 +88,11 @@ def _recomputed_held_out_errors(record) -> tuple[np.ndarray, np.ndarray]:
     f, xf, y, _ = mean_profiles(record.measurements)
     held = np.sort(np.asarray(ident["held_out_index"], dtype=int))
     beam = BeamSki(ident["positions_m"], ident["bending_stiffness_nm2"], ident["unloaded_gap_m"])
-    gaps = np.stack([solve_beam_contact(beam, f[k], xf[k]).gap_m for k in held])
+    # read at the measured nodes (a file sampled every 5 mm gets its beam on 1 mm nodes)
+    x = record.measurements.positions_m
+    gaps = np.stack(
+        [np.interp(x, beam.positions_m, solve_beam_contact(beam, f[k], xf[k]).gap_m) for k in held]
+    )
     return held, np.sqrt(np.mean((gaps - y[held]) ** 2, axis=1))
 
 

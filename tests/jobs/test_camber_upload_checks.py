@@ -684,6 +684,6 @@ def test_a_file_sampled_coarser_than_1_mm_is_told_what_it_costs(upload_csv):
     _, _, figures = check(upload_csv)  # every 5 mm
     assert figures["sample_spacing_mm"] == pytest.approx(5.0)
     note = next(n for n in figures["notes"] if n.startswith("samples every 5 mm"))
-    assert "5 mm: profiles 0.87–1.75 µm" in note and "Measure every 1 mm" in note
+    assert "5 mm: profiles 0.29–0.78 µm" in note and "Measure every 1 mm" in note
     assert uploads.sampling_note(1.0) is None and uploads.sampling_note(2.0) is not None
     assert "samples every 1 mm give the most accurate answers" in uploads.minimum_grid_sentence()

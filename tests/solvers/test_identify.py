@@ -232,6 +232,25 @@ def test_held_out_check_rejects_a_beam_that_does_not_predict():
     assert check["held_out_rms_m"] > 6e-6
 
 
+def test_held_out_check_judges_the_contact_band():
+    """The held-out check judges where the measured gap is below 0.2 mm (what the answers
+    use): held-out cases 30 µm off only where every case stands far above the flat (the
+    shovels) pass it, and the whole profile's RMS says how far they are off there."""
+    ski, f, xf, y = _data(DESIGNS["stiff"], 4e-3, 0.0, None)
+    count = round(0.2 * f.size)
+    held = np.zeros(f.size, dtype=bool)
+    held[np.random.default_rng(3).choice(f.size, count, replace=False)] = True
+    far = y.min(axis=0) > 2 * identify.HELD_OUT_BAND_M  # above the band in every case
+    assert far.sum() > 20
+    y_far = np.where(held[:, None] & far[None, :], y + 30e-6, y)
+    ident, check = identify.identify_beam_checked(
+        ski.positions_m, f, xf, y_far, seed=3, noise_m=3e-6, **NO_VARIANTS
+    )
+    assert ident.ok, ident.reason
+    assert check["held_out_rms_band_m"] < 2e-6
+    assert check["held_out_rms_m"] > identify.HELD_OUT_LIMIT * 3e-6  # the old rule failed it
+
+
 def test_forward_paths_side_by_side_give_the_same_beam():
     """``path_map`` runs the two forward paths in worker processes (app/path_pool.py): the same
     candidates, objectives and beam as one after the other in this process at the workers' one
