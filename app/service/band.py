@@ -61,6 +61,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from skisnow.app.presets import Preset
+from skisnow.app.service import band_calibration
 from skisnow.app.service.band_calibration import (
     FLAT_GAP_M,
     FLAT_MIN_WIDTH,
@@ -168,6 +169,10 @@ class Band:
     #: :data:`HELD_OUT_WARN_RATIO` × the device noise (:func:`held_out_excess`): (held-out
     #: RMS, device noise) [m]; None otherwise
     held_out_error: tuple[float, float] | None = None
+    #: an answer of an identified beam whose camber file was sampled coarser than the
+    #: recommended spacing: (its spacing [mm], the measured spacing standing for it [mm], that
+    #: spacing's row of :data:`app.service.band_calibration.SPACING_ACCURACY`); None otherwise
+    sparse_sampling: tuple[float, float, tuple] | None = None
     #: a bending-ski answer whose plausible beams mostly did not converge on this snow (fewer
     #: than 2 solved, so the camber part has no width and is left out): (solved, drawn)
     beam_draws_failed: tuple[int, int] | None = None
@@ -593,11 +598,13 @@ def answer_band(
         "(docs/limits.md)",
     ]
     held_out = None
+    sparse = None
     # the answer's profile is the ski's identified beam (not a design beam, not the network)
     identified = not beam_is_design and served_beam(record.identified) is not None
     if identified:
         not_covered.insert(0, IDENTIFIED_STRUCTURE_NOT_COVERED)
         held_out = held_out_excess(record.identified)
+        sparse = sparse_sampling(record)
     rigid = ski_model_used == "rigid"
     # a rigid answer from the ski's camber network (no beam served, none given with the ski)
     network_served = rigid and not identified and not beam_is_design and record.network is not None
@@ -816,6 +823,7 @@ def answer_band(
         flat_base=flat_base,
         unmeasured_stiffness=unmeasured,
         held_out_error=held_out,
+        sparse_sampling=sparse,
         beam_draws_failed=None if rigid else draws_failed,
         beam_scale_reduced=scale_reduced if has_sigma and draws_failed is None else None,
         profile_draws_failed=draws_failed if rigid else None,
@@ -930,6 +938,19 @@ def unmeasured_contact(identified: dict | None, macro) -> tuple[float, float, fl
 HELD_OUT_WARN_RATIO = 1.2
 
 
+def sparse_sampling(record) -> tuple[float, float, tuple] | None:
+    """(sample spacing [mm], the measured spacing standing for it [mm], its accuracy row) of a
+    ski whose camber measurements are sampled coarser than the recommended spacing
+    (:func:`app.service.band_calibration.sampling_accuracy`); None otherwise or without
+    measurements."""
+    x = getattr(getattr(record, "measurements", None), "positions_m", None)
+    if x is None or np.size(x) < 2:
+        return None
+    spacing_mm = float(x[1] - x[0]) * 1e3
+    found = band_calibration.sampling_accuracy(spacing_mm)
+    return None if found is None else (spacing_mm, *found)
+
+
 def held_out_excess(identified: dict | None) -> tuple[float, float] | None:
     """(held-out RMS, device noise) [m] of a stored identification whose beam predicts the
     camber cases held out from its fit worse than :data:`HELD_OUT_WARN_RATIO` × the noise;
@@ -1022,6 +1043,23 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
                 "further off than its band says. More camber cases (at least 13 loads × 9 "
                 "positions, the unloaded profile included) usually fix the beam better; on a "
                 "ski measured so, check that both sides and the device agree",
+            }
+        )
+    if band.sparse_sampling is not None:
+        spacing, measured, ((lo, hi), rigid_share, flex_share) = band.sparse_sampling
+        best = band_calibration.SPACING_ACCURACY[band_calibration.RECOMMENDED_SAMPLE_SPACING_MM]
+        warnings.append(
+            {
+                "code": "sparse_camber_sampling",
+                "detail": f"the ski's camber was sampled every {spacing:.3g} mm: on four "
+                f"comparable skis sampled every {measured:g} mm, {100 * rigid_share:.0f} % of "
+                f"rigid and {100 * flex_share:.0f} % of bending apparent areas were within 3 % "
+                f"of the truth ({100 * best[1]:.0f} % and {100 * best[2]:.0f} % sampled every "
+                f"{band_calibration.RECOMMENDED_SAMPLE_SPACING_MM:g} mm), loaded profiles "
+                f"{lo:.2f}–{hi:.2f} µm off, and a few answers more than 3 % off lay outside "
+                "their band. Measure every "
+                f"{band_calibration.RECOMMENDED_SAMPLE_SPACING_MM:g} mm for the most accurate "
+                "answers",
             }
         )
     if band.beam_draws_failed is not None:

@@ -64,6 +64,39 @@ from __future__ import annotations
 
 import numpy as np
 
+# ----------------------------------------------------------------------------- sampling
+
+#: the sample spacing the accuracy targets of issue #26 were met at [mm]
+RECOMMENDED_SAMPLE_SPACING_MM = 1.0
+#: Measured accuracy per sample spacing [mm]: held-out profile RMS where H* < 0.2 mm (the
+#: range over the skis, rounded outwards) [µm], and the shares of rigid and flexible apparent
+#: areas within 3 % of the true beam's; 13 loads × 9 positions, the same four random designs
+#: (random-601 … random-604) and noise draws at each spacing, the beam's device model on 1 mm
+#: nodes at each (docs/studies/own-ski-spacing-*mm-random-601-604,
+#: docs/camber-identification.md "Sample spacing"). Stated at upload
+#: (app.jobs.uploads.sampling_note) and in the answers of a ski sampled coarser
+#: (:func:`sampling_accuracy`, the warning ``sparse_camber_sampling``)
+SPACING_ACCURACY = {
+    1.0: ((0.18, 0.36), 0.983, 0.986),
+    2.0: ((0.15, 0.40), 0.962, 0.983),
+    5.0: ((0.29, 0.78), 0.882, 0.899),
+}
+#: samples up to this × RECOMMENDED_SAMPLE_SPACING_MM apart count as the recommended spacing
+SPARSE_SAMPLING_RATIO = 1.5
+
+
+def sampling_accuracy(spacing_mm: float) -> tuple[float, tuple] | None:
+    """For a camber file sampled every ``spacing_mm`` [mm], coarser than the recommended
+    spacing (more than SPARSE_SAMPLING_RATIO × it): (the measured spacing that stands for it,
+    its row of :data:`SPACING_ACCURACY`), the nearest measured spacing at or above it (the
+    coarsest when beyond every one); None at the recommended spacing."""
+    if not (spacing_mm > SPARSE_SAMPLING_RATIO * RECOMMENDED_SAMPLE_SPACING_MM):
+        return None
+    above = [mm for mm in sorted(SPACING_ACCURACY) if mm >= spacing_mm - 1e-9]
+    mm = above[0] if above else max(SPACING_ACCURACY)
+    return mm, SPACING_ACCURACY[mm]
+
+
 # ----------------------------------------------------------------------------- network
 
 #: factor on the camber network's estimated error σ(X) (see the module docstring). Measured

@@ -346,3 +346,39 @@ def test_a_bending_ski_band_draws_again_at_half_the_factor(catalogue, monkeypatc
     # the halved draws spread less than the calibrated ones
     w, w0 = (a["band"]["components"]["camber_model"]["apparent_contact_area"] for a in (got, plain))
     assert w < w0
+
+
+def test_a_ski_sampled_coarser_than_1_mm_is_warned_with_the_measured_accuracy():
+    """The accuracy the spacing studies measured stands for the nearest measured spacing at or
+    above the file's (the coarsest beyond them); at the recommended spacing, nothing."""
+    from skisnow.app.service import band_calibration as bc
+    from skisnow.app.service.band import band_json
+
+    assert bc.sampling_accuracy(1.0) is None and bc.sampling_accuracy(1.5) is None
+    assert bc.sampling_accuracy(2.0) == (2.0, bc.SPACING_ACCURACY[2.0])
+    assert bc.sampling_accuracy(3.0) == (5.0, bc.SPACING_ACCURACY[5.0])
+    assert bc.sampling_accuracy(8.0) == (5.0, bc.SPACING_ACCURACY[5.0])
+    row = bc.SPACING_ACCURACY[5.0]
+    _, warned = band_json(_band(sparse_sampling=(5.0, 5.0, row)), _answer())
+    detail = {w["code"]: w["detail"] for w in warned}["sparse_camber_sampling"]
+    assert "sampled every 5 mm" in detail and f"{100 * row[1]:.0f} % of rigid" in detail
+    assert "Measure every 1 mm" in detail
+    _, none = band_json(_band(), _answer())
+    assert "sparse_camber_sampling" not in [w["code"] for w in none]
+
+
+def test_an_identified_beam_from_samples_every_5_mm_answers_with_the_warning(catalogue):
+    """Demo ski-a (samples every 1 mm) answers without it; the same record with its
+    measurements every 5th sample answers with it, the band unchanged."""
+    from dataclasses import replace
+
+    case = _case(grind="tiny-grind")
+    plain = service.contact(catalogue, case)
+    assert "sparse_camber_sampling" not in [w["code"] for w in plain["warnings"]]
+    ski = catalogue.skis["ski-a"]
+    m = ski.record.measurements
+    sparse = replace(m, positions_m=m.positions_m[::5], profiles_m=m.profiles_m[:, ::5])
+    off = replace(ski, record=replace(ski.record, measurements=sparse, cache={}), _flexible={})
+    warned = service.contact(replace(catalogue, skis={**catalogue.skis, "ski-a": off}), case)
+    assert "sparse_camber_sampling" in [w["code"] for w in warned["warnings"]]
+    assert warned["band"]["relative_half_width"] == plain["band"]["relative_half_width"]
