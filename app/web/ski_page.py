@@ -14,6 +14,7 @@ from urllib.parse import quote, urlencode
 from fastapi import Request
 from fastapi.responses import HTMLResponse
 from skisnow.app import service, units
+from skisnow.app.jobs.uploads import sampling_note
 from skisnow.app.service.profiles import CHOICE_RULE, model_choice
 from skisnow.app.service.ski_figures import ski_figures
 from skisnow.app.web.form import DEFAULTS, NUMERIC, metadata_label, ski_url
@@ -50,6 +51,8 @@ def _summary(ski: service.Ski) -> dict:
         "position_max_mm": m.load_positions_m.max() * 1e3,
         "samples": m.positions_m.size,
         "step_mm": (m.positions_m[1] - m.positions_m[0]) * 1e3,
+        # what a sampling coarser than the recommended costs (the upload's note, again here)
+        "sampling_note": sampling_note((m.positions_m[1] - m.positions_m[0]) * 1e3),
         "file": ski.path.name,
         "sha256": ski.sha256,
     }

@@ -75,6 +75,11 @@ def client(catalogue, tmp_path_factory):
     skis["other-cases"] = _variant(a, "other-cases", identified=_other_cases(a))
     no_alts = {k: v for k, v in a.record.identified.items() if k != "alternatives"}
     skis["no-alternatives"] = _variant(a, "no-alternatives", identified=no_alts)
+    m = a.record.measurements
+    every_5mm = dataclasses.replace(
+        m, positions_m=m.positions_m[::5], profiles_m=m.profiles_m[:, ::5]
+    )
+    skis["sparse-samples"] = _variant(a, "sparse-samples", measurements=every_5mm)
     cat = service.Catalogue(tables_dir=catalogue.tables_dir, skis=skis, grinds=catalogue.grinds)
     settings = Settings(data_dir=tmp_path_factory.mktemp("ski-page"), warm_up=False)
     with TestClient(create_app(settings, catalogue=cat), raise_server_exceptions=False) as c:
@@ -503,3 +508,13 @@ def test_upload_page_lists_the_ski_pages(client):
     for name in DEMO:
         assert f'href="/skis/{name}"' in pages
     assert 'id="ski-item-link"' in html and 'id="grind-item-link"' not in html
+
+
+def test_a_ski_sampled_every_5_mm_says_what_it_costs(client):
+    """The ski page repeats the upload's sampling note for a file sampled coarser than 1 mm
+    (here ski-a's measurements every 5th sample, its beam on the 1 mm nodes, as a 5 mm upload's
+    is identified); the 1 mm demo ski has none."""
+    html = _page(client, "sparse-samples")
+    assert "samples every 5 mm" in html and 'id="sampling-note"' in html
+    assert "Measure every 1 mm for the most accurate answers" in html
+    assert 'id="sampling-note"' not in _page(client, "ski-a")
