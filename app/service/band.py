@@ -170,9 +170,9 @@ class Band:
     #: RMS, device noise) [m]; None otherwise
     held_out_error: tuple[float, float] | None = None
     #: an answer of an identified beam whose camber file was sampled coarser than the
-    #: recommended spacing: (its spacing [mm], the measured spacing standing for it [mm], that
-    #: spacing's row of :data:`app.service.band_calibration.SPACING_ACCURACY`); None otherwise
-    sparse_sampling: tuple[float, float, tuple] | None = None
+    #: recommended spacing: (its spacing [mm], then
+    #: :func:`app.service.band_calibration.sampling_accuracy`'s three items); None otherwise
+    sparse_sampling: tuple | None = None
     #: a bending-ski answer whose plausible beams mostly did not converge on this snow (fewer
     #: than 2 solved, so the camber part has no width and is left out): (solved, drawn)
     beam_draws_failed: tuple[int, int] | None = None
@@ -938,16 +938,16 @@ def unmeasured_contact(identified: dict | None, macro) -> tuple[float, float, fl
 HELD_OUT_WARN_RATIO = 1.2
 
 
-def sparse_sampling(record) -> tuple[float, float, tuple] | None:
-    """(sample spacing [mm], the measured spacing standing for it [mm], its accuracy row) of a
-    ski whose camber measurements are sampled coarser than the recommended spacing
-    (:func:`app.service.band_calibration.sampling_accuracy`); None otherwise or without
-    measurements."""
+def sparse_sampling(record) -> tuple | None:
+    """(sample spacing [mm], the measured spacing standing for it [mm], its accuracy row, the
+    9 × 5 grid's shares or None) of a ski whose camber measurements are sampled coarser than
+    the recommended spacing (:func:`app.service.band_calibration.sampling_accuracy`); None
+    otherwise or without measurements."""
     x = getattr(getattr(record, "measurements", None), "positions_m", None)
     if x is None or np.size(x) < 2:
         return None
     spacing_mm = float(x[1] - x[0]) * 1e3
-    found = band_calibration.sampling_accuracy(spacing_mm)
+    found = band_calibration.sampling_accuracy(spacing_mm, loaded_cases(record))
     return None if found is None else (spacing_mm, *found)
 
 
@@ -1046,8 +1046,14 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
             }
         )
     if band.sparse_sampling is not None:
-        spacing, measured, ((lo, hi), rigid_share, flex_share) = band.sparse_sampling
+        spacing, measured, ((lo, hi), rigid_share, flex_share), coarse = band.sparse_sampling
         best = band_calibration.SPACING_ACCURACY[band_calibration.RECOMMENDED_SAMPLE_SPACING_MM]
+        fewer = (
+            f"; with 9 loads × 5 positions, nearer this ski's cases, {100 * coarse[0]:.0f} % "
+            f"and {100 * coarse[1]:.0f} %"
+            if coarse is not None
+            else ""
+        )
         warnings.append(
             {
                 "code": "sparse_camber_sampling",
@@ -1055,7 +1061,8 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
                 f"comparable skis sampled every {measured:g} mm, {100 * rigid_share:.0f} % of "
                 f"rigid and {100 * flex_share:.0f} % of bending apparent areas were within 3 % "
                 f"of the truth ({100 * best[1]:.0f} % and {100 * best[2]:.0f} % sampled every "
-                f"{band_calibration.RECOMMENDED_SAMPLE_SPACING_MM:g} mm), loaded profiles "
+                f"{band_calibration.RECOMMENDED_SAMPLE_SPACING_MM:g} mm; 13 loads × 9 "
+                f"positions{fewer}), loaded profiles "
                 f"{lo:.2f}–{hi:.2f} µm off, and a few answers more than 3 % off lay outside "
                 "their band. Measure every "
                 f"{band_calibration.RECOMMENDED_SAMPLE_SPACING_MM:g} mm for the most accurate "

@@ -81,20 +81,30 @@ SPACING_ACCURACY = {
     2.0: ((0.15, 0.40), 0.962, 0.983),
     5.0: ((0.29, 0.78), 0.882, 0.899),
 }
+#: the shares of rigid and bending apparent areas within 3 % on 9 loads × 5 positions, per
+#: sample spacing [mm] (measured at 5 mm only: the coarse grid of the 5 mm study, same skis);
+#: said for a ski measured nearer 9 × 5 than 13 × 9 (:func:`sampling_accuracy`)
+SPACING_ACCURACY_COARSE_GRID = {5.0: (0.743, 0.747)}
 #: samples up to this × RECOMMENDED_SAMPLE_SPACING_MM apart count as the recommended spacing
 SPARSE_SAMPLING_RATIO = 1.5
 
 
-def sampling_accuracy(spacing_mm: float) -> tuple[float, tuple] | None:
+def sampling_accuracy(
+    spacing_mm: float, cases: int | None = None
+) -> tuple[float, tuple, tuple | None] | None:
     """For a camber file sampled every ``spacing_mm`` [mm], coarser than the recommended
     spacing (more than SPARSE_SAMPLING_RATIO × it): (the measured spacing that stands for it,
-    its row of :data:`SPACING_ACCURACY`), the nearest measured spacing at or above it (the
-    coarsest when beyond every one); None at the recommended spacing."""
+    its row of :data:`SPACING_ACCURACY`, and for a ski of ``cases`` loaded cases nearer the
+    9 × 5 grid than 13 × 9 (:data:`GRID_CASES`, geometric midpoint) the shares of
+    :data:`SPACING_ACCURACY_COARSE_GRID` at that spacing, else None); the spacing is the
+    nearest measured one at or above the file's (the coarsest when beyond every one); None at
+    the recommended spacing."""
     if not (spacing_mm > SPARSE_SAMPLING_RATIO * RECOMMENDED_SAMPLE_SPACING_MM):
         return None
     above = [mm for mm in sorted(SPACING_ACCURACY) if mm >= spacing_mm - 1e-9]
     mm = above[0] if above else max(SPACING_ACCURACY)
-    return mm, SPACING_ACCURACY[mm]
+    few = cases is not None and 0 < cases < np.sqrt(GRID_CASES[0] * GRID_CASES[1])
+    return mm, SPACING_ACCURACY[mm], SPACING_ACCURACY_COARSE_GRID.get(mm) if few else None
 
 
 # ----------------------------------------------------------------------------- network

@@ -677,6 +677,14 @@ def test_the_spacing_accuracy_is_the_spacing_study_s():
         seeds = drawn
     assert uploads.RECOMMENDED_SAMPLE_SPACING_MM in uploads.SPACING_ACCURACY
     assert max(uploads.SPACING_ACCURACY) == uploads.MAX_SAMPLE_SPACING_MM
+    # and the 9 × 5 grid's shares (the same study's coarse grid)
+    from skisnow.app.service.band_calibration import SPACING_ACCURACY_COARSE_GRID
+
+    for mm, (rigid, flexible) in SPACING_ACCURACY_COARSE_GRID.items():
+        name = f"own-ski-spacing-{mm:g}mm-random-601-604.json"
+        models = json.loads((REPO / "docs" / "studies" / name).read_text())["summary"]["coarse"]
+        assert rigid == round(models["models"]["rigid"]["all"]["share_within_3pct"], 3)
+        assert flexible == round(models["models"]["flexible"]["all"]["share_within_3pct"], 3)
 
 
 def test_a_file_sampled_coarser_than_1_mm_is_told_what_it_costs(upload_csv):

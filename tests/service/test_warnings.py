@@ -355,14 +355,20 @@ def test_a_ski_sampled_coarser_than_1_mm_is_warned_with_the_measured_accuracy():
     from skisnow.app.service.band import band_json
 
     assert bc.sampling_accuracy(1.0) is None and bc.sampling_accuracy(1.5) is None
-    assert bc.sampling_accuracy(2.0) == (2.0, bc.SPACING_ACCURACY[2.0])
-    assert bc.sampling_accuracy(3.0) == (5.0, bc.SPACING_ACCURACY[5.0])
-    assert bc.sampling_accuracy(8.0) == (5.0, bc.SPACING_ACCURACY[5.0])
+    assert bc.sampling_accuracy(2.0) == (2.0, bc.SPACING_ACCURACY[2.0], None)
+    assert bc.sampling_accuracy(3.0) == (5.0, bc.SPACING_ACCURACY[5.0], None)
+    assert bc.sampling_accuracy(8.0, 117) == (5.0, bc.SPACING_ACCURACY[5.0], None)
+    coarse = bc.SPACING_ACCURACY_COARSE_GRID[5.0]
+    assert bc.sampling_accuracy(5.0, 45) == (5.0, bc.SPACING_ACCURACY[5.0], coarse)
+    assert bc.sampling_accuracy(2.0, 45)[2] is None  # 9 × 5 measured at 5 mm only
     row = bc.SPACING_ACCURACY[5.0]
-    _, warned = band_json(_band(sparse_sampling=(5.0, 5.0, row)), _answer())
+    _, warned = band_json(_band(sparse_sampling=(5.0, 5.0, row, None)), _answer())
     detail = {w["code"]: w["detail"] for w in warned}["sparse_camber_sampling"]
     assert "sampled every 5 mm" in detail and f"{100 * row[1]:.0f} % of rigid" in detail
-    assert "Measure every 1 mm" in detail
+    assert "Measure every 1 mm" in detail and "9 loads × 5" not in detail
+    _, warned = band_json(_band(sparse_sampling=(5.0, 5.0, row, coarse)), _answer())
+    detail = {w["code"]: w["detail"] for w in warned}["sparse_camber_sampling"]
+    assert f"with 9 loads × 5 positions, nearer this ski's cases, {100 * coarse[0]:.0f} %" in detail
     _, none = band_json(_band(), _answer())
     assert "sparse_camber_sampling" not in [w["code"] for w in none]
 
