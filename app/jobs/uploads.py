@@ -38,7 +38,7 @@ from skisnow.app.errors import ConflictError, QuotaError, UnsupportedContentErro
 from skisnow.app.service.band_calibration import (
     RECOMMENDED_SAMPLE_SPACING_MM,
     SPACING_ACCURACY,
-    SPARSE_SAMPLING_RATIO,
+    sampling_accuracy,
 )
 from skisnow.app.settings import Settings
 from skisnow.app.storage.catalogue import CatalogueDB, ItemRow, JobRow
@@ -570,7 +570,7 @@ def minimum_grid_sentence() -> str:
 def sampling_note(spacing_mm: float) -> str | None:
     """For a file sampled coarser than :data:`RECOMMENDED_SAMPLE_SPACING_MM`: what that costs,
     as measured (:data:`SPACING_ACCURACY`); None at the recommended spacing."""
-    if spacing_mm <= SPARSE_SAMPLING_RATIO * RECOMMENDED_SAMPLE_SPACING_MM:
+    if sampling_accuracy(spacing_mm) is None:  # the answers' warning's rule
         return None
     rows = "; ".join(
         f"{mm:g} mm: profiles {lo:.2f}–{hi:.2f} µm from the truth, rigid areas within 3 % in "
