@@ -71,6 +71,13 @@ def post_ski(
     brand_model: Annotated[str, Form(max_length=128)] = "",
     owner_team: Annotated[str, Form(max_length=64)] = "",
     notes: Annotated[str, Form(max_length=2000)] = "",
+    unmeasured: Annotated[
+        Literal["drop", "refuse"],
+        Form(
+            description="samples without a gap (empty, NaN): drop their positions from every "
+            "case (recorded), or refuse the file"
+        ),
+    ] = "drop",
 ) -> JSONResponse:
     """Upload a ski's camber measurements: validated at once (line-numbered errors; data
     too sparse for the accuracy check are refused); its network is trained by a job."""
@@ -97,6 +104,7 @@ def post_ski(
             length_mm=length_mm,
             width_mm=width_mm,
             width_positions_mm=width_positions_mm,
+            unmeasured=unmeasured,
             team=team,
             limits=C.limits(request),
             max_cases=settings.max_camber_cases,

@@ -5,6 +5,7 @@ accuracy check, the ski file (:func:`run_ski_job`); and the clean-up of any fail
 from __future__ import annotations
 
 import contextlib
+import json
 import logging
 import math
 import os
@@ -41,7 +42,12 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
 
     item = ctx.item
     # the upload's name stands in for a ski_id the file left out, as at upload
-    data = read_camber_csv(layout.ski_csv(item.id), default_ski_id=item.name)
+    data = read_camber_csv(
+        layout.ski_csv(item.id),
+        default_ski_id=item.name,
+        # as the upload read it (items stored before the choice: drop, the default)
+        unmeasured=item.metadata.get("unmeasured", "drop"),
+    )
     _, x, f, xf, h, side = camber_training_arrays(data)
     # one held-out draw (seeded, recorded) for both models: the network is trained and the beam
     # identified without these cases, and both are judged on them (app.service.profiles)
@@ -124,7 +130,13 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
             for k, v in item.metadata.items()
             if k in ("brand_model", "style", "owner_team", "notes", "original_filename")
         }
-        | {"description": f"uploaded ski {item.name}", "item_id": item.id},
+        | {"description": f"uploaded ski {item.name}", "item_id": item.id}
+        # how the file's unmeasured samples were handled (provenance of the measurements)
+        | {
+            "unmeasured": str(item.metadata.get("unmeasured", "drop")),
+            "unmeasured_samples": str(data.unmeasured_samples),
+            "positions_dropped_mm": json.dumps(list(data.dropped_positions_mm)),
+        },
     )
     ctx.progress(0.96, "identifying the ski's beam from its camber cases")
     record.identified, beam_note = _identify(

@@ -665,6 +665,7 @@ def check_ski_upload(
     max_cases: int | None = None,
     max_rows: int | None = None,
     default_ski_id: str | None = None,
+    unmeasured: str = "drop",
 ):
     """Validate a camber CSV upload and the outline; refuse, in plain words, what the job
     would fail on: a span under :data:`MIN_SPAN_FRACTION` of ``length_mm`` (positions in cm
@@ -672,6 +673,9 @@ def check_ski_upload(
     a served beam (:func:`minimum_grid_sentence`), data too sparse to hold cases out, and
     files beyond the caps on cases and rows (``max_cases``, ``max_rows``; default
     :data:`app.storage.skis.MAX_CAMBER_CASES`, ``MAX_CAMBER_ROWS``; reading stops there).
+    Unmeasured samples (an empty or NaN gap) are handled as ``unmeasured`` says
+    (:func:`app.storage.skis.read_camber_csv`: ``drop`` their positions from every case, or
+    ``refuse``); the figures' ``unmeasured`` and notes say what was dropped.
 
     Returns
     -------
@@ -694,6 +698,7 @@ def check_ski_upload(
         max_cases=max_cases or skis.MAX_CAMBER_CASES,
         max_rows=max_rows or skis.MAX_CAMBER_ROWS,
         default_ski_id=default_ski_id,
+        unmeasured=unmeasured,
     )
     if not SKI_LENGTH_MM_RANGE[0] <= length_mm <= SKI_LENGTH_MM_RANGE[1]:
         raise InputError(
@@ -709,7 +714,7 @@ def check_ski_upload(
         )
     _, x, f_all, xf_all, _h, side = camber_training_arrays(camber_data)
     _check_span(x * 1e3, length_mm)
-    spacing_mm = float(np.median(np.diff(x))) * 1e3
+    spacing_mm = camber_data.sample_spacing_mm  # the median step
     _check_grid(f_all, xf_all, spacing_mm)
     loaded = f_all > 0  # the unloaded profile is no load case to hold out
     _check_zero(camber_data, unloaded)
@@ -760,6 +765,13 @@ def check_ski_upload(
         "load_unit_in_file": camber_data.load_unit_in_file,
         # ski_id / side left out of the file: the upload's name, side mean
         "columns_not_in_file": list(camber_data.defaulted_columns),
+        # samples without a gap and the positions dropped for them (unmeasured=drop)
+        "unmeasured": {
+            "choice": unmeasured,
+            "samples": camber_data.unmeasured_samples,
+            "positions_dropped_mm": list(camber_data.dropped_positions_mm),
+            "measured_samples_set_aside": camber_data.dropped_measured_samples,
+        },
         "load_range_kg": [float(f.min() / 9.82), float(f.max() / 9.82)],
         # what the technician may want to know about the file, in words (the upload page
         # shows them)
@@ -781,10 +793,36 @@ def _upload_notes(camber_data, spacing_mm: float) -> list[str]:
     for item in camber_data.defaulted_columns:
         column, value = item.split("=", 1)
         notes.append(f"no {column} column: {column} {value}")
+    dropped = camber_data.dropped_positions_mm
+    if dropped:
+        notes.append(
+            f"{camber_data.unmeasured_samples} unmeasured samples (no gap): every case keeps "
+            f"the stretch that every case measured, {mm_ranges(camber_data.positions_m * 1e3)}; "
+            f"the {len(dropped)} positions outside it ({mm_ranges(dropped)}) are dropped from "
+            f"every case, {camber_data.dropped_measured_samples} measured samples with them; "
+            "nothing is filled in (unmeasured=refuse refuses such files)"
+        )
     note = sampling_note(spacing_mm)
     if note:
         notes.append(note)
     return notes
+
+
+def mm_ranges(values_mm, most: int = 4) -> str:
+    """Positions [mm] as runs of consecutive ones, e.g. ``-1000 … -985 mm, 40 mm`` (at most
+    ``most`` runs named, then how many more)."""
+    v = sorted(values_mm)
+    step = float(np.min(np.diff(v))) if len(v) > 1 else 0.0
+    runs: list[list[float]] = [[v[0], v[0]]]
+    for x in v[1:]:
+        if step and x - runs[-1][1] <= 1.5 * step:
+            runs[-1][1] = x
+        else:
+            runs.append([x, x])
+    words = [f"{a:g} … {b:g} mm" if b > a else f"{a:g} mm" for a, b in runs[:most]]
+    if len(runs) > most:
+        words.append(f"{len(runs) - most} more stretches")
+    return ", ".join(words)
 
 
 def accept_ski(
@@ -799,6 +837,7 @@ def accept_ski(
     width_mm: str,
     width_positions_mm: str | None,
     team: str | None,
+    unmeasured: str = "drop",
     limits: JobLimits | None = None,
     max_cases: int | None = None,
     max_rows: int | None = None,
@@ -821,10 +860,13 @@ def accept_ski(
         max_cases=max_cases,
         max_rows=max_rows,
         default_ski_id=name,
+        unmeasured=unmeasured,
     )
     meta = {
         **metadata,
         "length_mm": length_mm,
+        # the ski job reads the stored file the same way (app.jobs.ski_job)
+        "unmeasured": unmeasured,
         "outline": {
             "positions_mm": [float(v * 1e3) for v in outline.positions_m],
             "width_mm": [float(v * 1e3) for v in outline.width_m],

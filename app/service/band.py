@@ -943,10 +943,10 @@ def sparse_sampling(record) -> tuple | None:
     9 × 5 grid's shares or None) of a ski whose camber measurements are sampled coarser than
     the recommended spacing (:func:`app.service.band_calibration.sampling_accuracy`); None
     otherwise or without measurements."""
-    x = getattr(getattr(record, "measurements", None), "positions_m", None)
-    if x is None or np.size(x) < 2:
+    meas = getattr(record, "measurements", None)
+    if meas is None or np.size(meas.positions_m) < 2:
         return None
-    spacing_mm = float(x[1] - x[0]) * 1e3
+    spacing_mm = meas.sample_spacing_mm
     found = band_calibration.sampling_accuracy(spacing_mm, loaded_cases(record))
     return None if found is None else (spacing_mm, *found)
 

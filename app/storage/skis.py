@@ -107,6 +107,14 @@ class CamberData:
     defaulted_columns : tuple of str
         Columns the CSV left out and their value used, as ``"name=value"``
         (:data:`OPTIONAL_CSV_COLUMNS`).
+    unmeasured_samples : int
+        Samples the CSV gave no gap (:data:`UNMEASURED_TOKENS`: empty, ``NaN``, ``-`` …).
+    dropped_positions_mm : tuple of float
+        The positions [mm] dropped from every case for unmeasured samples: those outside the
+        longest stretch every case measured (``unmeasured="drop"`` of :func:`read_camber_csv`);
+        ``positions_m`` holds the others.
+    dropped_measured_samples : int
+        Measured samples set aside with those positions (in the cases that did measure them).
     """
 
     ski_id: str
@@ -118,6 +126,15 @@ class CamberData:
     read_descending: bool = False
     load_unit_in_file: str = "kg"
     defaulted_columns: tuple[str, ...] = ()
+    unmeasured_samples: int = 0
+    dropped_positions_mm: tuple[float, ...] = ()
+    dropped_measured_samples: int = 0
+
+    @property
+    def sample_spacing_mm(self) -> float:
+        """The median step of the sampling grid [mm] (a dropped position leaves one larger step:
+        the median is the device's spacing)."""
+        return float(np.median(np.diff(self.positions_m))) * 1e3
 
 
 @dataclass
@@ -233,8 +250,8 @@ def _parse_float(text: str, column: str, lineno: int, decimal: list[str]) -> flo
     raw = text.strip()
     if not raw:
         raise InputError(
-            f"line {lineno}: column {column!r} is empty: every sample needs a value (an "
-            "unmeasured point is not filled in for you: leave its position out of every case)"
+            f"line {lineno}: column {column!r} is empty: every row needs its {column} (only "
+            "gap_mm may be left empty, for an unmeasured sample)"
         )
     if decimal and decimal[0] == "":  # comma-separated file: the decimal mark is "."
         body = raw
@@ -255,9 +272,26 @@ def _parse_float(text: str, column: str, lineno: int, decimal: list[str]) -> flo
     except ValueError:
         value = _number_with_unit(body, raw, column, lineno)
     if not np.isfinite(value):
-        raise InputError(f"line {lineno}: column {column!r} is {raw!r} (NaN/inf not allowed)")
+        why = (
+            "not a gap (an unmeasured sample is left empty or written NaN)"
+            if column == "gap_mm"
+            else "not allowed (only gap_mm may be NaN or empty, for an unmeasured sample)"
+        )
+        raise InputError(f"line {lineno}: column {column!r} is {raw!r}: {why}")
     return value
 
+
+#: what camber devices and spreadsheets write for a sample without a reading (the laser lost the
+#: base, a value out of range), compared in lower case after stripping: only in ``gap_mm``
+UNMEASURED_TOKENS = frozenset(
+    {"", "nan", "-nan", "n/a", "na", "#n/a", "-", "--", "---", "null", "none"}
+)
+#: what :func:`read_camber_csv` does with unmeasured samples: ``drop`` the positions unmeasured
+#: in any case from every case (the default, recorded), or ``refuse`` the file
+UNMEASURED_CHOICES = ("drop", "refuse")
+#: at most this share of the measured samples may be set aside with dropped positions; more is
+#: refused (a file that lost that much should be measured again)
+MAX_DROPPED_MEASURED_FRACTION = 0.1
 
 #: separators of the spreadsheet dialects, in the order the header line is tried for them
 CSV_SEPARATORS = ("\t", ";", ",")
@@ -488,6 +522,7 @@ def read_camber_csv(
     max_cases: int | None = None,
     max_rows: int | None = None,
     default_ski_id: str | None = None,
+    unmeasured: str = "drop",
 ) -> CamberData:
     """Read and validate a camber CSV (a path, or the CSV text itself), row by row.
 
@@ -509,6 +544,14 @@ def read_camber_csv(
     ``load_position_mm`` is ignored and stored as 0 (F = 0 N, x_F = 0 m; :func:`unloaded_mask`).
     Every other load must be > 0.
 
+    A sample without a gap (empty, ``NaN``, ``-``, ``#N/A``: :data:`UNMEASURED_TOKENS`) is
+    unmeasured. Nothing is filled in: with ``unmeasured="drop"`` (default) every case keeps the
+    longest stretch of consecutive positions that every case measured (one uniform grid, as
+    the beam's identification needs), the positions outside it recorded in
+    :attr:`CamberData.dropped_positions_mm`; refused when that would set aside more than
+    :data:`MAX_DROPPED_MEASURED_FRACTION` of the measured samples (an unmeasured sample inside
+    the span, not near an end). ``"refuse"`` refuses the first one with its line.
+
     Parameters
     ----------
     max_cases, max_rows : int, optional
@@ -522,6 +565,10 @@ def read_camber_csv(
     InputError
         With the line number and what is wrong (header, number, range, order, grid, caps).
     """
+    if unmeasured not in UNMEASURED_CHOICES:
+        raise InputError(
+            f"unmeasured must be one of {', '.join(UNMEASURED_CHOICES)}, got {unmeasured!r}"
+        )
     lines = _lines(source)
     header_line, sep_line = 0, None
     while True:
@@ -556,6 +603,8 @@ def read_camber_csv(
     rows = 0
     below: tuple[int, float] | None = None  # the first gap below GAP_MM_RANGE: (line, gap)
     largest_gap, lowest_gap = -np.inf, np.inf
+    unmeasured_first: int | None = None  # the first line of an unmeasured sample
+    n_unmeasured = 0
     for lineno, row in enumerate(csv.reader(lines, delimiter=sep), start=header_line + 1):
         if not row or all(not c.strip() for c in row) or row[0].lstrip().startswith("#"):
             continue  # blank and comment lines
@@ -596,7 +645,21 @@ def read_camber_csv(
         load_kg = _parse_float(row[idx[2]], "load_kg", lineno, decimal)
         load_pos = _parse_float(row[idx[3]], "load_position_mm", lineno, decimal)
         pos = _parse_float(row[idx[4]], "position_mm", lineno, decimal)
-        gap = _parse_float(row[idx[5]], "gap_mm", lineno, decimal)
+        if row[idx[5]].strip().lower() in UNMEASURED_TOKENS:
+            if unmeasured == "refuse":
+                raise InputError(
+                    f"line {lineno}: column 'gap_mm' is {row[idx[5]].strip() or 'empty'!r}, an "
+                    "unmeasured sample, refused (unmeasured=refuse): leave its position out of "
+                    "every case, "
+                    "or upload with unmeasured=drop to drop the positions unmeasured in any case "
+                    "from every case"
+                )
+            gap = np.nan
+            n_unmeasured += 1
+            if unmeasured_first is None:
+                unmeasured_first = lineno
+        else:
+            gap = _parse_float(row[idx[5]], "gap_mm", lineno, decimal)
         if load_kg < 0:
             raise InputError(
                 f"line {lineno}: load_kg must be > 0 (or 0 for the unloaded profile), "
@@ -624,7 +687,8 @@ def read_camber_csv(
             )
         if gap < GAP_MM_RANGE[0] and below is None:
             below = (lineno, gap)  # refused after the rows: the file's largest gap says why
-        largest_gap, lowest_gap = max(largest_gap, gap), min(lowest_gap, gap)
+        if gap == gap:  # not an unmeasured sample (NaN)
+            largest_gap, lowest_gap = max(largest_gap, gap), min(lowest_gap, gap)
         if load_kg == UNLOADED_LOAD_KG:
             seen = unloaded.setdefault(side, (load_pos, lineno))
             prev = cases.get((side, 0.0, 0.0))
@@ -682,17 +746,69 @@ def read_camber_csv(
             )
     if grid.size < 2:
         raise InputError("each case needs at least 2 positions")
+    profiles_mm = np.array([cases[k][1] for k in keys], dtype=float)
+    keep, dropped_measured = _drop_unmeasured(profiles_mm, grid, keys, cases, unmeasured_first)
     return CamberData(
         ski_id=str(ski_id),
-        positions_m=grid * 1e-3,
+        positions_m=grid[keep] * 1e-3,
         loads_n=np.array([k[1] for k in keys]) * G_STANDARD,
         load_positions_m=np.array([k[2] for k in keys]) * 1e-3,
         sides=[k[0] for k in keys],
-        profiles_m=np.array([cases[k][1] for k in keys]) * 1e-3,
+        profiles_m=profiles_mm[:, keep] * 1e-3,
         read_descending=order < 0,
         load_unit_in_file=load_unit,
         defaulted_columns=defaulted,
+        unmeasured_samples=n_unmeasured,
+        dropped_positions_mm=tuple(float(v) for v in grid[~keep]),
+        dropped_measured_samples=dropped_measured,
     )
+
+
+def _drop_unmeasured(
+    profiles_mm: np.ndarray, grid_mm: np.ndarray, keys: list, cases: dict, first_line: int | None
+) -> tuple[np.ndarray, int]:
+    """The positions to keep, the longest stretch of consecutive positions that every case
+    measured (the grid stays uniform, as the beam's identification needs: an unmeasured sample
+    inside the span drops every position beyond it on the shorter side), and how many
+    measured samples the dropped ones set aside; refused, with what to change, when fewer than
+    2 positions would remain or more than :data:`MAX_DROPPED_MEASURED_FRACTION` of the
+    measured samples would go."""
+    missing = np.isnan(profiles_mm)
+    full = ~missing.any(axis=0)
+    if full.all():
+        return full, 0
+    # the longest run of positions measured in every case
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], full.astype(np.int8), [0]])))
+    starts, ends = edges[::2], edges[1::2]
+    keep = np.zeros(full.size, dtype=bool)
+    if starts.size:
+        k = int(np.argmax(ends - starts))
+        keep[starts[k] : ends[k]] = True
+    measured = int(np.count_nonzero(~missing))
+    lost = int(np.count_nonzero(~missing[:, ~keep]))
+    worst = int(np.argmax(missing.sum(axis=1)))
+    side, load_kg, load_pos = keys[worst]
+    where = (
+        f"{int(missing.sum())} unmeasured samples (the first at line {first_line}; the most in "
+        f"case side={side}, load_kg={load_kg:g}, load_position_mm={load_pos:g}, line "
+        f"{cases[keys[worst]][2]}: {int(missing[worst].sum())} of {grid_mm.size})"
+    )
+    if keep.sum() < 2:
+        raise InputError(
+            f"file: {where}: no two neighbouring positions are measured in every case, so no "
+            "grid is left: measure that case again, or leave it out"
+        )
+    if lost > MAX_DROPPED_MEASURED_FRACTION * measured:
+        raise InputError(
+            f"file: {where}: the longest stretch measured in every case is "
+            f"{grid_mm[keep][0]:g} … {grid_mm[keep][-1]:g} mm; dropping the "
+            f"{int((~keep).sum())} positions outside it from every case would set aside {lost} "
+            f"of the {measured} measured samples ({100 * lost / measured:.0f} %, more than "
+            f"{100 * MAX_DROPPED_MEASURED_FRACTION:.0f} %; the cases keep one uniform grid, so "
+            "an unmeasured sample inside the span drops everything beyond it): measure the "
+            "cases with unmeasured samples again, or leave them out"
+        )
+    return keep, lost
 
 
 #: a file whose gaps reach above this has a camber: its gaps below the range are a device zero

@@ -9,12 +9,13 @@ a delete button (``static/delete.js``).
 
 from __future__ import annotations
 
+import json
 from urllib.parse import quote, urlencode
 
 from fastapi import Request
 from fastapi.responses import HTMLResponse
 from skisnow.app import service, units
-from skisnow.app.jobs.uploads import sampling_note
+from skisnow.app.jobs.uploads import mm_ranges, sampling_note
 from skisnow.app.service.profiles import CHOICE_RULE, model_choice
 from skisnow.app.service.ski_figures import ski_figures
 from skisnow.app.web.form import DEFAULTS, NUMERIC, metadata_label, ski_url
@@ -50,12 +51,29 @@ def _summary(ski: service.Ski) -> dict:
         "position_min_mm": m.load_positions_m.min() * 1e3,
         "position_max_mm": m.load_positions_m.max() * 1e3,
         "samples": m.positions_m.size,
-        "step_mm": (m.positions_m[1] - m.positions_m[0]) * 1e3,
+        "step_mm": m.sample_spacing_mm,
         # what a sampling coarser than the recommended costs (the upload's note, again here)
-        "sampling_note": sampling_note((m.positions_m[1] - m.positions_m[0]) * 1e3),
+        "sampling_note": sampling_note(m.sample_spacing_mm),
+        # positions dropped for unmeasured samples (the upload's note, again here)
+        "unmeasured_note": _unmeasured_note(rec.metadata),
         "file": ski.path.name,
         "sha256": ski.sha256,
     }
+
+
+def _unmeasured_note(metadata: dict) -> str | None:
+    """The positions the upload dropped for unmeasured samples, in words (None: none)."""
+    try:
+        dropped = json.loads(metadata.get("positions_dropped_mm") or "[]")
+    except ValueError:
+        return None
+    if not dropped:
+        return None
+    return (
+        f"{metadata.get('unmeasured_samples', '?')} samples of the file had no gap: the "
+        f"{len(dropped)} positions outside the stretch every case measured "
+        f"({mm_ranges(dropped)}) were dropped from every case; nothing was filled in"
+    )
 
 
 def _numbers(ident: dict) -> list[tuple]:

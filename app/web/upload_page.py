@@ -176,6 +176,16 @@ SKI_UPLOAD_FIELDS = (
         hint="from the balance point, one per width, increasing",
         advanced=True,
     ),
+    UploadField(
+        "unmeasured",
+        "Unmeasured samples",
+        "select",
+        "samples without a gap (an empty cell, NaN, -, #N/A): their positions are dropped from "
+        "every case (default; nothing is filled in; recorded with the ski), or the file is "
+        "refused",
+        options=(("drop", "drop their positions"), ("refuse", "refuse the file")),
+        advanced=True,
+    ),
 )
 
 #: the example camber CSV of the upload page (:func:`example_camber_csv`)

@@ -367,15 +367,98 @@ def test_positions_listed_from_the_tip_read_as_the_same_samples(upload_csv):
     assert "a second unloaded profile (load_kg 0) of side mean" in message
 
 
-def test_an_empty_value_and_a_too_fine_sampling_are_refused_with_what_to_change(upload_csv):
+def test_an_empty_load_and_a_too_fine_sampling_are_refused_with_what_to_change(upload_csv):
     header, rows = rows_of(upload_csv)
-    rows[20][5] = ""
+    rows[20][2] = ""
     message = refused("\n".join([header, *(",".join(r) for r in rows)]) + "\n")
-    assert message.startswith("line 22: column 'gap_mm' is empty: every sample needs a value")
+    assert message.startswith("line 22: column 'load_kg' is empty: every row needs its load_kg")
     # 0.25 mm sampling of one case: the row cap says to thin the positions
     fine = "".join(f"s,mean,40,0,{x / 4:g},0.5\n" for x in range(-4000, 4001))
     message = refused(",".join(CSV_COLUMNS) + "\n" + fine, max_rows=5000)
     assert "its first case has 5000 samples every 0.25 mm: every 1–5 mm is enough" in message
+
+
+def _with_unmeasured(csv_bytes: bytes, where: dict[tuple[int, int], str]) -> tuple[str, list]:
+    """The CSV with the gap of (case, sample) replaced by the token given (an unmeasured
+    sample), and the rows as read."""
+    header, rows = rows_of(csv_bytes)
+    n = len([r for r in rows if r[2:4] == rows[0][2:4]])
+    for (case, k), token in where.items():
+        rows[case * n + k][5] = token
+    return "\n".join([header, *(",".join(r) for r in rows)]) + "\n", rows
+
+
+def test_unmeasured_gaps_drop_their_positions_from_every_case_and_say_so(upload_csv):
+    """A device that lost the base writes no gap (empty, NaN, -, #N/A): every case keeps the
+    longest stretch every case measured, nothing is filled in, and the answer says which
+    positions went and what it cost (docs/macro.md "Unmeasured samples")."""
+    plain, _, _ = check(upload_csv)
+    n = plain.positions_m.size
+    # the tip's last two samples out of range in every case; near the tail, readings lost in
+    # three cases; one more near the tip
+    where = {(c, k): "" for c in range(plain.loads_n.size) for k in (n - 2, n - 1)}
+    where |= {(3, 0): "NaN", (7, 2): "#N/A", (8, 1): "-", (2, n - 4): " nan "}
+    text, _ = _with_unmeasured(upload_csv, where)
+    data, _, figures = check(text)
+    keep = np.zeros(n, dtype=bool)
+    keep[3 : n - 4] = True  # the longest stretch measured in every case
+    np.testing.assert_array_equal(data.positions_m, plain.positions_m[keep])
+    np.testing.assert_array_equal(data.profiles_m, plain.profiles_m[:, keep])  # as measured
+    np.testing.assert_allclose(data.dropped_positions_mm, plain.positions_m[~keep] * 1e3)
+    cases = plain.loads_n.size
+    assert figures["unmeasured"] == {
+        "choice": "drop",
+        "samples": len(where),
+        "positions_dropped_mm": list(data.dropped_positions_mm),
+        "measured_samples_set_aside": 7 * cases - len(where),
+    }
+    note = [t for t in figures["notes"] if "unmeasured samples" in t]
+    assert len(note) == 1 and "dropped from every case" in note[0], figures["notes"]
+    x_mm = plain.positions_m * 1e3
+    assert f"({x_mm[0]:g} … {x_mm[2]:g} mm, {x_mm[n - 4]:g} … {x_mm[n - 1]:g} mm)" in note[0]
+    # refused on request, at the first unmeasured sample's line
+    message = refused(text, unmeasured="refuse")
+    # (the first: case 0's sample n − 2, on line n of the file)
+    assert message.startswith(f"line {n}: column 'gap_mm' is 'empty', an unmeasured sample")
+    assert "unmeasured=drop" in message
+
+
+def test_unmeasured_gaps_that_would_cost_too_much_are_refused_with_the_case(upload_csv):
+    plain, _, _ = check(upload_csv)
+    n = plain.positions_m.size
+    # one reading lost in the middle of the span: the grid stays uniform only by dropping
+    # everything beyond it on one side
+    text, _ = _with_unmeasured(upload_csv, {(4, n // 2): "NaN"})
+    message = refused(text)
+    assert f"the most in case side=mean, load_kg={plain.loads_n[4] / 9.82:g}" in message
+    assert "longest stretch measured in every case is" in message
+    assert "more than 10 %" in message and "measure the cases with unmeasured" in message
+    # a case with no gap at all leaves no grid
+    text, _ = _with_unmeasured(upload_csv, {(4, k): "" for k in range(n)})
+    assert "no two neighbouring positions are measured in every case" in refused(text)
+    # infinity is no reading
+    text, _ = _with_unmeasured(upload_csv, {(4, 7): "inf"})
+    assert "is 'inf': not a gap (an unmeasured sample is left empty or written NaN)" in refused(
+        text
+    )
+
+
+def test_the_unmeasured_choice_is_a_form_field_kept_for_the_job(catalogue, tmp_path, upload_csv):
+    plain, _, _ = check(upload_csv)
+    text, _ = _with_unmeasured(upload_csv, {(2, 3): "NaN"})
+    with make_client(catalogue, tmp_path) as client:
+        r = post_ski(client, text.encode(), name="dropped", unmeasured="refuse")
+        assert "unmeasured sample, refused" in is_problem(r, 422)["detail"]
+        r = post_ski(client, text.encode(), name="dropped", unmeasured="fill")
+        assert "unmeasured" in str(is_problem(r, 422))
+        r = post_ski(client, text.encode(), name="dropped")
+        assert r.status_code == 202, r.text[:500]
+        # the fourth sample from the tail: the tail's first four positions go
+        assert r.json()["data"]["unmeasured"]["positions_dropped_mm"] == pytest.approx(
+            plain.positions_m[:4] * 1e3
+        )
+        item = client.get("/v1/skis/dropped").json()
+        assert item["metadata"]["unmeasured"] == "drop"
 
 
 def test_comment_lines_and_a_separator_line_are_read_past_with_the_file_s_line_numbers(

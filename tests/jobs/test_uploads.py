@@ -519,7 +519,8 @@ def test_a_junior_ski_from_a_windows_spreadsheet_gets_its_beam_and_true_answers(
 ):
     """A ski unlike every study design: 1.5 m long, 0.7 kN·m², loads 5–45 kg, measured on both
     sides (9 × 5 cases and the unloaded profile each, 3 µm noise), sent as a Windows
-    spreadsheet's CSV (`;`, decimal commas, Windows-1252). The job ends done with its beam
+    spreadsheet's CSV (`;`, decimal commas, Windows-1252), the tip's last samples unmeasured
+    ("nan"). The job ends done with its beam
     served, and the answers agree with the true beam's within 3 % and inside their band."""
     from skisnow.app.storage.skis import CamberData, camber_csv_text, read_ski
     from skisnow.solvers.beam import G_STANDARD, ClassicSkiDesign, measure_camber, measure_unloaded
@@ -561,6 +562,11 @@ def test_a_junior_ski_from_a_windows_spreadsheet_gets_its_beam_and_true_answers(
         sides,
         np.array(profiles)[:, ::5],
     )
+    # the tip's last two samples out of the device's range in every case, one dropout near
+    # the tip: written "nan", their positions dropped from every case (docs/macro.md)
+    data.profiles_m[:, -2:] = np.nan
+    data.profiles_m[7, -3] = np.nan
+    dropped_mm = data.positions_m[-3:] * 1e3
     sheet = "\r\n".join(
         line.replace(",", ";").replace(".", ",") for line in camber_csv_text(data).splitlines()
     ).encode("cp1252")
@@ -568,12 +574,17 @@ def test_a_junior_ski_from_a_windows_spreadsheet_gets_its_beam_and_true_answers(
         r = post_ski(client, sheet, name="junior", length_mm="1500")
         assert r.status_code == 202, r.text[:500]
         assert r.json()["data"]["text_encoding"] == "Windows-1252"
+        assert r.json()["data"]["unmeasured"]["positions_dropped_mm"] == pytest.approx(dropped_mm)
         job = wait_job(client, r.json()["job"])
         assert job["state"] == "done", job
         shown = client.get("/v1/skis/junior").json()
         assert shown["profile_model"]["name"] == "identified_beam"
         record = read_ski(tmp_path / "skis" / f"{shown['id']}.h5")
         assert record.measurements.ski_id == "Junior Ø"
+        # the job read the file as the upload did: the unmeasured positions dropped, recorded
+        assert not np.isin(record.measurements.positions_m * 1e3, dropped_mm).any()
+        assert np.isfinite(record.measurements.profiles_m).all()
+        assert json.loads(record.metadata["positions_dropped_mm"]) == pytest.approx(dropped_mm)
         # samples every 5 mm, the beam on 1 mm model nodes with the samples among them
         nodes = np.asarray(record.identified["positions_m"])
         assert np.allclose(np.diff(nodes), 1e-3, rtol=1e-6)

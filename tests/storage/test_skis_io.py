@@ -49,7 +49,9 @@ def test_read_good_csv():
             _csv([*GOOD[:3], "s1,mean,60,-160,10,0.3", "s1,mean,60,-160,0,0.2"]),
             r"line 6: position_mm 0 is not greater .* the same way in every case",
         ),
-        (_csv([GOOD[0], "s1,mean,40,-160,0,nan"]), r"line 3: column 'gap_mm' is 'nan'"),
+        (_csv([GOOD[0], "s1,mean,40,-160,0,inf"]), r"line 3: column 'gap_mm' is 'inf': not a gap"),
+        (_csv([GOOD[0], "s1,mean,40,-160,0,nan"]), r"unmeasured samples \(the first at line 3;"),
+        (_csv([GOOD[0], "s1,mean,nan,-160,0,0.1"]), r"line 3: column 'load_kg' is 'nan': not all"),
         (_csv([GOOD[0], "s1,mean,40,-160,0,-0.2"]), r"line 3: gap_mm must be in \[-0.05, 50"),
         (
             _csv([*GOOD[:3], "s1,mean,60,-160,-10,0.3", "s1,mean,60,-160,5,0.2"]),
