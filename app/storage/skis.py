@@ -255,6 +255,12 @@ def _parse_float(text: str, column: str, lineno: int, decimal: list[str]) -> flo
         )
     if decimal and decimal[0] == "":  # comma-separated file: the decimal mark is "."
         body = raw
+        if re.fullmatch(r"[+-]?\d*,\d+", raw):
+            raise InputError(
+                f"line {lineno}: column {column!r} is {raw!r}: a decimal comma in a "
+                "comma-separated file (quoted by the spreadsheet); save it with ';' as the "
+                "separator, or with decimal points"
+            )
     else:
         marks = {m for m in (",", ".") if m in raw}
         if len(marks) > 1 or (marks and decimal and marks != {decimal[0]}):
@@ -295,6 +301,9 @@ MAX_DROPPED_MEASURED_FRACTION = 0.1
 
 #: separators of the spreadsheet dialects, in the order the header line is tried for them
 CSV_SEPARATORS = ("\t", ";", ",")
+#: the separator of a text file whose header has none of :data:`CSV_SEPARATORS` but several
+#: names apart: runs of spaces (a device's .txt export)
+WHITESPACE = " "
 #: load of the unloaded profile [kg]: its case is stored with F = 0 N and x_F = 0 m
 UNLOADED_LOAD_KG = 0.0
 #: caps of an uploaded camber CSV: a camber device records a few hundred cases of a few
@@ -311,9 +320,20 @@ def _split_header(line: str, sep: str | None = None) -> tuple[str, list[str]]:
     case, spaces and BOM stripped)."""
     line = line.lstrip("\ufeff").rstrip("\r\n")
     if sep is None:
-        sep = next((s for s in CSV_SEPARATORS if s in line), ",")
-    cells = next(csv.reader([line], delimiter=sep))
+        sep = next((s for s in CSV_SEPARATORS if s in line), None)
+        if sep is None:
+            # none of them: a device's text file with columns separated by spaces
+            sep = WHITESPACE if len(line.split()) > 1 else ","
+    cells = line.split() if sep == WHITESPACE else next(csv.reader([line], delimiter=sep))
     return sep, [c.strip().strip("\ufeff").strip().lower() for c in cells]
+
+
+def _split_rows(lines, sep: str):
+    """The rows of the file's lines as lists of cells: :mod:`csv` for a separator (quotes
+    read), runs of blanks for :data:`WHITESPACE`."""
+    if sep == WHITESPACE:
+        return (line.split() for line in lines)
+    return csv.reader(lines, delimiter=sep)
 
 
 #: units a header may give a column in brackets ("Load (kg)"), per column [its unit]
@@ -388,6 +408,10 @@ def _header_columns(cells: list[str], lineno: int = 1) -> list[int]:
         for c, k in zip(cells, keys, strict=True)
         if k not in CSV_COLUMNS
     ]
+    if cells and cells[0] in ("", "unnamed: 0", "index") and keys[0] not in CSV_COLUMNS:
+        unknown[0] += (
+            " (the first column, a row index as pandas' to_csv writes it without index=False?)"
+        )
     missing = [c for c in CSV_COLUMNS if c not in keys and c not in OPTIONAL_CSV_COLUMNS]
     doubled = sorted({k for k in keys if k in CSV_COLUMNS and keys.count(k) > 1})
     problems = []
@@ -605,7 +629,7 @@ def read_camber_csv(
     largest_gap, lowest_gap = -np.inf, np.inf
     unmeasured_first: int | None = None  # the first line of an unmeasured sample
     n_unmeasured = 0
-    for lineno, row in enumerate(csv.reader(lines, delimiter=sep), start=header_line + 1):
+    for lineno, row in enumerate(_split_rows(lines, sep), start=header_line + 1):
         if not row or all(not c.strip() for c in row) or row[0].lstrip().startswith("#"):
             continue  # blank and comment lines
         if rows == 0 and len(row) >= width and _units_row(row, idx, lineno):

@@ -217,3 +217,29 @@ def test_numbers_written_with_their_column_s_unit_read_others_are_refused_with_t
         read_camber_csv(_csv(["s1,mean,392 N,-160,-10,0.5"]))
     with pytest.raises(InputError, match=r"column 'gap_mm' is not a number: '0.5 zz'"):
         read_camber_csv(_csv(["s1,mean,40,-160,-10,0.5 zz"]))
+
+
+def test_a_text_file_with_columns_apart_by_spaces_reads_the_same():
+    """A device's .txt export: the columns apart by runs of spaces or tabs and spaces, decimal
+    commas allowed (one mark per file), the same numbers as the neutral CSV."""
+    plain = read_camber_csv(_csv(GOOD))
+    spaced = "Ski_ID   Side  Load(kg)  Load_Position(mm)  Position(mm)  Gap(mm)\n" + "".join(
+        "   ".join(r.split(",")).replace(".", ",") + " \t\n" for r in GOOD
+    )
+    d = read_camber_csv(spaced)
+    np.testing.assert_array_equal(d.profiles_m, plain.profiles_m)
+    np.testing.assert_array_equal(d.positions_m, plain.positions_m)
+    np.testing.assert_array_equal(d.loads_n, plain.loads_n)
+    with pytest.raises(InputError, match=r"line 3: column 'gap_mm' is '0\.0': this file's decimal"):
+        read_camber_csv(spaced.replace("0,0 ", "0.0 "))
+
+
+def test_spreadsheet_and_dataframe_quirks_are_named_with_what_to_change():
+    # a decimal comma quoted by a spreadsheet in a comma-separated file
+    quoted = _csv(['s1,mean,40,-160,-10,"0,5"'])
+    with pytest.raises(InputError, match=r"is '0,5': a decimal comma in a comma-separated file"):
+        read_camber_csv(quoted)
+    # pandas' to_csv without index=False: an unnamed first column of row numbers
+    indexed = "," + HEADER + "".join(f"{k},{r}\n" for k, r in enumerate(GOOD))
+    with pytest.raises(InputError, match=r"a row index as pandas' to_csv writes it"):
+        read_camber_csv(indexed)
