@@ -5,6 +5,7 @@ without a beam say why; unknown names are a 404 page; names are escaped."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import re
 from html import unescape
@@ -80,6 +81,22 @@ def client(catalogue, tmp_path_factory):
         m, positions_m=m.positions_m[::5], profiles_m=m.profiles_m[:, ::5]
     )
     skis["sparse-samples"] = _variant(a, "sparse-samples", measurements=every_5mm)
+    # an upload whose file left the tail's first 3 and the tip's last 2 samples unmeasured in
+    # some cases: those positions were dropped from every case (app.storage.skis)
+    trimmed = dataclasses.replace(
+        m, positions_m=m.positions_m[3:-2], profiles_m=m.profiles_m[:, 3:-2]
+    )
+    dropped = [float(v) for v in np.r_[m.positions_m[:3], m.positions_m[-2:]] * 1e3]
+    skis["tips-dropped"] = _variant(
+        a,
+        "tips-dropped",
+        measurements=trimmed,
+        metadata={
+            **a.record.metadata,
+            "unmeasured_samples": "40",
+            "positions_dropped_mm": json.dumps(dropped),
+        },
+    )
     cat = service.Catalogue(tables_dir=catalogue.tables_dir, skis=skis, grinds=catalogue.grinds)
     settings = Settings(data_dir=tmp_path_factory.mktemp("ski-page"), warm_up=False)
     with TestClient(create_app(settings, catalogue=cat), raise_server_exceptions=False) as c:
@@ -518,3 +535,24 @@ def test_a_ski_sampled_every_5_mm_says_what_it_costs(client):
     assert "samples every 5 mm" in html and 'id="sampling-note"' in html
     assert "Measure every 1 mm for the most accurate answers" in html
     assert 'id="sampling-note"' not in _page(client, "ski-a")
+
+
+def test_a_ski_whose_file_had_unmeasured_samples_says_which_positions_went(client):
+    """The ski page repeats the upload's note on the positions dropped for unmeasured samples,
+    as runs of positions; the sample step stays the device's (the median step)."""
+    html = _page(client, "tips-dropped")
+    note = re.search(r'<p class="hint" id="unmeasured-note">([^<]*)</p>', html)
+    assert note, html[:2000]
+    assert "40 samples of the file had no gap: the 5 positions" in note.group(1)
+    x_mm = catalogue_positions_mm(client)
+    assert f"({x_mm[0]:g} … {x_mm[2]:g} mm, {x_mm[-2]:g} … {x_mm[-1]:g} mm)" in unescape(
+        note.group(1)
+    )
+    assert 'id="sampling-note"' not in html  # still every 1 mm
+    assert 'id="unmeasured-note"' not in _page(client, "ski-a")
+
+
+def catalogue_positions_mm(client) -> np.ndarray:
+    """Demo ski A's measured positions [mm] (the catalogue the client serves)."""
+    ski = client.app.state.catalogue.skis["ski-a"]
+    return ski.record.measurements.positions_m * 1e3
