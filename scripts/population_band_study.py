@@ -18,10 +18,18 @@ its error) and reports, per answer model (rigid, flexible), measurement grid and
   ``scripts/beam_scale_study.py`` are what the factors were fitted on); it says which way a
   refit would go, not where.
 
+- per answer model, grid and modulus, the relative estimate: the served camber part × k
+  (:data:`RELATIVE_FACTORS`), what a per-population factor (a sample spacing's) would do.
+
 Nothing is solved: seconds. Usage::
 
     python scripts/population_band_study.py  # the twelve populations of DEFAULT_POPULATIONS
     python scripts/population_band_study.py --studies 'new=docs/studies/own-ski-random-33-36.json'
+    python scripts/population_band_study.py --out docs/studies/population-bands-spacing.json \
+        --studies '1 mm 601-604=docs/studies/own-ski-spacing-1mm-random-601-604.json' \
+        '2 mm 601-604=docs/studies/own-ski-spacing-2mm-random-601-604.json' \
+        '5 mm 601-604=docs/studies/own-ski-spacing-5mm-random-601-604.json' \
+        '5 mm 611-614=docs/studies/own-ski-spacing-5mm-random-611-614.json'
 
 Writes docs/studies/population-bands.json and .md.
 """
@@ -70,6 +78,9 @@ AREA_OFF = 0.03
 PARTS = ("camber_model", "beam_alternatives", "macro_grid")
 #: beam-draw factors of the bending ski's linear estimate
 ESTIMATE_FACTORS = (1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0)
+#: factors on the served camber part (rigid and bending answers) of the relative estimate:
+#: what a per-population factor (a sample spacing's, say) would do to the served bands
+RELATIVE_FACTORS = (1.0, 1.25, 1.5, 2.0, 3.0)
 
 
 def answers(study: dict, model: str, grid: str, e_snow_mpa: float) -> list[dict]:
@@ -274,6 +285,19 @@ def study(populations: dict[str, dict]) -> dict:
                         for p, rows in {**per_pop, "pooled": pooled}.items()
                     },
                 }
+                cell["relative_estimate"] = {
+                    f"{k:g}": {
+                        p: stats(
+                            [r["error"] for r in rows],
+                            [rescaled_half_widths([r], k * (now or r["factor"]))[0] for r in rows],
+                            [r["warned"] for r in rows],
+                            [served_sides(r, k * (now or r["factor"])) for r in rows],
+                        )
+                        for p, rows in {**per_pop, "pooled": pooled}.items()
+                        if rows
+                    }
+                    for k in RELATIVE_FACTORS
+                }
                 if model == "flexible":
                     cell["linear_estimate"] = {
                         f"{k:g}": {
@@ -417,6 +441,36 @@ def markdown(doc: dict) -> str:
             wid = max(s["half_width_over_rms_now"] for s in per.values())
             cols.append(f"{cov:.2f} / {wid:.2f}")
         lines.append(f"| {c['grid']} | {c['e_snow_mpa']:g} | " + " | ".join(cols) + " |")
+    lines += [
+        "",
+        "Relative estimate (rigid and bending answers; the served camber part × k, the other "
+        "parts kept, not re-solved): per population, coverage of the band as served now / mean "
+        "half-width over the RMS error / answers more than 3 % off outside the band (warned or "
+        "not).",
+        "",
+        "| model | grid | E [MPa] | population | "
+        + " | ".join(f"× {k:g}" for k in RELATIVE_FACTORS)
+        + " |",
+        "|" + "---|" * (len(RELATIVE_FACTORS) + 4),
+    ]
+    for c in doc["cells"]:
+        est = c.get("relative_estimate")
+        if not est:
+            continue
+        for p in est[f"{RELATIVE_FACTORS[0]:g}"]:
+            if p == "pooled":
+                continue
+            cols = [
+                f"{est[f'{k:g}'][p]['coverage_now']:.3f} / "
+                f"{est[f'{k:g}'][p]['half_width_over_rms_now']:.2f} / "
+                f"{est[f'{k:g}'][p]['misses_over_3pct_now']}"
+                for k in RELATIVE_FACTORS
+            ]
+            lines.append(
+                f"| {c['model']} | {c['grid']} | {c['e_snow_mpa']:g} | {p} | "
+                + " | ".join(cols)
+                + " |"
+            )
     return "\n".join(lines) + "\n"
 
 
