@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -69,6 +70,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def _say_unmeasured(data) -> None:
+    """On stderr: the positions reading the CSV dropped for unmeasured samples, if any."""
+    from skisnow.app.storage.skis import unmeasured_note
+
+    note = unmeasured_note(data)
+    if note:
+        print(f"note: {note}", file=sys.stderr)
+
+
 def run(args: argparse.Namespace) -> int:
     if args.ski:
         path = Path(args.ski)
@@ -78,6 +88,7 @@ def run(args: argparse.Namespace) -> int:
         data, design = record.measurements, record.beam
     else:
         data, design = read_camber_csv(args.csv), None
+        _say_unmeasured(data)
     if args.store and not args.ski:
         raise InputError("--store needs --ski (a stored ski file)")
     if args.add_held_out_errors:

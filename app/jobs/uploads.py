@@ -793,36 +793,15 @@ def _upload_notes(camber_data, spacing_mm: float) -> list[str]:
     for item in camber_data.defaulted_columns:
         column, value = item.split("=", 1)
         notes.append(f"no {column} column: {column} {value}")
-    dropped = camber_data.dropped_positions_mm
+    from skisnow.app.storage.skis import unmeasured_note
+
+    dropped = unmeasured_note(camber_data)
     if dropped:
-        notes.append(
-            f"{camber_data.unmeasured_samples} unmeasured samples (no gap): every case keeps "
-            f"the stretch that every case measured, {mm_ranges(camber_data.positions_m * 1e3)}; "
-            f"the {len(dropped)} positions outside it ({mm_ranges(dropped)}) are dropped from "
-            f"every case, {camber_data.dropped_measured_samples} measured samples with them; "
-            "nothing is filled in (unmeasured=refuse refuses such files)"
-        )
+        notes.append(dropped)
     note = sampling_note(spacing_mm)
     if note:
         notes.append(note)
     return notes
-
-
-def mm_ranges(values_mm, most: int = 4) -> str:
-    """Positions [mm] as runs of consecutive ones, e.g. ``-1000 … -985 mm, 40 mm`` (at most
-    ``most`` runs named, then how many more)."""
-    v = sorted(values_mm)
-    step = float(np.min(np.diff(v))) if len(v) > 1 else 0.0
-    runs: list[list[float]] = [[v[0], v[0]]]
-    for x in v[1:]:
-        if step and x - runs[-1][1] <= 1.5 * step:
-            runs[-1][1] = x
-        else:
-            runs.append([x, x])
-    words = [f"{a:g} … {b:g} mm" if b > a else f"{a:g} mm" for a, b in runs[:most]]
-    if len(runs) > most:
-        words.append(f"{len(runs) - most} more stretches")
-    return ", ".join(words)
 
 
 def accept_ski(

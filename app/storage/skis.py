@@ -835,6 +835,37 @@ def _drop_unmeasured(
     return keep, lost
 
 
+def mm_ranges(values_mm, most: int = 4) -> str:
+    """Positions [mm] as runs of consecutive ones, e.g. ``-1000 … -985 mm, 40 mm`` (at most
+    ``most`` runs named, then how many more)."""
+    v = sorted(values_mm)
+    step = float(np.min(np.diff(v))) if len(v) > 1 else 0.0
+    runs: list[list[float]] = [[v[0], v[0]]]
+    for x in v[1:]:
+        if step and x - runs[-1][1] <= 1.5 * step:
+            runs[-1][1] = x
+        else:
+            runs.append([x, x])
+    words = [f"{a:g} … {b:g} mm" if b > a else f"{a:g} mm" for a, b in runs[:most]]
+    if len(runs) > most:
+        words.append(f"{len(runs) - most} more stretches")
+    return ", ".join(words)
+
+
+def unmeasured_note(data: CamberData) -> str | None:
+    """What reading ``data`` dropped for unmeasured samples, in words (None: nothing)."""
+    dropped = data.dropped_positions_mm
+    if not dropped:
+        return None
+    return (
+        f"{data.unmeasured_samples} unmeasured samples (no gap): every case keeps the stretch "
+        f"that every case measured, {mm_ranges(data.positions_m * 1e3)}; the {len(dropped)} "
+        f"positions outside it ({mm_ranges(dropped)}) are dropped from every case, "
+        f"{data.dropped_measured_samples} measured samples with them; nothing is filled in "
+        "(unmeasured=refuse refuses such files)"
+    )
+
+
 #: a file whose gaps reach above this has a camber: its gaps below the range are a device zero
 #: set above the flat, not a column of the opposite sign [mm]
 _CAMBER_SEEN_MM = 0.1

@@ -15,9 +15,10 @@ from urllib.parse import quote, urlencode
 from fastapi import Request
 from fastapi.responses import HTMLResponse
 from skisnow.app import service, units
-from skisnow.app.jobs.uploads import mm_ranges, sampling_note
+from skisnow.app.jobs.uploads import sampling_note
 from skisnow.app.service.profiles import CHOICE_RULE, model_choice
 from skisnow.app.service.ski_figures import ski_figures
+from skisnow.app.storage.skis import mm_ranges
 from skisnow.app.web.form import DEFAULTS, NUMERIC, metadata_label, ski_url
 from skisnow.app.web.templating import DELETE_JS, JS, fmt, page, svg
 from skisnow.solvers.band import Z90

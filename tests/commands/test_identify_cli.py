@@ -11,7 +11,7 @@ from typing import ClassVar
 import numpy as np
 import pytest
 from skisnow.app.cli import main
-from skisnow.app.storage.skis import mean_profiles
+from skisnow.app.storage.skis import mean_profiles, read_camber_csv
 from skisnow.solvers.beam import BeamSki, solve_beam_contact
 
 REPO = Path(__file__).resolve().parents[2]
@@ -169,3 +169,22 @@ def test_add_held_out_errors_needs_a_stored_identification(tmp_path, camber_csv,
     csv_path = tmp_path / "ski.csv"
     assert main(["identify-ski", "--csv", str(csv_path), "--add-held-out-errors"]) == 2
     assert "--add-held-out-errors needs --ski" in capsys.readouterr().err
+
+
+def test_the_command_line_says_which_positions_unmeasured_samples_dropped(capsys):
+    """A CSV given to ``skisnow identify --csv`` with unmeasured gaps is read as the upload
+    reads it (their positions dropped from every case), and the command says so on stderr."""
+    from skisnow.app.commands.identify import _say_unmeasured
+
+    rows = [
+        f"s,mean,{kg},-160,{x},{'NaN' if (kg, x) == (60, 20) else f'{0.1 + x / 1000:.4f}'}"
+        for kg in (40, 60)
+        for x in range(-20, 21)
+    ]
+    data = read_camber_csv(
+        "ski_id,side,load_kg,load_position_mm,position_mm,gap_mm\n" + "\n".join(rows)
+    )
+    assert data.dropped_positions_mm == (20.0,)
+    _say_unmeasured(data)
+    err = capsys.readouterr().err
+    assert err.startswith("note: 1 unmeasured samples (no gap)") and "(20 mm)" in err
