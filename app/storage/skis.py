@@ -674,9 +674,8 @@ def read_camber_csv(
                 raise InputError(
                     f"line {lineno}: column 'gap_mm' is {row[idx[5]].strip() or 'empty'!r}, an "
                     "unmeasured sample, refused (unmeasured=refuse): leave its position out of "
-                    "every case, "
-                    "or upload with unmeasured=drop to drop the positions unmeasured in any case "
-                    "from every case"
+                    "every case, or upload with unmeasured=drop (every case then keeps the "
+                    "longest stretch of positions that every case measured)"
                 )
             gap = np.nan
             n_unmeasured += 1
