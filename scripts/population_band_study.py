@@ -23,7 +23,7 @@ its error) and reports, per answer model (rigid, flexible), measurement grid and
 
 Nothing is solved: seconds. Usage::
 
-    python scripts/population_band_study.py  # the twelve populations of DEFAULT_POPULATIONS
+    python scripts/population_band_study.py  # the populations of DEFAULT_POPULATIONS
     python scripts/population_band_study.py --studies 'new=docs/studies/own-ski-random-33-36.json'
     python scripts/population_band_study.py --out docs/studies/population-bands-spacing.json \
         --studies '1 mm 601-604=docs/studies/own-ski-spacing-1mm-random-601-604.json' \
@@ -68,6 +68,9 @@ DEFAULT_POPULATIONS = {
     "random 33-36": "own-ski-random-33-36.json",
     # the one population run with the service's default network (its limit kept)
     "random 501-504, default network": "own-ski-default-network-random-501-504.json",
+    # with the service's defaults (default network, 1 mm device model), 2026-12-07
+    "random 601-604, 1 mm": "own-ski-spacing-1mm-random-601-604.json",
+    "random 701-704, two draws": "own-ski-random-701-704.json",
 }
 MODELS = ("rigid", "flexible")
 GRIDS = ("coarse", "dense")

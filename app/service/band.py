@@ -1116,7 +1116,7 @@ def band_json(band: Band, answer: dict) -> tuple[dict, list[dict]]:
                 k * band.width_above("apparent_contact_area"),
             ),
             "of": band.studied_tail_of,
-            "source": "docs/studies/population-bands.md (identified beams of twelve own-ski "
+            "source": "docs/studies/population-bands.md (identified beams of fourteen own-ski "
             "populations, this ski model, measurement grid and snow modulus)"
             if band.studied_tail_of != "network"
             else "docs/camber-identification.md, 'With the service's default network' (rigid "
