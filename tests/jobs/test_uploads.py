@@ -806,11 +806,17 @@ def test_bad_grind_uploads_are_4xx_and_leave_nothing(bad_client, case):
 def _ski_cases(lines: list[str]) -> dict:
     header, rows = lines[0], lines[1:]
     neg = rows[10].rsplit(",", 1)[0] + ",-1.0"
-    nan = rows[10].rsplit(",", 1)[0] + ",nan"
+    # an unmeasured gap in the middle of the first case: keeping one uniform grid would drop
+    # half the ski, refused (a reading lost near the tip or tail only drops those positions)
+    nan = rows[200].rsplit(",", 1)[0] + ",nan"
     few = [r for r in rows if r.split(",")[2] in ("20", "80")]  # 2 loads × 5 positions
     return {
         "negative gap": ([header, *rows[:10], neg, *rows[11:]], 422, "line 12: gap_mm"),
-        "NaN gap": ([header, *rows[:10], nan, *rows[11:]], 422, "line 12"),
+        "NaN gap": (
+            [header, *rows[:200], nan, *rows[201:]],
+            422,
+            "1 unmeasured samples (the first at line 202",
+        ),
         "truncated": ([header, *rows[:-100], rows[-100][:12]], 422, "line"),
         "too sparse": ([header, *few], 422, "2 loads × 5 load positions"),
         "wrong header": (["x,y,z", *rows], 422, "line 1: header"),
