@@ -765,6 +765,8 @@ def check_ski_upload(
         "load_unit_in_file": camber_data.load_unit_in_file,
         # ski_id / side left out of the file: the upload's name, side mean
         "columns_not_in_file": list(camber_data.defaulted_columns),
+        # named columns the reader does not read (a device's time stamp, temperature)
+        "columns_ignored": list(camber_data.ignored_columns),
         # samples without a gap and the positions dropped for them (unmeasured=drop)
         "unmeasured": {
             "choice": unmeasured,
@@ -793,6 +795,9 @@ def _upload_notes(camber_data, spacing_mm: float) -> list[str]:
     for item in camber_data.defaulted_columns:
         column, value = item.split("=", 1)
         notes.append(f"no {column} column: {column} {value}")
+    if camber_data.ignored_columns:
+        names = ", ".join(repr(c) for c in camber_data.ignored_columns)
+        notes.append(f"columns not read: {names} (not camber data; the file is kept as sent)")
     from skisnow.app.storage.skis import unmeasured_note
 
     dropped = unmeasured_note(camber_data)

@@ -107,6 +107,8 @@ class CamberData:
     defaulted_columns : tuple of str
         Columns the CSV left out and their value used, as ``"name=value"``
         (:data:`OPTIONAL_CSV_COLUMNS`).
+    ignored_columns : tuple of str
+        Named columns of the CSV that are not read (as the header wrote them, lower case).
     unmeasured_samples : int
         Samples the CSV gave no gap (:data:`UNMEASURED_TOKENS`: empty, ``NaN``, ``-`` …).
     dropped_positions_mm : tuple of float
@@ -126,6 +128,7 @@ class CamberData:
     read_descending: bool = False
     load_unit_in_file: str = "kg"
     defaulted_columns: tuple[str, ...] = ()
+    ignored_columns: tuple[str, ...] = ()
     unmeasured_samples: int = 0
     dropped_positions_mm: tuple[float, ...] = ()
     dropped_measured_samples: int = 0
@@ -393,11 +396,13 @@ def _unit_hint(key: str) -> str:
     return ""
 
 
-def _header_columns(cells: list[str], lineno: int = 1) -> list[int]:
+def _header_columns(cells: list[str], lineno: int = 1) -> tuple[list[int], list[int]]:
     """Index of each of :data:`CSV_COLUMNS` in the header cells (:func:`_column_key`: "Load
-    (kg)" is ``load_kg``); empty trailing cells (a trailing separator, empty spreadsheet
-    columns) are ignored, anything else is refused, a known column in another unit with the
-    conversion to make."""
+    (kg)" is ``load_kg``; -1: an optional column left out), and the indices of the other named
+    columns, which are not read (a device's time stamp or temperature). Empty trailing cells
+    (a trailing separator, empty spreadsheet columns) are ignored. Refused: a needed column
+    missing or repeated (the other columns named, a known one in another unit with the
+    conversion to make), or a column without a name among the named ones."""
     while cells and not cells[-1]:
         cells = cells[:-1]
     keys = [_column_key(c) for c in cells]
@@ -408,27 +413,31 @@ def _header_columns(cells: list[str], lineno: int = 1) -> list[int]:
         for c, k in zip(cells, keys, strict=True)
         if k not in CSV_COLUMNS
     ]
-    if cells and cells[0] in ("", "unnamed: 0", "index") and keys[0] not in CSV_COLUMNS:
+    if cells and cells[0] == "" and keys[0] not in CSV_COLUMNS:
         unknown[0] += (
             " (the first column, a row index as pandas' to_csv writes it without index=False?)"
         )
     missing = [c for c in CSV_COLUMNS if c not in keys and c not in OPTIONAL_CSV_COLUMNS]
     doubled = sorted({k for k in keys if k in CSV_COLUMNS and keys.count(k) > 1})
+    unnamed = [i + 1 for i, c in enumerate(cells) if not c]
     problems = []
     if missing:
         problems.append("missing " + ", ".join(missing))
-    if unknown:
-        problems.append(f"unknown column(s) {', '.join(unknown)} (remove or rename them)")
+    if unknown and (missing or doubled or unnamed):
+        problems.append(f"other column(s) {', '.join(unknown)} (remove or rename them)")
     if doubled:
         problems.append("repeated " + ", ".join(doubled))
+    if unnamed and not missing:
+        problems.append(f"column {unnamed[0]} has no name")
     if problems:
         raise InputError(
             f"line {lineno}: header must name the columns {expected} (any order, any case; a "
-            "unit in brackets, as in 'Load (kg)', is read; ski_id and side may be left out), "
-            "got "
+            "unit in brackets, as in 'Load (kg)', is read; ski_id and side may be left out; "
+            "other named columns are not read), got "
             f"{','.join(cells) or 'an empty line'}: " + "; ".join(problems)
         )
-    return [keys.index(c) if c in keys else -1 for c in CSV_COLUMNS]
+    idx = [keys.index(c) if c in keys else -1 for c in CSV_COLUMNS]
+    return idx, [i for i, k in enumerate(keys) if k not in CSV_COLUMNS]
 
 
 def _sniff_codec(head: bytes) -> str | None:
@@ -556,8 +565,9 @@ def read_camber_csv(
     decimal points, ``;``- or
     tab-separated with decimal commas or points (one decimal mark per file); header names in
     any order and any case (surrounding spaces and a BOM ignored; "Load (kg)" is ``load_kg``:
-    :func:`_column_key`), empty trailing columns ignored, unknown columns refused by name (a
-    known one in another unit with the conversion to make). Only the decimal mark is read: no
+    :func:`_column_key`), empty trailing columns ignored, other named columns not read
+    (:attr:`CamberData.ignored_columns`; named in the refusal, a known one in another unit with
+    the conversion to make, when a needed column is missing). Only the decimal mark is read: no
     number is otherwise changed. A path is read in its encoding (:func:`decode_camber_bytes`).
 
     ``ski_id`` and ``side`` may be left out (:data:`OPTIONAL_CSV_COLUMNS`): ``ski_id`` is then
@@ -610,7 +620,8 @@ def read_camber_csv(
             continue
         break
     sep, cells = _split_header(first, sep_line)
-    idx = _header_columns(cells, header_line)
+    idx, ignored = _header_columns(cells, header_line)
+    readable = set(idx) | set(ignored)  # a value elsewhere has no column name
     if default_ski_id is None:
         default_ski_id = Path(source).stem if _is_path(source) else "ski"
     defaults = {"ski_id": default_ski_id, "side": "mean"}
@@ -646,7 +657,7 @@ def read_camber_csv(
             )
         if len(row) < width:
             raise InputError(f"line {lineno}: expected {len(CSV_COLUMNS)} columns, got {len(row)}")
-        extra = [k + 1 for k in range(len(row)) if k not in idx and row[k].strip()]
+        extra = [k + 1 for k in range(len(row)) if k not in readable and row[k].strip()]
         if extra:
             raise InputError(
                 f"line {lineno}: a value in column {extra[0]}, which has no name in the header"
@@ -781,6 +792,7 @@ def read_camber_csv(
         read_descending=order < 0,
         load_unit_in_file=load_unit,
         defaulted_columns=defaulted,
+        ignored_columns=tuple(cells[k] for k in ignored),
         unmeasured_samples=n_unmeasured,
         dropped_positions_mm=tuple(float(v) for v in grid[~keep]),
         dropped_measured_samples=dropped_measured,

@@ -222,8 +222,19 @@ def test_a_spreadsheet_csv_reads_to_the_same_data_as_the_neutral_file(upload_csv
 def test_spreadsheet_problems_are_named(upload_csv):
     neutral = upload_csv.decode()
     lines = neutral.splitlines()
+    # a device's extra column is not read, and the answer says so
     extra = "\n".join([lines[0] + ",Temp_C", *(line + ",-5" for line in lines[1:])]) + "\n"
-    assert "unknown column(s) 'temp_c' (remove or rename them)" in refused(extra)
+    data, _, figures = check(extra)
+    _same_data(data, check(upload_csv)[0])
+    assert figures["columns_ignored"] == ["temp_c"]
+    assert "columns not read: 'temp_c' (not camber data" in " ".join(figures["notes"])
+    # ... but named when a needed column is missing (a misspelt one, say)
+    misspelt = extra.replace("gap_mm", "gap_mn", 1)
+    message = refused(misspelt)
+    assert "missing gap_mm; other column(s) 'gap_mn', 'temp_c' (remove or rename them)" in message
+    # a value under no name is refused
+    unnamed = "\n".join([lines[0] + ",", *(line + ",-5" for line in lines[1:])]) + "\n"
+    assert "a value in column 7, which has no name in the header" in refused(unnamed)
     missing = "\n".join(line.rsplit(",", 1)[0] for line in lines) + "\n"
     assert "missing gap_mm" in refused(missing)
     sheet = _spreadsheet(neutral).splitlines()
