@@ -70,6 +70,8 @@ SCHEMA = "skisnow.ski/1"
 _CHECKPOINT_ROWS = 32
 CSV_COLUMNS = ("ski_id", "side", "load_kg", "load_position_mm", "position_mm", "gap_mm")
 SIDES = ("left", "right", "mean")
+#: what devices write for a side, read as the side (``L`` / ``R``)
+SIDE_ABBREVIATIONS = {"l": "left", "r": "right"}
 #: columns a file may leave out (a device that measures one ski along its middle writes
 #: neither): ``ski_id`` is then the caller's (the upload's name, a path's stem), ``side`` is
 #: ``mean``; :attr:`CamberData.defaulted_columns` records which
@@ -666,7 +668,7 @@ def read_camber_csv(
             row[k].strip() if k >= 0 else defaults[c]
             for c, k in zip(CSV_COLUMNS[:2], idx[:2], strict=True)
         )
-        side = side_raw.lower()
+        side = SIDE_ABBREVIATIONS.get(side_raw.lower(), side_raw.lower())
         if not sid:
             raise InputError(f"line {lineno}: ski_id is empty")
         if ski_id is None:
@@ -676,7 +678,10 @@ def read_camber_csv(
                 f"line {lineno}: ski_id {sid!r} differs from {ski_id!r} (one ski per file)"
             )
         if side not in SIDES:
-            raise InputError(f"line {lineno}: side must be left, right or mean, got {side_raw!r}")
+            raise InputError(
+                f"line {lineno}: side must be left, right or mean (L and R read as left and "
+                f"right), got {side_raw!r}"
+            )
         load_kg = _parse_float(row[idx[2]], "load_kg", lineno, decimal)
         load_pos = _parse_float(row[idx[3]], "load_position_mm", lineno, decimal)
         pos = _parse_float(row[idx[4]], "position_mm", lineno, decimal)

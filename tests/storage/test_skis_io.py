@@ -243,3 +243,11 @@ def test_spreadsheet_and_dataframe_quirks_are_named_with_what_to_change():
     indexed = "," + HEADER + "".join(f"{k},{r}\n" for k, r in enumerate(GOOD))
     with pytest.raises(InputError, match=r"a row index as pandas' to_csv writes it"):
         read_camber_csv(indexed)
+
+
+def test_sides_written_l_and_r_read_as_left_and_right():
+    plain = read_camber_csv(_csv([r.replace(",mean,", ",left,") for r in GOOD]))
+    short = read_camber_csv(_csv([r.replace(",mean,", ",L,") for r in GOOD]))
+    assert short.sides == plain.sides == ["left", "left"]
+    np.testing.assert_array_equal(short.profiles_m, plain.profiles_m)
+    assert read_camber_csv(_csv([r.replace(",mean,", ",r,") for r in GOOD])).sides[0] == "right"
