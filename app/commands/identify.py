@@ -71,11 +71,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _say_unmeasured(data) -> None:
-    """On stderr: the positions reading the CSV dropped for unmeasured samples, if any."""
-    from skisnow.app.storage.skis import unmeasured_note
+    """On stderr: the positions reading the CSV dropped for unmeasured samples and positions
+    written rounded read as their grid, if any."""
+    from skisnow.app.storage.skis import reading_notes
 
-    note = unmeasured_note(data)
-    if note:
+    for note in reading_notes(data):
         print(f"note: {note}", file=sys.stderr)
 
 

@@ -88,8 +88,7 @@ def run(args: argparse.Namespace) -> int:
         raise DataFileError(f"ski file not found: {ski_path}")
     record = skis.read_ski(ski_path)
     data = skis.read_camber_csv(args.csv) if args.csv else record.measurements
-    note = skis.unmeasured_note(data) if args.csv else None
-    if note:
+    for note in skis.reading_notes(data) if args.csv else []:
         log.warning("%s: %s", args.csv, note)
     ski_id, x, f, xf, h, side = camber_training_arrays(data)
     log.info("training camber network for %s: %d load cases x %d points", ski_id, f.size, x.size)

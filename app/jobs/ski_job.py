@@ -136,6 +136,8 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
             "unmeasured": str(item.metadata.get("unmeasured", "drop")),
             "unmeasured_samples": str(data.unmeasured_samples),
             "positions_dropped_mm": json.dumps(list(data.dropped_positions_mm)),
+            "positions_absent_mm": json.dumps(list(data.absent_positions_mm)),
+            "position_shift_mm": repr(data.position_shift_mm),
         },
     )
     ctx.progress(0.96, "identifying the ski's beam from its camber cases")

@@ -773,7 +773,12 @@ def check_ski_upload(
             "samples": camber_data.unmeasured_samples,
             "positions_dropped_mm": list(camber_data.dropped_positions_mm),
             "measured_samples_set_aside": camber_data.dropped_measured_samples,
+            # grid positions no case lists (a device that skipped a step), read as unmeasured
+            "positions_absent_mm": list(camber_data.absent_positions_mm),
         },
+        # positions written rounded (a 1/3 mm step to 0.01 mm), read as the grid they round:
+        # the largest shift [mm] (0: read as written)
+        "position_shift_mm": camber_data.position_shift_mm,
         "load_range_kg": [float(f.min() / 9.82), float(f.max() / 9.82)],
         # what the technician may want to know about the file, in words (the upload page
         # shows them)
@@ -798,11 +803,9 @@ def _upload_notes(camber_data, spacing_mm: float) -> list[str]:
     if camber_data.ignored_columns:
         names = ", ".join(repr(c) for c in camber_data.ignored_columns)
         notes.append(f"columns not read: {names} (not camber data; the file is kept as sent)")
-    from skisnow.app.storage.skis import unmeasured_note
+    from skisnow.app.storage.skis import reading_notes
 
-    dropped = unmeasured_note(camber_data)
-    if dropped:
-        notes.append(dropped)
+    notes.extend(reading_notes(camber_data))
     note = sampling_note(spacing_mm)
     if note:
         notes.append(note)

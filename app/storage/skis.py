@@ -119,6 +119,14 @@ class CamberData:
         ``positions_m`` holds the others.
     dropped_measured_samples : int
         Measured samples set aside with those positions (in the cases that did measure them).
+    position_shift_mm : float
+        The largest |written − read| position [mm] where the CSV wrote its positions rounded
+        (a step of 1/3 mm to 0.01 mm, 5.08 mm to whole mm): they are read as the uniform grid
+        they round, each within half a unit of its last written digit
+        (:func:`uniform_grid`); 0: read as written.
+    absent_positions_mm : tuple of float
+        Positions [mm] of the uniform grid that no case of the CSV lists (a device that skipped
+        a step): read as unmeasured in every case, handled as ``unmeasured`` says.
     """
 
     ski_id: str
@@ -134,6 +142,8 @@ class CamberData:
     unmeasured_samples: int = 0
     dropped_positions_mm: tuple[float, ...] = ()
     dropped_measured_samples: int = 0
+    position_shift_mm: float = 0.0
+    absent_positions_mm: tuple[float, ...] = ()
 
     @property
     def sample_spacing_mm(self) -> float:
@@ -641,6 +651,7 @@ def read_camber_csv(
     below: tuple[int, float] | None = None  # the first gap below GAP_MM_RANGE: (line, gap)
     largest_gap, lowest_gap = -np.inf, np.inf
     unmeasured_first: int | None = None  # the first line of an unmeasured sample
+    written: dict[float, tuple[float, int]] = {}  # position -> (its last digit's unit, line)
     n_unmeasured = 0
     for lineno, row in enumerate(_split_rows(lines, sep), start=header_line + 1):
         if not row or all(not c.strip() for c in row) or row[0].lstrip().startswith("#"):
@@ -685,6 +696,8 @@ def read_camber_csv(
         load_kg = _parse_float(row[idx[2]], "load_kg", lineno, decimal)
         load_pos = _parse_float(row[idx[3]], "load_position_mm", lineno, decimal)
         pos = _parse_float(row[idx[4]], "position_mm", lineno, decimal)
+        if pos not in written:  # how precisely the file writes each position, and where
+            written[pos] = (_written_unit_mm(row[idx[4]]), lineno)
         if row[idx[5]].strip().lower() in UNMEASURED_TOKENS:
             if unmeasured == "refuse":
                 raise InputError(
@@ -785,11 +798,24 @@ def read_camber_csv(
             )
     if grid.size < 2:
         raise InputError("each case needs at least 2 positions")
-    profiles_mm = np.array([cases[k][1] for k in keys], dtype=float)
-    keep, dropped_measured = _drop_unmeasured(profiles_mm, grid, keys, cases, unmeasured_first)
+    units = np.array([written[v][0] for v in grid])
+    full, at, shift = uniform_grid(grid, units, [written[v][1] for v in grid])
+    absent = np.ones(full.size, dtype=bool)
+    absent[at] = False
+    if absent.any() and unmeasured == "refuse":
+        raise InputError(
+            f"file: {_absent_words(full, absent)}, refused (unmeasured=refuse): upload with "
+            "unmeasured=drop (every case then keeps the longest stretch of positions that every "
+            "case measured)"
+        )
+    profiles_mm = np.full((len(keys), full.size), np.nan)
+    profiles_mm[:, at] = np.array([cases[k][1] for k in keys], dtype=float)
+    keep, dropped_measured = _drop_unmeasured(
+        profiles_mm, full, keys, cases, unmeasured_first, absent
+    )
     return CamberData(
         ski_id=str(ski_id),
-        positions_m=grid[keep] * 1e-3,
+        positions_m=full[keep] * 1e-3,
         loads_n=np.array([k[1] for k in keys]) * G_STANDARD,
         load_positions_m=np.array([k[2] for k in keys]) * 1e-3,
         sides=[k[0] for k in keys],
@@ -799,13 +825,149 @@ def read_camber_csv(
         defaulted_columns=defaulted,
         ignored_columns=tuple(cells[k] for k in ignored),
         unmeasured_samples=n_unmeasured,
-        dropped_positions_mm=tuple(float(v) for v in grid[~keep]),
+        dropped_positions_mm=tuple(float(v) for v in full[~keep]),
         dropped_measured_samples=dropped_measured,
+        position_shift_mm=shift,
+        absent_positions_mm=tuple(float(v) for v in full[absent]),
+    )
+
+
+def _written_unit_mm(text: str) -> float:
+    """The unit of the last digit a position was written with [mm] (``"12.35"``: 0.01; ``"12"``:
+    1; a number with an exponent: 0, taken as exact)."""
+    raw = text.strip()
+    if "e" in raw.lower():
+        return 0.0
+    m = re.search(r"[.,](\d+)", raw)
+    return 10.0 ** -len(m.group(1)) if m else 1.0
+
+
+def uniform_grid(
+    positions_mm: np.ndarray, unit_mm: np.ndarray, lines: list[int] | None = None
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """The uniform grid a file's sample positions lie on, as the beam's identification needs.
+
+    Positions on a uniform grid to 1e-6 of the step are read as written. Otherwise the
+    positions must be the grid's nodes written rounded, each within half a unit of its last
+    written digit (``unit_mm``; a step of 1/3 mm written to 0.01 mm, 5.08 mm written in whole
+    mm), with the nodes no position names absent (a device that skipped a step): the grid
+    X_j = a + b·j closest to them in that sense (a Chebyshev fit, scaled by each position's
+    half unit) is read. Nothing finer than the file wrote is changed.
+
+    Parameters
+    ----------
+    positions_mm : ndarray (M,)
+        The written positions [mm], increasing.
+    unit_mm : ndarray (M,)
+        The unit of each position's last written digit [mm] (0: exact).
+    lines : list of int, optional
+        Each position's line in the file, for the messages.
+
+    Returns
+    -------
+    grid_mm, index, shift_mm
+        The grid's nodes [mm] from the first position to the last, the node of each written
+        position, and the largest |written − read| [mm] (0 when read as written).
+
+    Raises
+    ------
+    InputError
+        When the positions are not such a grid, naming the position farthest from it.
+    """
+    x = np.asarray(positions_mm, dtype=float)
+    where = (lambda i: f"line {lines[i]}: ") if lines is not None else (lambda i: "")
+    d = np.diff(x)
+    h0 = float(np.median(d))
+    if np.ptp(d) <= 1e-6 * h0:
+        return x, np.arange(x.size), 0.0
+    tol = np.maximum(0.5 * np.asarray(unit_mm, dtype=float), 1e-9 * np.maximum(1.0, abs(x)))
+    # the step: the mean one (no node absent), else the median one (nodes absent)
+    best = None
+    for h in ((x[-1] - x[0]) / (x.size - 1), h0):
+        steps = np.rint(d / h)
+        if np.all(steps >= 1):
+            fit = _chebyshev_grid(x, np.concatenate([[0.0], np.cumsum(steps)]), tol)
+            if best is None or fit[2] < best[2]:
+                best = fit
+            if fit[2] <= 1 + 1e-6:
+                break
+    if best is None:
+        i = int(np.argmin(d / h0)) + 1
+        raise InputError(
+            f"{where(i)}position_mm {x[i]:g} follows {x[i - 1]:g} by {d[i - 1]:g} mm, where the "
+            f"file's steps are mostly {h0:g} mm: the sample positions must be one uniform grid "
+            "(the beam's identification needs one): measure every case at the same uniform "
+            "steps, or interpolate every case onto a uniform grid (the upload resamples "
+            "nothing)"
+        )
+    a, b, t, j = best
+    dev = x - (a + b * j)
+    if t > 1 + 1e-6:
+        # named: the position farthest from a robust line (a lone misplaced position stands
+        # out there; the closest grid spreads its offset over all)
+        b = float(np.median(np.diff(x) / np.diff(j)))
+        a = float(np.median(x - b * j))
+        worst = int(np.argmax(np.abs(x - a - b * j) / tol))
+        dev = x - (a + b * j)
+        unit = float(unit_mm[worst])
+        written = f"written to {unit:g} mm" if unit > 0 else "written exactly"
+        raise InputError(
+            f"{where(worst)}position_mm {x[worst]:g} lies {abs(dev[worst]):.3g} mm off the "
+            f"uniform grid of {b:.6g} mm steps that the positions lie closest to ({written}, "
+            "a rounded grid position lies within half its last digit): the sample positions "
+            "must be one uniform grid (the beam's identification needs one): write the "
+            "positions the device was set to, or interpolate every case onto a uniform grid "
+            "(the upload resamples nothing)"
+        )
+    grid = a + b * np.arange(int(j[-1]) + 1)
+    index = j.astype(int)
+    dev = x - grid[index]
+    if np.all(np.abs(dev) <= 1e-9 * np.maximum(1.0, abs(x))):
+        grid[index] = x  # on the grid as written: only absent nodes are added
+        return grid, index, 0.0
+    return grid, index, float(np.max(np.abs(dev)))
+
+
+def _chebyshev_grid(
+    x: np.ndarray, j: np.ndarray, tol: np.ndarray
+) -> tuple[float, float, float, np.ndarray]:
+    """The grid a + b·j closest to positions ``x`` at nodes ``j`` in units of ``tol``: (a, b,
+    the largest |x − a − b·j| / tol, j); a linear programme: minimise t subject to
+    |x_i − a − b·j_i| ≤ t·tol_i."""
+    from scipy.optimize import linprog
+
+    one = np.ones_like(j)
+    fit = linprog(
+        [0.0, 0.0, 1.0],
+        A_ub=np.concatenate([np.stack([-one, -j, -tol], 1), np.stack([one, j, -tol], 1)]),
+        b_ub=np.concatenate([-x, x]),
+        bounds=[(None, None), (None, None), (0, None)],
+        method="highs",
+    )
+    if fit.success:
+        a, b = (float(v) for v in fit.x[:2])
+    else:  # not expected (the programme is always feasible): the end-to-end line
+        a, b = float(x[0]), float((x[-1] - x[0]) / max(j[-1], 1.0))
+    return a, b, float(np.max(np.abs(x - a - b * j) / tol)), j
+
+
+def _absent_words(grid_mm: np.ndarray, absent: np.ndarray) -> str:
+    """The grid's nodes that no case lists, in words."""
+    step = float(np.median(np.diff(grid_mm)))
+    n = int(absent.sum())
+    return (
+        f"{n} position{'s' if n > 1 else ''} of the grid of {step:.6g} mm steps absent from "
+        f"every case ({mm_ranges(grid_mm[absent])})"
     )
 
 
 def _drop_unmeasured(
-    profiles_mm: np.ndarray, grid_mm: np.ndarray, keys: list, cases: dict, first_line: int | None
+    profiles_mm: np.ndarray,
+    grid_mm: np.ndarray,
+    keys: list,
+    cases: dict,
+    first_line: int | None,
+    absent: np.ndarray | None = None,
 ) -> tuple[np.ndarray, int]:
     """The positions to keep, the longest stretch of consecutive positions that every case
     measured (the grid stays uniform, as the beam's identification needs: an unmeasured sample
@@ -826,13 +988,20 @@ def _drop_unmeasured(
         keep[starts[k] : ends[k]] = True
     measured = int(np.count_nonzero(~missing))
     lost = int(np.count_nonzero(~missing[:, ~keep]))
-    worst = int(np.argmax(missing.sum(axis=1)))
-    side, load_kg, load_pos = keys[worst]
-    where = (
-        f"{int(missing.sum())} unmeasured samples (the first at line {first_line}; the most in "
-        f"case side={side}, load_kg={load_kg:g}, load_position_mm={load_pos:g}, line "
-        f"{cases[keys[worst]][2]}: {int(missing[worst].sum())} of {grid_mm.size})"
-    )
+    absent = np.zeros(full.size, dtype=bool) if absent is None else absent
+    listed = missing[:, ~absent]  # the samples the file lists without a gap
+    parts = []
+    if listed.any():
+        worst = int(np.argmax(listed.sum(axis=1)))
+        side, load_kg, load_pos = keys[worst]
+        parts.append(
+            f"{int(listed.sum())} unmeasured samples (the first at line {first_line}; the most "
+            f"in case side={side}, load_kg={load_kg:g}, load_position_mm={load_pos:g}, line "
+            f"{cases[keys[worst]][2]}: {int(listed[worst].sum())} of {listed.shape[1]})"
+        )
+    if absent.any():
+        parts.append(_absent_words(grid_mm, absent))
+    where = "; ".join(parts)
     if keep.sum() < 2:
         raise InputError(
             f"file: {where}: no two neighbouring positions are measured in every case, so no "
@@ -845,8 +1014,13 @@ def _drop_unmeasured(
             f"{int((~keep).sum())} positions outside it from every case would set aside {lost} "
             f"of the {measured} measured samples ({100 * lost / measured:.0f} %, more than "
             f"{100 * MAX_DROPPED_MEASURED_FRACTION:.0f} %; the cases keep one uniform grid, so "
-            "an unmeasured sample inside the span drops everything beyond it): measure the "
-            "cases with unmeasured samples again, or leave them out"
+            "an unmeasured sample inside the span drops everything beyond it): "
+            + (
+                "measure the cases with unmeasured samples again, or leave them out"
+                if listed.any()
+                else "measure every case at every position of the grid (a device that skips "
+                "a step: set it to the grid's step)"
+            )
         )
     return keep, lost
 
@@ -873,12 +1047,39 @@ def unmeasured_note(data: CamberData) -> str | None:
     dropped = data.dropped_positions_mm
     if not dropped:
         return None
+    what = []
+    if data.unmeasured_samples:
+        what.append(f"{data.unmeasured_samples} unmeasured samples (no gap)")
+    absent = data.absent_positions_mm
+    if absent:
+        what.append(
+            f"{len(absent)} position{'s' if len(absent) > 1 else ''} of the grid absent from "
+            f"every case ({mm_ranges(absent)})"
+        )
     return (
-        f"{data.unmeasured_samples} unmeasured samples (no gap): every case keeps the stretch "
+        f"{' and '.join(what)}: every case keeps the stretch "
         f"that every case measured, {mm_ranges(data.positions_m * 1e3)}; the {len(dropped)} "
         f"positions outside it ({mm_ranges(dropped)}) are dropped from every case, "
         f"{data.dropped_measured_samples} measured samples with them; nothing is filled in "
         "(unmeasured=refuse refuses such files)"
+    )
+
+
+def reading_notes(data: CamberData) -> list[str]:
+    """What reading ``data`` did beyond the neutral format's way with its positions and gaps,
+    in words: positions written rounded read as their grid (:func:`grid_note`), positions
+    dropped for unmeasured or absent samples (:func:`unmeasured_note`)."""
+    return [n for n in (grid_note(data), unmeasured_note(data)) if n]
+
+
+def grid_note(data: CamberData) -> str | None:
+    """How reading ``data`` took positions written rounded, in words (None: as written)."""
+    if not data.position_shift_mm:
+        return None
+    return (
+        f"positions read as the uniform grid of {data.sample_spacing_mm:.6g} mm steps they are "
+        f"written rounded from (each within half its last written digit; the largest shift "
+        f"{data.position_shift_mm:.3g} mm); the gaps as written"
     )
 
 

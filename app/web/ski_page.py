@@ -63,17 +63,33 @@ def _summary(ski: service.Ski) -> dict:
 
 
 def _unmeasured_note(metadata: dict) -> str | None:
-    """The positions the upload dropped for unmeasured samples, in words (None: none)."""
+    """What the upload did to the positions, in words (None: nothing): those dropped for
+    unmeasured or absent samples, positions written rounded read as their grid."""
     try:
         dropped = json.loads(metadata.get("positions_dropped_mm") or "[]")
     except ValueError:
         return None
+    try:
+        shift = float(metadata.get("position_shift_mm") or 0.0)
+        absent = json.loads(metadata.get("positions_absent_mm") or "[]")
+    except ValueError:
+        shift, absent = 0.0, []
+    rounded = (
+        f"the positions, written rounded, were read as the uniform grid they round (largest "
+        f"shift {shift:.3g} mm)"
+        if shift
+        else ""
+    )
     if not dropped:
-        return None
+        return rounded[0].upper() + rounded[1:] if rounded else None
+    why = f"{metadata.get('unmeasured_samples', '?')} samples of the file had no gap"
+    if absent:
+        plural = "s" if len(absent) > 1 else ""
+        why += f" and {len(absent)} position{plural} of the grid ({mm_ranges(absent)}) none"
     return (
-        f"{metadata.get('unmeasured_samples', '?')} samples of the file had no gap: the "
-        f"{len(dropped)} positions outside the stretch every case measured "
+        f"{why}: the {len(dropped)} positions outside the stretch every case measured "
         f"({mm_ranges(dropped)}) were dropped from every case; nothing was filled in"
+        + (f"; {rounded}" if rounded else "")
     )
 
 

@@ -422,7 +422,9 @@ def test_unmeasured_gaps_drop_their_positions_from_every_case_and_say_so(upload_
         "samples": len(where),
         "positions_dropped_mm": list(data.dropped_positions_mm),
         "measured_samples_set_aside": 7 * cases - len(where),
+        "positions_absent_mm": [],
     }
+    assert figures["position_shift_mm"] == 0.0
     note = [t for t in figures["notes"] if "unmeasured samples" in t]
     assert len(note) == 1 and "dropped from every case" in note[0], figures["notes"]
     x_mm = plain.positions_m * 1e3
@@ -432,6 +434,90 @@ def test_unmeasured_gaps_drop_their_positions_from_every_case_and_say_so(upload_
     # (the first: case 0's sample n − 2, on line n of the file)
     assert message.startswith(f"line {n}: column 'gap_mm' is 'empty', an unmeasured sample")
     assert "unmeasured=drop" in message
+
+
+def _with_positions(csv_bytes: bytes, position) -> str:
+    """The CSV with every position_mm x replaced by ``position(x)`` (a string; None leaves the
+    row out)."""
+    header, rows = rows_of(csv_bytes)
+    out = []
+    for r in rows:
+        text = position(float(r[4]))
+        if text is not None:
+            out.append(",".join([*r[:4], text, *r[5:]]))
+    return "\n".join([header, *out]) + "\n"
+
+
+@pytest.mark.parametrize(
+    ("step_mm", "digits"), [(10 / 3, 2), (4.7625, 0), (4.7625, 1), (4.7625, 2)]
+)
+def test_positions_written_rounded_are_read_as_the_grid_they_round(upload_csv, step_mm, digits):
+    """A device stepping 10/3 mm (or 3/16 in = 4.7625 mm) writes its positions rounded: they are
+    read as the uniform grid they round, each within half its last digit, and said so; the
+    gaps as written. The identification needs a uniform grid (it refused these in the job)."""
+    plain, _, _ = check(upload_csv)
+    step = plain.sample_spacing_mm
+    exact = plain.positions_m * 1e3 * step_mm / step
+    text = _with_positions(upload_csv, lambda x: f"{x * step_mm / step:.{digits}f}")
+    data, _, figures = check(text, length_mm=round(float(np.ptp(exact)) / 0.95))
+    written = np.array([float(f"{v:.{digits}f}") for v in exact])
+    half = 0.5 * 10.0**-digits
+    read = data.positions_m * 1e3  # a grid within half a digit of every written position
+    np.testing.assert_allclose(read, written, rtol=0, atol=half * (1 + 1e-6))
+    np.testing.assert_allclose(read, exact, rtol=0, atol=2 * half)
+    dx = np.diff(data.positions_m)
+    assert np.ptp(dx) <= 1e-6 * dx.mean()  # what identify_start asks of the grid
+    np.testing.assert_array_equal(data.profiles_m, plain.profiles_m)  # the gaps as written
+    shift = float(np.max(np.abs(written - read)))
+    assert figures["position_shift_mm"] == pytest.approx(shift, abs=1e-9)
+    assert 0 < shift <= half * (1 + 1e-6)
+    note = [t for t in figures["notes"] if t.startswith("positions read as the uniform grid")]
+    assert data.sample_spacing_mm == pytest.approx(step_mm, rel=1e-4)
+    assert len(note) == 1 and f"{data.sample_spacing_mm:.6g} mm steps" in note[0], note
+
+
+def test_positions_off_a_uniform_grid_are_refused_at_upload_with_the_line(upload_csv):
+    """Positions an encoder read as they came (jitter beyond the written digits) are no
+    uniform grid: refused at upload, naming the position, instead of failing in the job."""
+    plain, _, _ = check(upload_csv)
+    x_mm = plain.positions_m * 1e3
+    shifted = {round(float(x_mm[57]), 6): f"{x_mm[57] + 0.12:.2f}"}
+    text = _with_positions(upload_csv, lambda x: shifted.get(round(x, 6), f"{x:.2f}"))
+    message = refused(text)
+    # the first case's sample 57 (line 59, after the header and the unloaded case's first row)
+    assert re.match(rf"line \d+: position_mm {x_mm[57] + 0.12:g} lies 0\.12 mm off the", message)
+    assert "written to 0.01 mm" in message and "interpolate every case" in message
+    # a step much smaller than the others: not a grid either
+    step = float(x_mm[1] - x_mm[0])
+    close = {round(float(x_mm[57]), 6): f"{x_mm[56] + 0.1 * step:g}"}
+    message = refused(_with_positions(upload_csv, lambda x: close.get(round(x, 6), f"{x:g}")))
+    assert re.match(rf"line \d+: position_mm {x_mm[56] + 0.1 * step:g} follows", message)
+    assert "must be one uniform grid" in message
+
+
+def test_positions_absent_from_every_case_are_unmeasured_samples(upload_csv):
+    """A device that skipped a step lists no row at that position: the position is read as
+    unmeasured in every case (near an end: dropped with the stretch; inside the span:
+    refused as unmeasured samples are), named in the answer."""
+    plain, _, _ = check(upload_csv)
+    x_mm = plain.positions_m * 1e3
+    n = x_mm.size
+    tip = round(float(x_mm[n - 3]), 6)
+    text = _with_positions(upload_csv, lambda x: None if round(x, 6) == tip else f"{x:g}")
+    data, _, figures = check(text)
+    np.testing.assert_array_equal(data.positions_m, plain.positions_m[: n - 3])
+    np.testing.assert_array_equal(data.profiles_m, plain.profiles_m[:, : n - 3])
+    assert data.absent_positions_mm == (x_mm[n - 3],)
+    assert figures["unmeasured"]["positions_dropped_mm"] == list(x_mm[n - 3 :])
+    assert figures["unmeasured"]["samples"] == 0
+    note = [t for t in figures["notes"] if "absent from every case" in t]
+    assert len(note) == 1 and "1 position of the grid absent" in note[0], figures["notes"]
+    assert "refused (unmeasured=refuse)" in refused(text, unmeasured="refuse")
+    middle = round(float(x_mm[n // 2]), 6)
+    text = _with_positions(upload_csv, lambda x: None if round(x, 6) == middle else f"{x:g}")
+    message = refused(text)
+    assert f"absent from every case ({x_mm[n // 2]:g} mm)" in message
+    assert "measure every case at every position of the grid" in message
 
 
 def test_unmeasured_gaps_that_would_cost_too_much_are_refused_with_the_case(upload_csv):

@@ -97,6 +97,19 @@ def client(catalogue, tmp_path_factory):
             "positions_dropped_mm": json.dumps(dropped),
         },
     )
+    # positions written rounded, read as their grid, and one node absent near the tip
+    skis["rounded-grid"] = _variant(
+        a,
+        "rounded-grid",
+        measurements=trimmed,
+        metadata={
+            **a.record.metadata,
+            "unmeasured_samples": "0",
+            "positions_dropped_mm": json.dumps(dropped[3:]),
+            "positions_absent_mm": json.dumps(dropped[3:4]),
+            "position_shift_mm": "0.0049",
+        },
+    )
     cat = service.Catalogue(tables_dir=catalogue.tables_dir, skis=skis, grinds=catalogue.grinds)
     settings = Settings(data_dir=tmp_path_factory.mktemp("ski-page"), warm_up=False)
     with TestClient(create_app(settings, catalogue=cat), raise_server_exceptions=False) as c:
@@ -550,6 +563,14 @@ def test_a_ski_whose_file_had_unmeasured_samples_says_which_positions_went(clien
     )
     assert 'id="sampling-note"' not in html  # still every 1 mm
     assert 'id="unmeasured-note"' not in _page(client, "ski-a")
+    html = unescape(_page(client, "rounded-grid"))
+    note = re.search(r'<p class="hint" id="unmeasured-note">([^<]*)</p>', html)
+    assert note, html[:2000]
+    assert f"1 position of the grid ({x_mm[-2]:g} mm) none" in note.group(1)
+    assert (
+        "written rounded, were read as the uniform grid they round (largest shift 0.0049 mm)"
+        in (note.group(1))
+    )
 
 
 def catalogue_positions_mm(client) -> np.ndarray:
