@@ -705,6 +705,7 @@ def check_ski_upload(
             f"length_mm must be in [{SKI_LENGTH_MM_RANGE[0]:g}, {SKI_LENGTH_MM_RANGE[1]:g}], "
             f"got {length_mm:g}"
         )
+    skis.check_load_positions(camber_data)
     unloaded = skis.unloaded_mask(camber_data)
     loaded_sides = {camber_data.sides[k] for k in np.flatnonzero(~unloaded)}
     if "mean" in {camber_data.sides[k] for k in np.flatnonzero(unloaded)} - loaded_sides:

@@ -769,6 +769,14 @@ def read_camber_csv(
                 order = 1 if pos > xs[-1] else -1  # the file's order: the first step decides
             if (pos - xs[-1]) * order <= 0:
                 way = "greater" if order >= 0 else "smaller"
+                if pos == xs[0] and len(xs) > 1:  # back at its first position: a second pass
+                    raise InputError(
+                        f"line {lineno}: case side={side}, load_kg={load_kg:g}, "
+                        f"load_position_mm={load_pos:g} starts again at position_mm {pos:g} "
+                        f"(its first pass starts at line {cases[key][2]}): a case measured "
+                        "twice; keep one pass per case in the file (or average the passes "
+                        "yourself, and say so in the notes)"
+                    )
                 raise InputError(
                     f"line {lineno}: position_mm {pos:g} is not {way} than the previous "
                     f"position {xs[-1]:g} of case side={side}, load_kg={load_kg:g}, "
@@ -830,6 +838,22 @@ def read_camber_csv(
         position_shift_mm=shift,
         absent_positions_mm=tuple(float(v) for v in full[absent]),
     )
+
+
+def check_load_positions(data: CamberData) -> None:
+    """Refuse a loaded case whose load stands outside the measured span (the positions kept),
+    as the beam's identification would (the device model puts each load between the ends)."""
+    lo, hi = float(data.positions_m[0]) * 1e3, float(data.positions_m[-1]) * 1e3
+    for side, f, xf in zip(data.sides, data.loads_n, data.load_positions_m, strict=True):
+        load_kg, load_pos = float(f) / G_STANDARD, float(xf) * 1e3
+        if f > 0 and not lo < load_pos < hi:
+            raise InputError(
+                f"file: case side={side}, load_kg={load_kg:.6g}, load_position_mm="
+                f"{load_pos:.6g} has its load outside "
+                f"the measured span {lo:g} … {hi:g} mm (the positions every case keeps): the "
+                "load must stand between the first and the last measured position; check "
+                "load_position_mm (from the balance point, + towards the tip, like position_mm)"
+            )
 
 
 def _written_unit_mm(text: str) -> float:

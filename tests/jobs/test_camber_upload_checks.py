@@ -875,3 +875,37 @@ def test_a_file_sampled_coarser_than_1_mm_is_told_what_it_costs(upload_csv):
     assert "5 mm: profiles 0.29–0.78 µm" in note and "Measure every 1 mm" in note
     assert uploads.sampling_note(1.0) is None and uploads.sampling_note(2.0) is not None
     assert "samples every 1 mm give the most accurate answers" in uploads.minimum_grid_sentence()
+
+
+def test_a_load_outside_the_measured_span_and_a_case_measured_twice_are_refused(upload_csv):
+    """What the job would fail on later (the device model puts each load on a measured node
+    between the ends), and a second pass of a case (with its line), are refused at upload."""
+    header, rows = rows_of(upload_csv)
+    plain, _, _ = check(upload_csv)
+    x_mm = plain.positions_m * 1e3
+    last = rows[-1][2:4]  # the last case's load_kg, load_position_mm
+    first_line = 2 + next(i for i, r in enumerate(rows) if r[2:4] == last)
+    for where in (x_mm[-1] + 70, x_mm[-1], x_mm[0] - 5):
+        moved = [[*r[:3], f"{where:g}", *r[4:]] if r[2:4] == last else r for r in rows]
+        message = refused("\n".join([header, *(",".join(r) for r in moved)]) + "\n")
+        assert message.startswith(
+            f"file: case side=mean, load_kg={float(last[0]):g}, load_position_mm={where:g} has "
+            f"its load outside the measured span {x_mm[0]:g} … {x_mm[-1]:g} mm"
+        ), message
+    # the tip's last samples unmeasured everywhere: the span the cases keep is what counts
+    n = x_mm.size
+    gone = {(c, k): "" for c in range(plain.loads_n.size) for k in range(n - 4, n)}
+    text, _ = _with_unmeasured(upload_csv, gone)
+    moved_rows = [r.split(",") for r in text.splitlines()[1:]]
+    where = x_mm[n - 2]
+    moved = [[*r[:3], f"{where:g}", *r[4:]] if r[2:4] == last else r for r in moved_rows]
+    message = refused("\n".join([header, *(",".join(r) for r in moved)]) + "\n")
+    assert f"outside the measured span {x_mm[0]:g} … {x_mm[n - 5]:g} mm" in message
+    # a case measured twice: its second pass
+    again = [r for r in rows if r[2:4] == last]
+    message = refused("\n".join([header, *(",".join(r) for r in [*rows, *again])]) + "\n")
+    assert message.startswith(
+        f"line {len(rows) + 2}: case side=mean, load_kg={float(last[0]):g}, load_position_mm="
+        f"{float(last[1]):g} starts again at position_mm {x_mm[0]:g} (its first pass starts "
+        f"at line {first_line}): a case measured twice"
+    ), message
