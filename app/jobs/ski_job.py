@@ -137,6 +137,7 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
             "unmeasured_samples": str(data.unmeasured_samples),
             "positions_dropped_mm": json.dumps(list(data.dropped_positions_mm)),
             "positions_absent_mm": json.dumps(list(data.absent_positions_mm)),
+            "cases_dropped": json.dumps(list(data.dropped_cases)),
             "position_shift_mm": repr(data.position_shift_mm),
         },
     )

@@ -776,6 +776,8 @@ def check_ski_upload(
             "measured_samples_set_aside": camber_data.dropped_measured_samples,
             # grid positions no case lists (a device that skipped a step), read as unmeasured
             "positions_absent_mm": list(camber_data.absent_positions_mm),
+            # cases left out whole for an unmeasured sample inside the kept stretch
+            "cases_dropped": list(camber_data.dropped_cases),
         },
         # positions written rounded (a 1/3 mm step to 0.01 mm), read as the grid they round:
         # the largest shift [mm] (0: read as written)

@@ -127,6 +127,10 @@ class CamberData:
     absent_positions_mm : tuple of float
         Positions [mm] of the uniform grid that no case of the CSV lists (a device that skipped
         a step): read as unmeasured in every case, handled as ``unmeasured`` says.
+    dropped_cases : tuple of str
+        Cases left out whole for an unmeasured sample inside the kept stretch (``side=…,
+        load_kg=…, load_position_mm=… (line …)``; ``unmeasured="drop"``): where that sets aside
+        fewer measured samples than dropping positions from every case.
     """
 
     ski_id: str
@@ -144,6 +148,7 @@ class CamberData:
     dropped_measured_samples: int = 0
     position_shift_mm: float = 0.0
     absent_positions_mm: tuple[float, ...] = ()
+    dropped_cases: tuple[str, ...] = ()
 
     @property
     def sample_spacing_mm(self) -> float:
@@ -818,16 +823,22 @@ def read_camber_csv(
         )
     profiles_mm = np.full((len(keys), full.size), np.nan)
     profiles_mm[:, at] = np.array([cases[k][1] for k in keys], dtype=float)
-    keep, dropped_measured = _drop_unmeasured(
+    keep, keep_cases, dropped_measured = _drop_unmeasured(
         profiles_mm, full, keys, cases, unmeasured_first, absent
     )
+    left_out = tuple(
+        f"side={s}, load_kg={f:g}, load_position_mm={xf:g} (line {cases[(s, f, xf)][2]})"
+        for (s, f, xf), kept in zip(keys, keep_cases, strict=True)
+        if not kept
+    )
+    keys = [k for k, kept in zip(keys, keep_cases, strict=True) if kept]
     return CamberData(
         ski_id=str(ski_id),
         positions_m=full[keep] * 1e-3,
         loads_n=np.array([k[1] for k in keys]) * G_STANDARD,
         load_positions_m=np.array([k[2] for k in keys]) * 1e-3,
         sides=[k[0] for k in keys],
-        profiles_m=profiles_mm[:, keep] * 1e-3,
+        profiles_m=profiles_mm[np.ix_(keep_cases, keep)] * 1e-3,
         read_descending=order < 0,
         load_unit_in_file=load_unit,
         defaulted_columns=defaulted,
@@ -837,6 +848,7 @@ def read_camber_csv(
         dropped_measured_samples=dropped_measured,
         position_shift_mm=shift,
         absent_positions_mm=tuple(float(v) for v in full[absent]),
+        dropped_cases=left_out,
     )
 
 
@@ -985,6 +997,51 @@ def _absent_words(grid_mm: np.ndarray, absent: np.ndarray) -> str:
     )
 
 
+#: at most this many edges of unmeasured runs are tried as the ends of the kept stretch (their
+#: pairs are each scored); beyond, only the stretch every case measured is
+_MAX_STRETCH_EDGES = 400
+
+
+def _cheapest_stretch(
+    missing: np.ndarray, units: np.ndarray | None = None
+) -> tuple[int, int, np.ndarray] | None:
+    """The stretch [a, b) of positions and the cases to keep that set aside the fewest measured
+    samples: a case with an unmeasured sample inside the stretch is left out whole, with every
+    case of its unit (``units``, an integer per case: the left and right profiles of one load
+    case, which are averaged; default each case its own), every kept case loses its samples
+    outside it; ties go to fewer cases left out, then the longer stretch. None when no stretch
+    of 2 positions keeps a case."""
+    k, n = missing.shape
+    units = np.arange(k) if units is None else np.asarray(units)
+    zeros = np.zeros((k, 1), dtype=np.int64)
+    gaps = np.concatenate([zeros, np.cumsum(missing, axis=1)], axis=1)  # (K, N + 1)
+    meas = np.concatenate([zeros, np.cumsum(~missing, axis=1)], axis=1)
+    flips = np.diff(np.concatenate([zeros, missing, zeros], axis=1).astype(np.int8), axis=1)
+    edges = np.unique(np.concatenate([[0, n], np.flatnonzero(flips.any(axis=0))]))
+    if edges.size > _MAX_STRETCH_EDGES:  # scattered losses: the stretch every case measured
+        full = np.concatenate([[False], ~missing.any(axis=0), [False]]).astype(np.int8)
+        run = np.flatnonzero(np.diff(full))
+        edges = np.unique(np.concatenate([[0, n], run]))
+    best, best_key = None, None
+    for a in edges[:-1]:
+        b = edges[edges >= a + 2]
+        if not b.size:
+            continue
+        inside = gaps[:, b] - gaps[:, [a]]  # (K, B) unmeasured samples inside [a, b)
+        per_unit = np.zeros((int(units.max()) + 1, b.size), dtype=np.int64)
+        np.add.at(per_unit, units, inside)
+        kept = (per_unit == 0)[units]
+        kept_samples = np.where(kept, meas[:, b] - meas[:, [a]], 0).sum(axis=0)
+        left_out = (~kept).sum(axis=0)
+        for m in range(b.size):
+            if not kept[:, m].any():
+                continue
+            key = (-int(kept_samples[m]), int(left_out[m]), -int(b[m] - a))
+            if best_key is None or key < best_key:
+                best_key, best = key, (int(a), int(b[m]), kept[:, m].copy())
+    return best
+
+
 def _drop_unmeasured(
     profiles_mm: np.ndarray,
     grid_mm: np.ndarray,
@@ -992,27 +1049,18 @@ def _drop_unmeasured(
     cases: dict,
     first_line: int | None,
     absent: np.ndarray | None = None,
-) -> tuple[np.ndarray, int]:
-    """The positions to keep, the longest stretch of consecutive positions that every case
-    measured (the grid stays uniform, as the beam's identification needs: an unmeasured sample
-    inside the span drops every position beyond it on the shorter side), and how many
-    measured samples the dropped ones set aside; refused, with what to change, when fewer than
-    2 positions would remain or more than :data:`MAX_DROPPED_MEASURED_FRACTION` of the
-    measured samples would go."""
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """The positions and the cases to keep, and how many measured samples the rest sets
+    aside: the cheapest of one uniform stretch of positions (as the beam's identification
+    needs) and the cases with no unmeasured sample inside it (:func:`_cheapest_stretch`;
+    readings lost near the tip or the tail cost those positions, a reading lost inside the span
+    costs its case); refused, with what to change, when no 2 neighbouring positions are left or
+    more than :data:`MAX_DROPPED_MEASURED_FRACTION` of the measured samples would go."""
     missing = np.isnan(profiles_mm)
-    full = ~missing.any(axis=0)
-    if full.all():
-        return full, 0
-    # the longest run of positions measured in every case
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], full.astype(np.int8), [0]])))
-    starts, ends = edges[::2], edges[1::2]
-    keep = np.zeros(full.size, dtype=bool)
-    if starts.size:
-        k = int(np.argmax(ends - starts))
-        keep[starts[k] : ends[k]] = True
+    if not missing.any():
+        return np.ones(missing.shape[1], dtype=bool), np.ones(missing.shape[0], dtype=bool), 0
     measured = int(np.count_nonzero(~missing))
-    lost = int(np.count_nonzero(~missing[:, ~keep]))
-    absent = np.zeros(full.size, dtype=bool) if absent is None else absent
+    absent = np.zeros(missing.shape[1], dtype=bool) if absent is None else absent
     listed = missing[:, ~absent]  # the samples the file lists without a gap
     parts = []
     if listed.any():
@@ -1026,19 +1074,38 @@ def _drop_unmeasured(
     if absent.any():
         parts.append(_absent_words(grid_mm, absent))
     where = "; ".join(parts)
-    if keep.sum() < 2:
+    sides = {key[0] for key in keys}
+    if "mean" not in sides and sides == {"left", "right"}:
+        # left and right are averaged per load case (camber_training_arrays): a case left out
+        # takes its twin on the other side with it
+        pairs = {pk: i for i, pk in enumerate(dict.fromkeys(k[1:] for k in keys))}
+        units = np.array([pairs[key[1:]] for key in keys])
+    else:
+        units = None
+    best = _cheapest_stretch(missing, units)
+    if best is None:
         raise InputError(
-            f"file: {where}: no two neighbouring positions are measured in every case, so no "
-            "grid is left: measure that case again, or leave it out"
+            f"file: {where}: no two neighbouring positions are measured in any case, so no "
+            "grid is left: measure the ski again"
         )
+    a, b, keep_cases = best
+    keep = np.zeros(missing.shape[1], dtype=bool)
+    keep[a:b] = True
+    lost = measured - int(np.count_nonzero(~missing[np.ix_(keep_cases, keep)]))
     if lost > MAX_DROPPED_MEASURED_FRACTION * measured:
+        out = int((~keep_cases).sum())
+        cost = f"dropping the {int((~keep).sum())} positions outside it from every case" + (
+            f" and leaving out the {out} case{'s' if out > 1 else ''} with an unmeasured "
+            "sample inside it"
+            if out
+            else ""
+        )
         raise InputError(
-            f"file: {where}: the longest stretch measured in every case is "
-            f"{grid_mm[keep][0]:g} … {grid_mm[keep][-1]:g} mm; dropping the "
-            f"{int((~keep).sum())} positions outside it from every case would set aside {lost} "
+            f"file: {where}: the least that keeps one uniform grid is the stretch "
+            f"{grid_mm[a]:g} … {grid_mm[b - 1]:g} mm; {cost} would set aside {lost} "
             f"of the {measured} measured samples ({100 * lost / measured:.0f} %, more than "
             f"{100 * MAX_DROPPED_MEASURED_FRACTION:.0f} %; the cases keep one uniform grid, so "
-            "an unmeasured sample inside the span drops everything beyond it): "
+            "an unmeasured sample inside the span costs its case or everything beyond it): "
             + (
                 "measure the cases with unmeasured samples again, or leave them out"
                 if listed.any()
@@ -1046,7 +1113,7 @@ def _drop_unmeasured(
                 "a step: set it to the grid's step)"
             )
         )
-    return keep, lost
+    return keep, keep_cases, lost
 
 
 def mm_ranges(values_mm, most: int = 4) -> str:
@@ -1069,7 +1136,8 @@ def mm_ranges(values_mm, most: int = 4) -> str:
 def unmeasured_note(data: CamberData) -> str | None:
     """What reading ``data`` dropped for unmeasured samples, in words (None: nothing)."""
     dropped = data.dropped_positions_mm
-    if not dropped:
+    left_out = data.dropped_cases
+    if not dropped and not left_out:
         return None
     what = []
     if data.unmeasured_samples:
@@ -1080,10 +1148,22 @@ def unmeasured_note(data: CamberData) -> str | None:
             f"{len(absent)} position{'s' if len(absent) > 1 else ''} of the grid absent from "
             f"every case ({mm_ranges(absent)})"
         )
+    done = []
+    if dropped:
+        done.append(
+            f"the {len(dropped)} positions outside it ({mm_ranges(dropped)}) are dropped from "
+            "every case"
+        )
+    if left_out:
+        n = len(left_out)
+        shown = "; ".join(left_out[:3]) + (f"; {n - 3} more" if n > 3 else "")
+        done.append(
+            f"{'the case' if n == 1 else f'the {n} cases'} with an unmeasured sample inside it "
+            f"{'is' if n == 1 else 'are'} left out ({shown})"
+        )
     return (
-        f"{' and '.join(what)}: every case keeps the stretch "
-        f"that every case measured, {mm_ranges(data.positions_m * 1e3)}; the {len(dropped)} "
-        f"positions outside it ({mm_ranges(dropped)}) are dropped from every case, "
+        f"{' and '.join(what)}: the cases keep one stretch of the grid, "
+        f"{mm_ranges(data.positions_m * 1e3)}; {' and '.join(done)}, "
         f"{data.dropped_measured_samples} measured samples with them; nothing is filled in "
         "(unmeasured=refuse refuses such files)"
     )

@@ -72,24 +72,36 @@ def _unmeasured_note(metadata: dict) -> str | None:
     try:
         shift = float(metadata.get("position_shift_mm") or 0.0)
         absent = json.loads(metadata.get("positions_absent_mm") or "[]")
+        left_out = json.loads(metadata.get("cases_dropped") or "[]")
     except ValueError:
-        shift, absent = 0.0, []
+        shift, absent, left_out = 0.0, [], []
     rounded = (
         f"the positions, written rounded, were read as the uniform grid they round (largest "
         f"shift {shift:.3g} mm)"
         if shift
         else ""
     )
-    if not dropped:
+    if not dropped and not left_out:
         return rounded[0].upper() + rounded[1:] if rounded else None
     why = f"{metadata.get('unmeasured_samples', '?')} samples of the file had no gap"
     if absent:
         plural = "s" if len(absent) > 1 else ""
         why += f" and {len(absent)} position{plural} of the grid ({mm_ranges(absent)}) none"
-    return (
-        f"{why}: the {len(dropped)} positions outside the stretch every case measured "
-        f"({mm_ranges(dropped)}) were dropped from every case; nothing was filled in"
-        + (f"; {rounded}" if rounded else "")
+    done = []
+    if dropped:
+        done.append(
+            f"the {len(dropped)} positions outside the stretch kept ({mm_ranges(dropped)}) were "
+            "dropped from every case"
+        )
+    if left_out:
+        n = len(left_out)
+        shown = "; ".join(left_out[:3]) + (f"; {n - 3} more" if n > 3 else "")
+        done.append(
+            f"{n} case{'s' if n > 1 else ''} with an unmeasured sample inside it "
+            f"{'were' if n > 1 else 'was'} left out ({shown})"
+        )
+    return f"{why}: {' and '.join(done)}; nothing was filled in" + (
+        f"; {rounded}" if rounded else ""
     )
 
 

@@ -423,6 +423,7 @@ def test_unmeasured_gaps_drop_their_positions_from_every_case_and_say_so(upload_
         "positions_dropped_mm": list(data.dropped_positions_mm),
         "measured_samples_set_aside": 7 * cases - len(where),
         "positions_absent_mm": [],
+        "cases_dropped": [],
     }
     assert figures["position_shift_mm"] == 0.0
     note = [t for t in figures["notes"] if "unmeasured samples" in t]
@@ -520,19 +521,53 @@ def test_positions_absent_from_every_case_are_unmeasured_samples(upload_csv):
     assert "measure every case at every position of the grid" in message
 
 
+def test_a_reading_lost_inside_the_span_costs_its_case(upload_csv):
+    """A reading lost in the middle of the span (a dust spot) would drop everything beyond it
+    from every case; leaving that case out sets aside far fewer measured samples, so the case
+    goes, named in the answer; the other cases keep every position."""
+    plain, _, _ = check(upload_csv)
+    n, cases = plain.positions_m.size, plain.loads_n.size
+    text, _ = _with_unmeasured(upload_csv, {(4, n // 2): "NaN", (9, n // 3): ""})
+    data, _, figures = check(text)
+    kept = np.setdiff1d(np.arange(cases), [4, 9])
+    np.testing.assert_array_equal(data.positions_m, plain.positions_m)
+    np.testing.assert_array_equal(data.profiles_m, plain.profiles_m[kept])  # as measured
+    np.testing.assert_array_equal(data.loads_n, plain.loads_n[kept])
+    dropped = figures["unmeasured"]
+    assert dropped["positions_dropped_mm"] == []
+    assert dropped["measured_samples_set_aside"] == 2 * (n - 1)
+    assert len(dropped["cases_dropped"]) == 2
+    assert dropped["cases_dropped"][0] == (
+        f"side=mean, load_kg={plain.loads_n[4] / 9.82:g}, load_position_mm="
+        f"{plain.load_positions_m[4] * 1e3:g} (line {2 + 4 * n})"
+    )
+    note = [t for t in figures["notes"] if "unmeasured samples" in t]
+    assert (
+        len(note) == 1
+        and "the 2 cases with an unmeasured sample inside it are left out" in (note[0])
+    ), figures["notes"]
+    # a case with no gap at all is left out too (it sets aside nothing measured)
+    data, _, figures = check(_with_unmeasured(upload_csv, {(4, k): "" for k in range(n)})[0])
+    assert data.loads_n.size == cases - 1
+    assert figures["unmeasured"]["measured_samples_set_aside"] == 0
+
+
 def test_unmeasured_gaps_that_would_cost_too_much_are_refused_with_the_case(upload_csv):
     plain, _, _ = check(upload_csv)
-    n = plain.positions_m.size
-    # one reading lost in the middle of the span: the grid stays uniform only by dropping
-    # everything beyond it on one side
-    text, _ = _with_unmeasured(upload_csv, {(4, n // 2): "NaN"})
-    message = refused(text)
-    assert f"the most in case side=mean, load_kg={plain.loads_n[4] / 9.82:g}" in message
-    assert "longest stretch measured in every case is" in message
+    n, cases = plain.positions_m.size, plain.loads_n.size
+    # readings lost inside the span in more than 10 % of the cases: leaving them out, or
+    # dropping everything beyond the losses, both cost too much
+    lost = {(c, n // 2 + c): "NaN" for c in range(1, cases, 7)}
+    assert len(lost) > 0.1 * cases
+    message = refused(_with_unmeasured(upload_csv, lost)[0])
+    assert "the least that keeps one uniform grid is the stretch" in message
     assert "more than 10 %" in message and "measure the cases with unmeasured" in message
-    # a case with no gap at all leaves no grid
-    text, _ = _with_unmeasured(upload_csv, {(4, k): "" for k in range(n)})
-    assert "no two neighbouring positions are measured in every case" in refused(text)
+    assert "the most in case side=mean" in message
+    # no case with two neighbouring measured positions leaves no grid
+    every_other = {(c, k): "" for c in range(cases) for k in range(0, n, 2)}
+    assert "no two neighbouring positions are measured in any case" in refused(
+        _with_unmeasured(upload_csv, every_other)[0]
+    )
     # infinity is no reading
     text, _ = _with_unmeasured(upload_csv, {(4, 7): "inf"})
     assert "is 'inf': not a gap (an unmeasured sample is left empty or written NaN)" in refused(

@@ -108,6 +108,7 @@ def client(catalogue, tmp_path_factory):
             "positions_dropped_mm": json.dumps(dropped[3:]),
             "positions_absent_mm": json.dumps(dropped[3:4]),
             "position_shift_mm": "0.0049",
+            "cases_dropped": json.dumps(["side=mean, load_kg=40, load_position_mm=0 (line 9)"]),
         },
     )
     cat = service.Catalogue(tables_dir=catalogue.tables_dir, skis=skis, grinds=catalogue.grinds)
@@ -570,6 +571,10 @@ def test_a_ski_whose_file_had_unmeasured_samples_says_which_positions_went(clien
     assert (
         "written rounded, were read as the uniform grid they round (largest shift 0.0049 mm)"
         in (note.group(1))
+    )
+    assert (
+        "1 case with an unmeasured sample inside it was left out (side=mean, load_kg=40, "
+        "load_position_mm=0 (line 9))" in note.group(1)
     )
 
 
