@@ -75,7 +75,8 @@ def post_ski(
         Literal["drop", "refuse"],
         Form(
             description="samples without a gap (empty, NaN): drop their positions from every "
-            "case (recorded), or refuse the file"
+            "case, or their cases, whichever sets aside fewer samples (recorded), or refuse "
+            "the file"
         ),
     ] = "drop",
 ) -> JSONResponse:

@@ -180,10 +180,11 @@ SKI_UPLOAD_FIELDS = (
         "unmeasured",
         "Unmeasured samples",
         "select",
-        "samples without a gap (an empty cell, NaN, -, #N/A): their positions are dropped from "
-        "every case (default; nothing is filled in; recorded with the ski), or the file is "
-        "refused",
-        options=(("drop", "drop their positions"), ("refuse", "refuse the file")),
+        "samples without a gap (an empty cell, NaN, -, #N/A): near the tip or tail their "
+        "positions are dropped from every case, inside the span their case is left out, "
+        "whichever sets aside fewer samples (default; nothing is filled in; recorded with the "
+        "ski), or the file is refused",
+        options=(("drop", "drop their positions or cases"), ("refuse", "refuse the file")),
         advanced=True,
     ),
 )
