@@ -655,6 +655,10 @@ def _check_grid(loads_n: np.ndarray, load_positions_m: np.ndarray, spacing_mm: f
         )
 
 
+#: spreadsheet workbooks a technician may send instead of their CSV (refused with how to save)
+SPREADSHEET_SUFFIXES = (".xlsx", ".xls", ".xlsm", ".ods", ".numbers")
+
+
 def check_ski_upload(
     data: bytes,
     filename: str,
@@ -686,9 +690,16 @@ def check_ski_upload(
     from skisnow.app.storage import skis
     from skisnow.app.training.data import camber_training_arrays, split_load_cases
 
-    if Path(filename).suffix.lower() not in (".csv", ".txt"):
+    suffix = Path(filename).suffix.lower()
+    if suffix not in (".csv", ".txt"):
+        sheet = (
+            ": save the sheet as CSV (comma- or semicolon-separated, any decimal mark; the "
+            "download on /upload is an example)"
+            if suffix in SPREADSHEET_SUFFIXES
+            else " (or a device's .txt)"
+        )
         raise UnsupportedContentError(
-            f"file {filename!r}: camber measurements must be a neutral .csv file"
+            f"file {filename!r}: camber measurements must be a neutral .csv file{sheet}"
         )
     text, encoding = _decode_text(data, filename)
     if "\n" not in text:

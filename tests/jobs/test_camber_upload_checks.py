@@ -324,6 +324,12 @@ def test_bytes_that_are_no_text_are_refused_with_what_to_save(upload_csv):
     for data in (b"\x00\x01binary", b"PK\x03\x04\x00\x00" + upload_csv[:200]):
         with pytest.raises(UnsupportedContentError, match="save it from the spreadsheet as CSV"):
             check(data)
+    # a workbook by its name: how to save it
+    for name in ("ski.xlsx", "Ski.ODS"):
+        with pytest.raises(UnsupportedContentError, match="save the sheet as CSV"):
+            uploads.check_ski_upload(upload_csv, name, **OUTLINE)
+    with pytest.raises(UnsupportedContentError, match=r"neutral \.csv file \(or a device"):
+        uploads.check_ski_upload(upload_csv, "ski.dat", **OUTLINE)
 
 
 def test_values_in_other_units_or_conventions_are_refused_with_the_change(upload_csv):
