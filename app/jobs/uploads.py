@@ -638,11 +638,31 @@ def _check_zero(data, unloaded: np.ndarray) -> None:
             )
 
 
-def _check_grid(loads_n: np.ndarray, load_positions_m: np.ndarray, spacing_mm: float) -> None:
-    """Refuse a file below the smallest grid that gets a served beam, with that sentence."""
+def _check_grid(
+    loads_n: np.ndarray, load_positions_m: np.ndarray, spacing_mm: float, left_out: int = 0
+) -> None:
+    """Refuse a file below the smallest grid that gets a served beam, with that sentence: fewer
+    loads, load positions or load cases than its MIN_GRID_LOADS × MIN_GRID_LOAD_POSITIONS (a
+    grid with holes, for example cases left out for unmeasured samples, is below it: measured
+    2026-12-07, the example file's 9 × 5 grid less 2 cases failed its beam's held-out check),
+    or samples farther apart than MAX_SAMPLE_SPACING_MM."""
     loaded = loads_n > 0
     n_loads = np.unique(np.round(loads_n[loaded], 9)).size
     n_positions = np.unique(np.round(load_positions_m[loaded], 9)).size
+    pairs = np.stack([np.round(loads_n[loaded], 9), np.round(load_positions_m[loaded], 9)], 1)
+    n_cases = np.unique(pairs, axis=0).shape[0]
+    need = MIN_GRID_LOADS * MIN_GRID_LOAD_POSITIONS
+    if n_loads >= MIN_GRID_LOADS and n_positions >= MIN_GRID_LOAD_POSITIONS and n_cases < need:
+        why = (
+            f" ({left_out} left out for unmeasured samples inside the span: measure "
+            f"{'it' if left_out == 1 else 'them'} again)"
+            if left_out
+            else ""
+        )
+        raise InputError(
+            f"file: {n_cases} load cases{why} are fewer than the {need} of the smallest grid "
+            "that gets the ski a served beam; " + minimum_grid_sentence()
+        )
     if (
         n_loads < MIN_GRID_LOADS
         or n_positions < MIN_GRID_LOAD_POSITIONS
@@ -727,7 +747,7 @@ def check_ski_upload(
     _, x, f_all, xf_all, _h, side = camber_training_arrays(camber_data)
     _check_span(x * 1e3, length_mm)
     spacing_mm = camber_data.sample_spacing_mm  # the median step
-    _check_grid(f_all, xf_all, spacing_mm)
+    _check_grid(f_all, xf_all, spacing_mm, len(camber_data.dropped_cases))
     loaded = f_all > 0  # the unloaded profile is no load case to hold out
     _check_zero(camber_data, unloaded)
     f, xf = f_all[loaded], xf_all[loaded]

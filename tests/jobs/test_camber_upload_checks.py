@@ -527,10 +527,28 @@ def test_positions_absent_from_every_case_are_unmeasured_samples(upload_csv):
     assert "measure every case at every position of the grid" in message
 
 
+def _one_more_load(csv_bytes: bytes) -> bytes:
+    """The CSV with a tenth load level: the first load's cases again, 1 kg heavier (a grid
+    above the smallest, for the checks that leave cases out; not a physical measurement)."""
+    header, rows = rows_of(csv_bytes)
+    first = rows[0][2]
+    extra = [[*r[:2], f"{float(first) + 1:g}", *r[3:]] for r in rows if r[2] == first]
+    return ("\n".join([header, *(",".join(r) for r in [*rows, *extra])]) + "\n").encode()
+
+
 def test_a_reading_lost_inside_the_span_costs_its_case(upload_csv):
     """A reading lost in the middle of the span (a dust spot) would drop everything beyond it
     from every case; leaving that case out sets aside far fewer measured samples, so the case
-    goes, named in the answer; the other cases keep every position."""
+    goes, named in the answer; the other cases keep every position. On the smallest grid
+    that gets a served beam, a case left out leaves it below that grid: refused."""
+    # the smallest grid less a case: refused, saying to measure it again
+    n = check(upload_csv)[0].positions_m.size
+    message = refused(_with_unmeasured(upload_csv, {(4, n // 2): "NaN"})[0])
+    assert "44 load cases (1 left out for unmeasured samples inside the span: measure it " in (
+        message
+    )
+    assert "are fewer than the 45 of the smallest grid" in message
+    upload_csv = _one_more_load(upload_csv)
     plain, _, _ = check(upload_csv)
     n, cases = plain.positions_m.size, plain.loads_n.size
     text, _ = _with_unmeasured(upload_csv, {(4, n // 2): "NaN", (9, n // 3): ""})
@@ -556,6 +574,25 @@ def test_a_reading_lost_inside_the_span_costs_its_case(upload_csv):
     data, _, figures = check(_with_unmeasured(upload_csv, {(4, k): "" for k in range(n)})[0])
     assert data.loads_n.size == cases - 1
     assert figures["unmeasured"]["measured_samples_set_aside"] == 0
+
+
+def test_a_case_left_out_takes_its_twin_on_the_other_side(upload_csv):
+    """Left and right profiles of a load case are averaged: a case left out for a reading lost
+    inside the span takes its twin with it, and the cases kept still pair up."""
+    header, rows = rows_of(_one_more_load(upload_csv))
+    n = check(upload_csv)[0].positions_m.size
+    sides = [[r[0], side, *r[2:]] for side in ("left", "right") for r in rows]
+    lost = len(rows) + 6 * n + n // 2  # the right side's seventh case, mid-span
+    sides[lost][5] = "NaN"
+    data, _, figures = check("\n".join([header, *(",".join(r) for r in sides)]) + "\n")
+    left_out = figures["unmeasured"]["cases_dropped"]
+    assert [c.split(",")[0] for c in left_out] == ["side=left", "side=right"], left_out
+    assert (
+        left_out[0].split(" (line")[0].split(", ", 1)[1]
+        == (left_out[1].split(" (line")[0].split(", ", 1)[1])
+    )
+    assert data.loads_n.size == 2 * (len(rows) // n - 1)
+    assert figures["measured_side"] == "left+right"
 
 
 def test_unmeasured_gaps_that_would_cost_too_much_are_refused_with_the_case(upload_csv):
