@@ -413,6 +413,13 @@ def _unit_hint(key: str) -> str:
     return ""
 
 
+#: a column name that carries a load (``40kg``, ``60 kg @ -100 mm``, ``F=40``): a sheet with one
+#: column of gaps per load case
+_KG = re.compile(
+    r"\d\s*(kg|kp|kgf|n)(?![a-z])|^\s*[-+]?\d+([.,]\d+)?\s*$|\bf\s*=\s*\d", re.IGNORECASE
+)
+
+
 def _header_columns(cells: list[str], lineno: int = 1) -> tuple[list[int], list[int]]:
     """Index of each of :data:`CSV_COLUMNS` in the header cells (:func:`_column_key`: "Load
     (kg)" is ``load_kg``; -1: an optional column left out), and the indices of the other named
@@ -446,6 +453,16 @@ def _header_columns(cells: list[str], lineno: int = 1) -> tuple[list[int], list[
         problems.append("repeated " + ", ".join(doubled))
     if unnamed and not missing:
         problems.append(f"column {unnamed[0]} has no name")
+    numbered = [
+        c for c, k in zip(cells, keys, strict=True) if k not in CSV_COLUMNS and _KG.search(c)
+    ]
+    if "load_kg" in missing and "gap_mm" in missing and len(numbered) >= 2:
+        problems.append(
+            f"{', '.join(repr(c) for c in numbered[:3])} look like one column of gaps per load "
+            "case: the file needs one row per sample, the load case in its own columns; unpivot "
+            "the sheet into columns load_kg, load_position_mm, position_mm, gap_mm (the example "
+            "CSV on /upload shows the layout)"
+        )
     if problems:
         raise InputError(
             f"line {lineno}: header must name the columns {expected} (any order, any case; a "

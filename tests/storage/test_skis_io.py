@@ -251,3 +251,29 @@ def test_sides_written_l_and_r_read_as_left_and_right():
     assert short.sides == plain.sides == ["left", "left"]
     np.testing.assert_array_equal(short.profiles_m, plain.profiles_m)
     assert read_camber_csv(_csv([r.replace(",mean,", ",r,") for r in GOOD])).sides[0] == "right"
+
+
+@pytest.mark.parametrize(
+    "header",
+    [
+        "position_mm;40 kg @ -100 mm;60 kg @ -100 mm",
+        "Position (mm),40kg,60kg,80kg",
+        "x_mm,gap_40kg_-100mm,gap_60kg_-100mm",
+        "position_mm,40,60",
+    ],
+)
+def test_a_sheet_with_one_column_per_load_case_is_told_to_unpivot(header):
+    """A spreadsheet layout with one column of gaps per load case (the load in the column's
+    name) is refused with how to lay it out: one row per sample."""
+    sep = ";" if ";" in header else ","
+    with pytest.raises(InputError) as info:
+        read_camber_csv(header + "\n" + sep.join(["-970"] + ["1"] * header.count(sep)) + "\n")
+    message = str(info.value)
+    assert "look like one column of gaps per load case" in message, message
+    assert (
+        "unpivot the sheet into columns load_kg, load_position_mm, position_mm, gap_mm" in message
+    )
+    # a header that names the load column is not told so
+    with pytest.raises(InputError) as info:
+        read_camber_csv("ski_id,side,load_kg,position_mm,gap_mm,temp_1n\n")
+    assert "one column of gaps per load case" not in str(info.value)
