@@ -11,6 +11,9 @@ the true beam's where H* < 0.2 mm.
     python scripts/case_loss_study.py --designs random-701 touring-classic skate \\
         --grid coarse --spacing-mm 5 --lose 0 1 2 --out docs/studies/case-loss-coarse.json \\
         --md docs/studies/case-loss-coarse.md
+
+``--designs example`` runs the example file of ``/upload`` (demo ski A), each seed another draw
+of the cases left out.
 """
 
 from __future__ import annotations
@@ -35,10 +38,33 @@ from skisnow.solvers.ski_designs import get_design
 BAND_M = 0.2e-3
 
 
+#: ``--designs example``: the example file of ``/upload`` (demo ski A, 9 × 5 every 5 mm, the
+#: unloaded profile), its true beam the demo ski's; the seed then only draws the cases left out
+EXAMPLE = "example"
+
+
+def _example() -> tuple:
+    """The example file's measurements and demo ski A's true beam."""
+    import tempfile
+
+    from skisnow.app.storage.skis import SHIPPED_SKI_DIR, read_camber_csv, read_ski
+    from skisnow.app.web.upload_page import EXAMPLE_SKI, example_camber_csv
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "example.csv"
+        path.write_text(example_camber_csv())
+        data = read_camber_csv(path)
+    return data, read_ski(SHIPPED_SKI_DIR / f"{EXAMPLE_SKI}.h5").beam
+
+
 def run_one(design: str, grid: str, spacing_mm: float, lose: int, seed: int) -> dict:
     """One identification of ``design`` measured on ``grid`` with ``lose`` cases left out."""
-    truth = get_design(design).build(st.SPACING_M)
-    data = st.camber_data(design, truth, grid, seed, True, spacing_mm)
+    if design == EXAMPLE:
+        data, truth = _example()
+        grid, spacing_mm = "coarse", data.sample_spacing_mm
+    else:
+        truth = get_design(design).build(st.SPACING_M)
+        data = st.camber_data(design, truth, grid, seed, True, spacing_mm)
     f, xf, y, _ = mean_profiles(data)
     held = draw_held_out(f, xf)
     loaded = np.flatnonzero(f > 0)

@@ -642,8 +642,10 @@ def _check_zero(data, unloaded: np.ndarray) -> None:
 #: profile measured), per number left out: (served, skis). Measured 2026-12-07 (``python
 #: scripts/case_loss_study.py --designs random-701 random-702 random-703 random-704 race-classic
 #: touring-classic asymmetric binding-plate offcentre-peak skate mid-classic forward-plate
-#: --seeds 11 12 --lose 0 1 2 3``; docs/studies/case-loss-coarse.md); the complete grid 24 of 24
-CASE_LOSS_SERVED = {1: (24, 24), 2: (24, 24), 3: (23, 24)}
+#: --seeds 11 12 --lose 0 1 2 3``, docs/studies/case-loss-coarse.md: 24 / 24 / 23 of 24, the
+#: complete grid 24 of 24; and ``--designs example --seeds 11 12 13 14 15 --lose 1 2 3``, the
+#: example file of /upload, docs/studies/case-loss-example.md: 4 / 5 / 4 of 5)
+CASE_LOSS_SERVED = {1: (28, 29), 2: (29, 29), 3: (27, 29)}
 
 
 def case_loss_note(n_cases: int, left_out: int) -> str | None:
@@ -655,14 +657,14 @@ def case_loss_note(n_cases: int, left_out: int) -> str | None:
     measured = CASE_LOSS_SERVED.get(left_out)
     how = (
         f"with {left_out} left out a beam was served on {measured[0]} of {measured[1]} measured "
-        "skis"
+        "files"
         if measured
         else f"more than {max(CASE_LOSS_SERVED)} left out was not measured"
     )
     return (
         f"{n_cases} load cases after leaving out {left_out}, fewer than the {need} of the "
         f"smallest grid that gets a served beam ({MIN_GRID_LOADS} × {MIN_GRID_LOAD_POSITIONS}; "
-        f"{how}, docs/studies/case-loss-coarse.md): measuring "
+        f"{how}, docs/uploads.md): measuring "
         f"{'it' if left_out == 1 else 'them'} again is the surer way"
     )
 

@@ -39,8 +39,9 @@ def test_the_upload_note_states_the_committed_study():
     from skisnow.app.jobs.uploads import CASE_LOSS_SERVED
 
     rows = json.loads((REPO / "docs/studies/case-loss-coarse.json").read_text())["rows"]
+    complete = [r for r in rows if r["cases_left_out"] == 0]
+    assert all(r["served"] for r in complete) and len(complete) == 24
+    rows += json.loads((REPO / "docs/studies/case-loss-example.json").read_text())["rows"]
     for k, (served, skis) in CASE_LOSS_SERVED.items():
         these = [r for r in rows if r["cases_left_out"] == k]
         assert (sum(r["served"] for r in these), len(these)) == (served, skis), k
-    complete = [r for r in rows if r["cases_left_out"] == 0]
-    assert all(r["served"] for r in complete) and len(complete) == 24
