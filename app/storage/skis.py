@@ -954,14 +954,13 @@ def uniform_grid(
             "nothing)"
         )
     a, b, t, j = best
-    dev = x - (a + b * j)
     if t > 1 + 1e-6:
         # named: the position farthest from a robust line (a lone misplaced position stands
         # out there; the closest grid spreads its offset over all)
         b = float(np.median(np.diff(x) / np.diff(j)))
         a = float(np.median(x - b * j))
-        worst = int(np.argmax(np.abs(x - a - b * j) / tol))
         dev = x - (a + b * j)
+        worst = int(np.argmax(np.abs(dev) / tol))
         unit = float(unit_mm[worst])
         written = f"written to {unit:g} mm" if unit > 0 else "written exactly"
         raise InputError(
