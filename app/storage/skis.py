@@ -1164,25 +1164,33 @@ def unmeasured_note(data: CamberData) -> str | None:
             f"{len(absent)} position{'s' if len(absent) > 1 else ''} of the grid absent from "
             f"every case ({mm_ranges(absent)})"
         )
-    done = []
-    if dropped:
-        done.append(
-            f"the {len(dropped)} positions outside it ({mm_ranges(dropped)}) are dropped from "
-            "every case"
-        )
-    if left_out:
-        n = len(left_out)
-        shown = "; ".join(left_out[:3]) + (f"; {n - 3} more" if n > 3 else "")
-        done.append(
-            f"{'the case' if n == 1 else f'the {n} cases'} with an unmeasured sample inside it "
-            f"{'is' if n == 1 else 'are'} left out ({shown})"
-        )
+    done = dropped_words(dropped, left_out)
     return (
         f"{' and '.join(what)}: the cases keep one stretch of the grid, "
         f"{mm_ranges(data.positions_m * 1e3)}; {' and '.join(done)}, "
         f"{data.dropped_measured_samples} measured samples with them; nothing is filled in "
         "(unmeasured=refuse refuses such files)"
     )
+
+
+def dropped_words(dropped_mm, left_out, *, past: bool = False) -> list[str]:
+    """The positions dropped from every case and the cases left out (``side=… (line …)``), in
+    words: the upload's note (present) and the ski page's (``past``)."""
+    out = []
+    if dropped_mm:
+        out.append(
+            f"the {len(dropped_mm)} positions outside the stretch kept ({mm_ranges(dropped_mm)}) "
+            f"{'were' if past else 'are'} dropped from every case"
+        )
+    if left_out:
+        n = len(left_out)
+        shown = "; ".join(left_out[:3]) + (f"; {n - 3} more" if n > 3 else "")
+        verb = ("was" if n == 1 else "were") if past else ("is" if n == 1 else "are")
+        out.append(
+            f"{'the case' if n == 1 else f'the {n} cases'} with an unmeasured sample inside it "
+            f"{verb} left out ({shown})"
+        )
+    return out
 
 
 def reading_notes(data: CamberData) -> list[str]:

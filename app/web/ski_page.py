@@ -18,7 +18,7 @@ from skisnow.app import service, units
 from skisnow.app.jobs.uploads import sampling_note
 from skisnow.app.service.profiles import CHOICE_RULE, model_choice
 from skisnow.app.service.ski_figures import ski_figures
-from skisnow.app.storage.skis import mm_ranges
+from skisnow.app.storage.skis import dropped_words, mm_ranges
 from skisnow.app.web.form import DEFAULTS, NUMERIC, metadata_label, ski_url
 from skisnow.app.web.templating import DELETE_JS, JS, fmt, page, svg
 from skisnow.solvers.band import Z90
@@ -87,19 +87,7 @@ def _unmeasured_note(metadata: dict) -> str | None:
     if absent:
         plural = "s" if len(absent) > 1 else ""
         why += f" and {len(absent)} position{plural} of the grid ({mm_ranges(absent)}) none"
-    done = []
-    if dropped:
-        done.append(
-            f"the {len(dropped)} positions outside the stretch kept ({mm_ranges(dropped)}) were "
-            "dropped from every case"
-        )
-    if left_out:
-        n = len(left_out)
-        shown = "; ".join(left_out[:3]) + (f"; {n - 3} more" if n > 3 else "")
-        done.append(
-            f"{n} case{'s' if n > 1 else ''} with an unmeasured sample inside it "
-            f"{'were' if n > 1 else 'was'} left out ({shown})"
-        )
+    done = dropped_words(dropped, left_out, past=True)
     return f"{why}: {' and '.join(done)}; nothing was filled in" + (
         f"; {rounded}" if rounded else ""
     )

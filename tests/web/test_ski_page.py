@@ -573,7 +573,7 @@ def test_a_ski_whose_file_had_unmeasured_samples_says_which_positions_went(clien
         in (note.group(1))
     )
     assert (
-        "1 case with an unmeasured sample inside it was left out (side=mean, load_kg=40, "
+        "the case with an unmeasured sample inside it was left out (side=mean, load_kg=40, "
         "load_position_mm=0 (line 9))" in note.group(1)
     )
 
