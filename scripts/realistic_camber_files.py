@@ -156,6 +156,41 @@ def variants() -> dict[str, tuple[str, str, str]]:
         "\n".join([*wide, "-970,1.2,1.1,1.0"]) + "\n",
     )
     v["workbook"] = ("the sheet sent as .xlsx", "ski.xlsx", text(rows))
+    # passes started late (the first 1-3 rows not written) in 6 cases, one stopped early
+    short = {cases[k]: (k % 3 + 1, 0) for k in range(2, 14, 2)} | {cases[30]: (0, 2)}
+    ragged = []
+    for key in cases:
+        mine = [r for r in rows if (r[load], r[at]) == key]
+        head, tail = short.get(key, (0, 0))
+        ragged += mine[head : len(mine) - tail]
+    v["late-starts"] = (
+        "passes started late (1-3 rows not written) in 6 cases, one stopped early",
+        "ski.csv",
+        text(ragged),
+    )
+    v["other-header-names"] = (
+        "the columns named Weight (kg), LoadPos(mm), Pos (mm), Height (mm)",
+        "ski.csv",
+        text(rows, "ski_id,side,Weight (kg),LoadPos(mm),Pos (mm),Height (mm)"),
+    )
+    v["shifted-case"] = (
+        "one case's positions 2 mm off the others'",
+        "ski.csv",
+        text(
+            [
+                [*r[:pos], f"{float(r[pos]) + 2:g}", *r[pos + 1 :]]
+                if (r[load], r[at]) == cases[7]
+                else r
+                for r in rows
+            ]
+        ),
+    )
+    twice = rows.index(next(r for r in rows if (r[load], r[at]) == cases[9])) + 40
+    v["sample-twice"] = (
+        "one sample written twice",
+        "ski.csv",
+        text([*rows[: twice + 1], rows[twice], *rows[twice + 1 :]]),
+    )
     return v
 
 

@@ -135,6 +135,7 @@ def run_ski_job(ctx: JobContext, layout: Layout, settings: Settings, on_ready) -
         | {
             "unmeasured": str(item.metadata.get("unmeasured", "drop")),
             "unmeasured_samples": str(data.unmeasured_samples),
+            "omitted_samples": str(data.omitted_samples),
             "positions_dropped_mm": json.dumps(list(data.dropped_positions_mm)),
             "positions_absent_mm": json.dumps(list(data.absent_positions_mm)),
             "cases_dropped": json.dumps(list(data.dropped_cases)),

@@ -584,9 +584,19 @@ def sampling_note(spacing_mm: float) -> str | None:
     )
 
 
+#: positions typed in another unit: (mm per unit, the unit, what to do); a span that covers
+#: the ski once multiplied by the factor is said to be in that unit
+_OTHER_LENGTH_UNITS = (
+    (10.0, "cm", "multiply cm by 10"),
+    (25.4, "inches", "multiply inches by 25.4"),
+    (1000.0, "m", "multiply m by 1000"),
+)
+
+
 def _check_span(x_mm: np.ndarray, length_mm: float) -> None:
     """The measured span covers at least :data:`MIN_SPAN_FRACTION` of ``length_mm``; a span of
-    about a tenth of it is positions typed in cm, said so."""
+    about a tenth of it is positions typed in cm, said so (inches and m likewise,
+    :data:`_OTHER_LENGTH_UNITS`)."""
     span_mm = float(x_mm[-1] - x_mm[0])
     if span_mm > length_mm + 1e-6:
         raise InputError(
@@ -604,12 +614,13 @@ def _check_span(x_mm: np.ndarray, length_mm: float) -> None:
                 f"{end} (about {length_mm / 2:g} mm on a {length_mm:g} mm ski)"
             )
         return
-    if MIN_SPAN_FRACTION * length_mm <= 10 * span_mm <= length_mm + 1e-6:
-        raise InputError(
-            f"file: positions look like cm: the measured span {span_mm:g} mm "
-            f"({x_mm[0]:g} … {x_mm[-1]:g}) is about 1/10 of length_mm {length_mm:g}; "
-            "position_mm and load_position_mm are in mm (multiply cm by 10)"
-        )
+    for factor, unit, how in _OTHER_LENGTH_UNITS:
+        if MIN_SPAN_FRACTION * length_mm <= factor * span_mm <= length_mm + 1e-6:
+            raise InputError(
+                f"file: positions look like {unit}: the measured span {span_mm:g} mm "
+                f"({x_mm[0]:g} … {x_mm[-1]:g}) is about 1/{factor:g} of length_mm "
+                f"{length_mm:g}; position_mm and load_position_mm are in mm ({how})"
+            )
     raise InputError(
         f"file: the measured span {span_mm:g} mm covers {100 * span_mm / length_mm:.0f} % of "
         f"length_mm {length_mm:g}; measure at least {100 * MIN_SPAN_FRACTION:.0f} % of the "
@@ -815,10 +826,14 @@ def check_ski_upload(
         "columns_not_in_file": list(camber_data.defaulted_columns),
         # named columns the reader does not read (a device's time stamp, temperature)
         "columns_ignored": list(camber_data.ignored_columns),
+        # columns read by another name of theirs ("'pos (mm)' as position_mm")
+        "columns_renamed": list(camber_data.renamed_columns),
         # samples without a gap and the positions dropped for them (unmeasured=drop)
         "unmeasured": {
             "choice": unmeasured,
             "samples": camber_data.unmeasured_samples,
+            # samples of the grid a case does not list (rows left out of the file)
+            "samples_not_listed": camber_data.omitted_samples,
             "positions_dropped_mm": list(camber_data.dropped_positions_mm),
             "measured_samples_set_aside": camber_data.dropped_measured_samples,
             # grid positions no case lists (a device that skipped a step), read as unmeasured
@@ -847,6 +862,8 @@ def _upload_notes(camber_data, spacing_mm: float, n_cases: int) -> list[str]:
             f"loads read in {camber_data.load_unit_in_file} as kg (the weight of one kg: the "
             "same numbers)"
         )
+    if camber_data.renamed_columns:
+        notes.append("columns read by another name: " + ", ".join(camber_data.renamed_columns))
     for item in camber_data.defaulted_columns:
         column, value = item.split("=", 1)
         notes.append(f"no {column} column: {column} {value}")

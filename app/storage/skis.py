@@ -111,6 +111,9 @@ class CamberData:
         (:data:`OPTIONAL_CSV_COLUMNS`).
     ignored_columns : tuple of str
         Named columns of the CSV that are not read (as the header wrote them, lower case).
+    renamed_columns : tuple of str
+        Columns read by another name of theirs (:data:`COLUMN_SYNONYMS`), as ``"'pos (mm)' as
+        position_mm"``.
     unmeasured_samples : int
         Samples the CSV gave no gap (:data:`UNMEASURED_TOKENS`: empty, ``NaN``, ``-`` …).
     dropped_positions_mm : tuple of float
@@ -131,6 +134,10 @@ class CamberData:
         Cases left out whole for an unmeasured sample inside the kept stretch (``side=…,
         load_kg=…, load_position_mm=… (line …)``; ``unmeasured="drop"``): where that sets aside
         fewer measured samples than dropping positions from every case.
+    omitted_samples : int
+        Samples of the grid a case does not list while other cases do (a device started late
+        or stopped early, a pass at twice the step): read as unmeasured, handled as
+        ``unmeasured`` says.
     """
 
     ski_id: str
@@ -143,12 +150,14 @@ class CamberData:
     load_unit_in_file: str = "kg"
     defaulted_columns: tuple[str, ...] = ()
     ignored_columns: tuple[str, ...] = ()
+    renamed_columns: tuple[str, ...] = ()
     unmeasured_samples: int = 0
     dropped_positions_mm: tuple[float, ...] = ()
     dropped_measured_samples: int = 0
     position_shift_mm: float = 0.0
     absent_positions_mm: tuple[float, ...] = ()
     dropped_cases: tuple[str, ...] = ()
+    omitted_samples: int = 0
 
     @property
     def sample_spacing_mm(self) -> float:
@@ -403,6 +412,55 @@ def _column_key(cell: str) -> str:
     return name
 
 
+#: units a column name may end with, without brackets (``pos_mm``), as :func:`_column_key`
+#: writes them: the longest first
+_NAME_UNITS = ("kgf", "mm", "um", "cm", "kg", "kp", "in", "lb", "m", "n", "g")
+#: other names a header may give a column (as :func:`_column_key` writes them, the unit apart):
+#: read as the column when the unit is given ("Pos (mm)", "Height [mm]", "load_pos_mm"; the
+#: upload's notes and :attr:`CamberData.renamed_columns` say so); without a unit the refusal
+#: names the column to write
+COLUMN_SYNONYMS = {
+    "position": ("pos", "x", "distance", "dist", "station"),
+    "load": ("weight", "mass", "force", "f"),
+    "load_position": (
+        "load_pos",
+        "loadpos",
+        "loadposition",
+        "load_at",
+        "load_x",
+        "x_load",
+        "xf",
+        "x_f",
+        "load_location",
+    ),
+    "gap": ("height", "gap_height", "camber", "camber_height", "clearance", "h"),
+}
+_SYNONYM_BASE = {name: base for base, names in COLUMN_SYNONYMS.items() for name in names}
+
+
+def _split_unit(key: str) -> tuple[str, str]:
+    """A column key as its name and unit (``load_pos_mm`` → ``("load_pos", "mm")``; no unit:
+    ``(key, "")``)."""
+    for unit in _NAME_UNITS:
+        if key.endswith("_" + unit) and len(key) > len(unit) + 1:
+            return key[: -len(unit) - 1], unit
+    return key, ""
+
+
+def _synonym_key(key: str) -> tuple[str, str]:
+    """The key a column of another name is read as (:data:`COLUMN_SYNONYMS`: ``pos_mm`` →
+    ``position_mm``), or ``key`` itself; and, for a known column named without a unit
+    ("Gap", "Pos"), the hint of what to write, else ''."""
+    name, unit = _split_unit(key)
+    base = _SYNONYM_BASE.get(name, name if name in _COLUMN_UNITS else None)
+    if base is None:
+        return key, ""
+    if not unit:
+        want = _COLUMN_UNITS[base]
+        return key, f" (no unit: name it {base}_{want} if it is in {want})"
+    return f"{base}_{unit}", ""
+
+
 def _unit_hint(key: str) -> str:
     """For an unknown column that is a known one in another unit, what to change."""
     for base, unit in _COLUMN_UNITS.items():
@@ -420,21 +478,43 @@ _KG = re.compile(
 )
 
 
-def _header_columns(cells: list[str], lineno: int = 1) -> tuple[list[int], list[int]]:
-    """Index of each of :data:`CSV_COLUMNS` in the header cells (:func:`_column_key`: "Load
-    (kg)" is ``load_kg``; -1: an optional column left out), and the indices of the other named
-    columns, which are not read (a device's time stamp or temperature). Empty trailing cells
-    (a trailing separator, empty spreadsheet columns) are ignored. Refused: a needed column
-    missing or repeated (the other columns named, a known one in another unit with the
-    conversion to make), or a column without a name among the named ones."""
+@dataclass(frozen=True)
+class _Header:
+    """What a camber CSV's header says: the index of each of :data:`CSV_COLUMNS` (-1: an
+    optional column left out), the indices of the named columns not read, the load's unit in
+    the file (``kg``, ``kgf``, ``kp``) and the columns read by another name (``"'pos (mm)' as
+    position_mm"``)."""
+
+    idx: list[int]
+    ignored: list[int]
+    load_unit: str
+    renamed: tuple[str, ...]
+
+
+def _header_columns(cells: list[str], lineno: int = 1) -> _Header:
+    """The columns of the header cells (:func:`_column_key`: "Load (kg)" is ``load_kg``; another
+    name of a column with its unit, :data:`COLUMN_SYNONYMS`: "Pos (mm)" is ``position_mm``),
+    the other named columns not read (a device's time stamp or temperature). Empty trailing
+    cells (a trailing separator, empty spreadsheet columns) are ignored. Refused: a needed
+    column missing or repeated (the other columns named, a known one in another unit with the
+    conversion to make, one without a unit with the name to write), or a column without a name
+    among the named ones."""
     while cells and not cells[-1]:
         cells = cells[:-1]
-    keys = [_column_key(c) for c in cells]
-    keys = ["load_kg" if k.startswith("load_") and _reads_as(k[5:], "kg") else k for k in keys]
+    raw = [_column_key(c) for c in cells]
+
+    def column(k: str) -> str:  # kgf / kp read as kg
+        return "load_kg" if k.startswith("load_") and _reads_as(k[5:], "kg") else k
+
+    named = [k if k in CSV_COLUMNS else _synonym_key(k)[0] for k in raw]
+    # a column named by its own name wins over another name of it (that one is not read)
+    own = {column(r) for r in raw} & set(CSV_COLUMNS)
+    named = [r if n != r and column(n) in own else n for n, r in zip(named, raw, strict=True)]
+    keys = [column(k) for k in named]
     expected = ",".join(CSV_COLUMNS)
     unknown = [
-        (repr(c) if c else "'(empty)'") + _unit_hint(k)
-        for c, k in zip(cells, keys, strict=True)
+        (repr(c) if c else "'(empty)'") + (_unit_hint(k) or _synonym_key(r)[1])
+        for c, k, r in zip(cells, keys, raw, strict=True)
         if k not in CSV_COLUMNS
     ]
     if cells and cells[0] == "" and keys[0] not in CSV_COLUMNS:
@@ -450,7 +530,13 @@ def _header_columns(cells: list[str], lineno: int = 1) -> tuple[list[int], list[
     if unknown and (missing or doubled or unnamed):
         problems.append(f"other column(s) {', '.join(unknown)} (remove or rename them)")
     if doubled:
-        problems.append("repeated " + ", ".join(doubled))
+        problems.append(
+            "repeated "
+            + ", ".join(
+                f"{d} ({', '.join(repr(c) for c, k in zip(cells, keys, strict=True) if k == d)})"
+                for d in doubled
+            )
+        )
     if unnamed and not missing:
         problems.append(f"column {unnamed[0]} has no name")
     numbered = [
@@ -471,7 +557,17 @@ def _header_columns(cells: list[str], lineno: int = 1) -> tuple[list[int], list[
             f"{','.join(cells) or 'an empty line'}: " + "; ".join(problems)
         )
     idx = [keys.index(c) if c in keys else -1 for c in CSV_COLUMNS]
-    return idx, [i for i, k in enumerate(keys) if k not in CSV_COLUMNS]
+    renamed = tuple(
+        f"{c!r} as {k}"
+        for c, k, r in zip(cells, keys, raw, strict=True)
+        if k in CSV_COLUMNS and _split_unit(r)[0] in _SYNONYM_BASE
+    )
+    return _Header(
+        idx=idx,
+        ignored=[i for i, k in enumerate(keys) if k not in CSV_COLUMNS],
+        load_unit=named[idx[2]][len("load_") :],  # kg, or kgf / kp read as kg
+        renamed=renamed,
+    )
 
 
 def _sniff_codec(head: bytes) -> str | None:
@@ -654,7 +750,8 @@ def read_camber_csv(
             continue
         break
     sep, cells = _split_header(first, sep_line)
-    idx, ignored = _header_columns(cells, header_line)
+    header = _header_columns(cells, header_line)
+    idx, ignored = header.idx, header.ignored
     readable = set(idx) | set(ignored)  # a value elsewhere has no column name
     if default_ski_id is None:
         default_ski_id = Path(source).stem if _is_path(source) else "ski"
@@ -662,7 +759,6 @@ def read_camber_csv(
     defaulted = tuple(
         f"{c}={defaults[c]}" for c, k in zip(CSV_COLUMNS[:2], idx[:2], strict=True) if k < 0
     )
-    load_unit = _column_key(cells[idx[2]])[len("load_") :]  # kg, or kgf / kp read as kg
     width = max(idx) + 1
     decimal: list[str] = [""] if sep == "," else []
     ski_id: str | None = None
@@ -799,6 +895,12 @@ def read_camber_csv(
                         "twice; keep one pass per case in the file (or average the passes "
                         "yourself, and say so in the notes)"
                     )
+                if pos == xs[-1]:
+                    raise InputError(
+                        f"line {lineno}: position_mm {pos:g} of case side={side}, "
+                        f"load_kg={load_kg:g}, load_position_mm={load_pos:g} is written twice "
+                        "(the line before lists it too): keep one sample per position"
+                    )
                 raise InputError(
                     f"line {lineno}: position_mm {pos:g} is not {way} than the previous "
                     f"position {xs[-1]:g} of case side={side}, load_kg={load_kg:g}, "
@@ -814,18 +916,7 @@ def read_camber_csv(
     if order < 0:  # listed from the tip: the same samples, kept in increasing order
         cases = {k: (xs[::-1], gs[::-1], line) for k, (xs, gs, line) in cases.items()}
     keys = list(cases)
-    grid = np.asarray(cases[keys[0]][0])
-    for key in keys[1:]:
-        xs, _, first_line = cases[key]
-        if len(xs) != grid.size or not np.allclose(xs, grid, rtol=0, atol=1e-9):
-            raise InputError(
-                f"line {first_line}: case side={key[0]}, load_kg={key[1]:g}, "
-                f"load_position_mm={key[2]:g} has {len(xs)} positions "
-                f"({xs[0]:g}..{xs[-1]:g} mm) but the first case has {grid.size} "
-                f"({grid[0]:g}..{grid[-1]:g} mm): all cases must share one sampling grid (a "
-                "device that records each pass at its own positions: interpolate every case "
-                "onto the first case's positions; the upload resamples nothing)"
-            )
+    grid = _shared_positions(cases, keys)
     if grid.size < 2:
         raise InputError("each case needs at least 2 positions")
     units = np.array([written[v][0] for v in grid])
@@ -838,10 +929,28 @@ def read_camber_csv(
             "unmeasured=drop (every case then keeps the longest stretch of positions that every "
             "case measured)"
         )
+    listed = np.full((len(keys), grid.size), np.nan)
+    omitted = np.zeros((len(keys), full.size), dtype=bool)  # rows a case does not list
+    for row, key in enumerate(keys):
+        xs, gs, _ = cases[key]
+        where = np.searchsorted(grid, xs)
+        listed[row, where] = gs
+        omitted[row, at] = True
+        omitted[row, at[where]] = False
+    if omitted.any() and unmeasured == "refuse":
+        row = int(np.argmax(omitted.any(axis=1)))
+        side, load_kg, load_pos = keys[row]
+        raise InputError(
+            f"line {cases[keys[row]][2]}: case side={side}, load_kg={load_kg:g}, "
+            f"load_position_mm={load_pos:g} does not list {int(omitted[row].sum())} of the "
+            f"positions other cases list ({mm_ranges(full[omitted[row]])}), refused "
+            "(unmeasured=refuse): upload with unmeasured=drop (every case then keeps the "
+            "longest stretch of positions that every case measured)"
+        )
     profiles_mm = np.full((len(keys), full.size), np.nan)
-    profiles_mm[:, at] = np.array([cases[k][1] for k in keys], dtype=float)
+    profiles_mm[:, at] = listed
     keep, keep_cases, dropped_measured = _drop_unmeasured(
-        profiles_mm, full, keys, cases, unmeasured_first, absent
+        profiles_mm, full, keys, cases, unmeasured_first, absent, omitted
     )
     left_out = tuple(
         f"side={s}, load_kg={f:g}, load_position_mm={xf:g} (line {cases[(s, f, xf)][2]})"
@@ -857,7 +966,8 @@ def read_camber_csv(
         sides=[k[0] for k in keys],
         profiles_m=profiles_mm[np.ix_(keep_cases, keep)] * 1e-3,
         read_descending=order < 0,
-        load_unit_in_file=load_unit,
+        load_unit_in_file=header.load_unit,
+        renamed_columns=header.renamed,
         defaulted_columns=defaulted,
         ignored_columns=tuple(cells[k] for k in ignored),
         unmeasured_samples=n_unmeasured,
@@ -866,6 +976,48 @@ def read_camber_csv(
         position_shift_mm=shift,
         absent_positions_mm=tuple(float(v) for v in full[absent]),
         dropped_cases=left_out,
+        omitted_samples=int(omitted.sum()),
+    )
+
+
+#: a case that lists fewer than this share of the positions the cases list between them is
+#: refused (a typo in its load_kg or load_position_mm that starts a case of its own), not read
+#: as a case with rows left out
+MIN_LISTED_SHARE = 0.25
+
+
+def _shared_positions(cases: dict, keys: list) -> np.ndarray:
+    """The positions the cases list between them [mm] (sorted): a case may leave out rows of
+    the others' grid (a device started late, or stopped early; a pass at twice the step), read
+    as its unmeasured samples. Refused, naming the case against the first one: a case with
+    positions between the others' (a case's grid shifted: the positions then interleave, their
+    smallest step under half the cases' own or their median step under 3/4 of it), or a case
+    listing under :data:`MIN_LISTED_SHARE` of them."""
+    first = np.asarray(cases[keys[0]][0], dtype=float)
+    if all(np.array_equal(cases[k][0], first) for k in keys[1:]):
+        return first  # one list of positions in every case (uniform_grid judges it)
+    shared = np.unique(np.concatenate([np.asarray(cases[k][0], dtype=float) for k in keys]))
+    steps = np.concatenate([np.diff(cases[k][0]) for k in keys])
+    step = float(np.median(steps)) if steps.size else 0.0
+    few = [k for k in keys if len(cases[k][0]) < MIN_LISTED_SHARE * shared.size]
+    gaps = np.diff(shared)
+    interleaved = shared.size > 1 and (
+        float(np.min(gaps)) < 0.5 * step or float(np.median(gaps)) < 0.75 * step
+    )
+    outside = [k for k in keys if not np.isin(cases[k][0], first).all()]
+    if not (few or (interleaved and outside)):
+        return shared  # rows left out of one grid (an uneven grid: uniform_grid says where)
+    bad = few[0] if few else outside[0]
+    xs, _, first_line = cases[bad]
+    raise InputError(
+        f"line {first_line}: case side={bad[0]}, load_kg={bad[1]:g}, "
+        f"load_position_mm={bad[2]:g} has {len(xs)} positions "
+        f"({xs[0]:g}..{xs[-1]:g} mm) but the first case has {first.size} "
+        f"({first[0]:g}..{first[-1]:g} mm): all cases must share one sampling grid (a "
+        "device that records each pass at its own positions: interpolate every case "
+        "onto the first case's positions; the upload resamples nothing"
+        + ("; a case of a few rows: check its load_kg and load_position_mm" if few else "")
+        + ")"
     )
 
 
@@ -1065,6 +1217,7 @@ def _drop_unmeasured(
     cases: dict,
     first_line: int | None,
     absent: np.ndarray | None = None,
+    omitted: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, int]:
     """The positions and the cases to keep, and how many measured samples the rest sets
     aside: the cheapest of one uniform stretch of positions (as the beam's identification
@@ -1077,7 +1230,8 @@ def _drop_unmeasured(
         return np.ones(missing.shape[1], dtype=bool), np.ones(missing.shape[0], dtype=bool), 0
     measured = int(np.count_nonzero(~missing))
     absent = np.zeros(missing.shape[1], dtype=bool) if absent is None else absent
-    listed = missing[:, ~absent]  # the samples the file lists without a gap
+    omitted = np.zeros(missing.shape, dtype=bool) if omitted is None else omitted
+    listed = (missing & ~omitted)[:, ~absent]  # the samples the file lists without a gap
     parts = []
     if listed.any():
         worst = int(np.argmax(listed.sum(axis=1)))
@@ -1086,6 +1240,15 @@ def _drop_unmeasured(
             f"{int(listed.sum())} unmeasured samples (the first at line {first_line}; the most "
             f"in case side={side}, load_kg={load_kg:g}, load_position_mm={load_pos:g}, line "
             f"{cases[keys[worst]][2]}: {int(listed[worst].sum())} of {listed.shape[1]})"
+        )
+    if omitted.any():
+        worst = int(np.argmax(omitted.sum(axis=1)))
+        side, load_kg, load_pos = keys[worst]
+        parts.append(
+            f"{int(omitted.sum())} samples of the grid not listed by their case (the most in "
+            f"case side={side}, load_kg={load_kg:g}, load_position_mm={load_pos:g}, line "
+            f"{cases[keys[worst]][2]}: {int(omitted[worst].sum())}, "
+            f"{mm_ranges(grid_mm[omitted[worst]])})"
         )
     if absent.any():
         parts.append(_absent_words(grid_mm, absent))
@@ -1124,7 +1287,7 @@ def _drop_unmeasured(
             "an unmeasured sample inside the span costs its case or everything beyond it): "
             + (
                 "measure the cases with unmeasured samples again, or leave them out"
-                if listed.any()
+                if listed.any() or omitted.any()
                 else "measure every case at every position of the grid (a device that skips "
                 "a step: set it to the grid's step)"
             )
@@ -1158,6 +1321,11 @@ def unmeasured_note(data: CamberData) -> str | None:
     what = []
     if data.unmeasured_samples:
         what.append(f"{data.unmeasured_samples} unmeasured samples (no gap)")
+    if data.omitted_samples:
+        what.append(
+            f"{data.omitted_samples} sample{'s' if data.omitted_samples > 1 else ''} of the "
+            "grid not listed by their case (rows left out)"
+        )
     absent = data.absent_positions_mm
     if absent:
         what.append(
@@ -1252,8 +1420,9 @@ def unloaded_mask(data: CamberData) -> np.ndarray:
 
 
 def camber_csv_text(data: CamberData, *, decimals: int = 4) -> str:
-    """``data`` as the text of a neutral camber CSV, gaps rounded to ``decimals`` mm (the
-    unloaded profile, F = 0, is written with load_kg 0 and load_position_mm 0)."""
+    """``data`` as the text of a neutral camber CSV, gaps rounded to ``decimals`` mm, positions
+    to 1e-6 mm (the unloaded profile, F = 0, is written with load_kg 0 and load_position_mm
+    0)."""
     buf = io.StringIO()
     w = csv.writer(buf)
     w.writerow(CSV_COLUMNS)
@@ -1269,7 +1438,7 @@ def camber_csv_text(data: CamberData, *, decimals: int = 4) -> str:
                     data.sides[k],
                     f"{load_kg:g}",
                     f"{load_pos:g}",
-                    f"{x:g}",
+                    f"{x + 0.0:.6f}".rstrip("0").rstrip("."),  # 1e-6 mm: a 1/3 mm grid stays one
                     f"{g:.{decimals}f}",
                 ]
             )

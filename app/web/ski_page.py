@@ -84,6 +84,9 @@ def _unmeasured_note(metadata: dict) -> str | None:
     if not dropped and not left_out:
         return rounded[0].upper() + rounded[1:] if rounded else None
     why = f"{metadata.get('unmeasured_samples', '?')} samples of the file had no gap"
+    omitted = int(metadata.get("omitted_samples") or 0)
+    if omitted:
+        why += f", {omitted} samples of the grid were not listed by their case"
     if absent:
         plural = "s" if len(absent) > 1 else ""
         why += f" and {len(absent)} position{plural} of the grid ({mm_ranges(absent)}) none"

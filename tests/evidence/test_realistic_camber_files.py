@@ -19,6 +19,8 @@ REFUSED = {
     "off-grid-position": (422, "lies 0.12 mm off the uniform grid"),
     "one-column-per-case": (422, "look like one column of gaps per load case"),
     "workbook": (415, "save the sheet as CSV"),
+    "shifted-case": (422, "all cases must share one sampling grid"),
+    "sample-twice": (422, "is written twice (the line before lists it too)"),
 }
 
 

@@ -138,6 +138,17 @@ def test_positions_in_cm_are_refused_with_the_cm_hint(upload_csv):
     assert "position_mm and load_position_mm are in mm" in message
 
 
+@pytest.mark.parametrize(("factor", "unit"), [(25.4, "inches"), (1000.0, "m")])
+def test_positions_in_inches_or_m_are_refused_with_the_conversion(upload_csv, factor, unit):
+    header, rows = rows_of(upload_csv)
+    for r in rows:
+        r[3], r[4] = f"{float(r[3]) / factor:.6g}", f"{float(r[4]) / factor:.6g}"
+    message = refused("\n".join([header, *(",".join(r) for r in rows)]) + "\n")
+    assert message.startswith(f"file: positions look like {unit}: the measured span")
+    assert f"about 1/{factor:g} of length_mm 2000" in message
+    assert f"(multiply {unit} by {factor:g})" in message
+
+
 def test_a_span_under_80_percent_of_the_length_is_refused_with_the_numbers(upload_csv):
     header, rows = rows_of(upload_csv)
     half = [r for r in rows if -500 <= float(r[4]) <= 500]  # 1000 mm of 2000 mm
@@ -266,6 +277,55 @@ def test_headers_with_spaces_or_units_in_brackets_name_the_same_columns(upload_c
     b, _, fig_b = check("\n".join([header, *lines[1:]]) + "\n")
     assert fig_a == fig_b
     _same_data(a, b)
+
+
+@pytest.mark.parametrize(
+    "header",
+    [
+        "ski_id,side,Weight (kg),LoadPos(mm),Pos (mm),Height (mm)",
+        "ski_id,side,mass_kg,load_pos_mm,x [mm],clearance_mm",
+        "ski_id,side,F (kg),xF (mm),Distance (mm),Camber (mm)",
+    ],
+)
+def test_columns_named_another_way_with_their_unit_are_read_and_said(upload_csv, header):
+    neutral = upload_csv.decode()
+    lines = neutral.splitlines()
+    a, _, fig_a = check(neutral)
+    b, _, fig_b = check("\n".join([header, *lines[1:]]) + "\n")
+    _same_data(a, b)
+    cells = [c.strip().lower() for c in header.split(",")[2:]]
+    want = [f"{c!r} as {k}" for c, k in zip(cells, CSV_COLUMNS[2:], strict=True)]
+    assert list(b.renamed_columns) == fig_b["columns_renamed"] == want
+    assert fig_a["columns_renamed"] == []
+    assert "columns read by another name: " + ", ".join(want) in fig_b["notes"]
+
+
+def test_another_name_without_a_unit_is_refused_with_the_name_to_write(upload_csv):
+    lines = upload_csv.decode().splitlines()
+    header = lines[0].replace("gap_mm", "Gap").replace("position_mm", "Pos")
+    header = header.replace("load_Pos", "load_position_mm")  # only the sample position
+    message = refused("\n".join([header, *lines[1:]]) + "\n")
+    assert "missing position_mm, gap_mm" in message
+    assert "'pos' (no unit: name it position_mm if it is in mm)" in message
+    assert "'gap' (no unit: name it gap_mm if it is in mm)" in message
+    # another unit: the conversion, as for the column's own name
+    header = lines[0].replace("gap_mm", "Height (µm)")
+    message = refused("\n".join([header, *lines[1:]]) + "\n")
+    assert "'height (µm)' (gap is read in mm as gap_mm: divide µm by 1000 for mm)" in message
+
+
+def test_a_column_s_own_name_wins_over_another_name_of_it(upload_csv):
+    neutral = upload_csv.decode()
+    lines = neutral.splitlines()
+    extra = "\n".join([lines[0] + ",Height (mm)", *(line + ",12.5" for line in lines[1:])])
+    data, _, figures = check(extra + "\n")
+    _same_data(data, check(neutral)[0])
+    assert figures["columns_ignored"] == ["height (mm)"] and figures["columns_renamed"] == []
+    # two other names of one column: refused, both named
+    two = lines[0].replace("gap_mm", "Height (mm)") + ",Clearance (mm)"
+    rows = [line + ",12.5" for line in lines[1:]]
+    message = refused("\n".join([two, *rows]) + "\n")
+    assert "repeated gap_mm ('height (mm)', 'clearance (mm)')" in message
 
 
 @pytest.mark.parametrize(
@@ -426,6 +486,7 @@ def test_unmeasured_gaps_drop_their_positions_from_every_case_and_say_so(upload_
     assert figures["unmeasured"] == {
         "choice": "drop",
         "samples": len(where),
+        "samples_not_listed": 0,
         "positions_dropped_mm": list(data.dropped_positions_mm),
         "measured_samples_set_aside": 7 * cases - len(where),
         "positions_absent_mm": [],
@@ -525,6 +586,64 @@ def test_positions_absent_from_every_case_are_unmeasured_samples(upload_csv):
     message = refused(text)
     assert f"absent from every case ({x_mm[n // 2]:g} mm)" in message
     assert "measure every case at every position of the grid" in message
+
+
+def _case_rows(csv_bytes: bytes) -> tuple[str, dict]:
+    header, rows = rows_of(csv_bytes)
+    cases: dict = {}
+    for r in rows:
+        cases.setdefault(tuple(r[1:4]), []).append(r)
+    return header, cases
+
+
+def _joined(header: str, cases: dict) -> str:
+    return "\n".join([header, *(",".join(r) for rows in cases.values() for r in rows)]) + "\n"
+
+
+def test_rows_a_case_leaves_out_are_its_unmeasured_samples(upload_csv):
+    """A device that started a pass late lists fewer rows in that case: the rows it leaves out
+    of the others' grid are unmeasured samples (near an end: the positions go; inside the span:
+    the case goes), said in the answer; unmeasured=refuse refuses them, naming the case."""
+    plain, _, _ = check(upload_csv)
+    header, cases = _case_rows(upload_csv)
+    keys = list(cases)
+    late = {k: rows[2:] if i == 3 else rows for i, (k, rows) in enumerate(cases.items())}
+    data, _, figures = check(_joined(header, late))
+    np.testing.assert_array_equal(data.positions_m, plain.positions_m[2:])
+    np.testing.assert_array_equal(data.profiles_m, plain.profiles_m[:, 2:])
+    assert data.omitted_samples == figures["unmeasured"]["samples_not_listed"] == 2
+    assert figures["unmeasured"]["positions_dropped_mm"] == list(plain.positions_m[:2] * 1e3)
+    assert any("2 samples of the grid not listed by their case" in t for t in figures["notes"])
+    message = refused(_joined(header, late), unmeasured="refuse")
+    assert "does not list 2 of the positions other cases list" in message
+    assert message.startswith(f"line {2 + sum(len(cases[k]) for k in keys[:3])}: case ")
+    # a pass at twice the step: rows left out inside the span cost the case
+    header, coarse = _case_rows(_one_more_load(upload_csv))
+    coarse[keys[3]] = coarse[keys[3]][::2]
+    data, _, figures = check(_joined(header, coarse))
+    side, load, at = keys[3]
+    assert data.dropped_cases == (
+        f"side={side}, load_kg={load}, load_position_mm={at} "
+        f"(line {2 + sum(len(cases[k]) for k in keys[:3])})",
+    )
+    assert figures["unmeasured"]["samples_not_listed"] == len(cases[keys[3]]) // 2
+
+
+def test_a_case_off_the_others_grid_or_of_a_few_rows_is_refused_naming_it(upload_csv):
+    header, cases = _case_rows(upload_csv)
+    keys = list(cases)
+    shifted = dict(cases)
+    shifted[keys[4]] = [[*r[:4], f"{float(r[4]) + 2:g}", r[5]] for r in cases[keys[4]]]
+    message = refused(_joined(header, shifted))
+    assert "all cases must share one sampling grid" in message
+    assert f"load_kg={float(keys[4][1]):g}, load_position_mm={float(keys[4][2]):g}" in message
+    typo = dict(cases)
+    row = cases[keys[4]][100]
+    typo[keys[4]] = [r for r in cases[keys[4]] if r is not row]
+    typo[("mean", keys[4][1], "1000")] = [[*row[:3], "1000", *row[4:]]]
+    message = refused(_joined(header, typo))
+    assert "load_position_mm=1000 has 1 positions" in message
+    assert "a case of a few rows: check its load_kg and load_position_mm" in message
 
 
 def _one_more_load(csv_bytes: bytes) -> bytes:
