@@ -168,6 +168,11 @@ def variants() -> dict[str, tuple[str, str, str]]:
         "ski.csv",
         text(ragged),
     )
+    v["device-notes"] = (
+        "the device's notes before the header, without '#' (Device: …, Ski: …, Date: …)",
+        "ski.csv",
+        "Device: SkiFlex 3000\nSki: example\nDate: 2026-12-08\n\n" + text(rows),
+    )
     v["other-header-names"] = (
         "the columns named Weight (kg), LoadPos(mm), Pos (mm), Height (mm)",
         "ski.csv",

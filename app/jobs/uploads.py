@@ -826,6 +826,8 @@ def check_ski_upload(
         "columns_not_in_file": list(camber_data.defaulted_columns),
         # named columns the reader does not read (a device's time stamp, temperature)
         "columns_ignored": list(camber_data.ignored_columns),
+        # a device's lines before the header, read past
+        "lines_before_header": list(camber_data.preamble_lines),
         # columns read by another name of theirs ("'pos (mm)' as position_mm")
         "columns_renamed": list(camber_data.renamed_columns),
         # samples without a gap and the positions dropped for them (unmeasured=drop)
@@ -861,6 +863,14 @@ def _upload_notes(camber_data, spacing_mm: float, n_cases: int) -> list[str]:
         notes.append(
             f"loads read in {camber_data.load_unit_in_file} as kg (the weight of one kg: the "
             "same numbers)"
+        )
+    if camber_data.preamble_lines:
+        n = len(camber_data.preamble_lines)
+        shown = ", ".join(repr(t) for t in camber_data.preamble_lines[:3])
+        notes.append(
+            f"{n} line{'s' if n > 1 else ''} before the header read past (not camber data): "
+            + shown
+            + (f" and {n - 3} more" if n > 3 else "")
         )
     if camber_data.renamed_columns:
         notes.append("columns read by another name: " + ", ".join(camber_data.renamed_columns))

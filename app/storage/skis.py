@@ -114,6 +114,9 @@ class CamberData:
     renamed_columns : tuple of str
         Columns read by another name of theirs (:data:`COLUMN_SYNONYMS`), as ``"'pos (mm)' as
         position_mm"``.
+    preamble_lines : tuple of str
+        Lines before the header that are neither the header nor comments (a device's notes:
+        ``Ski: …``, ``Date; …``), read past (:data:`MAX_PREAMBLE_LINES` at most).
     unmeasured_samples : int
         Samples the CSV gave no gap (:data:`UNMEASURED_TOKENS`: empty, ``NaN``, ``-`` …).
     dropped_positions_mm : tuple of float
@@ -151,6 +154,7 @@ class CamberData:
     defaulted_columns: tuple[str, ...] = ()
     ignored_columns: tuple[str, ...] = ()
     renamed_columns: tuple[str, ...] = ()
+    preamble_lines: tuple[str, ...] = ()
     unmeasured_samples: int = 0
     dropped_positions_mm: tuple[float, ...] = ()
     dropped_measured_samples: int = 0
@@ -342,6 +346,33 @@ UNLOADED_LOAD_KG = 0.0
 #: file already accepted (the ski job, the command line) is read without caps
 MAX_CAMBER_CASES = 2000
 MAX_CAMBER_ROWS = 600_000
+
+
+#: lines before the header read past at most (a device's notes, without ``#``): the header
+#: must come before the first data row and within this many lines
+MAX_PREAMBLE_LINES = 50
+
+
+def _numbers_in(cells: list[str]) -> int:
+    """How many cells read as numbers (either decimal mark): a data row has several, a
+    device's note before the header one at most."""
+    count = 0
+    for c in cells:
+        try:
+            float(c.strip().replace(",", "."))
+            count += 1
+        except ValueError:
+            pass
+    return count
+
+
+def _header_score(cells: list[str]) -> int:
+    """How many cells name one of :data:`CSV_COLUMNS` in some unit or by another name of
+    theirs: the line most like a header among a device's lines before it."""
+    return sum(
+        _split_unit(_synonym_key(_column_key(c))[0])[0] in (*_COLUMN_UNITS, "ski_id", "side")
+        for c in cells
+    )
 
 
 def _split_header(line: str, sep: str | None = None) -> tuple[str, list[str]]:
@@ -735,10 +766,14 @@ def read_camber_csv(
         )
     lines = _lines(source)
     header_line, sep_line = 0, None
+    refusal: tuple[int, InputError] | None = None  # the likeliest header's refusal
+    preamble: list[str] = []  # a device's lines before the header (not camber data)
     while True:
         first = next(lines, None)
         header_line += 1
         if first is None:
+            if refusal is not None:
+                raise refusal[1]
             where = "empty file" if header_line == 1 else "no header line after the comments"
             raise InputError(f"line 1: {where}, expected header " + ",".join(CSV_COLUMNS))
         text = first.lstrip("\ufeff").rstrip("\r\n")
@@ -748,9 +783,19 @@ def read_camber_csv(
         if hint and sep_line is None:
             sep_line = hint.group(1)  # a spreadsheet's separator line ("sep=;")
             continue
-        break
-    sep, cells = _split_header(first, sep_line)
-    header = _header_columns(cells, header_line)
+        sep, cells = _split_header(first, sep_line)
+        try:
+            header = _header_columns(cells, header_line)
+            break
+        except InputError as exc:
+            # a device's lines before the header ("Ski: …", "Date; …"): read past while no
+            # data row comes; else the first line's refusal
+            score = _header_score(cells)
+            if refusal is None or score >= refusal[0] > 0 or (score and not refusal[0]):
+                refusal = (score, exc)  # the line naming most columns (the last of equals)
+            if len(preamble) >= MAX_PREAMBLE_LINES or _numbers_in(cells) >= 3:
+                raise refusal[1] from None
+            preamble.append(text.strip())
     idx, ignored = header.idx, header.ignored
     readable = set(idx) | set(ignored)  # a value elsewhere has no column name
     if default_ski_id is None:
@@ -968,6 +1013,7 @@ def read_camber_csv(
         read_descending=order < 0,
         load_unit_in_file=header.load_unit,
         renamed_columns=header.renamed,
+        preamble_lines=tuple(preamble),
         defaulted_columns=defaulted,
         ignored_columns=tuple(cells[k] for k in ignored),
         unmeasured_samples=n_unmeasured,

@@ -779,6 +779,23 @@ def test_comment_lines_and_a_separator_line_are_read_past_with_the_file_s_line_n
     assert refused("# only a comment\n").startswith("line 1: no header line after the comments")
 
 
+def test_a_device_s_lines_before_the_header_are_read_past_and_said(upload_csv):
+    neutral = upload_csv.decode()
+    notes = "Device: SkiFlex 3000\nSki; Fischer Speedmax 3D\nDate: 2026-12-01\n\n"
+    data, _, figures = check(notes + neutral)
+    _same_data(data, check(neutral)[0])
+    said = ["Device: SkiFlex 3000", "Ski; Fischer Speedmax 3D", "Date: 2026-12-01"]
+    assert list(data.preamble_lines) == figures["lines_before_header"] == said
+    assert figures["notes"][0].startswith("3 lines before the header read past (not camber")
+    # a misspelt header after them: its own refusal, with its line
+    message = refused(notes + neutral.replace("gap_mm", "gap_mn", 1))
+    assert message.startswith("line 5: header must name the columns")
+    assert "missing gap_mm; other column(s) 'gap_mn'" in message
+    # no header before the data: the first line's refusal, read no further
+    message = refused("\n".join(neutral.splitlines()[1:]) + "\n")
+    assert message.startswith("line 1: header must name the columns")
+
+
 @pytest.mark.parametrize(
     ("units", "refusal"),
     [
