@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import codecs
 import csv
+import difflib
 import io
 import json
 import os
@@ -366,6 +367,13 @@ def _numbers_in(cells: list[str]) -> int:
     return count
 
 
+def _did_you_mean(key: str, missing: list[str]) -> str:
+    """A missing column whose name ``key`` is a near miss of (a typo: ``postion_mm``), as a
+    hint; '' when none is close."""
+    close = difflib.get_close_matches(key, missing, n=1, cutoff=0.8) if key else []
+    return f" (did you mean {close[0]}?)" if close else ""
+
+
 def _header_score(cells: list[str]) -> int:
     """How many cells name one of :data:`CSV_COLUMNS` in some unit or by another name of
     theirs: the line most like a header among a device's lines before it."""
@@ -543,8 +551,10 @@ def _header_columns(cells: list[str], lineno: int = 1) -> _Header:
     named = [r if n != r and column(n) in own else n for n, r in zip(named, raw, strict=True)]
     keys = [column(k) for k in named]
     expected = ",".join(CSV_COLUMNS)
+    missing = [c for c in CSV_COLUMNS if c not in keys and c not in OPTIONAL_CSV_COLUMNS]
     unknown = [
-        (repr(c) if c else "'(empty)'") + (_unit_hint(k) or _synonym_key(r)[1])
+        (repr(c) if c else "'(empty)'")
+        + (_unit_hint(k) or _synonym_key(r)[1] or _did_you_mean(k, missing))
         for c, k, r in zip(cells, keys, raw, strict=True)
         if k not in CSV_COLUMNS
     ]
@@ -552,7 +562,6 @@ def _header_columns(cells: list[str], lineno: int = 1) -> _Header:
         unknown[0] += (
             " (the first column, a row index as pandas' to_csv writes it without index=False?)"
         )
-    missing = [c for c in CSV_COLUMNS if c not in keys and c not in OPTIONAL_CSV_COLUMNS]
     doubled = sorted({k for k in keys if k in CSV_COLUMNS and keys.count(k) > 1})
     unnamed = [i + 1 for i, c in enumerate(cells) if not c]
     problems = []
@@ -832,7 +841,14 @@ def read_camber_csv(
                 + _sampling_hint(cases)
             )
         if len(row) < width:
-            raise InputError(f"line {lineno}: expected {len(CSV_COLUMNS)} columns, got {len(row)}")
+            note = (
+                ": a note among the rows? start it with # (a comment) or remove it"
+                if _numbers_in(row) < 2
+                else ""
+            )
+            raise InputError(
+                f"line {lineno}: expected {len(CSV_COLUMNS)} columns, got {len(row)}{note}"
+            )
         extra = [k + 1 for k in range(len(row)) if k not in readable and row[k].strip()]
         if extra:
             raise InputError(

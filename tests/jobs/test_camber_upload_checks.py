@@ -242,7 +242,10 @@ def test_spreadsheet_problems_are_named(upload_csv):
     # ... but named when a needed column is missing (a misspelt one, say)
     misspelt = extra.replace("gap_mm", "gap_mn", 1)
     message = refused(misspelt)
-    assert "missing gap_mm; other column(s) 'gap_mn', 'temp_c' (remove or rename them)" in message
+    assert (
+        "missing gap_mm; other column(s) 'gap_mn' (did you mean gap_mm?), 'temp_c' (remove"
+        in message
+    )
     # a value under no name is refused
     unnamed = "\n".join([lines[0] + ",", *(line + ",-5" for line in lines[1:])]) + "\n"
     assert "a value in column 7, which has no name in the header" in refused(unnamed)

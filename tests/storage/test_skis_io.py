@@ -61,7 +61,8 @@ def test_read_good_csv():
         (_csv(["s1,top,40,-160,0,0.1"]), r"line 2: side must be left, right or mean"),
         (_csv(["s1,mean,40,-160,1600,0.1"]), r"line 2: position_mm must be within"),
         (_csv([GOOD[0], "s2,mean,40,-160,0,0.1"]), r"line 3: ski_id 's2' differs"),
-        (_csv(["s1,mean,40,-160,0"]), r"line 2: expected 6 columns"),
+        (_csv(["s1,mean,40,-160,0"]), r"line 2: expected 6 columns, got 5$"),
+        (_csv([*GOOD, "End of measurement"]), r"line 8: expected 6 columns, got 1: a note among"),
     ],
 )
 def test_csv_errors_are_precise(text, match):
