@@ -74,9 +74,9 @@ def post_ski(
     unmeasured: Annotated[
         Literal["drop", "refuse"],
         Form(
-            description="samples without a gap (empty, NaN): drop their positions from every "
-            "case, or their cases, whichever sets aside fewer samples (recorded), or refuse "
-            "the file"
+            description="samples without a gap (empty, NaN; a row a case leaves out of the "
+            "grid the other cases list): drop their positions from every case, or their "
+            "cases, whichever sets aside fewer samples (recorded), or refuse the file"
         ),
     ] = "drop",
 ) -> JSONResponse:

@@ -180,7 +180,8 @@ SKI_UPLOAD_FIELDS = (
         "unmeasured",
         "Unmeasured samples",
         "select",
-        "samples without a gap (an empty cell, NaN, -, #N/A): near the tip or tail their "
+        "samples without a gap (an empty cell, NaN, -, #N/A; a row a case leaves out of the "
+        "positions the other cases list): near the tip or tail their "
         "positions are dropped from every case, inside the span their case is left out, "
         "whichever sets aside fewer samples (default; nothing is filled in; recorded with the "
         "ski), or the file is refused",
