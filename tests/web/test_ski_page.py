@@ -582,3 +582,19 @@ def catalogue_positions_mm(client) -> np.ndarray:
     """Demo ski A's measured positions [mm] (the catalogue the client serves)."""
     ski = client.app.state.catalogue.skis["ski-a"]
     return ski.record.measurements.positions_m * 1e3
+
+
+def test_the_ski_page_s_note_counts_rows_a_case_left_out():
+    """Rows a case left out of the grid the others list are unmeasured samples: the ski page's
+    note says how many beside those without a gap (app.storage.skis, omitted_samples)."""
+    from skisnow.app.web.ski_page import _unmeasured_note
+
+    metadata = {
+        "unmeasured_samples": "0",
+        "omitted_samples": "14",
+        "positions_dropped_mm": "[-970.0, -965.0]",
+    }
+    note = _unmeasured_note(metadata)
+    assert note.startswith("0 samples of the file had no gap, 14 samples of the grid were not")
+    assert "the 2 positions outside the stretch kept (-970 … -965 mm) were dropped" in note
+    assert "were not listed" not in _unmeasured_note({**metadata, "omitted_samples": "0"})
