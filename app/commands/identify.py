@@ -70,9 +70,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _say_unmeasured(data) -> None:
-    """On stderr: the positions reading the CSV dropped for unmeasured samples and positions
-    written rounded read as their grid, if any."""
+def _say_reading_notes(data) -> None:
+    """On stderr: how the CSV was read where not the neutral format's way, if at all (a
+    device's lines before the header, columns named another way, positions written rounded,
+    samples unmeasured: :func:`app.storage.skis.reading_notes`)."""
     from skisnow.app.storage.skis import reading_notes
 
     for note in reading_notes(data):
@@ -88,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
         data, design = record.measurements, record.beam
     else:
         data, design = read_camber_csv(args.csv), None
-        _say_unmeasured(data)
+        _say_reading_notes(data)
     if args.store and not args.ski:
         raise InputError("--store needs --ski (a stored ski file)")
     if args.add_held_out_errors:

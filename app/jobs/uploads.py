@@ -864,16 +864,6 @@ def _upload_notes(camber_data, spacing_mm: float, n_cases: int) -> list[str]:
             f"loads read in {camber_data.load_unit_in_file} as kg (the weight of one kg: the "
             "same numbers)"
         )
-    if camber_data.preamble_lines:
-        n = len(camber_data.preamble_lines)
-        shown = ", ".join(repr(t) for t in camber_data.preamble_lines[:3])
-        notes.append(
-            f"{n} line{'s' if n > 1 else ''} before the header read past (not camber data): "
-            + shown
-            + (f" and {n - 3} more" if n > 3 else "")
-        )
-    if camber_data.renamed_columns:
-        notes.append("columns read by another name: " + ", ".join(camber_data.renamed_columns))
     for item in camber_data.defaulted_columns:
         column, value = item.split("=", 1)
         notes.append(f"no {column} column: {column} {value}")

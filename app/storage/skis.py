@@ -1424,10 +1424,21 @@ def dropped_words(dropped_mm, left_out, *, past: bool = False) -> list[str]:
 
 
 def reading_notes(data: CamberData) -> list[str]:
-    """What reading ``data`` did beyond the neutral format's way with its positions and gaps,
-    in words: positions written rounded read as their grid (:func:`grid_note`), positions
-    dropped for unmeasured or absent samples (:func:`unmeasured_note`)."""
-    return [n for n in (grid_note(data), unmeasured_note(data)) if n]
+    """What reading ``data`` did beyond the neutral format's way, in words: a device's lines
+    before the header read past, columns read by another name, positions written rounded read
+    as their grid (:func:`grid_note`), positions dropped for unmeasured or absent samples
+    (:func:`unmeasured_note`)."""
+    notes = []
+    if data.preamble_lines:
+        n = len(data.preamble_lines)
+        notes.append(
+            f"{n} line{'s' if n > 1 else ''} before the header read past (not camber data): "
+            + ", ".join(repr(t) for t in data.preamble_lines[:3])
+            + (f" and {n - 3} more" if n > 3 else "")
+        )
+    if data.renamed_columns:
+        notes.append("columns read by another name: " + ", ".join(data.renamed_columns))
+    return notes + [n for n in (grid_note(data), unmeasured_note(data)) if n]
 
 
 def grid_note(data: CamberData) -> str | None:

@@ -174,7 +174,7 @@ def test_add_held_out_errors_needs_a_stored_identification(tmp_path, camber_csv,
 def test_the_command_line_says_which_positions_unmeasured_samples_dropped(capsys):
     """A CSV given to ``skisnow identify --csv`` with unmeasured gaps is read as the upload
     reads it (their positions dropped from every case), and the command says so on stderr."""
-    from skisnow.app.commands.identify import _say_unmeasured
+    from skisnow.app.commands.identify import _say_reading_notes
 
     rows = [
         f"s,mean,{kg},-160,{x},{'NaN' if (kg, x) == (60, 20) else f'{0.1 + x / 1000:.4f}'}"
@@ -185,6 +185,26 @@ def test_the_command_line_says_which_positions_unmeasured_samples_dropped(capsys
         "ski_id,side,load_kg,load_position_mm,position_mm,gap_mm\n" + "\n".join(rows)
     )
     assert data.dropped_positions_mm == (20.0,)
-    _say_unmeasured(data)
+    _say_reading_notes(data)
     err = capsys.readouterr().err
     assert err.startswith("note: 1 unmeasured samples (no gap)") and "(20 mm)" in err
+
+
+def test_the_command_line_says_how_the_file_s_header_was_read(capsys):
+    """A device's notes before the header and columns named another way are read by
+    ``skisnow identify-ski --csv`` as by the upload, and said on stderr."""
+    from skisnow.app.commands.identify import _say_reading_notes
+
+    rows = [f"s,mean,{kg},-160,{x},{0.1 + x / 1000:.4f}" for kg in (40, 60) for x in range(-20, 21)]
+    data = read_camber_csv(
+        "Device: SkiFlex 3000\nski_id,side,Weight (kg),LoadPos(mm),Pos (mm),Height (mm)\n"
+        + "\n".join(rows)
+    )
+    assert data.profiles_m.shape == (2, 41)
+    _say_reading_notes(data)
+    err = capsys.readouterr().err.splitlines()
+    assert (
+        err[0]
+        == "note: 1 line before the header read past (not camber data): 'Device: SkiFlex 3000'"
+    )
+    assert err[1].startswith("note: columns read by another name: 'weight (kg)' as load_kg, ")
