@@ -77,11 +77,16 @@ NAMES = ["stiff", "soft"]
 #: minimum than before: EI in the middle of the ski 23 % off, one light held-out load's area
 #: 7.75 % off (164 N at 0 mm, 200 MPa, rigid). Before #26 (the identification's own draw):
 #: 84 of 85 areas within 3 %. Measured 2026-11-26 in the full suite; stays on the list (#26)
+#: Not strict since 2026-12-08: which basin the fit ends in depends on the machine's floating
+#: point (the BLAS and FFT kernels a CPU gets). On that day's AMD EPYC machine the same code
+#: and data found the global fit and both tests passed (XPASS), where the machines before
+#: ended in the other basin every time
 _SOFT_BASIN_XFAIL = pytest.mark.xfail(
-    strict=True,
-    reason="'soft' from the job's 94 kept cases ends in another local minimum: EI mid-ski 23 % "
-    "off, one light-load area 7.75 % off (164 N, 0 mm) although profiles are within 0.3 um "
-    "(#26: a start that finds the global fit on every design is still open)",
+    strict=False,
+    reason="'soft' from the job's 94 kept cases ends in another local minimum on some machines "
+    "(on others the global fit): EI mid-ski 23 % off, one light-load area 7.75 % off (164 N, "
+    "0 mm) although profiles are within 0.3 um (#26: a start that finds the global fit on "
+    "every design is still open)",
 )
 #: 'stiff' passes its area test since #26 (several starts; it was a strict xfail before)
 AREA_NAMES = ["stiff", pytest.param("soft", marks=_SOFT_BASIN_XFAIL)]
