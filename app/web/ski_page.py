@@ -86,7 +86,8 @@ def _unmeasured_note(metadata: dict) -> str | None:
     why = f"{metadata.get('unmeasured_samples', '?')} samples of the file had no gap"
     omitted = int(metadata.get("omitted_samples") or 0)
     if omitted:
-        why += f", {omitted} samples of the grid were not listed by their case"
+        listed = f"{omitted} samples of the grid were not listed by their case"
+        why = listed if metadata.get("unmeasured_samples") == "0" else f"{why}, {listed}"
     if absent:
         plural = "s" if len(absent) > 1 else ""
         why += f" and {len(absent)} position{plural} of the grid ({mm_ranges(absent)}) none"

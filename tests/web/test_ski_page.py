@@ -595,6 +595,8 @@ def test_the_ski_page_s_note_counts_rows_a_case_left_out():
         "positions_dropped_mm": "[-970.0, -965.0]",
     }
     note = _unmeasured_note(metadata)
-    assert note.startswith("0 samples of the file had no gap, 14 samples of the grid were not")
+    assert note.startswith("14 samples of the grid were not listed by their case: the 2 ")
     assert "the 2 positions outside the stretch kept (-970 … -965 mm) were dropped" in note
+    both = _unmeasured_note({**metadata, "unmeasured_samples": "3"})
+    assert both.startswith("3 samples of the file had no gap, 14 samples of the grid were not")
     assert "were not listed" not in _unmeasured_note({**metadata, "omitted_samples": "0"})
